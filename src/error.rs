@@ -1,0 +1,101 @@
+//! The one error type of the library.
+//!
+//! Every failure a user can meet carries what a person needs to fix it: the file, the field (or the
+//! line and column for TOML syntax), and the reason. The library never prints or exits; the CLI maps
+//! [`Error::kind`] to an exit code.
+
+use std::path::PathBuf;
+
+/// What kind of failure an [`Error`] is, for callers that react differently (the CLI's exit codes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorKind {
+    /// The input files or the command line are wrong: fix them and run again.
+    BadInput,
+    /// The input is well formed but the design cannot be met (an infeasible fit, a numerical
+    /// method that did not converge).
+    NotMet,
+}
+
+/// Errors of springfit.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A TOML or CSV file does not parse, or has an unknown field or a value of the wrong type.
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Parse {
+        path: PathBuf,
+        /// 1-based line of the problem (0 when the parser gave no position).
+        line: usize,
+        /// 1-based column of the problem (0 when the parser gave no position).
+        column: usize,
+        message: String,
+    },
+    /// A value parsed but is not acceptable (a negative mass, an equilibrium outside the region).
+    #[error("{}: field `{field}`: {reason}", path.display())]
+    Invalid {
+        path: PathBuf,
+        field: String,
+        reason: String,
+    },
+    /// Settings or arguments given through the API or the command line are not acceptable.
+    #[error("setting `{field}`: {reason}")]
+    Setting { field: String, reason: String },
+    /// The fit's constraints cannot all be met.
+    #[error("the fit is infeasible: {constraint}: {reason}")]
+    Infeasible { constraint: String, reason: String },
+    /// A numerical method failed (integrator step-size underflow, a singular mass matrix, a log
+    /// map that did not converge, a solver that stopped early).
+    #[error("{context}: {reason}")]
+    Numerical { context: String, reason: String },
+    /// A plot could not be drawn or written.
+    #[error("plot {}: {reason}", path.display())]
+    Plot { path: PathBuf, reason: String },
+}
+
+impl Error {
+    /// Classifies the error for the caller.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Io { .. }
+            | Error::Parse { .. }
+            | Error::Invalid { .. }
+            | Error::Setting { .. }
+            | Error::Plot { .. } => ErrorKind::BadInput,
+            Error::Infeasible { .. } | Error::Numerical { .. } => ErrorKind::NotMet,
+        }
+    }
+
+    /// Shorthand for an [`Error::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// Shorthand for an [`Error::Invalid`].
+    pub fn invalid(path: impl Into<PathBuf>, field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Invalid {
+            path: path.into(),
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Shorthand for an [`Error::Numerical`].
+    pub fn numerical(context: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Numerical {
+            context: context.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// The library's result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

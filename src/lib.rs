@@ -1,0 +1,9 @@
+//! # springfit
+//!
+//! Designs spring layouts for planar robot arms so that *strict normal modes are everywhere*:
+//! released from rest anywhere in a region, the arm swings through its equilibrium on a fixed
+//! geodesic of the inertia metric. See `DESIGN.md` for the maths and the words used here.
+
+pub mod error;
+
+pub use error::{Error, ErrorKind, Result};
