@@ -80,7 +80,11 @@ impl Error {
     }
 
     /// Shorthand for an [`Error::Invalid`].
-    pub fn invalid(path: impl Into<PathBuf>, field: impl Into<String>, reason: impl Into<String>) -> Self {
+    pub fn invalid(
+        path: impl Into<PathBuf>,
+        field: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> Self {
         Error::Invalid {
             path: path.into(),
             field: field.into(),

@@ -7,3 +7,6 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod linalg;
+pub mod model;
+pub mod ode;

@@ -1,0 +1,76 @@
+//! Small dense helpers for the hot loops.
+//!
+//! The geodesic and simulation right-hand sides factor an n × n mass matrix (n is 2 or 3 in
+//! practice) millions of times. nalgebra's decompositions take owned matrices and would allocate
+//! on every call; these routines work in place on column-major slices and allocate nothing.
+
+/// Cholesky factorisation A = L Lᵀ in place (column-major, lower triangle used and overwritten;
+/// the strict upper triangle is left untouched). Returns `false` if A is not positive definite.
+pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j + n * j];
+        for k in 0..j {
+            d -= a[j + n * k] * a[j + n * k];
+        }
+        if d <= 0.0 || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j + n * j] = d;
+        for i in j + 1..n {
+            let mut s = a[i + n * j];
+            for k in 0..j {
+                s -= a[i + n * k] * a[j + n * k];
+            }
+            a[i + n * j] = s / d;
+        }
+    }
+    true
+}
+
+/// Solves L Lᵀ x = b in place given the factor from [`cholesky_in_place`].
+pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[i + n * k] * b[k];
+        }
+        b[i] = s / l[i + n * i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= l[k + n * i] * b[k];
+        }
+        b[i] = s / l[i + n * i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn solves_spd_systems() {
+        let b = DMatrix::from_row_slice(3, 3, &[2.0, 0.3, -0.1, 0.3, 1.5, 0.2, -0.1, 0.2, 0.9]);
+        let a = &b * b.transpose() + DMatrix::identity(3, 3);
+        let x_true = DVector::from_vec(vec![0.5, -1.25, 2.0]);
+        let rhs = &a * &x_true;
+        let mut f = a.as_slice().to_vec();
+        assert!(cholesky_in_place(&mut f, 3));
+        let mut x = rhs.as_slice().to_vec();
+        cholesky_solve(&f, 3, &mut x);
+        for i in 0..3 {
+            assert!((x[i] - x_true[i]).abs() < 1e-13);
+        }
+    }
+
+    #[test]
+    fn rejects_indefinite_matrices() {
+        let mut a = vec![1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_in_place(&mut a, 2));
+        let mut nan = vec![f64::NAN, 0.0, 0.0, 1.0];
+        assert!(!cholesky_in_place(&mut nan, 2));
+    }
+}

@@ -1,0 +1,712 @@
+//! The robot model: a planar serial chain of revolute links.
+//!
+//! Coordinates follow `DESIGN.md`: q₁ is the absolute angle of link 1 (from the x axis), qᵢ for
+//! i > 1 the angle of link i relative to link i−1. The absolute angle of link i is therefore
+//! φᵢ = q₁ + … + qᵢ.
+//!
+//! # Why the mass matrix is stored as cosine terms
+//!
+//! The centre of mass of link i moves with ∂cᵢ/∂qⱼ = Σ_{t=j..i} r_{it} e⊥(φ_t), where r_{it} is
+//! the length of link t (t < i) or the centre-of-mass distance of link i (t = i). Every entry of
+//! M(q) = Σ mᵢ Jᵢᵀ Jᵢ + Iᵢ J_ωᵢᵀ J_ωᵢ is then a constant plus a sum of cos(φ_b − φ_a) over link
+//! pairs a < b, and φ_b − φ_a = q_{a+1} + … + q_b is a sum of joint angles. [`Chain::new`]
+//! precomputes one coefficient matrix per pair, so M, ∂M/∂q, the Coriolis term and everything the
+//! variational equations need are exact closed forms evaluated with one `sin_cos` per link pair and
+//! no allocation: the geodesic integrator calls them millions of times.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::linalg;
+
+/// One rigid link of the chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Link {
+    /// Mass in kg.
+    pub mass: f64,
+    /// Length from this joint to the next, in m.
+    pub length: f64,
+    /// Distance of the centre of mass from this link's joint along the link, in m.
+    pub com: f64,
+    /// Moment of inertia about the centre of mass, in kg·m².
+    pub inertia: f64,
+}
+
+/// One link pair (a < b) and its share of the mass matrix: `M += w · cos(ψ)`,
+/// ψ = φ_b − φ_a = Σ_{p=a+1..=b} q_p (0-based indices).
+#[derive(Debug, Clone)]
+struct PairTerm {
+    a: usize,
+    b: usize,
+    /// Column-major n × n coefficient matrix (symmetric).
+    w: Vec<f64>,
+}
+
+impl PairTerm {
+    /// ∂ψ/∂q_p: 1 for a < p ≤ b, else 0.
+    #[inline]
+    fn touches(&self, p: usize) -> bool {
+        p > self.a && p <= self.b
+    }
+
+    #[inline]
+    fn angle(&self, q: &[f64]) -> f64 {
+        q[self.a + 1..=self.b].iter().sum()
+    }
+}
+
+/// A planar serial chain of n ≥ 1 revolute links with optional gravity.
+#[derive(Debug, Clone)]
+pub struct Chain {
+    links: Vec<Link>,
+    gravity: [f64; 2],
+    /// Constant part of M (column-major n × n).
+    m_const: Vec<f64>,
+    pairs: Vec<PairTerm>,
+    /// G_t = Σ_{i ≥ t} m_i r_{it}: the mass-weighted lever of link t's direction in U_g.
+    gravity_lever: Vec<f64>,
+}
+
+/// Scratch space for the allocation-free evaluations ([`Chain::geodesic_rhs`] and friends).
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    /// Mass matrix, then its Cholesky factor (column-major).
+    m: Vec<f64>,
+    sin: Vec<f64>,
+    cos: Vec<f64>,
+    h: Vec<f64>,
+    a: Vec<f64>,
+    tmp: Vec<f64>,
+    /// n × n scratch matrices.
+    da_dq: Vec<f64>,
+    da_dqd: Vec<f64>,
+}
+
+impl Workspace {
+    fn new(n: usize, pairs: usize) -> Self {
+        Workspace {
+            m: vec![0.0; n * n],
+            sin: vec![0.0; pairs],
+            cos: vec![0.0; pairs],
+            h: vec![0.0; n],
+            a: vec![0.0; n],
+            tmp: vec![0.0; n],
+            da_dq: vec![0.0; n * n],
+            da_dqd: vec![0.0; n * n],
+        }
+    }
+}
+
+impl Chain {
+    /// Builds the chain. `gravity` is the gravity vector in the plane of the arm in m/s²
+    /// (e.g. `[0.0, -9.81]`); the caller validates that masses and lengths are positive.
+    pub fn new(links: Vec<Link>, gravity: [f64; 2]) -> Self {
+        let n = links.len();
+        let r = |i: usize, t: usize| {
+            if t < i { links[t].length } else { links[i].com }
+        };
+        let mut m_const = vec![0.0; n * n];
+        let mut pairs: Vec<PairTerm> = Vec::new();
+        for a in 0..n {
+            for b in a + 1..n {
+                pairs.push(PairTerm {
+                    a,
+                    b,
+                    w: vec![0.0; n * n],
+                });
+            }
+        }
+        let pair_index = |a: usize, b: usize| -> usize {
+            // Index of (a, b), a < b, in the order generated above.
+            a * n - a * (a + 1) / 2 + (b - a - 1)
+        };
+        for (i, link) in links.iter().enumerate() {
+            for j in 0..=i {
+                for k in 0..=i {
+                    m_const[j + n * k] += link.inertia;
+                    for t in j..=i {
+                        for u in k..=i {
+                            let c = link.mass * r(i, t) * r(i, u);
+                            if t == u {
+                                m_const[j + n * k] += c;
+                            } else {
+                                let (a, b) = if t < u { (t, u) } else { (u, t) };
+                                pairs[pair_index(a, b)].w[j + n * k] += c;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let gravity_lever = (0..n)
+            .map(|t| (t..n).map(|i| links[i].mass * r(i, t)).sum())
+            .collect();
+        Chain {
+            links,
+            gravity,
+            m_const,
+            pairs,
+            gravity_lever,
+        }
+    }
+
+    /// The paper's double pendulum (appendix, no gravity): m = 1 kg, l = 2 m, centre of mass at
+    /// 1 m, I = 1 kg·m² for both links. M₁₁ = 8 + 4 cos q₂, M₁₂ = 2 + 2 cos q₂, M₂₂ = 2.
+    pub fn paper_double_pendulum() -> Self {
+        let link = Link {
+            mass: 1.0,
+            length: 2.0,
+            com: 1.0,
+            inertia: 1.0,
+        };
+        Chain::new(vec![link, link], [0.0, 0.0])
+    }
+
+    /// Number of joints n.
+    pub fn dof(&self) -> usize {
+        self.links.len()
+    }
+
+    /// The links, base first.
+    pub fn links(&self) -> &[Link] {
+        &self.links
+    }
+
+    /// The gravity vector in m/s².
+    pub fn gravity(&self) -> [f64; 2] {
+        self.gravity
+    }
+
+    /// Whether gravity acts (a non-zero gravity vector).
+    pub fn has_gravity(&self) -> bool {
+        self.gravity != [0.0, 0.0]
+    }
+
+    /// Scratch space sized for this chain.
+    pub fn workspace(&self) -> Workspace {
+        Workspace::new(self.dof(), self.pairs.len())
+    }
+
+    /// Absolute link angles φᵢ = q₁ + … + qᵢ.
+    pub fn link_angles(&self, q: &[f64]) -> Vec<f64> {
+        q.iter()
+            .scan(0.0, |acc, &qi| {
+                *acc += qi;
+                Some(*acc)
+            })
+            .collect()
+    }
+
+    /// Joint positions: the base (0, 0), each further joint, and the tip (n + 1 points).
+    pub fn joint_positions(&self, q: &[f64]) -> Vec<[f64; 2]> {
+        let mut p = [0.0, 0.0];
+        let mut out = vec![p];
+        for (link, phi) in self.links.iter().zip(self.link_angles(q)) {
+            p = [
+                p[0] + link.length * phi.cos(),
+                p[1] + link.length * phi.sin(),
+            ];
+            out.push(p);
+        }
+        out
+    }
+
+    /// Centre-of-mass positions of the links.
+    pub fn com_positions(&self, q: &[f64]) -> Vec<[f64; 2]> {
+        let joints = self.joint_positions(q);
+        self.links
+            .iter()
+            .zip(self.link_angles(q))
+            .zip(joints)
+            .map(|((link, phi), p)| [p[0] + link.com * phi.cos(), p[1] + link.com * phi.sin()])
+            .collect()
+    }
+
+    fn fill_trig(&self, q: &[f64], ws: &mut Workspace) {
+        for (k, pair) in self.pairs.iter().enumerate() {
+            let (s, c) = pair.angle(q).sin_cos();
+            ws.sin[k] = s;
+            ws.cos[k] = c;
+        }
+    }
+
+    fn fill_mass(&self, ws: &mut Workspace) {
+        ws.m.copy_from_slice(&self.m_const);
+        for (pair, &c) in self.pairs.iter().zip(&ws.cos) {
+            for (m, w) in ws.m.iter_mut().zip(&pair.w) {
+                *m += w * c;
+            }
+        }
+    }
+
+    /// The mass matrix M(q).
+    pub fn mass_matrix(&self, q: &DVector<f64>) -> DMatrix<f64> {
+        let n = self.dof();
+        let mut ws = self.workspace();
+        self.fill_trig(q.as_slice(), &mut ws);
+        self.fill_mass(&mut ws);
+        DMatrix::from_column_slice(n, n, &ws.m)
+    }
+
+    /// The partial derivatives ∂M/∂q_p, p = 1..n.
+    pub fn mass_matrix_derivatives(&self, q: &DVector<f64>) -> Vec<DMatrix<f64>> {
+        let n = self.dof();
+        let mut out = vec![DMatrix::zeros(n, n); n];
+        for pair in &self.pairs {
+            let s = pair.angle(q.as_slice()).sin();
+            let dw = DMatrix::from_column_slice(n, n, &pair.w) * (-s);
+            for (p, d) in out.iter_mut().enumerate() {
+                if pair.touches(p) {
+                    *d += &dw;
+                }
+            }
+        }
+        out
+    }
+
+    /// Christoffel symbols of the first kind, Γ_{ijk} = ½(∂_k M_ij + ∂_j M_ik − ∂_i M_jk),
+    /// returned as `gamma[i][(j, k)]`.
+    pub fn christoffel(&self, q: &DVector<f64>) -> Vec<DMatrix<f64>> {
+        let n = self.dof();
+        let dm = self.mass_matrix_derivatives(q);
+        (0..n)
+            .map(|i| {
+                DMatrix::from_fn(n, n, |j, k| {
+                    0.5 * (dm[k][(i, j)] + dm[j][(i, k)] - dm[i][(j, k)])
+                })
+            })
+            .collect()
+    }
+
+    /// The Coriolis/centrifugal vector h(q, q̇) = C(q, q̇) q̇ = Ṁ q̇ − ½ ∂(q̇ᵀ M q̇)/∂q.
+    pub fn coriolis(&self, q: &DVector<f64>, qd: &DVector<f64>) -> DVector<f64> {
+        let mut ws = self.workspace();
+        self.fill_trig(q.as_slice(), &mut ws);
+        let mut h = vec![0.0; self.dof()];
+        self.coriolis_into(qd.as_slice(), &ws.sin, &mut h);
+        DVector::from_vec(h)
+    }
+
+    /// h = Σ_pairs −sin ψ (ψ̇ w q̇ − ½ (q̇ᵀ w q̇) d), d the indicator of the joints in ψ.
+    fn coriolis_into(&self, qd: &[f64], sin: &[f64], h: &mut [f64]) {
+        let n = self.dof();
+        h.fill(0.0);
+        for (pair, &s) in self.pairs.iter().zip(sin) {
+            let psi_dot = pair.angle(qd);
+            let mut quad = 0.0;
+            for j in 0..n {
+                let wq: f64 = (0..n).map(|k| pair.w[j + n * k] * qd[k]).sum();
+                quad += qd[j] * wq;
+                h[j] -= s * psi_dot * wq;
+            }
+            for (p, hp) in h.iter_mut().enumerate() {
+                if pair.touches(p) {
+                    *hp += 0.5 * s * quad;
+                }
+            }
+        }
+    }
+
+    /// Gravity potential U_g(q) = Σ mᵢ g·cᵢ(q) in J.
+    pub fn gravity_potential(&self, q: &[f64]) -> f64 {
+        let [gx, gy] = self.gravity;
+        self.link_angles(q)
+            .iter()
+            .zip(&self.gravity_lever)
+            .map(|(phi, lever)| lever * (gx * phi.cos() + gy * phi.sin()))
+            .sum()
+    }
+
+    /// ∂U_g/∂q in N·m.
+    pub fn gravity_gradient(&self, q: &[f64]) -> DVector<f64> {
+        let n = self.dof();
+        let [gx, gy] = self.gravity;
+        let phi = self.link_angles(q);
+        // ∂U_g/∂q_p = Σ_{t ≥ p} G_t g·(−sin φ_t, cos φ_t): a suffix sum.
+        let mut out = DVector::zeros(n);
+        let mut acc = 0.0;
+        for t in (0..n).rev() {
+            acc += self.gravity_lever[t] * (-gx * phi[t].sin() + gy * phi[t].cos());
+            out[t] = acc;
+        }
+        out
+    }
+
+    /// ∂²U_g/∂q² in N·m/rad.
+    pub fn gravity_hessian(&self, q: &[f64]) -> DMatrix<f64> {
+        let n = self.dof();
+        let [gx, gy] = self.gravity;
+        let phi = self.link_angles(q);
+        let mut suffix = vec![0.0; n + 1];
+        for t in (0..n).rev() {
+            suffix[t] =
+                suffix[t + 1] - self.gravity_lever[t] * (gx * phi[t].cos() + gy * phi[t].sin());
+        }
+        DMatrix::from_fn(n, n, |p, r| suffix[p.max(r)])
+    }
+
+    /// Kinetic energy ½ q̇ᵀ M q̇.
+    pub fn kinetic_energy(&self, q: &DVector<f64>, qd: &DVector<f64>) -> f64 {
+        0.5 * qd.dot(&(self.mass_matrix(q) * qd))
+    }
+
+    /// Right-hand side of the geodesic equation as a first-order system, y = (q, q̇):
+    /// ẏ = (q̇, −M⁻¹ h(q, q̇)). Allocation-free; fails only if M is not positive definite.
+    pub fn geodesic_rhs(&self, ws: &mut Workspace, y: &[f64], dy: &mut [f64]) -> bool {
+        let n = self.dof();
+        let (q, qd) = y[..2 * n].split_at(n);
+        self.fill_trig(q, ws);
+        self.fill_mass(ws);
+        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        if !linalg::cholesky_in_place(&mut ws.m, n) {
+            return false;
+        }
+        dy[..n].copy_from_slice(qd);
+        for (d, h) in dy[n..2 * n].iter_mut().zip(&ws.h) {
+            *d = -h;
+        }
+        linalg::cholesky_solve(&ws.m, n, &mut dy[n..2 * n]);
+        true
+    }
+
+    /// Right-hand side of the geodesic equation with its variational (Jacobi-field) equations:
+    /// y = (q, q̇, Φ_q, Φ_q̇) where Φ = ∂(q, q̇)/∂(initial velocity) is stored column-major
+    /// (n × n each). Φ̇_q = Φ_q̇, Φ̇_q̇ = ∂a/∂q Φ_q + ∂a/∂q̇ Φ_q̇ with a = −M⁻¹h.
+    pub fn variational_rhs(&self, ws: &mut Workspace, y: &[f64], dy: &mut [f64]) -> bool {
+        let n = self.dof();
+        if !self.geodesic_rhs(ws, y, dy) {
+            return false;
+        }
+        let qd = &y[n..2 * n];
+        ws.a.copy_from_slice(&dy[n..2 * n]);
+        // With d the joint indicator of a pair, s = sin ψ, c = cos ψ, ψ̇ = dᵀq̇, Q = q̇ᵀwq̇:
+        //   M ∂a/∂q  = Σ [ s (w a) + c (ψ̇ w q̇ − ½ Q d) ] dᵀ
+        //   M ∂a/∂q̇ = Σ s (w q̇ dᵀ + ψ̇ w − d (w q̇)ᵀ)
+        ws.da_dq.fill(0.0);
+        ws.da_dqd.fill(0.0);
+        for ((pair, &s), &c) in self.pairs.iter().zip(&ws.sin).zip(&ws.cos) {
+            let psi_dot = pair.angle(qd);
+            let w = &pair.w;
+            let mut quad = 0.0;
+            for j in 0..n {
+                let wq: f64 = (0..n).map(|k| w[j + n * k] * qd[k]).sum();
+                let wa: f64 = (0..n).map(|k| w[j + n * k] * ws.a[k]).sum();
+                ws.tmp[j] = wq;
+                quad += qd[j] * wq;
+                // Column vector for ∂a/∂q before the dᵀ: s·wa + c·ψ̇·wq (the −½Qd part below).
+                let col = s * wa + c * psi_dot * wq;
+                for p in (pair.a + 1)..=pair.b {
+                    ws.da_dq[j + n * p] += col;
+                    ws.da_dqd[j + n * p] += s * wq;
+                }
+                for k in 0..n {
+                    ws.da_dqd[j + n * k] += s * psi_dot * w[j + n * k];
+                }
+            }
+            for j in (pair.a + 1)..=pair.b {
+                for p in (pair.a + 1)..=pair.b {
+                    ws.da_dq[j + n * p] -= 0.5 * c * quad;
+                }
+                for k in 0..n {
+                    ws.da_dqd[j + n * k] -= s * ws.tmp[k];
+                }
+            }
+        }
+        // Solve M X = (…) column by column with the factor left in ws.m.
+        for col in 0..n {
+            linalg::cholesky_solve(&ws.m, n, &mut ws.da_dq[n * col..n * (col + 1)]);
+            linalg::cholesky_solve(&ws.m, n, &mut ws.da_dqd[n * col..n * (col + 1)]);
+        }
+        let off_q = 2 * n;
+        let off_qd = 2 * n + n * n;
+        // Φ̇_q = Φ_q̇
+        dy[off_q..off_qd].copy_from_slice(&y[off_qd..off_qd + n * n]);
+        // Φ̇_q̇ = ∂a/∂q Φ_q + ∂a/∂q̇ Φ_q̇
+        for col in 0..n {
+            for row in 0..n {
+                let mut acc = 0.0;
+                for k in 0..n {
+                    acc += ws.da_dq[row + n * k] * y[off_q + k + n * col]
+                        + ws.da_dqd[row + n * k] * y[off_qd + k + n * col];
+                }
+                dy[off_qd + row + n * col] = acc;
+            }
+        }
+        true
+    }
+
+    /// Joint accelerations of the full dynamics M q̈ + h(q, q̇) = τ for a given total torque τ
+    /// (spring, gravity, damping and control torques already summed by the caller).
+    pub fn acceleration(
+        &self,
+        ws: &mut Workspace,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> bool {
+        let n = self.dof();
+        self.fill_trig(q, ws);
+        self.fill_mass(ws);
+        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        if !linalg::cholesky_in_place(&mut ws.m, n) {
+            return false;
+        }
+        for ((a, t), h) in qdd.iter_mut().zip(tau).zip(&ws.h) {
+            *a = t - h;
+        }
+        linalg::cholesky_solve(&ws.m, n, qdd);
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn three_link() -> Chain {
+        Chain::new(
+            vec![
+                Link {
+                    mass: 1.3,
+                    length: 1.1,
+                    com: 0.4,
+                    inertia: 0.2,
+                },
+                Link {
+                    mass: 0.7,
+                    length: 0.9,
+                    com: 0.5,
+                    inertia: 0.05,
+                },
+                Link {
+                    mass: 0.4,
+                    length: 0.6,
+                    com: 0.35,
+                    inertia: 0.02,
+                },
+            ],
+            [0.3, -9.81],
+        )
+    }
+
+    /// Deterministic pseudo-random numbers in [-1, 1] for test points (no RNG crate needed).
+    fn points(n: usize, count: usize) -> Vec<DVector<f64>> {
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        (0..count)
+            .map(|_| {
+                DVector::from_fn(n, |_, _| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state as f64 / u64::MAX as f64) * 2.0 - 1.0
+                })
+            })
+            .collect()
+    }
+
+    /// M from its definition Σ mᵢ JᵢᵀJᵢ + Iᵢ J_ωᵢᵀJ_ωᵢ with finite-difference Jacobians of the
+    /// centre-of-mass positions: an independent check of the cosine-term construction.
+    fn mass_matrix_by_definition(chain: &Chain, q: &DVector<f64>) -> DMatrix<f64> {
+        let n = chain.dof();
+        let h = 1e-6;
+        let mut m = DMatrix::zeros(n, n);
+        for (i, link) in chain.links().iter().enumerate() {
+            let mut j = DMatrix::zeros(2, n);
+            for p in 0..n {
+                let mut qp = q.clone();
+                let mut qm = q.clone();
+                qp[p] += h;
+                qm[p] -= h;
+                let cp = chain.com_positions(qp.as_slice())[i];
+                let cm = chain.com_positions(qm.as_slice())[i];
+                j[(0, p)] = (cp[0] - cm[0]) / (2.0 * h);
+                j[(1, p)] = (cp[1] - cm[1]) / (2.0 * h);
+            }
+            let jw = DMatrix::from_fn(1, n, |_, p| if p <= i { 1.0 } else { 0.0 });
+            m += j.transpose() * &j * link.mass + jw.transpose() * &jw * link.inertia;
+        }
+        m
+    }
+
+    #[test]
+    fn paper_mass_matrix_closed_form() {
+        let chain = Chain::paper_double_pendulum();
+        for q in points(2, 20) {
+            let q = q * PI;
+            let m = chain.mass_matrix(&q);
+            let c = q[1].cos();
+            assert!((m[(0, 0)] - (8.0 + 4.0 * c)).abs() < 1e-12);
+            assert!((m[(0, 1)] - (2.0 + 2.0 * c)).abs() < 1e-12);
+            assert!((m[(1, 0)] - (2.0 + 2.0 * c)).abs() < 1e-12);
+            assert!((m[(1, 1)] - 2.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn mass_matrix_matches_definition_and_is_spd() {
+        for chain in [Chain::paper_double_pendulum(), three_link()] {
+            let n = chain.dof();
+            for q in points(n, 30) {
+                let q = q * 3.0;
+                let m = chain.mass_matrix(&q);
+                let reference = mass_matrix_by_definition(&chain, &q);
+                assert!((&m - &reference).amax() < 1e-7, "{m} vs {reference}");
+                assert!((&m - m.transpose()).amax() < 1e-14);
+                let eig = m.clone().symmetric_eigen();
+                assert!(eig.eigenvalues.min() > 0.0, "not positive definite at {q}");
+            }
+        }
+    }
+
+    #[test]
+    fn mass_matrix_derivatives_match_finite_differences() {
+        let chain = three_link();
+        let h = 1e-6;
+        for q in points(3, 10) {
+            let dm = chain.mass_matrix_derivatives(&q);
+            for p in 0..3 {
+                let mut qp = q.clone();
+                let mut qm = q.clone();
+                qp[p] += h;
+                qm[p] -= h;
+                let fd = (chain.mass_matrix(&qp) - chain.mass_matrix(&qm)) / (2.0 * h);
+                assert!((&dm[p] - fd).amax() < 1e-8);
+            }
+        }
+    }
+
+    #[test]
+    fn christoffel_symbols_match_finite_differences_of_m() {
+        let chain = three_link();
+        let h = 1e-6;
+        for q in points(3, 10) {
+            let gamma = chain.christoffel(&q);
+            // Finite-difference ∂M/∂q, then the textbook formula.
+            let dm: Vec<DMatrix<f64>> = (0..3)
+                .map(|p| {
+                    let mut qp = q.clone();
+                    let mut qm = q.clone();
+                    qp[p] += h;
+                    qm[p] -= h;
+                    (chain.mass_matrix(&qp) - chain.mass_matrix(&qm)) / (2.0 * h)
+                })
+                .collect();
+            for i in 0..3 {
+                for j in 0..3 {
+                    for k in 0..3 {
+                        let fd = 0.5 * (dm[k][(i, j)] + dm[j][(i, k)] - dm[i][(j, k)]);
+                        assert!((gamma[i][(j, k)] - fd).abs() < 1e-8);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coriolis_equals_christoffel_contraction_and_skew_property() {
+        let chain = three_link();
+        let pts = points(3, 20);
+        for pair in pts.chunks(2) {
+            let (q, qd) = (&pair[0], &pair[1]);
+            let gamma = chain.christoffel(q);
+            let h = chain.coriolis(q, qd);
+            for i in 0..3 {
+                let expected = qd.dot(&(&gamma[i] * qd));
+                assert!((h[i] - expected).abs() < 1e-12);
+            }
+            // Energy identity: q̇ᵀ h = ½ q̇ᵀ Ṁ q̇ (Ṁ − 2C skew-symmetric along q̇).
+            let dm = chain.mass_matrix_derivatives(q);
+            let mdot = (0..3).fold(DMatrix::zeros(3, 3), |acc, p| acc + &dm[p] * qd[p]);
+            assert!((qd.dot(&h) - 0.5 * qd.dot(&(mdot * qd))).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn gravity_gradient_and_hessian_match_finite_differences() {
+        let chain = three_link();
+        let h = 1e-6;
+        for q in points(3, 10) {
+            let g = chain.gravity_gradient(q.as_slice());
+            let hess = chain.gravity_hessian(q.as_slice());
+            for p in 0..3 {
+                let mut qp = q.clone();
+                let mut qm = q.clone();
+                qp[p] += h;
+                qm[p] -= h;
+                let fd = (chain.gravity_potential(qp.as_slice())
+                    - chain.gravity_potential(qm.as_slice()))
+                    / (2.0 * h);
+                assert!((g[p] - fd).abs() < 1e-7);
+                let fdg = (chain.gravity_gradient(qp.as_slice())
+                    - chain.gravity_gradient(qm.as_slice()))
+                    / (2.0 * h);
+                for r in 0..3 {
+                    assert!((hess[(r, p)] - fdg[r]).abs() < 1e-7);
+                }
+            }
+        }
+        // Potential against the definition Σ mᵢ g·cᵢ.
+        let q = [0.3, -0.7, 1.1];
+        let direct: f64 = chain
+            .links()
+            .iter()
+            .zip(chain.com_positions(&q))
+            .map(|(l, c)| l.mass * (0.3 * c[0] - 9.81 * c[1]))
+            .sum();
+        assert!((chain.gravity_potential(&q) - direct).abs() < 1e-12);
+    }
+
+    #[test]
+    fn variational_rhs_matches_finite_differences_of_geodesic_rhs() {
+        let chain = three_link();
+        let n = 3;
+        let mut ws = chain.workspace();
+        let pts = points(3, 8);
+        for pair in pts.chunks(2) {
+            let (q, qd) = (&pair[0], &pair[1]);
+            // Φ = random but fixed.
+            let phi: Vec<f64> = (0..2 * n * n)
+                .map(|i| ((i * 7 % 11) as f64 - 5.0) / 5.0)
+                .collect();
+            let mut y: Vec<f64> = q.iter().chain(qd.iter()).copied().collect();
+            y.extend_from_slice(&phi);
+            let mut dy = vec![0.0; y.len()];
+            assert!(chain.variational_rhs(&mut ws, &y, &mut dy));
+            // Directional derivative of a(q, q̇) along each column of Φ by finite differences.
+            let h = 1e-6;
+            for col in 0..n {
+                let dq: Vec<f64> = (0..n).map(|r| phi[r + n * col]).collect();
+                let dqd: Vec<f64> = (0..n).map(|r| phi[n * n + r + n * col]).collect();
+                let shifted = |sign: f64| {
+                    let mut ys = vec![0.0; 2 * n];
+                    for r in 0..n {
+                        ys[r] = q[r] + sign * h * dq[r];
+                        ys[n + r] = qd[r] + sign * h * dqd[r];
+                    }
+                    let mut d = vec![0.0; 2 * n];
+                    let mut ws2 = chain.workspace();
+                    assert!(chain.geodesic_rhs(&mut ws2, &ys, &mut d));
+                    d
+                };
+                let (dp, dm) = (shifted(1.0), shifted(-1.0));
+                for r in 0..n {
+                    let fd = (dp[n + r] - dm[n + r]) / (2.0 * h);
+                    let an = dy[2 * n + n * n + r + n * col];
+                    assert!((fd - an).abs() < 1e-6, "row {r} col {col}: {fd} vs {an}");
+                    assert_eq!(dy[2 * n + r + n * col], dqd[r]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn forward_kinematics_of_the_paper_arm() {
+        let chain = Chain::paper_double_pendulum();
+        let p = chain.joint_positions(&[0.0, PI / 2.0]);
+        assert!((p[1][0] - 2.0).abs() < 1e-12 && p[1][1].abs() < 1e-12);
+        assert!((p[2][0] - 2.0).abs() < 1e-12 && (p[2][1] - 2.0).abs() < 1e-12);
+        let c = chain.com_positions(&[0.0, PI / 2.0]);
+        assert!((c[1][0] - 2.0).abs() < 1e-12 && (c[1][1] - 1.0).abs() < 1e-12);
+    }
+}
