@@ -7,6 +7,7 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod geodesic;
 pub mod linalg;
 pub mod model;
 pub mod ode;

@@ -149,6 +149,8 @@ pub struct Dopri5 {
     err_old: f64,
     steps: usize,
     rejected: usize,
+    /// Only the first `error_dim` components enter the local error estimate.
+    error_dim: usize,
     /// The previous attempt was rejected: the next accepted step may not grow (Hairer's rule,
     /// which avoids oscillating between rejection and over-long steps).
     last_rejected: bool,
@@ -173,7 +175,22 @@ impl Dopri5 {
             steps: 0,
             rejected: 0,
             last_rejected: false,
+            error_dim: dim,
         }
+    }
+
+    /// Restricts step-size control to the first `k` components. The remaining components ride
+    /// along on the same steps: used for the Jacobi fields, which are linear in themselves and
+    /// driven by the geodesic, so steps that resolve the geodesic resolve them to the same order
+    /// (as sensitivity solvers such as CVODES do with error control on sensitivities off).
+    pub fn with_error_components(mut self, k: usize) -> Self {
+        self.error_dim = k.clamp(1, self.dim);
+        self
+    }
+
+    /// Changes the largest step (0: no limit) for the next integrations.
+    pub fn set_max_step(&mut self, h: f64) {
+        self.settings.max_step = h;
     }
 
     /// Current time.
@@ -352,13 +369,14 @@ impl Dopri5 {
                 return Err(OdeFailure::RhsFailed { t });
             }
             let mut err = 0.0;
-            for i in 0..n {
+            let ne = self.error_dim;
+            for i in 0..ne {
                 let e = h
                     * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
                 let sc = self.settings.atol + self.settings.rtol * y[i].abs().max(yn[i].abs());
                 err += (e / sc) * (e / sc);
             }
-            let err = (err / n as f64).sqrt();
+            let err = (err / ne as f64).sqrt();
             if !err.is_finite() {
                 // A blown-up stage: retry with a much smaller step.
                 self.rejected += 1;
