@@ -20,11 +20,11 @@ pub enum ErrorKind {
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        /// The operating system's reason (kept out of the error chain so it prints once).
+        cause: std::io::Error,
     },
     /// A TOML or CSV file does not parse, or has an unknown field or a value of the wrong type.
     #[error("{}:{line}:{column}: {message}", path.display())]
@@ -72,10 +72,10 @@ impl Error {
     }
 
     /// Shorthand for an [`Error::Io`].
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, cause: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            cause,
         }
     }
 

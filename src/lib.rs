@@ -11,3 +11,5 @@ pub mod geodesic;
 pub mod linalg;
 pub mod model;
 pub mod ode;
+pub mod design;
+pub mod units;

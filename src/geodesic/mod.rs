@@ -173,9 +173,11 @@ impl Geodesic {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct GeodesicSettings {
-    /// Directions in the fan of the `geodesics` command and of the region check. More directions
-    /// resolve crossings of geodesics more finely.
+    /// Directions in the fan of the `geodesics` command (its CSV and plots).
     pub directions: usize,
+    /// Directions in the region check's fan. More directions resolve crossings of geodesics more
+    /// finely.
+    pub check_directions: usize,
     /// Samples per geodesic across the region (the sample spacing is the region's extent in arc
     /// length divided by this).
     pub samples: usize,
@@ -191,7 +193,8 @@ pub struct GeodesicSettings {
 impl Default for GeodesicSettings {
     fn default() -> Self {
         GeodesicSettings {
-            directions: 720,
+            directions: 360,
+            check_directions: 720,
             samples: 100,
             probe_factor: 2.0,
             max_arc: 1000.0,
@@ -205,6 +208,9 @@ impl GeodesicSettings {
     pub fn validate(&self) -> Result<(), (String, String)> {
         if self.directions < 8 {
             return Err(("geodesics.directions".into(), "must be at least 8".into()));
+        }
+        if self.check_directions < 8 {
+            return Err(("geodesics.check_directions".into(), "must be at least 8".into()));
         }
         if self.samples < 4 {
             return Err(("geodesics.samples".into(), "must be at least 4".into()));

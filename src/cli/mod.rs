@@ -1,0 +1,88 @@
+//! Argument parsing and command dispatch. Arguments are parsed and validated here, then each
+//! command resolves them into a run of library calls; printing and progress bars live here only.
+
+mod check;
+// mod geodesics;
+mod progress;
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use springfit::{Error, ErrorKind};
+
+/// The design used when none is given: the paper's double pendulum.
+pub const DEFAULT_DESIGN: &str = "designs/double_pendulum.toml";
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "springfit",
+    version,
+    about = "Designs spring layouts for robot arms so that strict normal modes fill a region",
+    long_about = "springfit designs spring layouts for planar robot arms: released from rest anywhere in a \
+region, the arm swings back and forth through its equilibrium on a fixed geodesic of its inertia \
+metric (a strict normal mode). It fits non-negative stiffnesses of real elastic elements from a \
+spring catalogue and checks the design before it is built.",
+    after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\nExit codes: 0 ok, 1 the design could not be met, 2 bad input or usage."
+)]
+pub struct Cli {
+    /// Print nothing but errors (no progress bars, no summaries).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    /// Worker threads for parallel steps (default: all cores). Results do not depend on it.
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Validate a design and report its robot, equilibrium and region.
+    #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
+    Check {
+        /// Design file (TOML).
+        design: PathBuf,
+    },
+    /// Trace the fan of geodesics from the equilibrium, check the region and plot them.
+    #[command(after_help = "Example:\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\n\
+Writes geodesics.csv (direction, s, q…, q̇…), region.json (valid, largest_radius, reason) and\n\
+geodesics.svg/.png (the fan in joint space and the same motions in Cartesian space).")]
+    Geodesics {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Output folder (default: out/<design name>/geodesics). Replaced atomically.
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Parses the command line and runs the command.
+pub fn run() -> Result<()> {
+    let cli = Cli::parse();
+    if let Some(t) = cli.threads {
+        if t == 0 {
+            return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
+    }
+    let progress = progress::Progress::new(cli.quiet);
+    match cli.command {
+        Command::Check { design } => check::run(&design, &progress),
+        Command::Geodesics { .. } => unimplemented!(),
+    }
+}
+
+/// The error as one line: the library's message with its causes.
+pub fn describe(e: &anyhow::Error) -> String {
+    format!("{e:#}")
+}
+
+/// Exit code: 2 for bad input or usage, 1 when the design cannot be met.
+pub fn exit_code(e: &anyhow::Error) -> u8 {
+    match e.downcast_ref::<Error>().map(Error::kind) {
+        Some(ErrorKind::NotMet) => 1,
+        _ => 2,
+    }
+}

@@ -1,0 +1,51 @@
+//! Progress reporting on stderr: a spinner per step that takes longer than a moment.
+
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Progress of a command: silent with `--quiet` or when stderr is not a terminal.
+pub struct Progress {
+    quiet: bool,
+}
+
+/// One running step; finishing it clears the spinner.
+pub struct Step {
+    bar: Option<ProgressBar>,
+    started: Instant,
+}
+
+impl Progress {
+    pub fn new(quiet: bool) -> Self {
+        Progress { quiet }
+    }
+
+    /// Starts a step with a message.
+    pub fn step(&self, message: &str) -> Step {
+        let bar = (!self.quiet).then(|| {
+            let bar = ProgressBar::new_spinner();
+            bar.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("static template"));
+            bar.set_message(message.to_string());
+            bar.enable_steady_tick(Duration::from_millis(120));
+            bar
+        });
+        Step { bar, started: Instant::now() }
+    }
+
+    /// Prints a line of results to stdout unless quiet.
+    pub fn say(&self, line: impl AsRef<str>) {
+        if !self.quiet {
+            println!("{}", line.as_ref());
+        }
+    }
+}
+
+impl Step {
+    /// Ends the step and returns its duration in seconds.
+    pub fn finish(self) -> f64 {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+        self.started.elapsed().as_secs_f64()
+    }
+}

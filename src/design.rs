@@ -1,0 +1,437 @@
+//! Design files: the robot, the equilibrium, the region and the settings of every step.
+//!
+//! A design is a TOML file read in two steps: [`DesignFile`] mirrors the file exactly
+//! (`deny_unknown_fields` everywhere, so a misspelt key is an error, not a silent default), then
+//! [`Design::from_file`] validates it and resolves it into the types the library computes with.
+//! Every error names the file and the field (or the line and column for TOML syntax).
+//!
+//! ```toml
+//! name = "double_pendulum"
+//! catalog = "../catalogs/paper.toml"   # relative to this file
+//!
+//! [robot]
+//! gravity = [0.0, 0.0]                 # m/s², in the plane of the arm
+//! [[robot.links]]
+//! mass = 1.0                           # kg
+//! length = 2.0                         # m
+//! com = 1.0                            # m from the joint
+//! inertia = 1.0                        # kg·m² about the centre of mass
+//! [[robot.links]]
+//! mass = 1.0
+//! length = 2.0
+//! com = 1.0
+//! inertia = 1.0
+//!
+//! [equilibrium]
+//! q = [0.0, "pi/2"]                    # rad
+//!
+//! [region]
+//! kind = "ball"                        # or "box" with lower = [...], upper = [...]
+//! radius = 2.0
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::DVector;
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::geodesic::region::check_region;
+use crate::geodesic::{GeodesicSettings, Region, RegionReport};
+use crate::model::{Chain, Link};
+use crate::units::Angle;
+
+/// The design file as written.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DesignFile {
+    /// Name used for output folders and reports (default: the file name without extension).
+    pub name: Option<String>,
+    /// One line about the design.
+    pub description: Option<String>,
+    /// The spring catalogue, relative to the design file.
+    pub catalog: Option<String>,
+    /// The arm.
+    pub robot: RobotSpec,
+    /// Where the springs are relaxed.
+    pub equilibrium: EquilibriumSpec,
+    /// Where strict modes are wanted.
+    pub region: Option<RegionSpec>,
+    /// Geodesic, log-map and region-check settings.
+    pub geodesics: GeodesicSettings,
+}
+
+/// `[robot]`: links from the base outwards and gravity.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotSpec {
+    /// Gravity in the plane of the arm, m/s² (default: none, an arm moving in a horizontal plane).
+    pub gravity: [f64; 2],
+    /// The links, base first.
+    pub links: Vec<LinkSpec>,
+}
+
+/// `[[robot.links]]`.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSpec {
+    /// kg, > 0.
+    pub mass: f64,
+    /// m, > 0.
+    pub length: f64,
+    /// Distance of the centre of mass from the joint, m (0 ≤ com ≤ length is typical but a
+    /// counterweighted link may have its centre of mass behind the joint: any finite value).
+    pub com: f64,
+    /// Moment of inertia about the centre of mass, kg·m², ≥ 0.
+    pub inertia: f64,
+}
+
+/// `[equilibrium]`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EquilibriumSpec {
+    /// Joint angles where the spring potential has its minimum, rad.
+    pub q: Vec<Angle>,
+}
+
+/// The kind of region.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RegionKind {
+    /// A geodesic ball r(q) ≤ radius.
+    Ball,
+    /// A box in joint angles.
+    Box,
+}
+
+/// `[region]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// `"ball"` or `"box"`.
+    pub kind: RegionKind,
+    /// Geodesic-ball radius (kind = "ball"), in metric arc length √(kg·m²)·rad.
+    pub radius: Option<f64>,
+    /// Lower corner of the box (kind = "box"), rad.
+    pub lower: Option<Vec<Angle>>,
+    /// Upper corner of the box (kind = "box"), rad.
+    pub upper: Option<Vec<Angle>>,
+}
+
+/// A validated design, ready to compute with.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// Where it was read from (for messages).
+    pub path: PathBuf,
+    /// Name for outputs.
+    pub name: String,
+    /// One line about it.
+    pub description: String,
+    /// Resolved catalogue path, if the design names one.
+    pub catalog: Option<PathBuf>,
+    /// The arm.
+    pub chain: Chain,
+    /// The equilibrium.
+    pub q_eq: DVector<f64>,
+    /// The region.
+    pub region: Region,
+    /// Geodesic settings.
+    pub geodesics: GeodesicSettings,
+    /// The file as written (for sections later steps read).
+    pub file: DesignFile,
+}
+
+/// Reads a file, naming it in the error.
+pub(crate) fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+}
+
+/// Parses TOML into `T`, turning the parser's byte span into a line and column.
+pub(crate) fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
+    toml::from_str(text).map_err(|e| {
+        let start = e.span().map(|span| span.start);
+        let (line, column) = start.map(|s| line_column(text, s)).unwrap_or((0, 0));
+        let message = e.message().trim().to_string();
+        let message = match start.and_then(|s| key_at(text, s)) {
+            Some(key) if !message.contains("unknown field") => format!("field `{key}`: {message}"),
+            _ => message,
+        };
+        Error::Parse { path: path.to_path_buf(), line, column, message }
+    })
+}
+
+/// The dotted key of the `key = value` line at a byte offset, with its table path
+/// (`robot.links[1].length`), so type errors name the field as validation errors do.
+pub(crate) fn key_at(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    let line_start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[line_start..].lines().next()?;
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    if key.is_empty() || key.starts_with('[') || key.starts_with('#') {
+        return None;
+    }
+    // The innermost table header above the line, with array-of-tables indices.
+    let mut table = String::new();
+    let mut counts: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+    for l in text[..line_start].lines() {
+        let l = l.trim();
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.split("]]").next()) {
+            let name = name.trim().to_string();
+            let c = counts.entry(name.clone()).or_insert(0);
+            table = format!("{name}[{c}]");
+            *c += 1;
+        } else if let Some(name) = l.strip_prefix('[').and_then(|r| r.split(']').next()) {
+            table = name.trim().to_string();
+        }
+    }
+    Some(if table.is_empty() { key.to_string() } else { format!("{table}.{key}") })
+}
+
+/// 1-based line and column of a byte offset.
+pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map(|l| l.chars().count()).unwrap_or(0) + 1;
+    (line, column)
+}
+
+impl Design {
+    /// Reads and validates a design file.
+    pub fn load(path: &Path) -> Result<Design> {
+        let text = read_text(path)?;
+        let file: DesignFile = parse_toml(path, &text)?;
+        Design::from_file(path, file)
+    }
+
+    /// Validates a parsed design file. `path` is used for messages and to resolve the catalogue.
+    pub fn from_file(path: &Path, file: DesignFile) -> Result<Design> {
+        let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+        let links = &file.robot.links;
+        if links.is_empty() {
+            return Err(invalid("robot.links", "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into()));
+        }
+        if links.len() > 8 {
+            return Err(invalid("robot.links", format!("{} links: springfit handles chains of up to 8 links", links.len())));
+        }
+        for (i, l) in links.iter().enumerate() {
+            let f = |name: &str| format!("robot.links[{i}].{name}");
+            let finite = |v: f64, name: &str| -> Result<()> {
+                if v.is_finite() { Ok(()) } else { Err(invalid(&f(name), format!("must be a finite number, got {v}"))) }
+            };
+            finite(l.mass, "mass")?;
+            finite(l.length, "length")?;
+            finite(l.com, "com")?;
+            finite(l.inertia, "inertia")?;
+            if l.mass <= 0.0 {
+                return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
+            }
+            if l.length <= 0.0 {
+                return Err(invalid(&f("length"), format!("must be positive (m), got {}", l.length)));
+            }
+            if l.inertia < 0.0 {
+                return Err(invalid(&f("inertia"), format!("must be ≥ 0 (kg·m²), got {}", l.inertia)));
+            }
+        }
+        for (k, g) in file.robot.gravity.iter().enumerate() {
+            if !g.is_finite() {
+                return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {g}")));
+            }
+        }
+        let n = links.len();
+        let chain = Chain::new(
+            links
+                .iter()
+                .map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia })
+                .collect(),
+            file.robot.gravity,
+        );
+        // A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
+        // outermost such link would make M singular.
+        let m = chain.mass_matrix(&DVector::zeros(n));
+        let scale = m.amax();
+        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
+            return Err(invalid("robot.links", "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis".into()));
+        }
+
+        let q = &file.equilibrium.q;
+        if q.len() != n {
+            return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
+        }
+        let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+
+        let spec = file
+            .region
+            .as_ref()
+            .ok_or_else(|| invalid("region", "missing: add [region] with kind = \"ball\" and radius, or kind = \"box\" with lower and upper".into()))?;
+        let region = match spec.kind {
+            RegionKind::Ball => {
+                if spec.lower.is_some() || spec.upper.is_some() {
+                    return Err(invalid("region", "lower/upper belong to kind = \"box\"; a ball has only radius".into()));
+                }
+                let r = spec.radius.ok_or_else(|| invalid("region.radius", "required for kind = \"ball\"".into()))?;
+                if !(r.is_finite() && r > 0.0) {
+                    return Err(invalid("region.radius", format!("must be positive, got {r}")));
+                }
+                Region::Ball { radius: r }
+            }
+            RegionKind::Box => {
+                if spec.radius.is_some() {
+                    return Err(invalid("region.radius", "belongs to kind = \"ball\"; a box has lower and upper".into()));
+                }
+                let get = |v: &Option<Vec<Angle>>, name: &str| -> Result<DVector<f64>> {
+                    let v = v.as_ref().ok_or_else(|| invalid(&format!("region.{name}"), "required for kind = \"box\"".into()))?;
+                    if v.len() != n {
+                        return Err(invalid(&format!("region.{name}"), format!("has {} angles but the robot has {n} links", v.len())));
+                    }
+                    Ok(DVector::from_iterator(n, v.iter().map(|a| a.0)))
+                };
+                let (lower, upper) = (get(&spec.lower, "lower")?, get(&spec.upper, "upper")?);
+                for i in 0..n {
+                    if lower[i] >= upper[i] {
+                        return Err(invalid(&format!("region.lower[{i}]"), format!("must be below region.upper[{i}] ({} ≥ {})", lower[i], upper[i])));
+                    }
+                    if !(lower[i] < q_eq[i] && q_eq[i] < upper[i]) {
+                        return Err(invalid(
+                            &format!("equilibrium.q[{i}]"),
+                            format!("{} lies outside the region: q{} must be strictly between {} and {}", q_eq[i], i + 1, lower[i], upper[i]),
+                        ));
+                    }
+                }
+                Region::Box { lower, upper }
+            }
+        };
+        file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+
+        let name = file
+            .name
+            .clone()
+            .unwrap_or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into()));
+        if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
+            return Err(invalid("name", format!("`{name}` cannot name an output folder")));
+        }
+        let catalog = file.catalog.as_ref().map(|c| path.parent().unwrap_or(Path::new(".")).join(c));
+        Ok(Design {
+            path: path.to_path_buf(),
+            name,
+            description: file.description.clone().unwrap_or_default(),
+            catalog,
+            chain,
+            q_eq,
+            region,
+            geodesics: file.geodesics,
+            file,
+        })
+    }
+
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.chain.dof()
+    }
+
+    /// Checks the region: where exp is one-to-one and the largest valid geodesic-ball radius.
+    pub fn region_report(&self) -> Result<RegionReport> {
+        check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics)
+    }
+
+    /// The region report, or an error naming the region field when the region is not valid.
+    pub fn valid_region(&self) -> Result<RegionReport> {
+        let report = self.region_report()?;
+        self.ensure_valid(&report)?;
+        Ok(report)
+    }
+
+    /// An error naming the region field when `report` says the region is not valid.
+    pub fn ensure_valid(&self, report: &RegionReport) -> Result<()> {
+        if report.valid {
+            return Ok(());
+        }
+        let field = match self.region {
+            Region::Ball { .. } => "region.radius",
+            Region::Box { .. } => "region",
+        };
+        Err(Error::invalid(&self.path, field, format!("the region is not valid: {}", report.reason)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PAPER: &str = r#"
+name = "t"
+[robot]
+[[robot.links]]
+mass = 1.0
+length = 2.0
+com = 1.0
+inertia = 1.0
+[[robot.links]]
+mass = 1.0
+length = 2.0
+com = 1.0
+inertia = 1.0
+[equilibrium]
+q = [0, "pi/2"]
+[region]
+kind = "ball"
+radius = 2.0
+"#;
+
+    fn load(text: &str) -> Result<Design> {
+        let path = Path::new("designs/test.toml");
+        let file: DesignFile = parse_toml(path, text)?;
+        Design::from_file(path, file)
+    }
+
+    #[test]
+    fn loads_the_paper_design() {
+        let d = load(PAPER).unwrap();
+        assert_eq!(d.dof(), 2);
+        assert!((d.q_eq[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(d.region, Region::Ball { radius: 2.0 });
+        let m = d.chain.mass_matrix(&d.q_eq);
+        assert!((m[(0, 0)] - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn errors_name_the_field_or_position() {
+        let cases: Vec<(String, &str)> = vec![
+            (PAPER.replace("mass = 1.0\nlength = 2.0\ncom = 1.0\ninertia = 1.0\n[equilibrium]", "mass = -1.0\nlength = 2.0\ncom = 1.0\ninertia = 1.0\n[equilibrium]"), "robot.links[1].mass"),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [0]"), "equilibrium.q"),
+            (PAPER.replace("radius = 2.0", "radius = 2.0\nfoo = 1"), "unknown field `foo`"),
+            (PAPER.replace("kind = \"ball\"\nradius = 2.0", "kind = \"box\"\nlower = [-1, 2]\nupper = [1, 3]"), "equilibrium.q[1]"),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [0, \"pie\"]"), "not an angle"),
+            (PAPER.replace("radius = 2.0", "radius = \"big\""), "test.toml:"),
+            (PAPER.replace("[equilibrium]", "[equilibrium"), "test.toml:"),
+            (PAPER.replace("radius = 2.0", "radius = nan"), "region.radius"),
+        ];
+        for (text, expected) in cases {
+            let err = load(&text).unwrap_err().to_string();
+            assert!(err.contains(expected), "expected `{expected}` in `{err}`");
+            assert!(err.contains("designs/test.toml"), "{err}");
+        }
+    }
+
+    #[test]
+    fn type_errors_name_the_field_with_its_table() {
+        let err = load(&PAPER.replacen("com = 1.0", "com = \"x\"", 2)).unwrap_err().to_string();
+        assert!(err.contains("field `robot.links[0].com`"), "{err}");
+        let text = PAPER.replace("com = 1.0\ninertia = 1.0\n[equilibrium]", "com = [1]\ninertia = 1.0\n[equilibrium]");
+        let err = load(&text).unwrap_err().to_string();
+        assert!(err.contains("field `robot.links[1].com`"), "{err}");
+    }
+
+    #[test]
+    fn line_and_column_of_syntax_errors() {
+        let err = load(&PAPER.replace("radius = 2.0", "radius = = 2.0")).unwrap_err();
+        match err {
+            Error::Parse { line, column, .. } => {
+                assert_eq!(line, 18);
+                assert!(column > 1);
+            }
+            e => panic!("{e}"),
+        }
+    }
+}

@@ -1,0 +1,98 @@
+//! Angles as users write them: a number of radians or a short expression with π.
+//!
+//! Design files are easier to read with `"pi/2"` than with `1.5707963267948966`. An [`Angle`]
+//! deserialises from a TOML number or from a string of the form `[sign][number][*]pi[/number]`
+//! or a plain number (`"pi/2"`, `"-pi/6"`, `"3*pi/4"`, `"2pi"`, `"0.5"`). Nothing else is
+//! accepted, so a typo is an error rather than a silent zero.
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// An angle in radians.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
+pub struct Angle(pub f64);
+
+impl Angle {
+    /// Parses `[sign][number][*]pi[/number]` or a plain number.
+    pub fn parse(text: &str) -> Result<f64, String> {
+        let t: String = text.chars().filter(|c| !c.is_whitespace()).collect::<String>().to_lowercase();
+        let bad = || format!("`{text}` is not an angle: write radians as a number or an expression like \"pi/2\", \"-3*pi/4\"");
+        if t.is_empty() {
+            return Err(bad());
+        }
+        let (sign, rest) = match t.strip_prefix('-') {
+            Some(r) => (-1.0, r),
+            None => (1.0, t.strip_prefix('+').unwrap_or(&t)),
+        };
+        let t = rest.replace('π', "pi");
+        let value = if let Some(pos) = t.find("pi") {
+            let (before, after) = (&t[..pos], &t[pos + 2..]);
+            let factor = match before.strip_suffix('*').unwrap_or(before) {
+                "" => 1.0,
+                f => f.parse::<f64>().map_err(|_| bad())?,
+            };
+            let divisor = match after {
+                "" => 1.0,
+                a => a.strip_prefix('/').ok_or_else(bad)?.parse::<f64>().map_err(|_| bad())?,
+            };
+            if divisor == 0.0 {
+                return Err(bad());
+            }
+            factor * std::f64::consts::PI / divisor
+        } else {
+            t.parse::<f64>().map_err(|_| bad())?
+        };
+        if !value.is_finite() {
+            return Err(format!("`{text}` is not a finite angle"));
+        }
+        Ok(sign * value)
+    }
+}
+
+impl<'de> Deserialize<'de> for Angle {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Num(f64),
+            Int(i64),
+            Text(String),
+        }
+        let v = match Raw::deserialize(d).map_err(|_| serde::de::Error::custom("expected an angle: a number of radians or a string like \"pi/2\""))? {
+            Raw::Num(x) => x,
+            Raw::Int(i) => i as f64,
+            Raw::Text(s) => Angle::parse(&s).map_err(serde::de::Error::custom)?,
+        };
+        Ok(Angle(v))
+    }
+}
+
+impl Serialize for Angle {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(self.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn parses_expressions() {
+        for (text, value) in [
+            ("pi/2", PI / 2.0),
+            ("-pi/6", -PI / 6.0),
+            ("3*pi/4", 0.75 * PI),
+            ("2pi", 2.0 * PI),
+            ("π", PI),
+            ("0.25", 0.25),
+            (" - 1.5 ", -1.5),
+            ("PI", PI),
+        ] {
+            assert!((Angle::parse(text).unwrap() - value).abs() < 1e-15, "{text}");
+        }
+        for bad in ["", "pie", "pi/0", "pi/x", "x", "1e999", "pi*2/"] {
+            assert!(Angle::parse(bad).is_err(), "{bad}");
+        }
+    }
+}

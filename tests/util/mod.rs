@@ -1,0 +1,128 @@
+//! Test harness for the `springfit` binary: runs it in a fresh temporary folder and, when an
+//! expectation fails, reports the command, its output and the folder's listing.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The repository root (designs and catalogues live there).
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A fresh empty folder under the target directory, unique per test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "springfit-test-{}-{}-{}",
+        name,
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::SeqCst)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create temp dir");
+    dir
+}
+
+/// One run of the binary.
+pub struct Run {
+    pub args: Vec<String>,
+    pub dir: PathBuf,
+    pub output: Output,
+}
+
+impl Run {
+    pub fn stdout(&self) -> String {
+        String::from_utf8_lossy(&self.output.stdout).into_owned()
+    }
+
+    pub fn stderr(&self) -> String {
+        String::from_utf8_lossy(&self.output.stderr).into_owned()
+    }
+
+    pub fn code(&self) -> i32 {
+        self.output.status.code().unwrap_or(-1)
+    }
+
+    /// Everything a failure message needs.
+    pub fn report(&self) -> String {
+        let listing = walk(&self.dir)
+            .into_iter()
+            .map(|p| format!("  {}", p.strip_prefix(&self.dir).unwrap_or(&p).display()))
+            .collect::<Vec<_>>()
+            .join("\n");
+        format!(
+            "command: springfit {}\nin: {}\nexit: {}\n--- stdout\n{}\n--- stderr\n{}\n--- files\n{}",
+            self.args.join(" "),
+            self.dir.display(),
+            self.code(),
+            self.stdout(),
+            self.stderr(),
+            listing
+        )
+    }
+
+    /// Asserts success.
+    pub fn ok(self) -> Self {
+        assert_eq!(self.code(), 0, "expected success\n{}", self.report());
+        self
+    }
+
+    /// Asserts exit code `code` with exactly one error line containing every `needle`.
+    pub fn fails(self, code: i32, needles: &[&str]) -> Self {
+        assert_eq!(self.code(), code, "expected exit code {code}\n{}", self.report());
+        let err = self.stderr();
+        let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("springfit: error:")).collect();
+        assert_eq!(lines.len(), 1, "expected one error line\n{}", self.report());
+        for n in needles {
+            assert!(lines[0].contains(n), "expected `{n}` in the error line\n{}", self.report());
+        }
+        assert!(!err.contains("panicked"), "panic\n{}", self.report());
+        self
+    }
+}
+
+/// Runs `springfit ARGS` in `dir`.
+pub fn springfit(dir: &Path, args: &[&str]) -> Run {
+    let output = Command::new(env!("CARGO_BIN_EXE_springfit"))
+        .args(args)
+        .current_dir(dir)
+        .env("RAYON_NUM_THREADS", "2")
+        .output()
+        .expect("run springfit");
+    Run { args: args.iter().map(|s| s.to_string()).collect(), dir: dir.to_path_buf(), output }
+}
+
+/// All files under a folder, sorted.
+pub fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.extend(walk(&p));
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Writes a file under `dir` and returns its path.
+pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    if let Some(parent) = p.parent() {
+        std::fs::create_dir_all(parent).unwrap();
+    }
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A shipped design's text.
+pub fn design_text(name: &str) -> String {
+    std::fs::read_to_string(repo().join("designs").join(name)).unwrap()
+}
