@@ -7,9 +7,11 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod catalog;
+pub mod design;
+pub mod elements;
 pub mod geodesic;
 pub mod linalg;
 pub mod model;
 pub mod ode;
-pub mod design;
 pub mod units;

@@ -8,10 +8,19 @@ use util::{design_text, repo, springfit, temp_dir, write};
 #[test]
 fn shipped_designs_pass_the_check() {
     let dir = temp_dir("check-ok");
-    for name in ["double_pendulum.toml", "double_pendulum_straight.toml", "double_pendulum_folded.toml", "triple_pendulum.toml"] {
+    for name in [
+        "double_pendulum.toml",
+        "double_pendulum_straight.toml",
+        "double_pendulum_folded.toml",
+        "triple_pendulum.toml",
+    ] {
         let design = repo().join("designs").join(name);
         let run = springfit(&dir, &["check", design.to_str().unwrap()]).ok();
-        assert!(run.stdout().contains("largest valid geodesic-ball radius"), "{}", run.report());
+        assert!(
+            run.stdout().contains("largest valid geodesic-ball radius"),
+            "{}",
+            run.report()
+        );
     }
 }
 
@@ -20,17 +29,44 @@ fn each_bad_design_gets_its_own_clear_error() {
     let dir = temp_dir("check-bad");
     let good = design_text("double_pendulum.toml");
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
-        ("malformed.toml", good.replace("[equilibrium]", "[equilibrium"), vec!["malformed.toml:21:13", "unclosed table"]),
-        ("unknown.toml", good.replace("radius = 2.0 ", "radius = 2.0\nspeed = 1 "), vec!["unknown.toml:", "unknown field `speed`"]),
-        ("negative_mass.toml", good.replacen("mass = 1.0 ", "mass = -1.0 ", 1), vec!["negative_mass.toml", "robot.links[0].mass", "positive"]),
+        (
+            "malformed.toml",
+            good.replace("[equilibrium]", "[equilibrium"),
+            vec!["malformed.toml:21:13", "unclosed table"],
+        ),
+        (
+            "unknown.toml",
+            good.replace("radius = 2.0 ", "radius = 2.0\nspeed = 1 "),
+            vec!["unknown.toml:", "unknown field `speed`"],
+        ),
+        (
+            "negative_mass.toml",
+            good.replacen("mass = 1.0 ", "mass = -1.0 ", 1),
+            vec!["negative_mass.toml", "robot.links[0].mass", "positive"],
+        ),
         (
             "outside.toml",
-            good.replace("kind = \"ball\"\nradius = 2.0 ", "kind = \"box\"\nlower = [-1.0, 2.0]\nupper = [1.0, 3.0]"),
+            good.replace(
+                "kind = \"ball\"\nradius = 2.0 ",
+                "kind = \"box\"\nlower = [-1.0, 2.0]\nupper = [1.0, 3.0]",
+            ),
             vec!["outside.toml", "equilibrium.q[1]", "outside the region"],
         ),
-        ("dimension.toml", good.replace("q = [0.0, \"pi/2\"]", "q = [0.0, 1.0, 2.0]"), vec!["dimension.toml", "equilibrium.q", "3 angles", "2 links"]),
-        ("wrong_type.toml", good.replace("length = 2.0    # m", "length = \"long\"    # m"), vec!["wrong_type.toml:", "length"]),
-        ("nan.toml", good.replacen("inertia = 1.0", "inertia = nan", 1), vec!["nan.toml", "robot.links[0].inertia", "finite"]),
+        (
+            "dimension.toml",
+            good.replace("q = [0.0, \"pi/2\"]", "q = [0.0, 1.0, 2.0]"),
+            vec!["dimension.toml", "equilibrium.q", "3 angles", "2 links"],
+        ),
+        (
+            "wrong_type.toml",
+            good.replace("length = 2.0    # m", "length = \"long\"    # m"),
+            vec!["wrong_type.toml:", "length"],
+        ),
+        (
+            "nan.toml",
+            good.replacen("inertia = 1.0", "inertia = nan", 1),
+            vec!["nan.toml", "robot.links[0].inertia", "finite"],
+        ),
     ];
     for (name, text, needles) in cases {
         assert_ne!(text, good, "case {name} did not change the design");
@@ -43,8 +79,16 @@ fn each_bad_design_gets_its_own_clear_error() {
 #[test]
 fn a_region_past_the_largest_valid_radius_is_rejected_with_the_radius_that_works() {
     let dir = temp_dir("check-region");
-    let text = design_text("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
+    let text =
+        design_text("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
     let path = write(&dir, "too_big.toml", &text);
-    let run = springfit(&dir, &["check", path.to_str().unwrap()]).fails(2, &["region.radius", "largest valid geodesic-ball radius is"]);
-    assert!(run.stderr().contains("conjugate point") || run.stderr().contains("cross"), "{}", run.report());
+    let run = springfit(&dir, &["check", path.to_str().unwrap()]).fails(
+        2,
+        &["region.radius", "largest valid geodesic-ball radius is"],
+    );
+    assert!(
+        run.stderr().contains("conjugate point") || run.stderr().contains("cross"),
+        "{}",
+        run.report()
+    );
 }

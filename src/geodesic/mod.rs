@@ -210,7 +210,10 @@ impl GeodesicSettings {
             return Err(("geodesics.directions".into(), "must be at least 8".into()));
         }
         if self.check_directions < 8 {
-            return Err(("geodesics.check_directions".into(), "must be at least 8".into()));
+            return Err((
+                "geodesics.check_directions".into(),
+                "must be at least 8".into(),
+            ));
         }
         if self.samples < 4 {
             return Err(("geodesics.samples".into(), "must be at least 4".into()));

@@ -1,0 +1,560 @@
+//! Spring catalogues: families of elastic elements that expand into fit candidates.
+//!
+//! A catalogue is a TOML file with one `[[family]]` table per kind of element a workshop can
+//! build or buy. A family fixes the profile, the couplings it can be mounted on and the offsets
+//! it can be set to; each coupling × offset × side becomes one candidate element whose stiffness
+//! the fit chooses.
+//!
+//! ```toml
+//! name = "workshop"
+//!
+//! [[family]]
+//! name = "joint torsion spring"
+//! profile = "linear"              # linear | cubic | crank | compression
+//! couplings = "joints"            # "joints", { pairs = [[1, 1], [1, -1]] } or [[1, 0], [1, -2]]
+//! offsets = "equilibrium"         # "equilibrium", { grid = 9 } or a list of angles
+//! unit = "N*m/rad"                # optional; must match the profile
+//! max_stiffness = 40.0            # optional, in the profile's unit
+//! stock_rates = [1, 2, 5, 10, 20] # optional: what the supplier sells, same unit
+//! tolerance = 0.1                 # ± fraction of the stiffness a built spring may deviate
+//! ```
+//!
+//! Compression springs also take `side = "+"`, `"-"` or `"both"`.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+use crate::design::{parse_toml, read_text};
+use crate::elements::{Element, Profile, Side};
+use crate::error::{Error, Result};
+use crate::units::Angle;
+
+/// The catalogue file as written.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CatalogFile {
+    /// Catalogue name (default: the file name without extension).
+    pub name: Option<String>,
+    /// One line about it.
+    pub description: Option<String>,
+    /// The families.
+    pub family: Vec<FamilySpec>,
+}
+
+/// `[[family]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FamilySpec {
+    /// A human name, printed in the bill of materials.
+    pub name: String,
+    /// `linear`, `cubic`, `crank` or `compression`.
+    pub profile: String,
+    /// For compression springs: `+`, `-` or `both` (default `both`).
+    #[serde(default)]
+    pub side: Option<String>,
+    /// Where the element can be mounted.
+    pub couplings: CouplingSpec,
+    /// Where its offset x₀ can be set.
+    pub offsets: OffsetSpec,
+    /// The stiffness unit, to make the file self-explaining; checked against the profile.
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// Largest stiffness the family can provide, in the profile's unit.
+    #[serde(default)]
+    pub max_stiffness: Option<f64>,
+    /// Stiffness values a supplier sells, in the profile's unit.
+    #[serde(default)]
+    pub stock_rates: Vec<f64>,
+    /// ± fraction by which a built element's stiffness may deviate (0.1 = ±10 %).
+    #[serde(default)]
+    pub tolerance: f64,
+}
+
+/// Where a family can be mounted.
+#[derive(Debug, Clone, Serialize)]
+pub enum CouplingSpec {
+    /// Every single joint (a = eᵢ).
+    Joints,
+    /// Every pair of adjacent joints (i, i+1) with each gear-ratio pattern (r₁, r₂):
+    /// a = r₁ eᵢ + r₂ eᵢ₊₁.
+    Pairs(Vec<[f64; 2]>),
+    /// Explicit coupling vectors, one entry per joint.
+    List(Vec<Vec<f64>>),
+}
+
+impl<'de> Deserialize<'de> for CouplingSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PairsTable {
+            pairs: Vec<[f64; 2]>,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Pairs(PairsTable),
+            List(Vec<Vec<f64>>),
+        }
+        let msg = "couplings must be \"joints\", { pairs = [[r1, r2], ...] } or a list of coupling vectors such as [[1, 0], [1, -1]]";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "joints" => Ok(CouplingSpec::Joints),
+            Raw::Word(_) => Err(serde::de::Error::custom(msg)),
+            Raw::Pairs(p) => Ok(CouplingSpec::Pairs(p.pairs)),
+            Raw::List(l) => Ok(CouplingSpec::List(l)),
+        }
+    }
+}
+
+/// Where a family's offsets can be set.
+#[derive(Debug, Clone, Serialize)]
+pub enum OffsetSpec {
+    /// x₀ = a·q_eq: the element is relaxed at the equilibrium.
+    Equilibrium,
+    /// `count` offsets evenly spaced over the range a·q takes in the region (ends included), plus
+    /// the equilibrium's a·q_eq when `equilibrium` is set.
+    Grid { count: usize, equilibrium: bool },
+    /// Explicit offsets in rad.
+    List(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for OffsetSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct GridTable {
+            grid: usize,
+            #[serde(default)]
+            equilibrium: bool,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Grid(GridTable),
+            List(Vec<Angle>),
+        }
+        let msg = "offsets must be \"equilibrium\", { grid = N } (optionally with equilibrium = true) or a list of angles";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "equilibrium" => Ok(OffsetSpec::Equilibrium),
+            Raw::Word(_) => Err(serde::de::Error::custom(msg)),
+            Raw::Grid(g) => Ok(OffsetSpec::Grid {
+                count: g.grid,
+                equilibrium: g.equilibrium,
+            }),
+            Raw::List(l) => Ok(OffsetSpec::List(l.into_iter().map(|a| a.0).collect())),
+        }
+    }
+}
+
+/// A validated family.
+#[derive(Debug, Clone)]
+pub struct Family {
+    /// Human name.
+    pub name: String,
+    /// Profiles (two for compression springs on both sides).
+    pub profiles: Vec<Profile>,
+    /// Coupling vectors, resolved for the robot.
+    pub couplings: Vec<Vec<f64>>,
+    /// Offsets.
+    pub offsets: OffsetSpec,
+    /// Largest stiffness.
+    pub max_stiffness: Option<f64>,
+    /// Stock rates, ascending.
+    pub stock_rates: Vec<f64>,
+    /// ± fraction.
+    pub tolerance: f64,
+}
+
+/// A validated catalogue for a robot with a given number of joints.
+#[derive(Debug, Clone)]
+pub struct Catalog {
+    /// Where it was read from.
+    pub path: PathBuf,
+    /// Name.
+    pub name: String,
+    /// Families.
+    pub families: Vec<Family>,
+}
+
+/// A fit candidate: an element and what its family says about building it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// The element.
+    pub element: Element,
+    /// Index of its family in the catalogue.
+    pub family: usize,
+    /// Largest stiffness.
+    pub max_stiffness: Option<f64>,
+    /// Stock rates, ascending.
+    pub stock_rates: Vec<f64>,
+    /// ± fraction.
+    pub tolerance: f64,
+}
+
+impl Catalog {
+    /// Reads and validates a catalogue for a robot with `dof` joints.
+    pub fn load(path: &Path, dof: usize) -> Result<Catalog> {
+        let text = read_text(path)?;
+        let file: CatalogFile = parse_toml(path, &text)?;
+        Catalog::from_file(path, file, dof)
+    }
+
+    /// Validates a parsed catalogue.
+    pub fn from_file(path: &Path, file: CatalogFile, dof: usize) -> Result<Catalog> {
+        let invalid = |field: String, reason: String| Error::invalid(path, field, reason);
+        if file.family.is_empty() {
+            return Err(invalid(
+                "family".into(),
+                "the catalogue has no [[family]]: it yields no candidate element".into(),
+            ));
+        }
+        let mut families = Vec::new();
+        for (i, f) in file.family.iter().enumerate() {
+            let field = |name: &str| format!("family[{i}].{name}");
+            let side = f.side.as_deref();
+            let profiles = match (f.profile.as_str(), side) {
+                ("compression", None | Some("both")) => vec![
+                    Profile::Compression(Side::Plus),
+                    Profile::Compression(Side::Minus),
+                ],
+                ("compression", Some("+")) => vec![Profile::Compression(Side::Plus)],
+                ("compression", Some("-")) => vec![Profile::Compression(Side::Minus)],
+                ("compression", Some(s)) => {
+                    return Err(invalid(
+                        field("side"),
+                        format!("must be \"+\", \"-\" or \"both\", got \"{s}\""),
+                    ));
+                }
+                (p, None) => vec![Profile::parse(p, "").map_err(|e| invalid(field("profile"), e))?],
+                (p, Some(_)) => {
+                    let e = Profile::parse(p, "")
+                        .err()
+                        .unwrap_or_else(|| "only compression springs have a side".into());
+                    return Err(invalid(
+                        field(if e.contains("unknown profile") {
+                            "profile"
+                        } else {
+                            "side"
+                        }),
+                        e,
+                    ));
+                }
+            };
+            if let Some(u) = &f.unit {
+                let expected = profiles[0].unit();
+                if normalise_unit(u) != normalise_unit(expected) {
+                    return Err(invalid(
+                        field("unit"),
+                        format!(
+                            "a {} element's stiffness is in {expected}, not {u}",
+                            profiles[0].name()
+                        ),
+                    ));
+                }
+            }
+            let couplings = match &f.couplings {
+                CouplingSpec::Joints => (0..dof)
+                    .map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect())
+                    .collect(),
+                CouplingSpec::Pairs(ratios) => {
+                    if dof < 2 {
+                        return Err(invalid(
+                            field("couplings"),
+                            "pairs need at least two joints".into(),
+                        ));
+                    }
+                    let mut out = Vec::new();
+                    for (k, r) in ratios.iter().enumerate() {
+                        if !(r[0].is_finite() && r[1].is_finite()) || r[0] == 0.0 || r[1] == 0.0 {
+                            return Err(invalid(
+                                format!("family[{i}].couplings.pairs[{k}]"),
+                                "both gear ratios must be finite and non-zero".into(),
+                            ));
+                        }
+                        for j in 0..dof - 1 {
+                            let mut a = vec![0.0; dof];
+                            a[j] = r[0];
+                            a[j + 1] = r[1];
+                            out.push(a);
+                        }
+                    }
+                    out
+                }
+                CouplingSpec::List(list) => {
+                    for (k, a) in list.iter().enumerate() {
+                        let fld = format!("family[{i}].couplings[{k}]");
+                        if a.len() != dof {
+                            return Err(invalid(
+                                fld,
+                                format!("has {} entries but the robot has {dof} joints", a.len()),
+                            ));
+                        }
+                        if a.iter().any(|x| !x.is_finite()) {
+                            return Err(invalid(fld, "entries must be finite".into()));
+                        }
+                        if a.iter().all(|x| *x == 0.0) {
+                            return Err(invalid(
+                                fld,
+                                "a coupling of all zeros moves nothing".into(),
+                            ));
+                        }
+                    }
+                    list.clone()
+                }
+            };
+            if couplings.is_empty() {
+                return Err(invalid(field("couplings"), "lists no coupling".into()));
+            }
+            match &f.offsets {
+                OffsetSpec::Grid { count, .. } if *count < 1 || *count > 1000 => {
+                    return Err(invalid(
+                        field("offsets"),
+                        format!("grid must have 1 to 1000 points, got {count}"),
+                    ));
+                }
+                OffsetSpec::List(l) if l.is_empty() => {
+                    return Err(invalid(field("offsets"), "the list is empty".into()));
+                }
+                _ => {}
+            }
+            if let Some(k) = f.max_stiffness {
+                if !(k.is_finite() && k > 0.0) {
+                    return Err(invalid(
+                        field("max_stiffness"),
+                        format!("must be positive, got {k}"),
+                    ));
+                }
+            }
+            let mut rates = f.stock_rates.clone();
+            for (k, r) in rates.iter().enumerate() {
+                if !(r.is_finite() && *r > 0.0) {
+                    return Err(invalid(
+                        format!("family[{i}].stock_rates[{k}]"),
+                        format!("must be positive, got {r}"),
+                    ));
+                }
+            }
+            rates.sort_by(f64::total_cmp);
+            rates.dedup();
+            if !(f.tolerance.is_finite() && (0.0..1.0).contains(&f.tolerance)) {
+                return Err(invalid(
+                    field("tolerance"),
+                    format!("must be a fraction in [0, 1), got {}", f.tolerance),
+                ));
+            }
+            if f.name.trim().is_empty() {
+                return Err(invalid(field("name"), "must not be empty".into()));
+            }
+            families.push(Family {
+                name: f.name.clone(),
+                profiles,
+                couplings,
+                offsets: f.offsets.clone(),
+                max_stiffness: f.max_stiffness,
+                stock_rates: rates,
+                tolerance: f.tolerance,
+            });
+        }
+        let name = file.name.clone().unwrap_or_else(|| {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "catalog".into())
+        });
+        Ok(Catalog {
+            path: path.to_path_buf(),
+            name,
+            families,
+        })
+    }
+
+    /// Expands the families into candidates. `q_eq` sets equilibrium offsets; `range(a)` gives
+    /// the (min, max) of a·q over the region for grid offsets. Duplicates (the same profile,
+    /// coupling and offset from two families) are kept once, the first family winning.
+    pub fn expand(&self, q_eq: &[f64], range: impl Fn(&[f64]) -> (f64, f64)) -> Vec<Candidate> {
+        let mut out: Vec<Candidate> = Vec::new();
+        for (fi, f) in self.families.iter().enumerate() {
+            for a in &f.couplings {
+                let at_eq: f64 = a.iter().zip(q_eq).map(|(a, q)| a * q).sum();
+                let offsets: Vec<f64> = match &f.offsets {
+                    OffsetSpec::Equilibrium => vec![at_eq],
+                    OffsetSpec::List(l) => l.clone(),
+                    OffsetSpec::Grid { count, equilibrium } => {
+                        let (lo, hi) = range(a);
+                        let mut v: Vec<f64> = if *count == 1 {
+                            vec![0.5 * (lo + hi)]
+                        } else {
+                            (0..*count)
+                                .map(|k| lo + (hi - lo) * k as f64 / (*count - 1) as f64)
+                                .collect()
+                        };
+                        if *equilibrium {
+                            v.push(at_eq);
+                        }
+                        v
+                    }
+                };
+                for &x0 in &offsets {
+                    for &profile in &f.profiles {
+                        let element = Element {
+                            profile,
+                            coupling: a.clone(),
+                            offset: x0,
+                        };
+                        if out.iter().any(|c| same_element(&c.element, &element)) {
+                            continue;
+                        }
+                        out.push(Candidate {
+                            element,
+                            family: fi,
+                            max_stiffness: f.max_stiffness,
+                            stock_rates: f.stock_rates.clone(),
+                            tolerance: f.tolerance,
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+fn same_element(a: &Element, b: &Element) -> bool {
+    a.profile == b.profile
+        && a.coupling == b.coupling
+        && (a.offset - b.offset).abs() <= 1e-12 * (1.0 + a.offset.abs())
+}
+
+fn normalise_unit(u: &str) -> String {
+    u.chars()
+        .filter(|c| !c.is_whitespace())
+        .map(|c| match c {
+            '·' | '⋅' => '*',
+            '³' => '3',
+            c => c,
+        })
+        .collect::<String>()
+        .replace("^", "")
+        .to_lowercase()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str, dof: usize) -> Result<Catalog> {
+        let path = Path::new("catalogs/test.toml");
+        let file: CatalogFile = parse_toml(path, text)?;
+        Catalog::from_file(path, file, dof)
+    }
+
+    const GOOD: &str = r#"
+name = "t"
+[[family]]
+name = "torsion"
+profile = "linear"
+couplings = "joints"
+offsets = "equilibrium"
+unit = "N·m/rad"
+[[family]]
+name = "bevel crank"
+profile = "crank"
+couplings = { pairs = [[1, 1], [1, -1]] }
+offsets = { grid = 3 }
+max_stiffness = 10.0
+stock_rates = [5, 1, 2]
+tolerance = 0.1
+[[family]]
+name = "stops"
+profile = "compression"
+couplings = [[1, 0], [0, 2]]
+offsets = [-0.5, "pi/4"]
+"#;
+
+    #[test]
+    fn expands_families_into_candidates() {
+        let c = load(GOOD, 2).unwrap();
+        assert_eq!(c.families[1].stock_rates, vec![1.0, 2.0, 5.0]);
+        let cands = c.expand(&[0.0, 1.0], |a| (-1.0 + a[1], 1.0 + a[1]));
+        // 2 linear + 2 pairs × 3 offsets + 2 couplings × 2 offsets × 2 sides.
+        assert_eq!(cands.len(), 2 + 6 + 8);
+        assert_eq!(cands[1].element.offset, 1.0);
+        let crank: Vec<_> = cands
+            .iter()
+            .filter(|c| c.element.profile == Profile::Crank)
+            .collect();
+        assert_eq!(crank[0].element.coupling, vec![1.0, 1.0]);
+        assert_eq!(
+            crank.iter().map(|c| c.element.offset).collect::<Vec<_>>()[..3],
+            [0.0, 1.0, 2.0]
+        );
+        assert_eq!(crank[0].max_stiffness, Some(10.0));
+        // Three joints: pairs expand over both adjacent pairs.
+        let text3 = GOOD.replace(
+            "couplings = [[1, 0], [0, 2]]",
+            "couplings = [[1, 0, 0], [0, 2, 0]]",
+        );
+        let c3 = load(&text3, 3).unwrap();
+        let cands3 = c3.expand(&[0.0, 0.0, 0.0], |_| (-1.0, 1.0));
+        assert_eq!(
+            cands3
+                .iter()
+                .filter(|c| c.element.profile == Profile::Crank)
+                .count(),
+            2 * 2 * 3
+        );
+    }
+
+    #[test]
+    fn bad_catalogues_name_the_field() {
+        let cases = [
+            (
+                GOOD.replacen("profile = \"linear\"", "profile = \"spiral\"", 1),
+                "family[0].profile",
+                "unknown profile",
+            ),
+            (
+                GOOD.replace("max_stiffness = 10.0", "max_stiffness = -1.0"),
+                "family[1].max_stiffness",
+                "positive",
+            ),
+            (
+                GOOD.replace("couplings = [[1, 0], [0, 2]]", "couplings = [[1, 0, 0]]"),
+                "family[2].couplings[0]",
+                "3 entries",
+            ),
+            ("name = \"empty\"".to_string(), "family", "no candidate"),
+            (
+                GOOD.replace("unit = \"N·m/rad\"", "unit = \"N*m\""),
+                "family[0].unit",
+                "N*m/rad",
+            ),
+            (
+                GOOD.replace("tolerance = 0.1", "tolerance = 1.5"),
+                "family[1].tolerance",
+                "fraction",
+            ),
+            (
+                GOOD.replace(
+                    "offsets = { grid = 3 }",
+                    "offsets = { grid = 3, spacing = 1 }",
+                ),
+                "test.toml:",
+                "offsets must be",
+            ),
+            (
+                GOOD.replace("stock_rates = [5, 1, 2]", "stock_rates = [5, 0, 2]"),
+                "family[1].stock_rates[1]",
+                "positive",
+            ),
+        ];
+        for (text, field, reason) in cases {
+            let err = load(&text, 2).unwrap_err().to_string();
+            assert!(
+                err.contains(field) && err.contains(reason),
+                "expected {field} / {reason} in {err}"
+            );
+        }
+    }
+}
