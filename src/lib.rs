@@ -14,4 +14,6 @@ pub mod geodesic;
 pub mod linalg;
 pub mod model;
 pub mod ode;
+pub mod potential;
+pub mod residual;
 pub mod units;

@@ -136,11 +136,17 @@ impl<'a> Shooter<'a> {
 
     /// exp(v): the point reached at arc length |v| along the geodesic with initial direction v.
     pub fn exp(&mut self, v: &DVector<f64>) -> Result<DVector<f64>> {
+        Ok(self.exp_state(v)?.0)
+    }
+
+    /// exp(v) and the unit tangent γ̇ there (metric speed 1; zero for v = 0). By the Gauss lemma
+    /// M(q) γ̇ is the gradient of the distance r = |v| at q = exp(v).
+    pub fn exp_state(&mut self, v: &DVector<f64>) -> Result<(DVector<f64>, DVector<f64>)> {
         let n = self.chain.dof();
         let m = self.chain.mass_matrix(&self.q_eq);
         let s = v.dot(&(m * v)).sqrt();
         if s == 0.0 {
-            return Ok(self.q_eq.clone());
+            return Ok((self.q_eq.clone(), DVector::zeros(n)));
         }
         self.y[..n].copy_from_slice(self.q_eq.as_slice());
         for i in 0..n {
@@ -156,7 +162,11 @@ impl<'a> Shooter<'a> {
             .step(&mut rhs, s)
             .map_err(|e| ode_error("exp", e))?
         {}
-        Ok(DVector::from_column_slice(&self.ode.y()[..n]))
+        let y = self.ode.y();
+        Ok((
+            DVector::from_column_slice(&y[..n]),
+            DVector::from_column_slice(&y[n..2 * n]),
+        ))
     }
 
     /// exp(v) and its Jacobian d exp_v, from the variational (Jacobi-field) equations.

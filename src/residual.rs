@@ -1,0 +1,248 @@
+//! Residual angles: how far a potential is from making every geodesic a strict mode.
+//!
+//! For a sample (γ, γ̇) of a geodesic from q_eq, v₁ = M⁻¹ ∂U/∂q (U = U_e + U_g) must be tangent
+//! to γ̇. The *residual angle* is the angle between v₁ and γ̇ as coordinate vectors: signed for
+//! two joints (positive when v₁ is turned counter-clockwise from γ̇, as the paper's histogram),
+//! unsigned for three or more. It is scale-free, so designs of any stiffness compare directly.
+//! A potential that decreases outward gives angles near ±180°; a vanishing gradient counts as
+//! 90°.
+
+use nalgebra::DVector;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::error::Result;
+use crate::geodesic::{Fan, Geodesic};
+use crate::model::Chain;
+use crate::potential::Potential;
+
+/// One evaluated sample.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AngleSample {
+    /// Index of the geodesic in its fan.
+    pub direction: usize,
+    /// Arc length from q_eq.
+    pub s: f64,
+    /// Configuration.
+    pub q: Vec<f64>,
+    /// Residual angle in degrees.
+    pub angle_deg: f64,
+}
+
+/// Summary statistics of |angle|.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AngleStats {
+    /// Median of |angle| in degrees.
+    pub median_abs: f64,
+    /// 95th percentile.
+    pub p95_abs: f64,
+    /// 99th percentile.
+    pub p99_abs: f64,
+    /// Largest.
+    pub max_abs: f64,
+    /// Number of samples.
+    pub count: usize,
+}
+
+/// Statistics of the samples within one distance band from q_eq.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BandStats {
+    /// Inner arc length (exclusive).
+    pub from: f64,
+    /// Outer arc length (inclusive).
+    pub to: f64,
+    /// Statistics of the band.
+    pub stats: AngleStats,
+}
+
+/// The residual angle (degrees) between v₁ = M⁻¹ ∇U and the tangent `qd`.
+pub fn residual_angle(chain: &Chain, q: &[f64], qd: &[f64], grad_total: &DVector<f64>) -> f64 {
+    let qv = DVector::from_column_slice(q);
+    let m = chain.mass_matrix(&qv);
+    let v1 = match m.cholesky() {
+        Some(c) => c.solve(grad_total),
+        None => return f64::NAN,
+    };
+    angle_between(v1.as_slice(), qd)
+}
+
+/// Angle from `t` to `v` in degrees: signed in 2-D, unsigned otherwise; 90 if v = 0.
+pub fn angle_between(v: &[f64], t: &[f64]) -> f64 {
+    let dot: f64 = v.iter().zip(t).map(|(a, b)| a * b).sum();
+    let nv = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let nt = t.iter().map(|a| a * a).sum::<f64>().sqrt();
+    if nv == 0.0 || nt == 0.0 {
+        return 90.0;
+    }
+    if v.len() == 2 {
+        let cross = t[0] * v[1] - t[1] * v[0];
+        cross.atan2(dot).to_degrees()
+    } else {
+        (dot / (nv * nt)).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+}
+
+/// Residual angles of `potential` (elastic part; gravity added from the chain) at every sample
+/// of `fan`, in fan order. Runs in parallel; the result does not depend on the thread count.
+pub fn fan_angles(chain: &Chain, fan: &Fan, potential: &dyn Potential) -> Result<Vec<AngleSample>> {
+    let per: Vec<Result<Vec<AngleSample>>> = fan
+        .geodesics
+        .par_iter()
+        .enumerate()
+        .map(|(d, g)| geodesic_angles(chain, d, g, potential))
+        .collect();
+    Ok(per
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .flatten()
+        .collect())
+}
+
+fn geodesic_angles(
+    chain: &Chain,
+    direction: usize,
+    g: &Geodesic,
+    potential: &dyn Potential,
+) -> Result<Vec<AngleSample>> {
+    (0..g.len())
+        .map(|i| {
+            let q = g.q(i);
+            let grad = potential.gradient(q)? + chain.gravity_gradient(q);
+            Ok(AngleSample {
+                direction,
+                s: g.s(i),
+                q: q.to_vec(),
+                angle_deg: residual_angle(chain, q, g.qd(i), &grad),
+            })
+        })
+        .collect()
+}
+
+/// Percentile (0–100) of sorted values by linear interpolation between order statistics.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let pos = (p / 100.0).clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    sorted[lo] + (sorted[hi] - sorted[lo]) * (pos - lo as f64)
+}
+
+/// Statistics of |angle| over the samples (NaN angles count as 180°, the worst).
+pub fn stats(samples: &[AngleSample]) -> AngleStats {
+    let mut a: Vec<f64> = samples
+        .iter()
+        .map(|s| {
+            if s.angle_deg.is_nan() {
+                180.0
+            } else {
+                s.angle_deg.abs()
+            }
+        })
+        .collect();
+    a.sort_by(f64::total_cmp);
+    AngleStats {
+        median_abs: percentile(&a, 50.0),
+        p95_abs: percentile(&a, 95.0),
+        p99_abs: percentile(&a, 99.0),
+        max_abs: a.last().copied().unwrap_or(f64::NAN),
+        count: a.len(),
+    }
+}
+
+/// Statistics by distance band: `bands` equal bands of arc length over (0, extent].
+pub fn band_stats(samples: &[AngleSample], extent: f64, bands: usize) -> Vec<BandStats> {
+    (0..bands)
+        .map(|b| {
+            let from = extent * b as f64 / bands as f64;
+            let to = extent * (b + 1) as f64 / bands as f64;
+            let inside: Vec<AngleSample> = samples
+                .iter()
+                .filter(|s| s.s > from && (s.s <= to || (b + 1 == bands && s.s > to)))
+                .cloned()
+                .collect();
+            BandStats {
+                from,
+                to,
+                stats: stats(&inside),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn angles_are_signed_in_the_plane() {
+        assert!((angle_between(&[0.0, 1.0], &[1.0, 0.0]) - 90.0).abs() < 1e-12);
+        assert!((angle_between(&[1.0, -1.0], &[1.0, 0.0]) + 45.0).abs() < 1e-12);
+        assert!((angle_between(&[2.0, 0.0], &[1.0, 0.0])).abs() < 1e-12);
+        assert!((angle_between(&[-1.0, 0.0], &[1.0, 0.0]).abs() - 180.0).abs() < 1e-12);
+        assert!((angle_between(&[0.0, 1.0, 0.0], &[0.0, 0.0, 3.0]) - 90.0).abs() < 1e-12);
+        assert_eq!(angle_between(&[0.0, 0.0], &[1.0, 0.0]), 90.0);
+    }
+
+    #[test]
+    fn the_exact_potential_has_zero_residual_angles() {
+        use crate::geodesic::{FanSpec, Stop};
+        use crate::ode::OdeSettings;
+        use crate::potential::ExactPotential;
+        let chain = Chain::paper_double_pendulum();
+        let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
+        let ode = OdeSettings::default();
+        let fan = Fan::trace(
+            &chain,
+            &q_eq,
+            FanSpec {
+                count: 36,
+                phase: 0.5,
+                stop: Stop::Arc(2.0),
+                spacing: 0.1,
+            },
+            ode,
+        )
+        .unwrap();
+        let exact = ExactPotential::new(&chain, &q_eq, 3.0, ode);
+        let angles = fan_angles(&chain, &fan, &exact).unwrap();
+        let st = stats(&angles);
+        assert_eq!(st.count, 36 * 20);
+        assert!(st.max_abs < 1e-3, "max |angle| {}°", st.max_abs);
+        // A plain quadratic bowl is not compatible: clearly non-zero angles.
+        let bowl = crate::potential::SpringSet {
+            elements: (0..2)
+                .map(|j| crate::elements::Element {
+                    profile: crate::elements::Profile::Linear,
+                    coupling: (0..2).map(|k| if j == k { 1.0 } else { 0.0 }).collect(),
+                    offset: q_eq[j],
+                })
+                .collect(),
+            stiffness: vec![1.0, 1.0],
+        };
+        let st = stats(&fan_angles(&chain, &fan, &bowl).unwrap());
+        assert!(st.p99_abs > 5.0, "{st:?}");
+    }
+
+    #[test]
+    fn percentiles_interpolate() {
+        let v: Vec<f64> = (0..=100).map(f64::from).collect();
+        assert_eq!(percentile(&v, 99.0), 99.0);
+        assert_eq!(percentile(&[1.0, 3.0], 50.0), 2.0);
+        let samples: Vec<AngleSample> = (1..=4)
+            .map(|i| AngleSample {
+                direction: 0,
+                s: i as f64,
+                q: vec![],
+                angle_deg: -(i as f64),
+            })
+            .collect();
+        let st = stats(&samples);
+        assert_eq!((st.median_abs, st.max_abs, st.count), (2.5, 4.0, 4));
+        let bands = band_stats(&samples, 4.0, 2);
+        assert_eq!(bands[0].stats.count, 2);
+        assert_eq!(bands[1].stats.max_abs, 4.0);
+    }
+}
