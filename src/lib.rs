@@ -7,6 +7,7 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod bom;
 pub mod catalog;
 pub mod design;
 pub mod elements;
