@@ -30,10 +30,7 @@ fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
 }
 
 fn main() {
@@ -44,53 +41,27 @@ fn main() {
     println!("ode tolerances rtol = atol = {:e}", ode.rtol);
 
     // Fan of 360 geodesics to s = 3, samples every 0.03.
-    let spec = FanSpec {
-        count: 360,
-        phase: 0.0,
-        stop: Stop::Arc(3.0),
-        spacing: 0.03,
-    };
+    let spec = FanSpec { count: 360, phase: 0.0, stop: Stop::Arc(3.0), spacing: 0.03 };
     let mut fan_times = Vec::new();
     for threads in [1, 2] {
         let p = pool(threads);
         let (med, min) = time(20, || {
             p.install(|| black_box(Fan::trace(&chain, &q_eq, spec, ode).unwrap()));
         });
-        println!(
-            "fan 360 geodesics to s = 3, {threads} thread(s): {:.2} ms / {:.2} ms",
-            ms(med),
-            ms(min)
-        );
+        println!("fan 360 geodesics to s = 3, {threads} thread(s): {:.2} ms / {:.2} ms", ms(med), ms(min));
         fan_times.push(med);
     }
-    println!(
-        "fan speed-up 2 threads vs 1: {:.2}x",
-        fan_times[0].as_secs_f64() / fan_times[1].as_secs_f64()
-    );
+    println!("fan speed-up 2 threads vs 1: {:.2}x", fan_times[0].as_secs_f64() / fan_times[1].as_secs_f64());
 
     // Log map: cold starts (second-order guess) over the ball of radius 2, and warm starts along
     // a sweep (each point starts from its neighbour's solution, as when tabulating a grid).
     let log = LogMap::new(&chain, &q_eq, ode, LogSettings::default());
-    let fan = Fan::trace(
-        &chain,
-        &q_eq,
-        FanSpec {
-            count: 50,
-            phase: 0.37,
-            stop: Stop::Arc(2.0),
-            spacing: 0.1,
-        },
-        ode,
-    )
-    .unwrap();
+    let fan =
+        Fan::trace(&chain, &q_eq, FanSpec { count: 50, phase: 0.37, stop: Stop::Arc(2.0), spacing: 0.1 }, ode).unwrap();
     let points: Vec<DVector<f64>> = fan
         .geodesics
         .iter()
-        .flat_map(|g| {
-            (0..g.len())
-                .map(|i| DVector::from_column_slice(g.q(i)))
-                .collect::<Vec<_>>()
-        })
+        .flat_map(|g| (0..g.len()).map(|i| DVector::from_column_slice(g.q(i))).collect::<Vec<_>>())
         .collect();
     let mut shooter = log.shooter();
     let (med, min) = time(5, || {
@@ -117,11 +88,7 @@ fn main() {
             }
         }
     });
-    println!(
-        "log map, warm start along sweeps: {:.1} µs / {:.1} µs per point",
-        per(med),
-        per(min)
-    );
+    println!("log map, warm start along sweeps: {:.1} µs / {:.1} µs per point", per(med), per(min));
 
     // Region check of the paper design.
     let settings = GeodesicSettings::default();

@@ -14,7 +14,8 @@ use crate::error::{Error, Result};
 use crate::potential::SpringSet;
 
 /// The CSV header.
-pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
+pub const HEADER: &str =
+    "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
 
 /// One row of the bill of materials.
 #[derive(Debug, Clone, PartialEq)]
@@ -39,11 +40,7 @@ pub struct BomRow {
 
 /// Quotes a CSV field if it needs it.
 pub fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 
 /// Splits one CSV line into fields (RFC 4180 quoting).
@@ -116,16 +113,9 @@ pub fn read(path: &Path) -> Result<Vec<BomRow>> {
 
 /// Parses bill-of-materials text (see [`read`]).
 pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
-    let bad = |line: usize, field: &str, reason: String| {
-        Error::invalid(path, format!("line {line}: {field}"), reason)
-    };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
+    let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
     if header.trim_start_matches('\u{feff}').trim() != HEADER {
         return Err(bad(1, "header", format!("expected `{HEADER}`")));
     }
@@ -135,94 +125,51 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         let ln = idx + 1;
         let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
         if f.len() != 12 {
-            return Err(bad(
-                ln,
-                "row",
-                format!("has {} fields, expected 12", f.len()),
-            ));
+            return Err(bad(ln, "row", format!("has {} fields, expected 12", f.len())));
         }
         let num = |i: usize, name: &str| -> Result<f64> {
-            let v: f64 = f[i]
-                .trim()
-                .parse()
-                .map_err(|_| bad(ln, name, format!("`{}` is not a number", f[i])))?;
+            let v: f64 = f[i].trim().parse().map_err(|_| bad(ln, name, format!("`{}` is not a number", f[i])))?;
             if !v.is_finite() {
                 return Err(bad(ln, name, format!("`{}` is not a finite number", f[i])));
             }
             Ok(v)
         };
-        let profile =
-            Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| bad(ln, "profile", e))?;
+        let profile = Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| bad(ln, "profile", e))?;
         let coupling: Vec<f64> = f[4]
             .split(';')
             .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| {
-                bad(
-                    ln,
-                    "coupling",
-                    format!("`{}` is not a list of numbers joined by `;`", f[4]),
-                )
-            })?;
+            .ok_or_else(|| bad(ln, "coupling", format!("`{}` is not a list of numbers joined by `;`", f[4])))?;
         if coupling.iter().all(|a| *a == 0.0) {
-            return Err(bad(
-                ln,
-                "coupling",
-                "a coupling of all zeros moves nothing".into(),
-            ));
+            return Err(bad(ln, "coupling", "a coupling of all zeros moves nothing".into()));
         }
         match dof {
             None => dof = Some(coupling.len()),
             Some(d) if d != coupling.len() => {
-                return Err(bad(
-                    ln,
-                    "coupling",
-                    format!("has {} entries but earlier rows have {d}", coupling.len()),
-                ));
+                return Err(bad(ln, "coupling", format!("has {} entries but earlier rows have {d}", coupling.len())));
             }
             _ => {}
         }
         let stiffness = num(6, "stiffness")?;
         if stiffness < 0.0 {
-            return Err(bad(
-                ln,
-                "stiffness",
-                format!("must be ≥ 0, got {stiffness}"),
-            ));
+            return Err(bad(ln, "stiffness", format!("must be ≥ 0, got {stiffness}")));
         }
         if f[7].trim() != profile.unit() {
             return Err(bad(
                 ln,
                 "unit",
-                format!(
-                    "a {} element's stiffness is in {}, not `{}`",
-                    profile.name(),
-                    profile.unit(),
-                    f[7]
-                ),
+                format!("a {} element's stiffness is in {}, not `{}`", profile.name(), profile.unit(), f[7]),
             ));
         }
-        let stock_rate = if f[10].trim().is_empty() {
-            None
-        } else {
-            Some(num(10, "stock_rate")?)
-        };
+        let stock_rate = if f[10].trim().is_empty() { None } else { Some(num(10, "stock_rate")?) };
         let tolerance = num(11, "tolerance")?;
         if !(0.0..1.0).contains(&tolerance) {
-            return Err(bad(
-                ln,
-                "tolerance",
-                format!("must be a fraction in [0, 1), got {tolerance}"),
-            ));
+            return Err(bad(ln, "tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
         }
         rows.push(BomRow {
             id: f[0].clone(),
             family: f[1].clone(),
-            element: Element {
-                profile,
-                coupling,
-                offset: num(5, "offset_rad")?,
-            },
+            element: Element { profile, coupling, offset: num(5, "offset_rad")? },
             stiffness,
             max_torque_nm: num(8, "max_torque_nm")?,
             max_deflection_rad: num(9, "max_deflection_rad")?,
@@ -231,11 +178,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         });
     }
     if rows.is_empty() {
-        return Err(bad(
-            1,
-            "rows",
-            "the bill of materials lists no element".into(),
-        ));
+        return Err(bad(1, "rows", "the bill of materials lists no element".into()));
     }
     Ok(rows)
 }
@@ -260,39 +203,24 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
-            if e.profile.side().is_empty() {
-                String::new()
-            } else {
-                format!(" {}", e.profile.side())
-            },
-            e.coupling
-                .iter()
-                .map(|a| fmt_number(*a))
-                .collect::<Vec<_>>()
-                .join(", "),
+            if e.profile.side().is_empty() { String::new() } else { format!(" {}", e.profile.side()) },
+            e.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(", "),
             e.offset,
             r.stiffness,
             e.profile.unit(),
             r.max_torque_nm,
             r.max_deflection_rad,
-            r.stock_rate
-                .map(|x| format!("{x}"))
-                .unwrap_or_else(|| "–".into()),
+            r.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
             fmt_number(r.tolerance * 100.0),
         ));
     }
-    s.push_str(&format!(
-        "\n**{} elements.** Total stiffness per unit:\n\n",
-        rows.len()
-    ));
+    s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));
     let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
     units.sort_unstable();
     units.dedup();
     for u in units {
-        let (count, total) = rows
-            .iter()
-            .filter(|r| r.element.profile.unit() == u)
-            .fold((0, 0.0), |(c, t), r| (c + 1, t + r.stiffness));
+        let (count, total) =
+            rows.iter().filter(|r| r.element.profile.unit() == u).fold((0, 0.0), |(c, t), r| (c + 1, t + r.stiffness));
         s.push_str(&format!("- {u}: {total:.4} over {count} element(s)\n"));
     }
     s
@@ -308,11 +236,7 @@ mod tests {
             BomRow {
                 id: "S01".into(),
                 family: "bevel, crank".into(),
-                element: Element {
-                    profile: Profile::Crank,
-                    coupling: vec![1.0, -2.0],
-                    offset: 0.1 + 0.2,
-                },
+                element: Element { profile: Profile::Crank, coupling: vec![1.0, -2.0], offset: 0.1 + 0.2 },
                 stiffness: 1.0 / 3.0,
                 max_torque_nm: 0.25,
                 max_deflection_rad: 1.5,
@@ -322,11 +246,7 @@ mod tests {
             BomRow {
                 id: "S02".into(),
                 family: "stop \"A\"".into(),
-                element: Element {
-                    profile: Profile::Compression(Side::Minus),
-                    coupling: vec![0.0, 1.0],
-                    offset: -0.7,
-                },
+                element: Element { profile: Profile::Compression(Side::Minus), coupling: vec![0.0, 1.0], offset: -0.7 },
                 stiffness: 12.5,
                 max_torque_nm: 3.0,
                 max_deflection_rad: 0.2,
@@ -367,10 +287,7 @@ mod tests {
 
     #[test]
     fn csv_quoting() {
-        assert_eq!(
-            split_csv_line("a,\"b,c\",\"d\"\"e\",").unwrap(),
-            vec!["a", "b,c", "d\"e", ""]
-        );
+        assert_eq!(split_csv_line("a,\"b,c\",\"d\"\"e\",").unwrap(), vec!["a", "b,c", "d\"e", ""]);
         assert!(split_csv_line("\"open").is_err());
     }
 }

@@ -12,7 +12,7 @@
 //! name = "joint torsion spring"
 //! profile = "linear"              # linear | cubic | crank | compression
 //! couplings = "joints"            # "joints", { pairs = [[1, 1], [1, -1]] } or [[1, 0], [1, -2]]
-//! offsets = "equilibrium"         # "equilibrium", { grid = 9 } or a list of angles
+//! offsets = "equilibrium"         # "equilibrium", { grid = 9 }, { phases = 12 } or angles
 //! unit = "N*m/rad"                # optional; must match the profile
 //! max_stiffness = 40.0            # optional, in the profile's unit
 //! stock_rates = [1, 2, 5, 10, 20] # optional: what the supplier sells, same unit
@@ -115,6 +115,9 @@ pub enum OffsetSpec {
     /// `count` offsets evenly spaced over the range a·q takes in the region (ends included), plus
     /// the equilibrium's a·q_eq when `equilibrium` is set.
     Grid { count: usize, equilibrium: bool },
+    /// `count` phases evenly spaced over one turn starting at the equilibrium:
+    /// x₀ = a·q_eq + 2πk/count (for crank mechanisms, whose torque k sin(x − x₀) is periodic).
+    Phases { count: usize },
     /// Explicit offsets in rad.
     List(Vec<f64>),
 }
@@ -129,20 +132,25 @@ impl<'de> Deserialize<'de> for OffsetSpec {
             equilibrium: bool,
         }
         #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PhasesTable {
+            phases: usize,
+        }
+        #[derive(Deserialize)]
         #[serde(untagged)]
         enum Raw {
             Word(String),
             Grid(GridTable),
+            Phases(PhasesTable),
             List(Vec<Angle>),
         }
-        let msg = "offsets must be \"equilibrium\", { grid = N } (optionally with equilibrium = true) or a list of angles";
+        let msg = "offsets must be \"equilibrium\", { grid = N } (optionally with equilibrium = true), \
+                   { phases = N } or a list of angles";
         match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
             Raw::Word(w) if w == "equilibrium" => Ok(OffsetSpec::Equilibrium),
             Raw::Word(_) => Err(serde::de::Error::custom(msg)),
-            Raw::Grid(g) => Ok(OffsetSpec::Grid {
-                count: g.grid,
-                equilibrium: g.equilibrium,
-            }),
+            Raw::Grid(g) => Ok(OffsetSpec::Grid { count: g.grid, equilibrium: g.equilibrium }),
+            Raw::Phases(p) => Ok(OffsetSpec::Phases { count: p.phases }),
             Raw::List(l) => Ok(OffsetSpec::List(l.into_iter().map(|a| a.0).collect())),
         }
     }
@@ -215,31 +223,19 @@ impl Catalog {
             let field = |name: &str| format!("family[{i}].{name}");
             let side = f.side.as_deref();
             let profiles = match (f.profile.as_str(), side) {
-                ("compression", None | Some("both")) => vec![
-                    Profile::Compression(Side::Plus),
-                    Profile::Compression(Side::Minus),
-                ],
+                ("compression", None | Some("both")) => {
+                    vec![Profile::Compression(Side::Plus), Profile::Compression(Side::Minus)]
+                }
                 ("compression", Some("+")) => vec![Profile::Compression(Side::Plus)],
                 ("compression", Some("-")) => vec![Profile::Compression(Side::Minus)],
                 ("compression", Some(s)) => {
-                    return Err(invalid(
-                        field("side"),
-                        format!("must be \"+\", \"-\" or \"both\", got \"{s}\""),
-                    ));
+                    return Err(invalid(field("side"), format!("must be \"+\", \"-\" or \"both\", got \"{s}\"")));
                 }
                 (p, None) => vec![Profile::parse(p, "").map_err(|e| invalid(field("profile"), e))?],
                 (p, Some(_)) => {
-                    let e = Profile::parse(p, "")
-                        .err()
-                        .unwrap_or_else(|| "only compression springs have a side".into());
-                    return Err(invalid(
-                        field(if e.contains("unknown profile") {
-                            "profile"
-                        } else {
-                            "side"
-                        }),
-                        e,
-                    ));
+                    let e =
+                        Profile::parse(p, "").err().unwrap_or_else(|| "only compression springs have a side".into());
+                    return Err(invalid(field(if e.contains("unknown profile") { "profile" } else { "side" }), e));
                 }
             };
             if let Some(u) = &f.unit {
@@ -247,23 +243,17 @@ impl Catalog {
                 if normalise_unit(u) != normalise_unit(expected) {
                     return Err(invalid(
                         field("unit"),
-                        format!(
-                            "a {} element's stiffness is in {expected}, not {u}",
-                            profiles[0].name()
-                        ),
+                        format!("a {} element's stiffness is in {expected}, not {u}", profiles[0].name()),
                     ));
                 }
             }
             let couplings = match &f.couplings {
-                CouplingSpec::Joints => (0..dof)
-                    .map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect())
-                    .collect(),
+                CouplingSpec::Joints => {
+                    (0..dof).map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect()).collect()
+                }
                 CouplingSpec::Pairs(ratios) => {
                     if dof < 2 {
-                        return Err(invalid(
-                            field("couplings"),
-                            "pairs need at least two joints".into(),
-                        ));
+                        return Err(invalid(field("couplings"), "pairs need at least two joints".into()));
                     }
                     let mut out = Vec::new();
                     for (k, r) in ratios.iter().enumerate() {
@@ -295,10 +285,7 @@ impl Catalog {
                             return Err(invalid(fld, "entries must be finite".into()));
                         }
                         if a.iter().all(|x| *x == 0.0) {
-                            return Err(invalid(
-                                fld,
-                                "a coupling of all zeros moves nothing".into(),
-                            ));
+                            return Err(invalid(fld, "a coupling of all zeros moves nothing".into()));
                         }
                     }
                     list.clone()
@@ -309,10 +296,7 @@ impl Catalog {
             }
             match &f.offsets {
                 OffsetSpec::Grid { count, .. } if *count < 1 || *count > 1000 => {
-                    return Err(invalid(
-                        field("offsets"),
-                        format!("grid must have 1 to 1000 points, got {count}"),
-                    ));
+                    return Err(invalid(field("offsets"), format!("grid must have 1 to 1000 points, got {count}")));
                 }
                 OffsetSpec::List(l) if l.is_empty() => {
                     return Err(invalid(field("offsets"), "the list is empty".into()));
@@ -321,28 +305,19 @@ impl Catalog {
             }
             if let Some(k) = f.max_stiffness {
                 if !(k.is_finite() && k > 0.0) {
-                    return Err(invalid(
-                        field("max_stiffness"),
-                        format!("must be positive, got {k}"),
-                    ));
+                    return Err(invalid(field("max_stiffness"), format!("must be positive, got {k}")));
                 }
             }
             let mut rates = f.stock_rates.clone();
             for (k, r) in rates.iter().enumerate() {
                 if !(r.is_finite() && *r > 0.0) {
-                    return Err(invalid(
-                        format!("family[{i}].stock_rates[{k}]"),
-                        format!("must be positive, got {r}"),
-                    ));
+                    return Err(invalid(format!("family[{i}].stock_rates[{k}]"), format!("must be positive, got {r}")));
                 }
             }
             rates.sort_by(f64::total_cmp);
             rates.dedup();
             if !(f.tolerance.is_finite() && (0.0..1.0).contains(&f.tolerance)) {
-                return Err(invalid(
-                    field("tolerance"),
-                    format!("must be a fraction in [0, 1), got {}", f.tolerance),
-                ));
+                return Err(invalid(field("tolerance"), format!("must be a fraction in [0, 1), got {}", f.tolerance)));
             }
             if f.name.trim().is_empty() {
                 return Err(invalid(field("name"), "must not be empty".into()));
@@ -358,15 +333,9 @@ impl Catalog {
             });
         }
         let name = file.name.clone().unwrap_or_else(|| {
-            path.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "catalog".into())
+            path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "catalog".into())
         });
-        Ok(Catalog {
-            path: path.to_path_buf(),
-            name,
-            families,
-        })
+        Ok(Catalog { path: path.to_path_buf(), name, families })
     }
 
     /// Expands the families into candidates. `q_eq` sets equilibrium offsets; `range(a)` gives
@@ -380,14 +349,15 @@ impl Catalog {
                 let offsets: Vec<f64> = match &f.offsets {
                     OffsetSpec::Equilibrium => vec![at_eq],
                     OffsetSpec::List(l) => l.clone(),
+                    OffsetSpec::Phases { count } => {
+                        (0..*count).map(|k| at_eq + std::f64::consts::TAU * k as f64 / *count as f64).collect()
+                    }
                     OffsetSpec::Grid { count, equilibrium } => {
                         let (lo, hi) = range(a);
                         let mut v: Vec<f64> = if *count == 1 {
                             vec![0.5 * (lo + hi)]
                         } else {
-                            (0..*count)
-                                .map(|k| lo + (hi - lo) * k as f64 / (*count - 1) as f64)
-                                .collect()
+                            (0..*count).map(|k| lo + (hi - lo) * k as f64 / (*count - 1) as f64).collect()
                         };
                         if *equilibrium {
                             v.push(at_eq);
@@ -397,11 +367,7 @@ impl Catalog {
                 };
                 for &x0 in &offsets {
                     for &profile in &f.profiles {
-                        let element = Element {
-                            profile,
-                            coupling: a.clone(),
-                            offset: x0,
-                        };
+                        let element = Element { profile, coupling: a.clone(), offset: x0 };
                         if out.iter().any(|c| same_element(&c.element, &element)) {
                             continue;
                         }
@@ -421,9 +387,7 @@ impl Catalog {
 }
 
 fn same_element(a: &Element, b: &Element) -> bool {
-    a.profile == b.profile
-        && a.coupling == b.coupling
-        && (a.offset - b.offset).abs() <= 1e-12 * (1.0 + a.offset.abs())
+    a.profile == b.profile && a.coupling == b.coupling && (a.offset - b.offset).abs() <= 1e-12 * (1.0 + a.offset.abs())
 }
 
 fn normalise_unit(u: &str) -> String {
@@ -470,6 +434,11 @@ name = "stops"
 profile = "compression"
 couplings = [[1, 0], [0, 2]]
 offsets = [-0.5, "pi/4"]
+[[family]]
+name = "phased cranks"
+profile = "crank"
+couplings = [[0, 1]]
+offsets = { phases = 4 }
 "#;
 
     #[test]
@@ -477,69 +446,40 @@ offsets = [-0.5, "pi/4"]
         let c = load(GOOD, 2).unwrap();
         assert_eq!(c.families[1].stock_rates, vec![1.0, 2.0, 5.0]);
         let cands = c.expand(&[0.0, 1.0], |a| (-1.0 + a[1], 1.0 + a[1]));
-        // 2 linear + 2 pairs × 3 offsets + 2 couplings × 2 offsets × 2 sides.
-        assert_eq!(cands.len(), 2 + 6 + 8);
+        // 2 linear + 2 pairs × 3 offsets + 2 couplings × 2 offsets × 2 sides + 4 phases.
+        assert_eq!(cands.len(), 2 + 6 + 8 + 4);
+        let phased: Vec<f64> = cands[16..].iter().map(|c| c.element.offset).collect();
+        let quarter = std::f64::consts::FRAC_PI_2;
+        assert_eq!(phased, vec![1.0, 1.0 + quarter, 1.0 + 2.0 * quarter, 1.0 + 3.0 * quarter]);
         assert_eq!(cands[1].element.offset, 1.0);
-        let crank: Vec<_> = cands
-            .iter()
-            .filter(|c| c.element.profile == Profile::Crank)
-            .collect();
+        let crank: Vec<_> = cands.iter().filter(|c| c.element.profile == Profile::Crank).collect();
         assert_eq!(crank[0].element.coupling, vec![1.0, 1.0]);
-        assert_eq!(
-            crank.iter().map(|c| c.element.offset).collect::<Vec<_>>()[..3],
-            [0.0, 1.0, 2.0]
-        );
+        assert_eq!(crank.iter().map(|c| c.element.offset).collect::<Vec<_>>()[..3], [0.0, 1.0, 2.0]);
         assert_eq!(crank[0].max_stiffness, Some(10.0));
         // Three joints: pairs expand over both adjacent pairs.
-        let text3 = GOOD.replace(
-            "couplings = [[1, 0], [0, 2]]",
-            "couplings = [[1, 0, 0], [0, 2, 0]]",
-        );
+        let text3 = GOOD
+            .replace("couplings = [[1, 0], [0, 2]]", "couplings = [[1, 0, 0], [0, 2, 0]]")
+            .replace("couplings = [[0, 1]]", "couplings = [[0, 1, 0]]");
         let c3 = load(&text3, 3).unwrap();
         let cands3 = c3.expand(&[0.0, 0.0, 0.0], |_| (-1.0, 1.0));
-        assert_eq!(
-            cands3
-                .iter()
-                .filter(|c| c.element.profile == Profile::Crank)
-                .count(),
-            2 * 2 * 3
-        );
+        assert_eq!(cands3.iter().filter(|c| c.element.profile == Profile::Crank).count(), 2 * 2 * 3 + 4);
     }
 
     #[test]
     fn bad_catalogues_name_the_field() {
         let cases = [
-            (
-                GOOD.replacen("profile = \"linear\"", "profile = \"spiral\"", 1),
-                "family[0].profile",
-                "unknown profile",
-            ),
-            (
-                GOOD.replace("max_stiffness = 10.0", "max_stiffness = -1.0"),
-                "family[1].max_stiffness",
-                "positive",
-            ),
+            (GOOD.replacen("profile = \"linear\"", "profile = \"spiral\"", 1), "family[0].profile", "unknown profile"),
+            (GOOD.replace("max_stiffness = 10.0", "max_stiffness = -1.0"), "family[1].max_stiffness", "positive"),
             (
                 GOOD.replace("couplings = [[1, 0], [0, 2]]", "couplings = [[1, 0, 0]]"),
                 "family[2].couplings[0]",
                 "3 entries",
             ),
             ("name = \"empty\"".to_string(), "family", "no candidate"),
+            (GOOD.replace("unit = \"N·m/rad\"", "unit = \"N*m\""), "family[0].unit", "N*m/rad"),
+            (GOOD.replace("tolerance = 0.1", "tolerance = 1.5"), "family[1].tolerance", "fraction"),
             (
-                GOOD.replace("unit = \"N·m/rad\"", "unit = \"N*m\""),
-                "family[0].unit",
-                "N*m/rad",
-            ),
-            (
-                GOOD.replace("tolerance = 0.1", "tolerance = 1.5"),
-                "family[1].tolerance",
-                "fraction",
-            ),
-            (
-                GOOD.replace(
-                    "offsets = { grid = 3 }",
-                    "offsets = { grid = 3, spacing = 1 }",
-                ),
+                GOOD.replace("offsets = { grid = 3 }", "offsets = { grid = 3, spacing = 1 }"),
                 "test.toml:",
                 "offsets must be",
             ),
@@ -551,10 +491,7 @@ offsets = [-0.5, "pi/4"]
         ];
         for (text, field, reason) in cases {
             let err = load(&text, 2).unwrap_err().to_string();
-            assert!(
-                err.contains(field) && err.contains(reason),
-                "expected {field} / {reason} in {err}"
-            );
+            assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
     }
 }

@@ -157,12 +157,7 @@ pub(crate) fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result
             Some(key) if !message.contains("unknown field") => format!("field `{key}`: {message}"),
             _ => message,
         };
-        Error::Parse {
-            path: path.to_path_buf(),
-            line,
-            column,
-            message,
-        }
+        Error::Parse { path: path.to_path_buf(), line, column, message }
     })
 }
 
@@ -191,23 +186,14 @@ pub(crate) fn key_at(text: &str, offset: usize) -> Option<String> {
             table = name.trim().to_string();
         }
     }
-    Some(if table.is_empty() {
-        key.to_string()
-    } else {
-        format!("{table}.{key}")
-    })
+    Some(if table.is_empty() { key.to_string() } else { format!("{table}.{key}") })
 }
 
 /// 1-based line and column of a byte offset.
 pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
-    let column = before
-        .rsplit('\n')
-        .next()
-        .map(|l| l.chars().count())
-        .unwrap_or(0)
-        + 1;
+    let column = before.rsplit('\n').next().map(|l| l.chars().count()).unwrap_or(0) + 1;
     (line, column)
 }
 
@@ -226,97 +212,68 @@ impl Design {
         if links.is_empty() {
             return Err(invalid(
                 "robot.links",
-                "at least one link is needed ([[robot.links]] with mass, length, com, inertia)"
-                    .into(),
+                "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into(),
             ));
         }
         if links.len() > 8 {
             return Err(invalid(
                 "robot.links",
-                format!(
-                    "{} links: springfit handles chains of up to 8 links",
-                    links.len()
-                ),
+                format!("{} links: springfit handles chains of up to 8 links", links.len()),
             ));
         }
         for (i, l) in links.iter().enumerate() {
             let f = |name: &str| format!("robot.links[{i}].{name}");
             let finite = |v: f64, name: &str| -> Result<()> {
-                if v.is_finite() {
-                    Ok(())
-                } else {
-                    Err(invalid(
-                        &f(name),
-                        format!("must be a finite number, got {v}"),
-                    ))
-                }
+                if v.is_finite() { Ok(()) } else { Err(invalid(&f(name), format!("must be a finite number, got {v}"))) }
             };
             finite(l.mass, "mass")?;
             finite(l.length, "length")?;
             finite(l.com, "com")?;
             finite(l.inertia, "inertia")?;
             if l.mass <= 0.0 {
-                return Err(invalid(
-                    &f("mass"),
-                    format!("must be positive (kg), got {}", l.mass),
-                ));
+                return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
             }
             if l.length <= 0.0 {
-                return Err(invalid(
-                    &f("length"),
-                    format!("must be positive (m), got {}", l.length),
-                ));
+                return Err(invalid(&f("length"), format!("must be positive (m), got {}", l.length)));
             }
             if l.inertia < 0.0 {
-                return Err(invalid(
-                    &f("inertia"),
-                    format!("must be ≥ 0 (kg·m²), got {}", l.inertia),
-                ));
+                return Err(invalid(&f("inertia"), format!("must be ≥ 0 (kg·m²), got {}", l.inertia)));
             }
         }
         for (k, g) in file.robot.gravity.iter().enumerate() {
             if !g.is_finite() {
-                return Err(invalid(
-                    &format!("robot.gravity[{k}]"),
-                    format!("must be finite, got {g}"),
-                ));
+                return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {g}")));
             }
         }
         let n = links.len();
         let chain = Chain::new(
-            links
-                .iter()
-                .map(|l| Link {
-                    mass: l.mass,
-                    length: l.length,
-                    com: l.com,
-                    inertia: l.inertia,
-                })
-                .collect(),
+            links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
             file.robot.gravity,
         );
         // A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
         // outermost such link would make M singular.
         let m = chain.mass_matrix(&DVector::zeros(n));
         let scale = m.amax();
-        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale
-        {
-            return Err(invalid("robot.links", "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis".into()));
+        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
+            return Err(invalid(
+                "robot.links",
+                "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis"
+                    .into(),
+            ));
         }
 
         let q = &file.equilibrium.q;
         if q.len() != n {
-            return Err(invalid(
-                "equilibrium.q",
-                format!("has {} angles but the robot has {n} links", q.len()),
-            ));
+            return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
         }
         let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
 
-        let spec = file
-            .region
-            .as_ref()
-            .ok_or_else(|| invalid("region", "missing: add [region] with kind = \"ball\" and radius, or kind = \"box\" with lower and upper".into()))?;
+        let spec = file.region.as_ref().ok_or_else(|| {
+            invalid(
+                "region",
+                "missing: add [region] with kind = \"ball\" and radius, or kind = \"box\" with lower and upper".into(),
+            )
+        })?;
         let region = match spec.kind {
             RegionKind::Ball => {
                 if spec.lower.is_some() || spec.upper.is_some() {
@@ -325,14 +282,9 @@ impl Design {
                         "lower/upper belong to kind = \"box\"; a ball has only radius".into(),
                     ));
                 }
-                let r = spec.radius.ok_or_else(|| {
-                    invalid("region.radius", "required for kind = \"ball\"".into())
-                })?;
+                let r = spec.radius.ok_or_else(|| invalid("region.radius", "required for kind = \"ball\"".into()))?;
                 if !(r.is_finite() && r > 0.0) {
-                    return Err(invalid(
-                        "region.radius",
-                        format!("must be positive, got {r}"),
-                    ));
+                    return Err(invalid("region.radius", format!("must be positive, got {r}")));
                 }
                 Region::Ball { radius: r }
             }
@@ -344,12 +296,9 @@ impl Design {
                     ));
                 }
                 let get = |v: &Option<Vec<Angle>>, name: &str| -> Result<DVector<f64>> {
-                    let v = v.as_ref().ok_or_else(|| {
-                        invalid(
-                            &format!("region.{name}"),
-                            "required for kind = \"box\"".into(),
-                        )
-                    })?;
+                    let v = v
+                        .as_ref()
+                        .ok_or_else(|| invalid(&format!("region.{name}"), "required for kind = \"box\"".into()))?;
                     if v.len() != n {
                         return Err(invalid(
                             &format!("region.{name}"),
@@ -363,10 +312,7 @@ impl Design {
                     if lower[i] >= upper[i] {
                         return Err(invalid(
                             &format!("region.lower[{i}]"),
-                            format!(
-                                "must be below region.upper[{i}] ({} ≥ {})",
-                                lower[i], upper[i]
-                            ),
+                            format!("must be below region.upper[{i}] ({} ≥ {})", lower[i], upper[i]),
                         ));
                     }
                     if !(lower[i] < q_eq[i] && q_eq[i] < upper[i]) {
@@ -385,25 +331,15 @@ impl Design {
                 Region::Box { lower, upper }
             }
         };
-        file.geodesics
-            .validate()
-            .map_err(|(field, reason)| invalid(&field, reason))?;
+        file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
 
         let name = file.name.clone().unwrap_or_else(|| {
-            path.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "design".into())
+            path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into())
         });
         if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
-            return Err(invalid(
-                "name",
-                format!("`{name}` cannot name an output folder"),
-            ));
+            return Err(invalid("name", format!("`{name}` cannot name an output folder")));
         }
-        let catalog = file
-            .catalog
-            .as_ref()
-            .map(|c| path.parent().unwrap_or(Path::new(".")).join(c));
+        let catalog = file.catalog.as_ref().map(|c| path.parent().unwrap_or(Path::new(".")).join(c));
         Ok(Design {
             path: path.to_path_buf(),
             name,
@@ -443,11 +379,7 @@ impl Design {
             Region::Ball { .. } => "region.radius",
             Region::Box { .. } => "region",
         };
-        Err(Error::invalid(
-            &self.path,
-            field,
-            format!("the region is not valid: {}", report.reason),
-        ))
+        Err(Error::invalid(&self.path, field, format!("the region is not valid: {}", report.reason)))
     }
 }
 
@@ -501,34 +433,16 @@ radius = 2.0
                 ),
                 "robot.links[1].mass",
             ),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [0]"), "equilibrium.q"),
+            (PAPER.replace("radius = 2.0", "radius = 2.0\nfoo = 1"), "unknown field `foo`"),
             (
-                PAPER.replace("q = [0, \"pi/2\"]", "q = [0]"),
-                "equilibrium.q",
-            ),
-            (
-                PAPER.replace("radius = 2.0", "radius = 2.0\nfoo = 1"),
-                "unknown field `foo`",
-            ),
-            (
-                PAPER.replace(
-                    "kind = \"ball\"\nradius = 2.0",
-                    "kind = \"box\"\nlower = [-1, 2]\nupper = [1, 3]",
-                ),
+                PAPER.replace("kind = \"ball\"\nradius = 2.0", "kind = \"box\"\nlower = [-1, 2]\nupper = [1, 3]"),
                 "equilibrium.q[1]",
             ),
-            (
-                PAPER.replace("q = [0, \"pi/2\"]", "q = [0, \"pie\"]"),
-                "not an angle",
-            ),
-            (
-                PAPER.replace("radius = 2.0", "radius = \"big\""),
-                "test.toml:",
-            ),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [0, \"pie\"]"), "not an angle"),
+            (PAPER.replace("radius = 2.0", "radius = \"big\""), "test.toml:"),
             (PAPER.replace("[equilibrium]", "[equilibrium"), "test.toml:"),
-            (
-                PAPER.replace("radius = 2.0", "radius = nan"),
-                "region.radius",
-            ),
+            (PAPER.replace("radius = 2.0", "radius = nan"), "region.radius"),
         ];
         for (text, expected) in cases {
             let err = load(&text).unwrap_err().to_string();
@@ -539,14 +453,9 @@ radius = 2.0
 
     #[test]
     fn type_errors_name_the_field_with_its_table() {
-        let err = load(&PAPER.replacen("com = 1.0", "com = \"x\"", 2))
-            .unwrap_err()
-            .to_string();
+        let err = load(&PAPER.replacen("com = 1.0", "com = \"x\"", 2)).unwrap_err().to_string();
         assert!(err.contains("field `robot.links[0].com`"), "{err}");
-        let text = PAPER.replace(
-            "com = 1.0\ninertia = 1.0\n[equilibrium]",
-            "com = [1]\ninertia = 1.0\n[equilibrium]",
-        );
+        let text = PAPER.replace("com = 1.0\ninertia = 1.0\n[equilibrium]", "com = [1]\ninertia = 1.0\n[equilibrium]");
         let err = load(&text).unwrap_err().to_string();
         assert!(err.contains("field `robot.links[1].com`"), "{err}");
     }

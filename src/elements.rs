@@ -120,17 +120,13 @@ impl Profile {
             ("compression", "+") => Profile::Compression(Side::Plus),
             ("compression", "-") => Profile::Compression(Side::Minus),
             ("compression", s) => {
-                return Err(format!(
-                    "a compression spring needs side \"+\" or \"-\", got \"{s}\""
-                ));
+                return Err(format!("a compression spring needs side \"+\" or \"-\", got \"{s}\""));
             }
             ("linear" | "cubic" | "crank", s) => {
                 return Err(format!("profile `{name}` has no side, got \"{s}\""));
             }
             (other, _) => {
-                return Err(format!(
-                    "unknown profile `{other}`: expected linear, cubic, crank or compression"
-                ));
+                return Err(format!("unknown profile `{other}`: expected linear, cubic, crank or compression"));
             }
         };
         Ok(p)
@@ -175,32 +171,18 @@ impl Element {
 
     /// The coupling as written in files: entries joined by `;` (e.g. `1;-2`).
     pub fn coupling_text(&self) -> String {
-        self.coupling
-            .iter()
-            .map(|a| fmt_number(*a))
-            .collect::<Vec<_>>()
-            .join(";")
+        self.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(";")
     }
 
     /// A short label such as `crank (1;-1) @ 0.785`.
     pub fn label(&self) -> String {
-        format!(
-            "{}{} ({}) @ {:.3}",
-            self.profile.name(),
-            self.profile.side(),
-            self.coupling_text(),
-            self.offset
-        )
+        format!("{}{} ({}) @ {:.3}", self.profile.name(), self.profile.side(), self.coupling_text(), self.offset)
     }
 }
 
 /// Shortest exact decimal form of a number (integers without `.0`).
 pub fn fmt_number(x: f64) -> String {
-    if x == x.trunc() && x.abs() < 1e15 {
-        format!("{}", x as i64)
-    } else {
-        format!("{x}")
-    }
+    if x == x.trunc() && x.abs() < 1e15 { format!("{}", x as i64) } else { format!("{x}") }
 }
 
 #[cfg(test)]
@@ -221,16 +203,8 @@ mod tests {
     fn gradients_and_hessians_match_finite_differences() {
         let h = 1e-6;
         for profile in all_profiles() {
-            for (coupling, offset) in [
-                (vec![1.0, 0.0], 0.3),
-                (vec![1.0, -2.0], -0.4),
-                (vec![2.0, 1.0, -1.0], 1.1),
-            ] {
-                let e = Element {
-                    profile,
-                    coupling: coupling.clone(),
-                    offset,
-                };
+            for (coupling, offset) in [(vec![1.0, 0.0], 0.3), (vec![1.0, -2.0], -0.4), (vec![2.0, 1.0, -1.0], 1.1)] {
+                let e = Element { profile, coupling: coupling.clone(), offset };
                 let n = coupling.len();
                 for q0 in [[0.7, -0.2, 0.4], [-0.9, 0.8, 0.1], [0.05, 1.3, -0.6]] {
                     let q = &q0[..n];
@@ -246,16 +220,10 @@ mod tests {
                         qp[j] += h;
                         qm[j] -= h;
                         let fd = (e.value(&qp) - e.value(&qm)) / (2.0 * h);
-                        assert!(
-                            (g[j] - fd).abs() < 1e-7 * (1.0 + fd.abs()),
-                            "{profile:?} grad"
-                        );
+                        assert!((g[j] - fd).abs() < 1e-7 * (1.0 + fd.abs()), "{profile:?} grad");
                         let fdg = (e.gradient(&qp) - e.gradient(&qm)) / (2.0 * h);
                         for i in 0..n {
-                            assert!(
-                                (hess[(i, j)] - fdg[i]).abs() < 1e-6 * (1.0 + fdg[i].abs()),
-                                "{profile:?} hess"
-                            );
+                            assert!((hess[(i, j)] - fdg[i]).abs() < 1e-6 * (1.0 + fdg[i].abs()), "{profile:?} hess");
                         }
                     }
                 }
@@ -270,10 +238,7 @@ mod tests {
         assert_eq!(Profile::Cubic.eval(d), (0.015625, 0.125, 0.75));
         assert!((Profile::Crank.eval(d).1 - d.sin()).abs() < 1e-15);
         assert_eq!(Profile::Compression(Side::Plus).eval(-d), (0.0, 0.0, 0.0));
-        assert_eq!(
-            Profile::Compression(Side::Minus).eval(-d),
-            (0.125, -0.5, 1.0)
-        );
+        assert_eq!(Profile::Compression(Side::Minus).eval(-d), (0.125, -0.5, 1.0));
         assert_eq!(Profile::Compression(Side::Minus).eval(d), (0.0, 0.0, 0.0));
         for p in all_profiles() {
             for d in [-1.3, -0.2, 0.0, 0.4, 2.0] {
@@ -281,21 +246,13 @@ mod tests {
             }
             assert_eq!(Profile::parse(p.name(), p.side()).unwrap(), p);
         }
-        assert!(
-            Profile::parse("spiral", "")
-                .unwrap_err()
-                .contains("unknown profile")
-        );
+        assert!(Profile::parse("spiral", "").unwrap_err().contains("unknown profile"));
         assert!(Profile::parse("compression", "").is_err());
     }
 
     #[test]
     fn coupling_text() {
-        let e = Element {
-            profile: Profile::Linear,
-            coupling: vec![1.0, -2.0, 0.5],
-            offset: 0.0,
-        };
+        let e = Element { profile: Profile::Linear, coupling: vec![1.0, -2.0, 0.5], offset: 0.0 };
         assert_eq!(e.coupling_text(), "1;-2;0.5");
     }
 }

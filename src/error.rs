@@ -38,11 +38,7 @@ pub enum Error {
     },
     /// A value parsed but is not acceptable (a negative mass, an equilibrium outside the region).
     #[error("{}: field `{field}`: {reason}", path.display())]
-    Invalid {
-        path: PathBuf,
-        field: String,
-        reason: String,
-    },
+    Invalid { path: PathBuf, field: String, reason: String },
     /// Settings or arguments given through the API or the command line are not acceptable.
     #[error("setting `{field}`: {reason}")]
     Setting { field: String, reason: String },
@@ -73,31 +69,17 @@ impl Error {
 
     /// Shorthand for an [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, cause: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            cause,
-        }
+        Error::Io { path: path.into(), cause }
     }
 
     /// Shorthand for an [`Error::Invalid`].
-    pub fn invalid(
-        path: impl Into<PathBuf>,
-        field: impl Into<String>,
-        reason: impl Into<String>,
-    ) -> Self {
-        Error::Invalid {
-            path: path.into(),
-            field: field.into(),
-            reason: reason.into(),
-        }
+    pub fn invalid(path: impl Into<PathBuf>, field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Invalid { path: path.into(), field: field.into(), reason: reason.into() }
     }
 
     /// Shorthand for an [`Error::Numerical`].
     pub fn numerical(context: impl Into<String>, reason: impl Into<String>) -> Self {
-        Error::Numerical {
-            context: context.into(),
-            reason: reason.into(),
-        }
+        Error::Numerical { context: context.into(), reason: reason.into() }
     }
 }
 

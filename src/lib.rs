@@ -11,6 +11,7 @@ pub mod bom;
 pub mod catalog;
 pub mod design;
 pub mod elements;
+pub mod fit;
 pub mod geodesic;
 pub mod linalg;
 pub mod model;

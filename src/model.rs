@@ -108,11 +108,7 @@ impl Chain {
         let mut pairs: Vec<PairTerm> = Vec::new();
         for a in 0..n {
             for b in a + 1..n {
-                pairs.push(PairTerm {
-                    a,
-                    b,
-                    w: vec![0.0; n * n],
-                });
+                pairs.push(PairTerm { a, b, w: vec![0.0; n * n] });
             }
         }
         let pair_index = |a: usize, b: usize| -> usize {
@@ -137,27 +133,14 @@ impl Chain {
                 }
             }
         }
-        let gravity_lever = (0..n)
-            .map(|t| (t..n).map(|i| links[i].mass * r(i, t)).sum())
-            .collect();
-        Chain {
-            links,
-            gravity,
-            m_const,
-            pairs,
-            gravity_lever,
-        }
+        let gravity_lever = (0..n).map(|t| (t..n).map(|i| links[i].mass * r(i, t)).sum()).collect();
+        Chain { links, gravity, m_const, pairs, gravity_lever }
     }
 
     /// The paper's double pendulum (appendix, no gravity): m = 1 kg, l = 2 m, centre of mass at
     /// 1 m, I = 1 kg·m² for both links. M₁₁ = 8 + 4 cos q₂, M₁₂ = 2 + 2 cos q₂, M₂₂ = 2.
     pub fn paper_double_pendulum() -> Self {
-        let link = Link {
-            mass: 1.0,
-            length: 2.0,
-            com: 1.0,
-            inertia: 1.0,
-        };
+        let link = Link { mass: 1.0, length: 2.0, com: 1.0, inertia: 1.0 };
         Chain::new(vec![link, link], [0.0, 0.0])
     }
 
@@ -201,10 +184,7 @@ impl Chain {
         let mut p = [0.0, 0.0];
         let mut out = vec![p];
         for (link, phi) in self.links.iter().zip(self.link_angles(q)) {
-            p = [
-                p[0] + link.length * phi.cos(),
-                p[1] + link.length * phi.sin(),
-            ];
+            p = [p[0] + link.length * phi.cos(), p[1] + link.length * phi.sin()];
             out.push(p);
         }
         out
@@ -268,13 +248,7 @@ impl Chain {
     pub fn christoffel(&self, q: &DVector<f64>) -> Vec<DMatrix<f64>> {
         let n = self.dof();
         let dm = self.mass_matrix_derivatives(q);
-        (0..n)
-            .map(|i| {
-                DMatrix::from_fn(n, n, |j, k| {
-                    0.5 * (dm[k][(i, j)] + dm[j][(i, k)] - dm[i][(j, k)])
-                })
-            })
-            .collect()
+        (0..n).map(|i| DMatrix::from_fn(n, n, |j, k| 0.5 * (dm[k][(i, j)] + dm[j][(i, k)] - dm[i][(j, k)]))).collect()
     }
 
     /// The Coriolis/centrifugal vector h(q, q̇) = C(q, q̇) q̇ = Ṁ q̇ − ½ ∂(q̇ᵀ M q̇)/∂q.
@@ -338,8 +312,7 @@ impl Chain {
         let phi = self.link_angles(q);
         let mut suffix = vec![0.0; n + 1];
         for t in (0..n).rev() {
-            suffix[t] =
-                suffix[t + 1] - self.gravity_lever[t] * (gx * phi[t].cos() + gy * phi[t].sin());
+            suffix[t] = suffix[t + 1] - self.gravity_lever[t] * (gx * phi[t].cos() + gy * phi[t].sin());
         }
         DMatrix::from_fn(n, n, |p, r| suffix[p.max(r)])
     }
@@ -436,14 +409,7 @@ impl Chain {
 
     /// Joint accelerations of the full dynamics M q̈ + h(q, q̇) = τ for a given total torque τ
     /// (spring, gravity, damping and control torques already summed by the caller).
-    pub fn acceleration(
-        &self,
-        ws: &mut Workspace,
-        q: &[f64],
-        qd: &[f64],
-        tau: &[f64],
-        qdd: &mut [f64],
-    ) -> bool {
+    pub fn acceleration(&self, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], qdd: &mut [f64]) -> bool {
         let n = self.dof();
         self.fill_trig(q, ws);
         self.fill_mass(ws);
@@ -467,24 +433,9 @@ mod tests {
     fn three_link() -> Chain {
         Chain::new(
             vec![
-                Link {
-                    mass: 1.3,
-                    length: 1.1,
-                    com: 0.4,
-                    inertia: 0.2,
-                },
-                Link {
-                    mass: 0.7,
-                    length: 0.9,
-                    com: 0.5,
-                    inertia: 0.05,
-                },
-                Link {
-                    mass: 0.4,
-                    length: 0.6,
-                    com: 0.35,
-                    inertia: 0.02,
-                },
+                Link { mass: 1.3, length: 1.1, com: 0.4, inertia: 0.2 },
+                Link { mass: 0.7, length: 0.9, com: 0.5, inertia: 0.05 },
+                Link { mass: 0.4, length: 0.6, com: 0.35, inertia: 0.02 },
             ],
             [0.3, -9.81],
         )
@@ -634,13 +585,9 @@ mod tests {
                 let mut qm = q.clone();
                 qp[p] += h;
                 qm[p] -= h;
-                let fd = (chain.gravity_potential(qp.as_slice())
-                    - chain.gravity_potential(qm.as_slice()))
-                    / (2.0 * h);
+                let fd = (chain.gravity_potential(qp.as_slice()) - chain.gravity_potential(qm.as_slice())) / (2.0 * h);
                 assert!((g[p] - fd).abs() < 1e-7);
-                let fdg = (chain.gravity_gradient(qp.as_slice())
-                    - chain.gravity_gradient(qm.as_slice()))
-                    / (2.0 * h);
+                let fdg = (chain.gravity_gradient(qp.as_slice()) - chain.gravity_gradient(qm.as_slice())) / (2.0 * h);
                 for r in 0..3 {
                     assert!((hess[(r, p)] - fdg[r]).abs() < 1e-7);
                 }
@@ -648,12 +595,8 @@ mod tests {
         }
         // Potential against the definition Σ mᵢ g·cᵢ.
         let q = [0.3, -0.7, 1.1];
-        let direct: f64 = chain
-            .links()
-            .iter()
-            .zip(chain.com_positions(&q))
-            .map(|(l, c)| l.mass * (0.3 * c[0] - 9.81 * c[1]))
-            .sum();
+        let direct: f64 =
+            chain.links().iter().zip(chain.com_positions(&q)).map(|(l, c)| l.mass * (0.3 * c[0] - 9.81 * c[1])).sum();
         assert!((chain.gravity_potential(&q) - direct).abs() < 1e-12);
     }
 
@@ -666,9 +609,7 @@ mod tests {
         for pair in pts.chunks(2) {
             let (q, qd) = (&pair[0], &pair[1]);
             // Φ = random but fixed.
-            let phi: Vec<f64> = (0..2 * n * n)
-                .map(|i| ((i * 7 % 11) as f64 - 5.0) / 5.0)
-                .collect();
+            let phi: Vec<f64> = (0..2 * n * n).map(|i| ((i * 7 % 11) as f64 - 5.0) / 5.0).collect();
             let mut y: Vec<f64> = q.iter().chain(qd.iter()).copied().collect();
             y.extend_from_slice(&phi);
             let mut dy = vec![0.0; y.len()];

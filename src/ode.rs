@@ -29,13 +29,7 @@ pub struct OdeSettings {
 
 impl Default for OdeSettings {
     fn default() -> Self {
-        OdeSettings {
-            rtol: 1e-10,
-            atol: 1e-10,
-            max_step: 0.0,
-            min_step: 1e-12,
-            max_steps: 100_000,
-        }
+        OdeSettings { rtol: 1e-10, atol: 1e-10, max_step: 0.0, min_step: 1e-12, max_steps: 100_000 }
     }
 }
 
@@ -50,10 +44,7 @@ impl OdeSettings {
             return Err((format!("{prefix}.atol"), "must be positive".into()));
         }
         if !(self.max_step.is_finite() && self.max_step >= 0.0) {
-            return Err((
-                format!("{prefix}.max_step"),
-                "must be ≥ 0 (0: no limit)".into(),
-            ));
+            return Err((format!("{prefix}.max_step"), "must be ≥ 0 (0: no limit)".into()));
         }
         if !pos(self.min_step) {
             return Err((format!("{prefix}.min_step"), "must be positive".into()));
@@ -225,13 +216,7 @@ impl Dopri5 {
 
     /// Starts an integration at (t0, y0). `direction_hint` is the time span expected (used for the
     /// initial step guess).
-    pub fn start<F>(
-        &mut self,
-        rhs: &mut F,
-        t0: f64,
-        y0: &[f64],
-        span: f64,
-    ) -> Result<(), OdeFailure>
+    pub fn start<F>(&mut self, rhs: &mut F, t0: f64, y0: &[f64], span: f64) -> Result<(), OdeFailure>
     where
         F: FnMut(f64, &[f64], &mut [f64]) -> bool,
     {
@@ -258,20 +243,11 @@ impl Dopri5 {
         let s = &self.settings;
         let sc = |y: f64| s.atol + s.rtol * y.abs();
         let rms = |v: &[f64], y: &[f64]| {
-            (v.iter()
-                .zip(y)
-                .map(|(a, b)| (a / sc(*b)).powi(2))
-                .sum::<f64>()
-                / v.len() as f64)
-                .sqrt()
+            (v.iter().zip(y).map(|(a, b)| (a / sc(*b)).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
         };
         let d0 = rms(&self.y, &self.y);
         let d1 = rms(&self.k[0], &self.y);
-        let mut h0 = if d0 < 1e-5 || d1 < 1e-5 {
-            1e-6
-        } else {
-            0.01 * d0 / d1
-        };
+        let mut h0 = if d0 < 1e-5 || d1 < 1e-5 { 1e-6 } else { 0.01 * d0 / d1 };
         h0 = h0.min(span.abs());
         for i in 0..self.dim {
             self.y_stage[i] = self.y[i] + h0 * self.k[0][i];
@@ -288,11 +264,7 @@ impl Dopri5 {
             .sqrt()
             / (self.dim as f64).sqrt()
             / h0;
-        let h1 = if d1.max(d2) <= 1e-15 {
-            (h0 * 1e-3).max(1e-6)
-        } else {
-            (0.01 / d1.max(d2)).powf(1.0 / 5.0)
-        };
+        let h1 = if d1.max(d2) <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / d1.max(d2)).powf(1.0 / 5.0) };
         let mut h = (100.0 * h0).min(h1).min(span.abs());
         if self.settings.max_step > 0.0 {
             h = h.min(self.settings.max_step);
@@ -354,16 +326,14 @@ impl Dopri5 {
                 return Err(OdeFailure::RhsFailed { t });
             }
             for i in 0..n {
-                ys[i] = y[i]
-                    + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]);
+                ys[i] = y[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]);
             }
             if !rhs(t + h, ys, k6) {
                 return Err(OdeFailure::RhsFailed { t });
             }
             let yn = &mut self.y_new;
             for i in 0..n {
-                yn[i] = y[i]
-                    + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]);
+                yn[i] = y[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]);
             }
             if !rhs(t + h, yn, k7) {
                 return Err(OdeFailure::RhsFailed { t });
@@ -371,8 +341,7 @@ impl Dopri5 {
             let mut err = 0.0;
             let ne = self.error_dim;
             for i in 0..ne {
-                let e = h
-                    * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
+                let e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
                 let sc = self.settings.atol + self.settings.rtol * y[i].abs().max(yn[i].abs());
                 err += (e / sc) * (e / sc);
             }
@@ -402,24 +371,14 @@ impl Dopri5 {
                     self.cont[1][i] = ydiff;
                     self.cont[2][i] = bspl;
                     self.cont[3][i] = ydiff - h * k7[i] - bspl;
-                    self.cont[4][i] = h
-                        * (D1 * k1[i]
-                            + D3 * k3[i]
-                            + D4 * k4[i]
-                            + D5 * k5[i]
-                            + D6 * k6[i]
-                            + D7 * k7[i]);
+                    self.cont[4][i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
                 }
                 self.err_old = err.max(1e-4);
                 self.t_old = t;
                 self.t = if last { t_end } else { t + h };
                 std::mem::swap(&mut self.y, &mut self.y_new);
                 self.k.swap(0, 6);
-                self.h = h * if self.last_rejected {
-                    fac.min(1.0)
-                } else {
-                    fac
-                };
+                self.h = h * if self.last_rejected { fac.min(1.0) } else { fac };
                 self.last_rejected = false;
                 if self.y.iter().any(|v| !v.is_finite()) {
                     return Err(OdeFailure::NonFinite { t: self.t });
@@ -444,9 +403,7 @@ impl Dopri5 {
             *o = self.cont[0][i]
                 + theta
                     * (self.cont[1][i]
-                        + theta1
-                            * (self.cont[2][i]
-                                + theta * (self.cont[3][i] + theta1 * self.cont[4][i])));
+                        + theta1 * (self.cont[2][i] + theta * (self.cont[3][i] + theta1 * self.cont[4][i])));
         }
     }
 
@@ -457,23 +414,14 @@ impl Dopri5 {
         let theta1 = 1.0 - theta;
         self.cont[0][i]
             + theta
-                * (self.cont[1][i]
-                    + theta1
-                        * (self.cont[2][i] + theta * (self.cont[3][i] + theta1 * self.cont[4][i])))
+                * (self.cont[1][i] + theta1 * (self.cont[2][i] + theta * (self.cont[3][i] + theta1 * self.cont[4][i])))
     }
 }
 
 /// Finds a root of `f` in [a, b] given f(a) and f(b) of opposite signs (Illinois-modified regula
 /// falsi, robust and fast for the smooth event functions used here). Returns the bracket end on
 /// the side where f(a) has its sign closest to the root within `tol`.
-pub fn find_root<F: FnMut(f64) -> f64>(
-    mut f: F,
-    mut a: f64,
-    mut b: f64,
-    mut fa: f64,
-    mut fb: f64,
-    tol: f64,
-) -> f64 {
+pub fn find_root<F: FnMut(f64) -> f64>(mut f: F, mut a: f64, mut b: f64, mut fa: f64, mut fb: f64, tol: f64) -> f64 {
     if fa == 0.0 {
         return a;
     }
@@ -486,11 +434,7 @@ pub fn find_root<F: FnMut(f64) -> f64>(
             break;
         }
         let c = (a * fb - b * fa) / (fb - fa);
-        let c = if c.is_finite() && c > a.min(b) && c < a.max(b) {
-            c
-        } else {
-            0.5 * (a + b)
-        };
+        let c = if c.is_finite() && c > a.min(b) && c < a.max(b) { c } else { 0.5 * (a + b) };
         let fc = f(c);
         if fc == 0.0 {
             return c;
@@ -533,11 +477,7 @@ mod tests {
 
     #[test]
     fn harmonic_oscillator_to_tolerance() {
-        let s = OdeSettings {
-            rtol: 1e-11,
-            atol: 1e-11,
-            ..Default::default()
-        };
+        let s = OdeSettings { rtol: 1e-11, atol: 1e-11, ..Default::default() };
         let (y, _) = integrate(
             |_, y, dy| {
                 dy[0] = y[1];
@@ -556,11 +496,7 @@ mod tests {
     fn error_scales_with_tolerance_like_fifth_order() {
         // y' = -2 t y, y(0) = 1 → exp(-t²)
         let run = |tol: f64| {
-            let s = OdeSettings {
-                rtol: tol,
-                atol: tol,
-                ..Default::default()
-            };
+            let s = OdeSettings { rtol: tol, atol: tol, ..Default::default() };
             let (y, steps) = integrate(
                 |t, y, dy| {
                     dy[0] = -2.0 * t * y[0];
@@ -582,11 +518,7 @@ mod tests {
 
     #[test]
     fn dense_output_is_accurate_inside_steps() {
-        let s = OdeSettings {
-            rtol: 1e-10,
-            atol: 1e-10,
-            ..Default::default()
-        };
+        let s = OdeSettings { rtol: 1e-10, atol: 1e-10, ..Default::default() };
         let mut f = |_: f64, y: &[f64], dy: &mut [f64]| {
             dy[0] = y[1];
             dy[1] = -y[0];
@@ -601,9 +533,7 @@ mod tests {
             for j in 1..10 {
                 let t = ode.t_old() + (ode.t() - ode.t_old()) * j as f64 / 10.0;
                 ode.dense(t, &mut out);
-                worst = worst
-                    .max((out[0] - t.sin()).abs())
-                    .max((out[1] - t.cos()).abs());
+                worst = worst.max((out[0] - t.sin()).abs()).max((out[1] - t.cos()).abs());
                 assert_eq!(ode.dense_component(t, 0), out[0]);
             }
             if done {

@@ -36,23 +36,14 @@ pub struct SpringSet {
 impl SpringSet {
     /// Joint torques of each element at q (the spring torque a·k·u′, N·m): one row per element.
     pub fn element_torques(&self, q: &[f64]) -> Vec<DVector<f64>> {
-        self.elements
-            .iter()
-            .zip(&self.stiffness)
-            .map(|(e, k)| e.gradient(q) * *k)
-            .collect()
+        self.elements.iter().zip(&self.stiffness).map(|(e, k)| e.gradient(q) * *k).collect()
     }
 
     /// The same springs with each stiffness scaled by a factor (manufacturing deviations).
     pub fn scaled(&self, factors: &[f64]) -> SpringSet {
         SpringSet {
             elements: self.elements.clone(),
-            stiffness: self
-                .stiffness
-                .iter()
-                .zip(factors)
-                .map(|(k, f)| k * f)
-                .collect(),
+            stiffness: self.stiffness.iter().zip(factors).map(|(k, f)| k * f).collect(),
         }
     }
 
@@ -77,12 +68,7 @@ impl Potential for SpringSet {
     }
 
     fn value(&self, q: &[f64]) -> Result<f64> {
-        Ok(self
-            .elements
-            .iter()
-            .zip(&self.stiffness)
-            .map(|(e, k)| k * e.value(q))
-            .sum())
+        Ok(self.elements.iter().zip(&self.stiffness).map(|(e, k)| k * e.value(q)).sum())
     }
 
     fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
@@ -93,11 +79,7 @@ impl Potential for SpringSet {
 
     fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let n = q.len();
-        Ok(self
-            .elements
-            .iter()
-            .zip(&self.stiffness)
-            .fold(DMatrix::zeros(n, n), |acc, (e, k)| acc + e.hessian(q) * *k))
+        Ok(self.elements.iter().zip(&self.stiffness).fold(DMatrix::zeros(n, n), |acc, (e, k)| acc + e.hessian(q) * *k))
     }
 }
 
@@ -116,11 +98,7 @@ pub struct ExactPotential<'a> {
 impl<'a> ExactPotential<'a> {
     /// U* for the arm `chain` around `q_eq` with small-oscillation frequency `omega` (rad/s).
     pub fn new(chain: &'a Chain, q_eq: &DVector<f64>, omega: f64, ode: OdeSettings) -> Self {
-        ExactPotential {
-            log: LogMap::new(chain, q_eq, ode, LogSettings::default()),
-            chain,
-            omega,
-        }
+        ExactPotential { log: LogMap::new(chain, q_eq, ode, LogSettings::default()), chain, omega }
     }
 
     /// The frequency ω.
@@ -160,8 +138,7 @@ impl Potential for ExactPotential<'_> {
         let n = q.len();
         let qv = DVector::from_column_slice(q);
         if (&qv - self.log.q_eq()).amax() == 0.0 {
-            return Ok(self.chain.mass_matrix(&qv) * (self.omega * self.omega)
-                - self.chain.gravity_hessian(q));
+            return Ok(self.chain.mass_matrix(&qv) * (self.omega * self.omega) - self.chain.gravity_hessian(q));
         }
         let h = 1e-5;
         let mut out = DMatrix::zeros(n, n);
@@ -187,21 +164,9 @@ mod tests {
     fn spring_set_sums_its_elements() {
         let set = SpringSet {
             elements: vec![
-                Element {
-                    profile: Profile::Linear,
-                    coupling: vec![1.0, 0.0],
-                    offset: 0.1,
-                },
-                Element {
-                    profile: Profile::Crank,
-                    coupling: vec![1.0, -1.0],
-                    offset: 0.3,
-                },
-                Element {
-                    profile: Profile::Compression(Side::Minus),
-                    coupling: vec![0.0, 2.0],
-                    offset: 0.5,
-                },
+                Element { profile: Profile::Linear, coupling: vec![1.0, 0.0], offset: 0.1 },
+                Element { profile: Profile::Crank, coupling: vec![1.0, -1.0], offset: 0.3 },
+                Element { profile: Profile::Compression(Side::Minus), coupling: vec![0.0, 2.0], offset: 0.5 },
             ],
             stiffness: vec![2.0, 3.0, 0.5],
         };
@@ -229,11 +194,7 @@ mod tests {
     fn exact_gradient_matches_finite_differences_of_its_value() {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
-        let ode = OdeSettings {
-            rtol: 1e-12,
-            atol: 1e-12,
-            ..Default::default()
-        };
+        let ode = OdeSettings { rtol: 1e-12, atol: 1e-12, ..Default::default() };
         let exact = ExactPotential::new(&chain, &q_eq, 2.0, ode);
         for q in [[0.3, 1.9], [-0.4, 1.1], [0.2, 2.5]] {
             let g = exact.gradient(&q).unwrap();
@@ -244,11 +205,7 @@ mod tests {
                 qp[j] += h;
                 qm[j] -= h;
                 let fd = (exact.value(&qp).unwrap() - exact.value(&qm).unwrap()) / (2.0 * h);
-                assert!(
-                    (g[j] - fd).abs() < 1e-6 * (1.0 + fd.abs()),
-                    "{} vs {fd}",
-                    g[j]
-                );
+                assert!((g[j] - fd).abs() < 1e-6 * (1.0 + fd.abs()), "{} vs {fd}", g[j]);
             }
         }
         let hess = exact.hessian(q_eq.as_slice()).unwrap();

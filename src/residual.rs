@@ -85,18 +85,9 @@ pub fn angle_between(v: &[f64], t: &[f64]) -> f64 {
 /// Residual angles of `potential` (elastic part; gravity added from the chain) at every sample
 /// of `fan`, in fan order. Runs in parallel; the result does not depend on the thread count.
 pub fn fan_angles(chain: &Chain, fan: &Fan, potential: &dyn Potential) -> Result<Vec<AngleSample>> {
-    let per: Vec<Result<Vec<AngleSample>>> = fan
-        .geodesics
-        .par_iter()
-        .enumerate()
-        .map(|(d, g)| geodesic_angles(chain, d, g, potential))
-        .collect();
-    Ok(per
-        .into_iter()
-        .collect::<Result<Vec<_>>>()?
-        .into_iter()
-        .flatten()
-        .collect())
+    let per: Vec<Result<Vec<AngleSample>>> =
+        fan.geodesics.par_iter().enumerate().map(|(d, g)| geodesic_angles(chain, d, g, potential)).collect();
+    Ok(per.into_iter().collect::<Result<Vec<_>>>()?.into_iter().flatten().collect())
 }
 
 fn geodesic_angles(
@@ -109,12 +100,7 @@ fn geodesic_angles(
         .map(|i| {
             let q = g.q(i);
             let grad = potential.gradient(q)? + chain.gravity_gradient(q);
-            Ok(AngleSample {
-                direction,
-                s: g.s(i),
-                q: q.to_vec(),
-                angle_deg: residual_angle(chain, q, g.qd(i), &grad),
-            })
+            Ok(AngleSample { direction, s: g.s(i), q: q.to_vec(), angle_deg: residual_angle(chain, q, g.qd(i), &grad) })
         })
         .collect()
 }
@@ -132,16 +118,8 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 /// Statistics of |angle| over the samples (NaN angles count as 180°, the worst).
 pub fn stats(samples: &[AngleSample]) -> AngleStats {
-    let mut a: Vec<f64> = samples
-        .iter()
-        .map(|s| {
-            if s.angle_deg.is_nan() {
-                180.0
-            } else {
-                s.angle_deg.abs()
-            }
-        })
-        .collect();
+    let mut a: Vec<f64> =
+        samples.iter().map(|s| if s.angle_deg.is_nan() { 180.0 } else { s.angle_deg.abs() }).collect();
     a.sort_by(f64::total_cmp);
     AngleStats {
         median_abs: percentile(&a, 50.0),
@@ -158,16 +136,9 @@ pub fn band_stats(samples: &[AngleSample], extent: f64, bands: usize) -> Vec<Ban
         .map(|b| {
             let from = extent * b as f64 / bands as f64;
             let to = extent * (b + 1) as f64 / bands as f64;
-            let inside: Vec<AngleSample> = samples
-                .iter()
-                .filter(|s| s.s > from && (s.s <= to || (b + 1 == bands && s.s > to)))
-                .cloned()
-                .collect();
-            BandStats {
-                from,
-                to,
-                stats: stats(&inside),
-            }
+            let inside: Vec<AngleSample> =
+                samples.iter().filter(|s| s.s > from && (s.s <= to || (b + 1 == bands && s.s > to))).cloned().collect();
+            BandStats { from, to, stats: stats(&inside) }
         })
         .collect()
 }
@@ -194,18 +165,8 @@ mod tests {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
         let ode = OdeSettings::default();
-        let fan = Fan::trace(
-            &chain,
-            &q_eq,
-            FanSpec {
-                count: 36,
-                phase: 0.5,
-                stop: Stop::Arc(2.0),
-                spacing: 0.1,
-            },
-            ode,
-        )
-        .unwrap();
+        let fan = Fan::trace(&chain, &q_eq, FanSpec { count: 36, phase: 0.5, stop: Stop::Arc(2.0), spacing: 0.1 }, ode)
+            .unwrap();
         let exact = ExactPotential::new(&chain, &q_eq, 3.0, ode);
         let angles = fan_angles(&chain, &fan, &exact).unwrap();
         let st = stats(&angles);
@@ -231,14 +192,8 @@ mod tests {
         let v: Vec<f64> = (0..=100).map(f64::from).collect();
         assert_eq!(percentile(&v, 99.0), 99.0);
         assert_eq!(percentile(&[1.0, 3.0], 50.0), 2.0);
-        let samples: Vec<AngleSample> = (1..=4)
-            .map(|i| AngleSample {
-                direction: 0,
-                s: i as f64,
-                q: vec![],
-                angle_deg: -(i as f64),
-            })
-            .collect();
+        let samples: Vec<AngleSample> =
+            (1..=4).map(|i| AngleSample { direction: 0, s: i as f64, q: vec![], angle_deg: -(i as f64) }).collect();
         let st = stats(&samples);
         assert_eq!((st.median_abs, st.max_abs, st.count), (2.5, 4.0, 4));
         let bands = band_stats(&samples, 4.0, 2);

@@ -14,15 +14,9 @@ pub struct Angle(pub f64);
 impl Angle {
     /// Parses `[sign][number][*]pi[/number]` or a plain number.
     pub fn parse(text: &str) -> Result<f64, String> {
-        let t: String = text
-            .chars()
-            .filter(|c| !c.is_whitespace())
-            .collect::<String>()
-            .to_lowercase();
+        let t: String = text.chars().filter(|c| !c.is_whitespace()).collect::<String>().to_lowercase();
         let bad = || {
-            format!(
-                "`{text}` is not an angle: write radians as a number or an expression like \"pi/2\", \"-3*pi/4\""
-            )
+            format!("`{text}` is not an angle: write radians as a number or an expression like \"pi/2\", \"-3*pi/4\"")
         };
         if t.is_empty() {
             return Err(bad());
@@ -40,11 +34,7 @@ impl Angle {
             };
             let divisor = match after {
                 "" => 1.0,
-                a => a
-                    .strip_prefix('/')
-                    .ok_or_else(bad)?
-                    .parse::<f64>()
-                    .map_err(|_| bad())?,
+                a => a.strip_prefix('/').ok_or_else(bad)?.parse::<f64>().map_err(|_| bad())?,
             };
             if divisor == 0.0 {
                 return Err(bad());
@@ -69,11 +59,9 @@ impl<'de> Deserialize<'de> for Angle {
             Int(i64),
             Text(String),
         }
-        let v = match Raw::deserialize(d).map_err(|_| {
-            serde::de::Error::custom(
-                "expected an angle: a number of radians or a string like \"pi/2\"",
-            )
-        })? {
+        let v = match Raw::deserialize(d)
+            .map_err(|_| serde::de::Error::custom("expected an angle: a number of radians or a string like \"pi/2\""))?
+        {
             Raw::Num(x) => x,
             Raw::Int(i) => i as f64,
             Raw::Text(s) => Angle::parse(&s).map_err(serde::de::Error::custom)?,
@@ -105,10 +93,7 @@ mod tests {
             (" - 1.5 ", -1.5),
             ("PI", PI),
         ] {
-            assert!(
-                (Angle::parse(text).unwrap() - value).abs() < 1e-15,
-                "{text}"
-            );
+            assert!((Angle::parse(text).unwrap() - value).abs() < 1e-15, "{text}");
         }
         for bad in ["", "pie", "pi/0", "pi/x", "x", "1e999", "pi*2/"] {
             assert!(Angle::parse(bad).is_err(), "{bad}");

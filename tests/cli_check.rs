@@ -8,19 +8,12 @@ use util::{design_text, repo, springfit, temp_dir, write};
 #[test]
 fn shipped_designs_pass_the_check() {
     let dir = temp_dir("check-ok");
-    for name in [
-        "double_pendulum.toml",
-        "double_pendulum_straight.toml",
-        "double_pendulum_folded.toml",
-        "triple_pendulum.toml",
-    ] {
+    for name in
+        ["double_pendulum.toml", "double_pendulum_straight.toml", "double_pendulum_folded.toml", "triple_pendulum.toml"]
+    {
         let design = repo().join("designs").join(name);
         let run = springfit(&dir, &["check", design.to_str().unwrap()]).ok();
-        assert!(
-            run.stdout().contains("largest valid geodesic-ball radius"),
-            "{}",
-            run.report()
-        );
+        assert!(run.stdout().contains("largest valid geodesic-ball radius"), "{}", run.report());
     }
 }
 
@@ -46,10 +39,7 @@ fn each_bad_design_gets_its_own_clear_error() {
         ),
         (
             "outside.toml",
-            good.replace(
-                "kind = \"ball\"\nradius = 2.0 ",
-                "kind = \"box\"\nlower = [-1.0, 2.0]\nupper = [1.0, 3.0]",
-            ),
+            good.replace("kind = \"ball\"\nradius = 2.0 ", "kind = \"box\"\nlower = [-1.0, 2.0]\nupper = [1.0, 3.0]"),
             vec!["outside.toml", "equilibrium.q[1]", "outside the region"],
         ),
         (
@@ -79,16 +69,9 @@ fn each_bad_design_gets_its_own_clear_error() {
 #[test]
 fn a_region_past_the_largest_valid_radius_is_rejected_with_the_radius_that_works() {
     let dir = temp_dir("check-region");
-    let text =
-        design_text("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
+    let text = design_text("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
     let path = write(&dir, "too_big.toml", &text);
-    let run = springfit(&dir, &["check", path.to_str().unwrap()]).fails(
-        2,
-        &["region.radius", "largest valid geodesic-ball radius is"],
-    );
-    assert!(
-        run.stderr().contains("conjugate point") || run.stderr().contains("cross"),
-        "{}",
-        run.report()
-    );
+    let run = springfit(&dir, &["check", path.to_str().unwrap()])
+        .fails(2, &["region.radius", "largest valid geodesic-ball radius is"]);
+    assert!(run.stderr().contains("conjugate point") || run.stderr().contains("cross"), "{}", run.report());
 }

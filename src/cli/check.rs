@@ -27,23 +27,12 @@ pub fn run(path: &Path, progress: &Progress) -> Result<()> {
             l.inertia
         ));
     }
-    progress.say(format!(
-        "equilibrium q = {}",
-        fmt_vec(design.q_eq.as_slice())
-    ));
+    progress.say(format!("equilibrium q = {}", fmt_vec(design.q_eq.as_slice())));
     let m = design.chain.mass_matrix(&design.q_eq);
-    let rows: Vec<String> = m
-        .row_iter()
-        .map(|r| fmt_vec(&r.iter().copied().collect::<Vec<_>>()))
-        .collect();
-    progress.say(format!(
-        "mass matrix at the equilibrium: {}",
-        rows.join(" ")
-    ));
+    let rows: Vec<String> = m.row_iter().map(|r| fmt_vec(&r.iter().copied().collect::<Vec<_>>())).collect();
+    progress.say(format!("mass matrix at the equilibrium: {}", rows.join(" ")));
     match &design.region {
-        Region::Ball { radius } => {
-            progress.say(format!("region: geodesic ball of radius {radius}"))
-        }
+        Region::Ball { radius } => progress.say(format!("region: geodesic ball of radius {radius}")),
         Region::Box { .. } => progress.say(format!("region: {}", design.region.describe())),
     }
     if let Some(c) = &design.catalog {
@@ -54,11 +43,7 @@ pub fn run(path: &Path, progress: &Progress) -> Result<()> {
     let report = design.region_report();
     let secs = step.finish();
     let report = report?;
-    let bound = if report.largest_radius_is_lower_bound {
-        "≥ "
-    } else {
-        ""
-    };
+    let bound = if report.largest_radius_is_lower_bound { "≥ " } else { "" };
     progress.say(format!(
         "region check ({secs:.2} s, {} directions): largest valid geodesic-ball radius {bound}{:.4}",
         design.geodesics.check_directions, report.largest_radius
@@ -69,11 +54,5 @@ pub fn run(path: &Path, progress: &Progress) -> Result<()> {
 }
 
 pub fn fmt_vec(v: &[f64]) -> String {
-    format!(
-        "({})",
-        v.iter()
-            .map(|x| format!("{x:.4}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    )
+    format!("({})", v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", "))
 }

@@ -45,11 +45,9 @@ pub enum Command {
         design: PathBuf,
     },
     /// Trace the fan of geodesics from the equilibrium, check the region and plot them.
-    #[command(
-        after_help = "Example:\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\n\
+    #[command(after_help = "Example:\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\n\
 Writes geodesics.csv (direction, s, q…, q̇…), region.json (valid, largest_radius, reason) and\n\
-geodesics.svg/.png (the fan in joint space and the same motions in Cartesian space)."
-    )]
+geodesics.svg/.png (the fan in joint space and the same motions in Cartesian space).")]
     Geodesics {
         /// Design file (TOML).
         #[arg(default_value = DEFAULT_DESIGN)]
@@ -65,15 +63,9 @@ pub fn run() -> Result<()> {
     let cli = Cli::parse();
     if let Some(t) = cli.threads {
         if t == 0 {
-            return Err(Error::Setting {
-                field: "--threads".into(),
-                reason: "must be at least 1".into(),
-            }
-            .into());
+            return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
         }
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build_global()?;
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
     }
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {

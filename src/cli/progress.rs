@@ -24,17 +24,12 @@ impl Progress {
     pub fn step(&self, message: &str) -> Step {
         let bar = (!self.quiet).then(|| {
             let bar = ProgressBar::new_spinner();
-            bar.set_style(
-                ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("static template"),
-            );
+            bar.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("static template"));
             bar.set_message(message.to_string());
             bar.enable_steady_tick(Duration::from_millis(120));
             bar
         });
-        Step {
-            bar,
-            started: Instant::now(),
-        }
+        Step { bar, started: Instant::now() }
     }
 
     /// Prints a line of results to stdout unless quiet.

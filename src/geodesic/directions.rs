@@ -22,19 +22,14 @@ impl MetricFrame {
     /// The frame of the metric `m` (the mass matrix at the equilibrium).
     pub fn new(m: &DMatrix<f64>) -> Result<Self> {
         let chol = m.clone().cholesky().ok_or_else(|| {
-            Error::numerical(
-                "metric frame",
-                "the mass matrix at the equilibrium is not positive definite",
-            )
+            Error::numerical("metric frame", "the mass matrix at the equilibrium is not positive definite")
         })?;
         let lt = chol.l().transpose();
-        let to_joint = lt.clone().try_inverse().ok_or_else(|| {
-            Error::numerical("metric frame", "singular mass matrix at the equilibrium")
-        })?;
-        Ok(MetricFrame {
-            to_joint,
-            to_frame: lt,
-        })
+        let to_joint = lt
+            .clone()
+            .try_inverse()
+            .ok_or_else(|| Error::numerical("metric frame", "singular mass matrix at the equilibrium"))?;
+        Ok(MetricFrame { to_joint, to_frame: lt })
     }
 
     /// Joint velocity of frame coordinates u (metric length |u|).
@@ -54,10 +49,7 @@ impl MetricFrame {
 /// held-out set of an evaluation).
 pub fn unit_vectors(n: usize, count: usize, phase: f64) -> Vec<DVector<f64>> {
     match n {
-        1 => (0..count.max(2))
-            .map(|i| DVector::from_element(1, if i % 2 == 0 { 1.0 } else { -1.0 }))
-            .take(2)
-            .collect(),
+        1 => (0..count.max(2)).map(|i| DVector::from_element(1, if i % 2 == 0 { 1.0 } else { -1.0 })).take(2).collect(),
         2 => (0..count)
             .map(|i| {
                 let a = std::f64::consts::TAU * (i as f64 + phase) / count as f64;

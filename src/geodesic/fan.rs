@@ -41,12 +41,7 @@ impl Fan {
     /// Traces the fan in parallel. The result does not depend on the number of threads: each
     /// geodesic is integrated on its own, results are collected in direction order, and the
     /// first failing direction (in that order) is the error reported.
-    pub fn trace(
-        chain: &Chain,
-        q_eq: &DVector<f64>,
-        spec: FanSpec<'_>,
-        ode: OdeSettings,
-    ) -> Result<Fan> {
+    pub fn trace(chain: &Chain, q_eq: &DVector<f64>, spec: FanSpec<'_>, ode: OdeSettings) -> Result<Fan> {
         let frame = MetricFrame::new(&chain.mass_matrix(q_eq))?;
         let dirs = unit_vectors(chain.dof(), spec.count, spec.phase);
         let results: Vec<Result<Geodesic>> = dirs
@@ -57,11 +52,7 @@ impl Fan {
             )
             .collect();
         let geodesics = results.into_iter().collect::<Result<Vec<_>>>()?;
-        Ok(Fan {
-            q_eq: q_eq.clone(),
-            frame_directions: dirs,
-            geodesics,
-        })
+        Ok(Fan { q_eq: q_eq.clone(), frame_directions: dirs, geodesics })
     }
 
     /// Total number of samples over all geodesics.
@@ -79,17 +70,9 @@ mod tests {
     fn fan_is_deterministic_across_thread_counts() {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
-        let spec = FanSpec {
-            count: 64,
-            phase: 0.0,
-            stop: Stop::Arc(2.0),
-            spacing: 0.1,
-        };
+        let spec = FanSpec { count: 64, phase: 0.0, stop: Stop::Arc(2.0), spacing: 0.1 };
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| Fan::trace(&chain, &q_eq, spec, OdeSettings::default()).unwrap())
         };
         let (a, b) = (run(1), run(2));

@@ -28,11 +28,7 @@ pub struct LogSettings {
 
 impl Default for LogSettings {
     fn default() -> Self {
-        LogSettings {
-            tol: 1e-11,
-            max_iterations: 25,
-            continuation_stages: 8,
-        }
+        LogSettings { tol: 1e-11, max_iterations: 25, continuation_stages: 8 }
     }
 }
 
@@ -73,20 +69,12 @@ pub struct LogMap<'a> {
 
 impl<'a> LogMap<'a> {
     /// The log map at `q_eq` with the integrator tolerances used for exp.
-    pub fn new(
-        chain: &'a Chain,
-        q_eq: &DVector<f64>,
-        ode: OdeSettings,
-        settings: LogSettings,
-    ) -> Self {
+    pub fn new(chain: &'a Chain, q_eq: &DVector<f64>, ode: OdeSettings, settings: LogSettings) -> Self {
         let m_eq = chain.mass_matrix(q_eq);
         LogMap {
             chain,
             q_eq: q_eq.clone(),
-            m_eq_inv: m_eq
-                .clone()
-                .try_inverse()
-                .unwrap_or_else(|| DMatrix::identity(q_eq.len(), q_eq.len())),
+            m_eq_inv: m_eq.clone().try_inverse().unwrap_or_else(|| DMatrix::identity(q_eq.len(), q_eq.len())),
             christoffel: chain.christoffel(q_eq),
             m_eq,
             ode,
@@ -118,36 +106,21 @@ impl<'a> LogMap<'a> {
     /// expansion exp(v) = q_eq + v − ½ Γ(v, v) + O(|v|³) (Γ of the second kind at q_eq).
     pub fn guess(&self, q: &DVector<f64>) -> DVector<f64> {
         let delta = q - &self.q_eq;
-        let quad = DVector::from_iterator(
-            delta.len(),
-            self.christoffel.iter().map(|g| delta.dot(&(g * &delta))),
-        );
+        let quad = DVector::from_iterator(delta.len(), self.christoffel.iter().map(|g| delta.dot(&(g * &delta))));
         let correction = self.m_eq_inv.clone() * quad * 0.5;
         let v = &delta + &correction;
         // Far from q_eq the expansion can overshoot; keep it only while it is a correction.
-        if correction.norm() < 0.5 * delta.norm() {
-            v
-        } else {
-            delta
-        }
+        if correction.norm() < 0.5 * delta.norm() { v } else { delta }
     }
 
     /// log(q), starting Newton from `guess` if given (a nearby solution), else from
     /// [`LogMap::guess`].
-    pub fn solve(
-        &self,
-        shooter: &mut Shooter<'_>,
-        q: &DVector<f64>,
-        guess: Option<&DVector<f64>>,
-    ) -> Result<LogPoint> {
+    pub fn solve(&self, shooter: &mut Shooter<'_>, q: &DVector<f64>, guess: Option<&DVector<f64>>) -> Result<LogPoint> {
         let v0 = guess.cloned().unwrap_or_else(|| self.guess(q));
         let mut total = 0;
         match self.newton(shooter, q, v0, &mut total) {
             Ok(p) => {
-                return Ok(LogPoint {
-                    iterations: total,
-                    ..p
-                });
+                return Ok(LogPoint { iterations: total, ..p });
             }
             Err(_) if self.settings.continuation_stages > 1 => {}
             Err(e) => return Err(e),
@@ -171,10 +144,7 @@ impl<'a> LogMap<'a> {
             last = Some(p);
         }
         let p = last.expect("at least one stage");
-        Ok(LogPoint {
-            iterations: total,
-            ..p
-        })
+        Ok(LogPoint { iterations: total, ..p })
     }
 
     fn newton(
@@ -190,17 +160,14 @@ impl<'a> LogMap<'a> {
         for _ in 0..self.settings.max_iterations {
             if fnorm <= self.settings.tol {
                 let r = self.norm(&v);
-                return Ok(LogPoint {
-                    v,
-                    r,
-                    jacobian: jac,
-                    iterations: *total,
-                });
+                return Ok(LogPoint { v, r, jacobian: jac, iterations: *total });
             }
             *total += 1;
-            let step = jac.clone().lu().solve(&f).ok_or_else(|| {
-                Error::numerical("log map", "d exp is singular (a conjugate point)")
-            })?;
+            let step = jac
+                .clone()
+                .lu()
+                .solve(&f)
+                .ok_or_else(|| Error::numerical("log map", "d exp is singular (a conjugate point)"))?;
             // Backtracking on max |F|.
             let mut alpha = 1.0;
             loop {
@@ -220,19 +187,11 @@ impl<'a> LogMap<'a> {
         }
         if fnorm <= self.settings.tol {
             let r = self.norm(&v);
-            return Ok(LogPoint {
-                v,
-                r,
-                jacobian: jac,
-                iterations: *total,
-            });
+            return Ok(LogPoint { v, r, jacobian: jac, iterations: *total });
         }
         Err(Error::numerical(
             "log map",
-            format!(
-                "Newton shooting did not converge for q = {:?} (residual {fnorm:.2e})",
-                q.as_slice()
-            ),
+            format!("Newton shooting did not converge for q = {:?} (residual {fnorm:.2e})", q.as_slice()),
         ))
     }
 
@@ -247,23 +206,14 @@ impl<'a> LogMap<'a> {
         let (v1, v2) = (p.v[0], p.v[1]);
         let rho2 = v1 * v1 + v2 * v2;
         if rho2 == 0.0 {
-            return Err(Error::numerical(
-                "mode label",
-                "undefined at the equilibrium",
-            ));
+            return Err(Error::numerical("mode label", "undefined at the equilibrium"));
         }
         let theta = wrap_angle(2.0 * v2.atan2(v1));
         let dtheta_dv = RowDVector::from_vec(vec![-2.0 * v2 / rho2, 2.0 * v1 / rho2]);
-        let inv = p
-            .jacobian
-            .clone()
-            .try_inverse()
-            .ok_or_else(|| Error::numerical("mode label", "d exp is singular"))?;
+        let inv =
+            p.jacobian.clone().try_inverse().ok_or_else(|| Error::numerical("mode label", "d exp is singular"))?;
         let g = dtheta_dv * inv;
-        Ok(Label {
-            theta,
-            gradient: [g[0], g[1]],
-        })
+        Ok(Label { theta, gradient: [g[0], g[1]] })
     }
 }
 
@@ -282,21 +232,13 @@ mod tests {
     use std::f64::consts::PI;
 
     fn setup() -> (Chain, DVector<f64>) {
-        (
-            Chain::paper_double_pendulum(),
-            DVector::from_vec(vec![0.0, PI / 2.0]),
-        )
+        (Chain::paper_double_pendulum(), DVector::from_vec(vec![0.0, PI / 2.0]))
     }
 
     #[test]
     fn exp_of_log_is_identity_over_the_region() {
         let (chain, q_eq) = setup();
-        let log = LogMap::new(
-            &chain,
-            &q_eq,
-            OdeSettings::default(),
-            LogSettings::default(),
-        );
+        let log = LogMap::new(&chain, &q_eq, OdeSettings::default(), LogSettings::default());
         let mut shooter = log.shooter();
         // Points spread over the ball of radius 2 (directions × radii).
         let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
@@ -306,17 +248,8 @@ mod tests {
                 let q = shooter.exp(&v_true).unwrap();
                 let p = log.solve(&mut shooter, &q, None).unwrap();
                 let back = shooter.exp(&p.v).unwrap();
-                assert!(
-                    (&back - &q).amax() <= 1e-9,
-                    "round trip error {}",
-                    (&back - &q).amax()
-                );
-                assert!(
-                    (&p.v - &v_true).amax() < 1e-7,
-                    "log {:?} vs {:?}",
-                    p.v,
-                    v_true
-                );
+                assert!((&back - &q).amax() <= 1e-9, "round trip error {}", (&back - &q).amax());
+                assert!((&p.v - &v_true).amax() < 1e-7, "log {:?} vs {:?}", p.v, v_true);
                 assert!((p.r - r).abs() < 1e-7);
             }
         }
@@ -325,27 +258,15 @@ mod tests {
     #[test]
     fn distance_equals_the_arc_length_at_which_the_fan_reaches_q() {
         let (chain, q_eq) = setup();
-        let log = LogMap::new(
-            &chain,
-            &q_eq,
-            OdeSettings::default(),
-            LogSettings::default(),
-        );
+        let log = LogMap::new(&chain, &q_eq, OdeSettings::default(), LogSettings::default());
         let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
         let mut shooter = log.shooter();
         for u in unit_vectors(2, 10, 0.2) {
-            let geo = shooter
-                .trace(&frame.to_joint(&u), Stop::Arc(2.0), 0.25)
-                .unwrap();
+            let geo = shooter.trace(&frame.to_joint(&u), Stop::Arc(2.0), 0.25).unwrap();
             for i in 0..geo.len() {
                 let q = DVector::from_column_slice(geo.q(i));
                 let p = log.solve(&mut shooter, &q, None).unwrap();
-                assert!(
-                    (p.r - geo.s(i)).abs() < 1e-8,
-                    "r = {} at s = {}",
-                    p.r,
-                    geo.s(i)
-                );
+                assert!((p.r - geo.s(i)).abs() < 1e-8, "r = {} at s = {}", p.r, geo.s(i));
             }
         }
     }
@@ -356,11 +277,7 @@ mod tests {
         let log = LogMap::new(
             &chain,
             &q_eq,
-            OdeSettings {
-                rtol: 1e-12,
-                atol: 1e-12,
-                ..Default::default()
-            },
+            OdeSettings { rtol: 1e-12, atol: 1e-12, ..Default::default() },
             LogSettings::default(),
         );
         let mut shooter = log.shooter();
@@ -374,20 +291,10 @@ mod tests {
                 let mut qm = q.clone();
                 qp[j] += h;
                 qm[j] -= h;
-                let tp = log
-                    .label(&log.solve(&mut shooter, &qp, Some(&p.v)).unwrap())
-                    .unwrap()
-                    .theta;
-                let tm = log
-                    .label(&log.solve(&mut shooter, &qm, Some(&p.v)).unwrap())
-                    .unwrap()
-                    .theta;
+                let tp = log.label(&log.solve(&mut shooter, &qp, Some(&p.v)).unwrap()).unwrap().theta;
+                let tm = log.label(&log.solve(&mut shooter, &qm, Some(&p.v)).unwrap()).unwrap().theta;
                 let fd = wrap_angle(tp - tm) / (2.0 * h);
-                assert!(
-                    (fd - label.gradient[j]).abs() < 1e-5 * (1.0 + fd.abs()),
-                    "{fd} vs {}",
-                    label.gradient[j]
-                );
+                assert!((fd - label.gradient[j]).abs() < 1e-5 * (1.0 + fd.abs()), "{fd} vs {}", label.gradient[j]);
             }
         }
     }
@@ -395,21 +302,12 @@ mod tests {
     #[test]
     fn opposite_directions_share_a_label() {
         let (chain, q_eq) = setup();
-        let log = LogMap::new(
-            &chain,
-            &q_eq,
-            OdeSettings::default(),
-            LogSettings::default(),
-        );
+        let log = LogMap::new(&chain, &q_eq, OdeSettings::default(), LogSettings::default());
         let mut shooter = log.shooter();
         let v = DVector::from_vec(vec![0.2, 0.3]);
         let (qa, qb) = (shooter.exp(&v).unwrap(), shooter.exp(&-v).unwrap());
-        let a = log
-            .label(&log.solve(&mut shooter, &qa, None).unwrap())
-            .unwrap();
-        let b = log
-            .label(&log.solve(&mut shooter, &qb, None).unwrap())
-            .unwrap();
+        let a = log.label(&log.solve(&mut shooter, &qa, None).unwrap()).unwrap();
+        let b = log.label(&log.solve(&mut shooter, &qb, None).unwrap()).unwrap();
         assert!(wrap_angle(a.theta - b.theta).abs() < 1e-9);
     }
 

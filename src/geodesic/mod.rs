@@ -28,10 +28,7 @@ pub enum Region {
     /// The geodesic ball r(q) ≤ radius around the equilibrium.
     Ball { radius: f64 },
     /// A box lower ≤ q ≤ upper in joint angles (rad); geodesics stop at its boundary.
-    Box {
-        lower: DVector<f64>,
-        upper: DVector<f64>,
-    },
+    Box { lower: DVector<f64>, upper: DVector<f64> },
 }
 
 impl Region {
@@ -40,10 +37,9 @@ impl Region {
     pub fn outside(&self, q: &[f64]) -> bool {
         match self {
             Region::Ball { .. } => false,
-            Region::Box { lower, upper } => q
-                .iter()
-                .zip(lower.iter().zip(upper.iter()))
-                .any(|(x, (lo, hi))| x < lo || x > hi),
+            Region::Box { lower, upper } => {
+                q.iter().zip(lower.iter().zip(upper.iter())).any(|(x, (lo, hi))| x < lo || x > hi)
+            }
         }
     }
 
@@ -63,14 +59,7 @@ impl Region {
                 if g1 > 0.0 {
                     let g0 = sign * (ode.dense_component(t0, i) - bound);
                     if g0 <= 0.0 {
-                        let t = find_root(
-                            |t| sign * (ode.dense_component(t, i) - bound),
-                            t0,
-                            t1,
-                            g0,
-                            g1,
-                            1e-14,
-                        );
+                        let t = find_root(|t| sign * (ode.dense_component(t, i) - bound), t0, t1, g0, g1, 1e-14);
                         best = best.min(t);
                     }
                 }
@@ -122,14 +111,7 @@ pub struct Geodesic {
 
 impl Geodesic {
     fn new(n: usize, direction: DVector<f64>) -> Self {
-        Geodesic {
-            n,
-            direction,
-            s: Vec::new(),
-            q: Vec::new(),
-            qd: Vec::new(),
-            end: GeodesicEnd::Arc,
-        }
+        Geodesic { n, direction, s: Vec::new(), q: Vec::new(), qd: Vec::new(), end: GeodesicEnd::Arc }
     }
 
     fn push(&mut self, s: f64, y: &[f64]) {
@@ -210,19 +192,13 @@ impl GeodesicSettings {
             return Err(("geodesics.directions".into(), "must be at least 8".into()));
         }
         if self.check_directions < 8 {
-            return Err((
-                "geodesics.check_directions".into(),
-                "must be at least 8".into(),
-            ));
+            return Err(("geodesics.check_directions".into(), "must be at least 8".into()));
         }
         if self.samples < 4 {
             return Err(("geodesics.samples".into(), "must be at least 4".into()));
         }
         if !(self.probe_factor.is_finite() && self.probe_factor >= 1.0) {
-            return Err((
-                "geodesics.probe_factor".into(),
-                "must be a number ≥ 1".into(),
-            ));
+            return Err(("geodesics.probe_factor".into(), "must be a number ≥ 1".into()));
         }
         if !(self.max_arc.is_finite() && self.max_arc > 0.0) {
             return Err(("geodesics.max_arc".into(), "must be positive".into()));

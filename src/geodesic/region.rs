@@ -28,17 +28,9 @@ use crate::model::Chain;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum RegionFailure {
     /// d exp becomes singular on the geodesic in direction `direction` at arc length `s`.
-    Conjugate {
-        s: f64,
-        q: Vec<f64>,
-        direction: usize,
-    },
+    Conjugate { s: f64, q: Vec<f64>, direction: usize },
     /// Geodesics `directions` meet at `q`, reached at arc lengths `s`.
-    Crossing {
-        s: [f64; 2],
-        q: Vec<f64>,
-        directions: [usize; 2],
-    },
+    Crossing { s: [f64; 2], q: Vec<f64>, directions: [usize; 2] },
 }
 
 impl RegionFailure {
@@ -52,18 +44,10 @@ impl RegionFailure {
 
     /// A sentence for messages.
     pub fn describe(&self) -> String {
-        let fmt_q = |q: &[f64]| {
-            q.iter()
-                .map(|x| format!("{x:.3}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
+        let fmt_q = |q: &[f64]| q.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(", ");
         match self {
             RegionFailure::Conjugate { s, q, .. } => {
-                format!(
-                    "a conjugate point (d exp singular) at arc length {s:.3}, q = ({})",
-                    fmt_q(q)
-                )
+                format!("a conjugate point (d exp singular) at arc length {s:.3}, q = ({})", fmt_q(q))
             }
             RegionFailure::Crossing { s, q, .. } => format!(
                 "two geodesics from the equilibrium cross at q = ({}), at arc lengths {:.3} and {:.3}",
@@ -114,17 +98,10 @@ pub fn check_region(
             let spec = FanSpec {
                 count,
                 phase: 0.0,
-                stop: Stop::Region {
-                    region,
-                    max_arc: settings.max_arc,
-                },
+                stop: Stop::Region { region, max_arc: settings.max_arc },
                 spacing: settings.max_arc,
             };
-            Fan::trace(chain, q_eq, spec, settings.ode)?
-                .geodesics
-                .iter()
-                .map(|g| g.length())
-                .collect()
+            Fan::trace(chain, q_eq, spec, settings.ode)?.geodesics.iter().map(|g| g.length()).collect()
         }
     };
     let extent = exits.iter().cloned().fold(0.0, f64::max);
@@ -148,10 +125,7 @@ pub fn check_region(
         if let Some(s) = t.conjugate {
             let k = ((s / spacing).round() as usize).min(t.geodesic.len() - 1);
             let q = t.geodesic.q(k.saturating_sub(1)).to_vec();
-            failures.push((
-                RegionFailure::Conjugate { s, q, direction: i },
-                s <= exits[i],
-            ));
+            failures.push((RegionFailure::Conjugate { s, q, direction: i }, s <= exits[i]));
         }
     }
     // Crossings.
@@ -169,11 +143,7 @@ pub fn check_region(
         };
         failures.push((c, inside));
     }
-    let limit = failures
-        .iter()
-        .map(|(f, _)| f)
-        .min_by(|a, b| a.radius().total_cmp(&b.radius()))
-        .cloned();
+    let limit = failures.iter().map(|(f, _)| f).min_by(|a, b| a.radius().total_cmp(&b.radius())).cloned();
     let failure = failures
         .iter()
         .filter(|(_, inside)| *inside)
@@ -191,15 +161,8 @@ pub fn check_region(
         format!("the largest valid geodesic-ball radius is {largest_radius:.3}")
     };
     let reason = match &failure {
-        None => format!(
-            "exp is one-to-one on the {}; {radius_text}",
-            region.describe()
-        ),
-        Some(f) => format!(
-            "{} inside the {}; {radius_text}",
-            f.describe(),
-            region.describe()
-        ),
+        None => format!("exp is one-to-one on the {}; {radius_text}", region.describe()),
+        Some(f) => format!("{} inside the {}; {radius_text}", f.describe(), region.describe()),
     };
     Ok(RegionReport {
         valid,
@@ -235,14 +198,7 @@ fn planar_crossings(traces: &[JacobiTrace], spacing: f64) -> Vec<RegionFailure> 
                 continue;
             }
             let (a, b) = (g.q(k), g.q(k + 1));
-            let seg = Seg {
-                dir,
-                k,
-                a: [a[0], a[1]],
-                b: [b[0], b[1]],
-                sa: g.s(k),
-                sb: g.s(k + 1),
-            };
+            let seg = Seg { dir, k, a: [a[0], a[1]], b: [b[0], b[1]], sa: g.s(k), sb: g.s(k + 1) };
             max_len = max_len.max((seg.b[0] - seg.a[0]).hypot(seg.b[1] - seg.a[1]));
             segs.push(seg);
         }
@@ -277,27 +233,16 @@ fn planar_crossings(traces: &[JacobiTrace], spacing: f64) -> Vec<RegionFailure> 
                 if let Some((t, u)) = intersect(p.a, p.b, q.a, q.b) {
                     let sp = p.sa + t * (p.sb - p.sa);
                     let sq = q.sa + u * (q.sb - q.sa);
-                    let at = [
-                        p.a[0] + t * (p.b[0] - p.a[0]),
-                        p.a[1] + t * (p.b[1] - p.a[1]),
-                    ];
+                    let at = [p.a[0] + t * (p.b[0] - p.a[0]), p.a[1] + t * (p.b[1] - p.a[1])];
                     let (key, f) = if p.dir <= q.dir {
                         (
                             (p.dir, q.dir),
-                            RegionFailure::Crossing {
-                                s: [sp, sq],
-                                q: at.to_vec(),
-                                directions: [p.dir, q.dir],
-                            },
+                            RegionFailure::Crossing { s: [sp, sq], q: at.to_vec(), directions: [p.dir, q.dir] },
                         )
                     } else {
                         (
                             (q.dir, p.dir),
-                            RegionFailure::Crossing {
-                                s: [sq, sp],
-                                q: at.to_vec(),
-                                directions: [q.dir, p.dir],
-                            },
+                            RegionFailure::Crossing { s: [sq, sp], q: at.to_vec(), directions: [q.dir, p.dir] },
                         )
                     };
                     let better = best.get(&key).is_none_or(|old| f.radius() < old.radius());
@@ -328,25 +273,14 @@ fn intersect(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64,
 }
 
 /// The sampled injectivity test for n ≥ 3 (see the module docs).
-fn sampled_crossings(
-    traces: &[JacobiTrace],
-    dirs: &[DVector<f64>],
-    spacing: f64,
-    count: usize,
-) -> Vec<RegionFailure> {
+fn sampled_crossings(traces: &[JacobiTrace], dirs: &[DVector<f64>], spacing: f64, count: usize) -> Vec<RegionFailure> {
     let n = dirs[0].len();
     // Typical joint-space step between samples.
     let mut step: f64 = 0.0;
     for t in traces {
         let g = &t.geodesic;
         for k in 1..g.len() {
-            let d: f64 = g
-                .q(k)
-                .iter()
-                .zip(g.q(k - 1))
-                .map(|(a, b)| (a - b).powi(2))
-                .sum::<f64>()
-                .sqrt();
+            let d: f64 = g.q(k).iter().zip(g.q(k - 1)).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
             step = step.max(d);
         }
     }
@@ -360,11 +294,7 @@ fn sampled_crossings(
     };
     let resolution = (area / count as f64).powf(1.0 / (n as f64 - 1.0));
     let near = 0.5 * step;
-    let key = |q: &[f64]| {
-        q.iter()
-            .map(|x| (x / near).floor() as i64)
-            .collect::<Vec<_>>()
-    };
+    let key = |q: &[f64]| q.iter().map(|x| (x / near).floor() as i64).collect::<Vec<_>>();
     let mut grid: HashMap<Vec<i64>, Vec<(usize, usize)>> = HashMap::new();
     for (dir, t) in traces.iter().enumerate() {
         let g = &t.geodesic;
@@ -386,24 +316,14 @@ fn sampled_crossings(
                 }
                 let (ga, gb) = (&traces[da].geodesic, &traces[db].geodesic);
                 let (sa, sb) = (ga.s(ka), gb.s(kb));
-                let dq: f64 = ga
-                    .q(ka)
-                    .iter()
-                    .zip(gb.q(kb))
-                    .map(|(a, b)| (a - b).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+                let dq: f64 = ga.q(ka).iter().zip(gb.q(kb)).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
                 if dq > near {
                     continue;
                 }
                 let dv = (&dirs[da] * sa - &dirs[db] * sb).norm();
                 let tolerance = 10.0 * (spacing + sa.max(sb) * resolution);
                 if dv > tolerance {
-                    out.push(RegionFailure::Crossing {
-                        s: [sa, sb],
-                        q: ga.q(ka).to_vec(),
-                        directions: [da, db],
-                    });
+                    out.push(RegionFailure::Crossing { s: [sa, sb], q: ga.q(ka).to_vec(), directions: [da, db] });
                 }
             }
         }
@@ -416,11 +336,7 @@ fn sampled_crossings(
 /// Γ(n/2) for the area of the unit sphere in ℝⁿ.
 fn gamma_half(n: usize) -> f64 {
     // Γ(1/2) = √π, Γ(1) = 1, Γ(x + 1) = x Γ(x).
-    let (mut x, mut g) = if n % 2 == 0 {
-        (1.0, 1.0)
-    } else {
-        (0.5, std::f64::consts::PI.sqrt())
-    };
+    let (mut x, mut g) = if n % 2 == 0 { (1.0, 1.0) } else { (0.5, std::f64::consts::PI.sqrt()) };
     while x < n as f64 / 2.0 {
         g *= x;
         x += 1.0;
@@ -434,18 +350,14 @@ mod tests {
     use std::f64::consts::PI;
 
     fn settings() -> GeodesicSettings {
-        GeodesicSettings {
-            directions: 360,
-            ..Default::default()
-        }
+        GeodesicSettings { directions: 360, ..Default::default() }
     }
 
     #[test]
     fn paper_ball_of_radius_two_is_valid() {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
-        let report =
-            check_region(&chain, &q_eq, &Region::Ball { radius: 2.0 }, &settings()).unwrap();
+        let report = check_region(&chain, &q_eq, &Region::Ball { radius: 2.0 }, &settings()).unwrap();
         assert!(report.valid, "{}", report.reason);
         assert!(report.largest_radius > 2.0);
     }
@@ -456,14 +368,9 @@ mod tests {
         // 2π can be valid; crossings may limit it earlier.
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, 0.0]);
-        let report =
-            check_region(&chain, &q_eq, &Region::Ball { radius: 4.0 }, &settings()).unwrap();
+        let report = check_region(&chain, &q_eq, &Region::Ball { radius: 4.0 }, &settings()).unwrap();
         assert!(!report.largest_radius_is_lower_bound);
-        assert!(
-            report.largest_radius <= 2.0 * PI + 1e-6,
-            "{}",
-            report.largest_radius
-        );
+        assert!(report.largest_radius <= 2.0 * PI + 1e-6, "{}", report.largest_radius);
     }
 
     #[test]
@@ -471,43 +378,22 @@ mod tests {
         // Far beyond the largest valid radius, geodesics from (0, 0) cross.
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, 0.0]);
-        let report =
-            check_region(&chain, &q_eq, &Region::Ball { radius: 9.0 }, &settings()).unwrap();
+        let report = check_region(&chain, &q_eq, &Region::Ball { radius: 9.0 }, &settings()).unwrap();
         assert!(!report.valid);
         let failure = report.failure.clone().unwrap();
         assert!(failure.radius() <= 9.0);
-        assert!(
-            report.reason.contains("largest valid geodesic-ball radius"),
-            "{}",
-            report.reason
-        );
+        assert!(report.reason.contains("largest valid geodesic-ball radius"), "{}", report.reason);
         // A ball just inside the reported radius passes.
-        let ok = check_region(
-            &chain,
-            &q_eq,
-            &Region::Ball {
-                radius: 0.95 * report.largest_radius,
-            },
-            &settings(),
-        )
-        .unwrap();
+        let ok =
+            check_region(&chain, &q_eq, &Region::Ball { radius: 0.95 * report.largest_radius }, &settings()).unwrap();
         assert!(ok.valid, "{}", ok.reason);
     }
 
     #[test]
     fn segment_intersection() {
-        assert_eq!(
-            intersect([0.0, 0.0], [1.0, 1.0], [0.0, 1.0], [1.0, 0.0]),
-            Some((0.5, 0.5))
-        );
-        assert_eq!(
-            intersect([0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]),
-            None
-        );
-        assert_eq!(
-            intersect([0.0, 0.0], [1.0, 0.0], [2.0, -1.0], [2.0, 1.0]),
-            None
-        );
+        assert_eq!(intersect([0.0, 0.0], [1.0, 1.0], [0.0, 1.0], [1.0, 0.0]), Some((0.5, 0.5)));
+        assert_eq!(intersect([0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]), None);
+        assert_eq!(intersect([0.0, 0.0], [1.0, 0.0], [2.0, -1.0], [2.0, 1.0]), None);
     }
 
     #[test]

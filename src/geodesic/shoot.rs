@@ -88,14 +88,11 @@ impl<'a> Shooter<'a> {
         };
         let mut geo = Geodesic::new(n, u.clone());
         let ode = &mut self.ode;
-        ode.start(&mut rhs, 0.0, &self.y, s_end)
-            .map_err(|e| ode_error("geodesic", e))?;
+        ode.start(&mut rhs, 0.0, &self.y, s_end).map_err(|e| ode_error("geodesic", e))?;
         let mut next = spacing;
         let mut end = GeodesicEnd::Arc;
         loop {
-            let done = ode
-                .step(&mut rhs, s_end)
-                .map_err(|e| ode_error("geodesic", e))?;
+            let done = ode.step(&mut rhs, s_end).map_err(|e| ode_error("geodesic", e))?;
             let mut t_stop = None;
             if let Some(region) = region {
                 if region.outside(&ode.y()[..n]) {
@@ -154,19 +151,10 @@ impl<'a> Shooter<'a> {
         }
         let (chain, ws) = (self.chain, &mut self.ws);
         let mut rhs = |_t: f64, y: &[f64], dy: &mut [f64]| chain.geodesic_rhs(ws, y, dy);
-        self.ode
-            .start(&mut rhs, 0.0, &self.y, s)
-            .map_err(|e| ode_error("exp", e))?;
-        while !self
-            .ode
-            .step(&mut rhs, s)
-            .map_err(|e| ode_error("exp", e))?
-        {}
+        self.ode.start(&mut rhs, 0.0, &self.y, s).map_err(|e| ode_error("exp", e))?;
+        while !self.ode.step(&mut rhs, s).map_err(|e| ode_error("exp", e))? {}
         let y = self.ode.y();
-        Ok((
-            DVector::from_column_slice(&y[..n]),
-            DVector::from_column_slice(&y[n..2 * n]),
-        ))
+        Ok((DVector::from_column_slice(&y[..n]), DVector::from_column_slice(&y[n..2 * n])))
     }
 
     /// exp(v) and its Jacobian d exp_v, from the variational (Jacobi-field) equations.
@@ -190,14 +178,8 @@ impl<'a> Shooter<'a> {
         self.ode_jac.set_max_step(s / 8.0);
         let (chain, ws) = (self.chain, &mut self.ws);
         let mut rhs = |_t: f64, y: &[f64], dy: &mut [f64]| chain.variational_rhs(ws, y, dy);
-        self.ode_jac
-            .start(&mut rhs, 0.0, &self.y_var, s)
-            .map_err(|e| ode_error("exp", e))?;
-        while !self
-            .ode_jac
-            .step(&mut rhs, s)
-            .map_err(|e| ode_error("exp", e))?
-        {}
+        self.ode_jac.start(&mut rhs, 0.0, &self.y_var, s).map_err(|e| ode_error("exp", e))?;
+        while !self.ode_jac.step(&mut rhs, s).map_err(|e| ode_error("exp", e))? {}
         let y = self.ode_jac.y();
         let q = DVector::from_column_slice(&y[..n]);
         let jac = DMatrix::from_column_slice(n, n, &y[2 * n..2 * n + n * n]) / s;
@@ -220,20 +202,13 @@ impl<'a> Shooter<'a> {
         self.init_variational(u);
         let (chain, ws) = (self.chain, &mut self.ws);
         let mut rhs = |_t: f64, y: &[f64], dy: &mut [f64]| chain.variational_rhs(ws, y, dy);
-        self.ode_var
-            .start(&mut rhs, 0.0, &self.y_var, s_end)
-            .map_err(|e| ode_error(what, e))
+        self.ode_var.start(&mut rhs, 0.0, &self.y_var, s_end).map_err(|e| ode_error(what, e))
     }
 
     /// Traces the geodesic with unit initial velocity `u` to arc length `s_end` together with its
     /// Jacobi fields, sampling every `spacing`, and locates the first conjugate point (where
     /// det d exp = det Φ_q(s)/sⁿ changes sign) on the dense output.
-    pub fn trace_jacobi(
-        &mut self,
-        u: &DVector<f64>,
-        s_end: f64,
-        spacing: f64,
-    ) -> Result<JacobiTrace> {
+    pub fn trace_jacobi(&mut self, u: &DVector<f64>, s_end: f64, spacing: f64) -> Result<JacobiTrace> {
         let n = self.chain.dof();
         self.start_variational(u, s_end, "Jacobi fields")?;
         let (chain, ws) = (self.chain, &mut self.ws);
@@ -249,19 +224,13 @@ impl<'a> Shooter<'a> {
             jacobi_det(&buf[2 * n..2 * n + n * n], n, t)
         };
         loop {
-            let done = ode
-                .step(&mut rhs, s_end)
-                .map_err(|e| ode_error("Jacobi fields", e))?;
+            let done = ode.step(&mut rhs, s_end).map_err(|e| ode_error("Jacobi fields", e))?;
             let t_hi = ode.t();
             let d_hi = jacobi_det(&ode.y()[2 * n..2 * n + n * n], n, t_hi);
             let buf = &mut self.tmp;
             if conjugate.is_none() && d_hi <= 0.0 && prev_det > 0.0 {
                 let t_lo = ode.t_old();
-                let d_lo = if t_lo == 0.0 {
-                    1.0
-                } else {
-                    det_at(ode, t_lo, buf)
-                };
+                let d_lo = if t_lo == 0.0 { 1.0 } else { det_at(ode, t_lo, buf) };
                 let root = find_root(|t| det_at(ode, t, buf), t_lo, t_hi, d_lo, d_hi, 1e-12);
                 conjugate = Some(root);
             }
@@ -278,11 +247,7 @@ impl<'a> Shooter<'a> {
                 break;
             }
         }
-        Ok(JacobiTrace {
-            geodesic: geo,
-            det,
-            conjugate,
-        })
+        Ok(JacobiTrace { geodesic: geo, det, conjugate })
     }
 }
 
@@ -303,11 +268,7 @@ mod tests {
     use std::f64::consts::PI;
 
     fn tight() -> OdeSettings {
-        OdeSettings {
-            rtol: 1e-12,
-            atol: 1e-12,
-            ..Default::default()
-        }
+        OdeSettings { rtol: 1e-12, atol: 1e-12, ..Default::default() }
     }
 
     #[test]
@@ -333,15 +294,7 @@ mod tests {
 
     #[test]
     fn constant_metric_gives_straight_lines() {
-        let chain = Chain::new(
-            vec![Link {
-                mass: 2.0,
-                length: 1.0,
-                com: 0.5,
-                inertia: 0.1,
-            }],
-            [0.0, 0.0],
-        );
+        let chain = Chain::new(vec![Link { mass: 2.0, length: 1.0, com: 0.5, inertia: 0.1 }], [0.0, 0.0]);
         let q_eq = DVector::from_vec(vec![0.3]);
         let mut shooter = Shooter::new(&chain, &q_eq, OdeSettings::default());
         let inertia = 2.0 * 0.25 + 0.1;
@@ -359,11 +312,9 @@ mod tests {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
         let mut shooter = Shooter::new(&chain, &q_eq, tight());
-        for v in [
-            DVector::from_vec(vec![0.3, 0.4]),
-            DVector::from_vec(vec![-0.2, 0.9]),
-            DVector::from_vec(vec![0.5, -0.7]),
-        ] {
+        for v in
+            [DVector::from_vec(vec![0.3, 0.4]), DVector::from_vec(vec![-0.2, 0.9]), DVector::from_vec(vec![0.5, -0.7])]
+        {
             let (q, jac) = shooter.exp_jacobian(&v).unwrap();
             let q2 = shooter.exp(&v).unwrap();
             assert!((&q - &q2).amax() < 1e-11);
@@ -375,12 +326,7 @@ mod tests {
                 vm[j] -= h;
                 let fd = (shooter.exp(&vp).unwrap() - shooter.exp(&vm).unwrap()) / (2.0 * h);
                 for i in 0..2 {
-                    assert!(
-                        (jac[(i, j)] - fd[i]).abs() < 1e-6,
-                        "{} vs {}",
-                        jac[(i, j)],
-                        fd[i]
-                    );
+                    assert!((jac[(i, j)] - fd[i]).abs() < 1e-6, "{} vs {}", jac[(i, j)], fd[i]);
                 }
             }
         }
@@ -408,23 +354,13 @@ mod tests {
     fn box_traces_stop_exactly_on_the_boundary() {
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
-        let region = Region::Box {
-            lower: DVector::from_vec(vec![-0.5, 1.0]),
-            upper: DVector::from_vec(vec![0.4, 2.5]),
-        };
+        let region =
+            Region::Box { lower: DVector::from_vec(vec![-0.5, 1.0]), upper: DVector::from_vec(vec![0.4, 2.5]) };
         let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
         let mut shooter = Shooter::new(&chain, &q_eq, OdeSettings::default());
         for u in unit_vectors(2, 24, 0.3) {
-            let geo = shooter
-                .trace(
-                    &frame.to_joint(&u),
-                    Stop::Region {
-                        region: &region,
-                        max_arc: 100.0,
-                    },
-                    0.05,
-                )
-                .unwrap();
+            let geo =
+                shooter.trace(&frame.to_joint(&u), Stop::Region { region: &region, max_arc: 100.0 }, 0.05).unwrap();
             assert_eq!(geo.end, GeodesicEnd::Boundary);
             let q = geo.q(geo.len() - 1);
             let on_face = (q[0] + 0.5).abs() < 1e-9

@@ -72,24 +72,12 @@ impl Run {
 
     /// Asserts exit code `code` with exactly one error line containing every `needle`.
     pub fn fails(self, code: i32, needles: &[&str]) -> Self {
-        assert_eq!(
-            self.code(),
-            code,
-            "expected exit code {code}\n{}",
-            self.report()
-        );
+        assert_eq!(self.code(), code, "expected exit code {code}\n{}", self.report());
         let err = self.stderr();
-        let lines: Vec<&str> = err
-            .lines()
-            .filter(|l| l.starts_with("springfit: error:"))
-            .collect();
+        let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("springfit: error:")).collect();
         assert_eq!(lines.len(), 1, "expected one error line\n{}", self.report());
         for n in needles {
-            assert!(
-                lines[0].contains(n),
-                "expected `{n}` in the error line\n{}",
-                self.report()
-            );
+            assert!(lines[0].contains(n), "expected `{n}` in the error line\n{}", self.report());
         }
         assert!(!err.contains("panicked"), "panic\n{}", self.report());
         self
@@ -104,11 +92,7 @@ pub fn springfit(dir: &Path, args: &[&str]) -> Run {
         .env("RAYON_NUM_THREADS", "2")
         .output()
         .expect("run springfit");
-    Run {
-        args: args.iter().map(|s| s.to_string()).collect(),
-        dir: dir.to_path_buf(),
-        output,
-    }
+    Run { args: args.iter().map(|s| s.to_string()).collect(), dir: dir.to_path_buf(), output }
 }
 
 /// All files under a folder, sorted.

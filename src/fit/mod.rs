@@ -1,0 +1,5 @@
+//! The fit: non-negative stiffnesses of catalogue elements that make every geodesic from the
+//! equilibrium a strict mode as nearly as the catalogue allows.
+
+pub mod problem;
+pub mod selection;

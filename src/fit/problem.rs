@@ -1,0 +1,226 @@
+//! The fit as a linear least-squares problem in the stiffnesses.
+//!
+//! U_e = Σ kⱼ uⱼ(q) is linear in k, so every requirement is linear in k:
+//!
+//! * **Tangentiality rows**, one per training sample (γ, γ̇, s) and per column p of [γ̇]^⊥:
+//!   ∂U/∂qᵀ M⁻¹ p = 0 with U = U_e + U_g, i.e. Σ kⱼ uⱼ′ (aⱼᵀ M⁻¹ p) = −∂U_g/∂qᵀ M⁻¹ p. For the
+//!   exact potential v₁ = M⁻¹∇U = ω² s γ̇, so each row is divided by ω² s |γ̇|: a row's residual
+//!   is then ≈ sin(residual angle), and every distance from q_eq counts the same — raw residuals
+//!   would grow with s and let the outer samples dominate.
+//! * **Equilibrium**: ∂U/∂q(q_eq) = 0 (n equations).
+//! * **Normalisation**: tr(M(q_eq)⁻¹ ∇²U(q_eq)) = n ω² (without it k = 0 wins).
+//! * **Hessian match** (optional): ∇²U(q_eq) = ω² M(q_eq) (n(n+1)/2 equations; it implies the
+//!   normalisation, which is then left out): every small oscillation has frequency ω, and the
+//!   residual angles near q_eq vanish.
+//! * **Monotonicity** (optional): ∂U/∂q·γ̇ ≥ 0 on the samples (U grows along every geodesic).
+//!
+//! Equations are scaled so their entries are O(1) per unit of ω²·M: the solvers can then weigh
+//! them against the rows with one well-defined number.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::catalog::Candidate;
+use crate::geodesic::Fan;
+use crate::model::Chain;
+
+/// A group of linear equations or inequalities in k with a name for messages.
+#[derive(Debug, Clone)]
+pub struct LinearGroup {
+    /// Name used in messages ("equilibrium gradient", …).
+    pub name: String,
+    /// What the group asks for, in words (for infeasibility messages).
+    pub description: String,
+    /// Coefficients (rows × candidates).
+    pub matrix: DMatrix<f64>,
+    /// Right-hand side.
+    pub rhs: DVector<f64>,
+}
+
+/// The assembled fit problem.
+#[derive(Debug, Clone)]
+pub struct FitProblem {
+    /// Weighted tangentiality rows (m × p).
+    pub rows: DMatrix<f64>,
+    /// Their right-hand side (gravity), m.
+    pub rhs: DVector<f64>,
+    /// Equalities (equilibrium, normalisation or Hessian match).
+    pub equalities: Vec<LinearGroup>,
+    /// Inequalities G k ≥ h (monotonicity), if asked for.
+    pub inequalities: Vec<LinearGroup>,
+}
+
+/// Which requirements to assemble.
+#[derive(Debug, Clone, Copy)]
+pub struct Requirements {
+    /// Small-oscillation frequency ω in rad/s.
+    pub omega: f64,
+    /// Match the Hessian at q_eq to ω² M(q_eq) (else only the trace normalisation).
+    pub hessian_match: bool,
+    /// Add monotonicity inequalities on the samples.
+    pub monotone: bool,
+}
+
+/// [γ̇]^⊥: an orthonormal basis (columns) of the Euclidean complement of `t`.
+pub fn complement(t: &[f64]) -> DMatrix<f64> {
+    let n = t.len();
+    let norm = t.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if n == 2 {
+        return DMatrix::from_column_slice(2, 1, &[-t[1] / norm, t[0] / norm]);
+    }
+    // Householder reflector H with H e_k = ±t/|t| for the largest |t_k|; its other columns span
+    // the complement and are orthonormal.
+    let k = (0..n).max_by(|&a, &b| t[a].abs().total_cmp(&t[b].abs())).unwrap_or(0);
+    let mut v = DVector::from_iterator(n, t.iter().map(|x| x / norm));
+    let sign = if v[k] >= 0.0 { 1.0 } else { -1.0 };
+    v[k] += sign;
+    let vv = v.dot(&v);
+    let h = DMatrix::identity(n, n) - &v * v.transpose() * (2.0 / vv);
+    let cols: Vec<DVector<f64>> = (0..n).filter(|&c| c != k).map(|c| h.column(c).into_owned()).collect();
+    DMatrix::from_columns(&cols)
+}
+
+/// Assembles the problem from the training fan.
+pub fn assemble(
+    chain: &Chain,
+    q_eq: &DVector<f64>,
+    fan: &Fan,
+    candidates: &[Candidate],
+    req: Requirements,
+) -> FitProblem {
+    let n = chain.dof();
+    let p = candidates.len();
+    let w2 = req.omega * req.omega;
+    // Samples in fan order, skipping s = 0 (none are produced) and any degenerate tangent.
+    let mut samples: Vec<(&[f64], &[f64], f64)> = Vec::new();
+    for g in &fan.geodesics {
+        for i in 0..g.len() {
+            if g.s(i) > 0.0 {
+                samples.push((g.q(i), g.qd(i), g.s(i)));
+            }
+        }
+    }
+    let m_rows = samples.len() * (n - 1).max(1);
+    let mut rows = DMatrix::zeros(m_rows, p);
+    let mut rhs = DVector::zeros(m_rows);
+    let mut mono = DMatrix::zeros(if req.monotone { samples.len() } else { 0 }, p);
+    let mut mono_rhs = DVector::zeros(if req.monotone { samples.len() } else { 0 });
+    for (si, (q, qd, s)) in samples.iter().enumerate() {
+        let qv = DVector::from_column_slice(q);
+        let m = chain.mass_matrix(&qv);
+        let chol = m.cholesky().expect("the model's mass matrix is positive definite");
+        let perp = if n == 1 { DMatrix::zeros(1, 0) } else { complement(qd) };
+        let speed = qd.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let weight = 1.0 / (w2 * s * speed);
+        let grav = chain.gravity_gradient(q);
+        for c in 0..perp.ncols() {
+            let w = chol.solve(&perp.column(c).into_owned());
+            let r = si * (n - 1) + c;
+            for (j, cand) in candidates.iter().enumerate() {
+                let e = &cand.element;
+                let aw: f64 = e.coupling.iter().zip(w.iter()).map(|(a, w)| a * w).sum();
+                if aw != 0.0 {
+                    rows[(r, j)] = e.profile.slope(e.deflection(q)) * aw * weight;
+                }
+            }
+            rhs[r] = -grav.dot(&w) * weight;
+        }
+        if req.monotone {
+            // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
+            let scale = 1.0 / (w2 * s);
+            for (j, cand) in candidates.iter().enumerate() {
+                let e = &cand.element;
+                let at: f64 = e.coupling.iter().zip(qd.iter()).map(|(a, t)| a * t).sum();
+                mono[(si, j)] = e.profile.slope(e.deflection(q)) * at * scale;
+            }
+            mono_rhs[si] = -grav.dot(&DVector::from_column_slice(qd)) * scale;
+        }
+    }
+
+    // Equalities at q_eq, scaled by 1/(ω² · mean diagonal of M(q_eq)).
+    let q0 = q_eq.as_slice();
+    let m_eq = chain.mass_matrix(q_eq);
+    let m_scale = m_eq.diagonal().mean();
+    let scale = 1.0 / (w2 * m_scale);
+    let grav_eq = chain.gravity_gradient(q0);
+    let grav_hess = chain.gravity_hessian(q0);
+    let mut equalities = Vec::new();
+    let mut eq_grad = DMatrix::zeros(n, p);
+    for (j, cand) in candidates.iter().enumerate() {
+        let e = &cand.element;
+        let slope = e.profile.slope(e.deflection(q0));
+        for i in 0..n {
+            eq_grad[(i, j)] = slope * e.coupling[i] * scale;
+        }
+    }
+    equalities.push(LinearGroup {
+        name: "equilibrium gradient".into(),
+        description: "∂U/∂q(q_eq) = 0: the springs must hold the arm at the equilibrium".into(),
+        matrix: eq_grad,
+        rhs: -grav_eq * scale,
+    });
+    let m_inv = m_eq.clone().try_inverse().expect("M(q_eq) is invertible");
+    if req.hessian_match {
+        let pairs: Vec<(usize, usize)> = (0..n).flat_map(|i| (i..n).map(move |k| (i, k))).collect();
+        let mut hm = DMatrix::zeros(pairs.len(), p);
+        let mut hr = DVector::zeros(pairs.len());
+        for (r, &(i, k)) in pairs.iter().enumerate() {
+            for (j, cand) in candidates.iter().enumerate() {
+                let e = &cand.element;
+                let curv = e.profile.eval(e.deflection(q0)).2;
+                hm[(r, j)] = curv * e.coupling[i] * e.coupling[k] * scale;
+            }
+            hr[r] = (w2 * m_eq[(i, k)] - grav_hess[(i, k)]) * scale;
+        }
+        equalities.push(LinearGroup {
+            name: "Hessian match".into(),
+            description: format!(
+                "∇²U(q_eq) = ω² M(q_eq) with ω = {} rad/s: every small oscillation at frequency ω",
+                req.omega
+            ),
+            matrix: hm,
+            rhs: hr,
+        });
+    } else {
+        let mut tr = DMatrix::zeros(1, p);
+        for (j, cand) in candidates.iter().enumerate() {
+            let e = &cand.element;
+            let curv = e.profile.eval(e.deflection(q0)).2;
+            let a = DVector::from_column_slice(&e.coupling);
+            tr[(0, j)] = curv * a.dot(&(&m_inv * &a)) / (n as f64 * w2);
+        }
+        let target = (n as f64 * w2 - (&m_inv * &grav_hess).trace()) / (n as f64 * w2);
+        equalities.push(LinearGroup {
+            name: "normalisation".into(),
+            description: format!("tr(M(q_eq)⁻¹ ∇²U(q_eq)) = n ω² with ω = {} rad/s", req.omega),
+            matrix: tr,
+            rhs: DVector::from_element(1, target),
+        });
+    }
+    let inequalities = if req.monotone {
+        vec![LinearGroup {
+            name: "monotonicity".into(),
+            description: "∂U/∂q·γ̇ ≥ 0 on every training sample: U grows along every geodesic".into(),
+            matrix: mono,
+            rhs: mono_rhs,
+        }]
+    } else {
+        Vec::new()
+    };
+    FitProblem { rows, rhs, equalities, inequalities }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn complement_is_orthonormal() {
+        for t in [vec![0.3, -0.8], vec![1.0, 2.0, -0.5], vec![0.0, 0.0, 1.0, 0.2]] {
+            let c = complement(&t);
+            assert_eq!(c.ncols(), t.len() - 1);
+            let tv = DVector::from_column_slice(&t);
+            assert!((c.transpose() * &tv).amax() < 1e-14);
+            assert!((c.transpose() * &c - DMatrix::identity(t.len() - 1, t.len() - 1)).amax() < 1e-14);
+        }
+    }
+}
