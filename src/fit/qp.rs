@@ -1,0 +1,516 @@
+//! The fit as a convex quadratic program solved by Clarabel: constraints exact.
+//!
+//! minimise ½ kᵀGk − (c − λ1)ᵀk subject to the equality groups, k ≥ 0, k ≤ u and the
+//! inequality groups G_in k ≥ h. Columns are scaled to unit diagonal of G first. Large
+//! inequality groups (monotonicity on thousands of samples) are handled by cutting planes: solve
+//! without them, add the rows the solution violates, re-solve, until none is violated — Clarabel
+//! given every row at once can stop with a numerical error, and only a handful are ever active.
+//! When the problem is infeasible the groups are dropped one at a time to name the culprit.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use nalgebra::{DMatrix, DVector};
+
+use super::lsq::Gram;
+use super::problem::LinearGroup;
+use crate::error::{Error, Result};
+
+/// Settings of the QP solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QpSettings {
+    /// Interior-point iterations per solve.
+    pub max_iterations: u32,
+    /// Feasibility and gap tolerance.
+    pub tolerance: f64,
+    /// Most cutting-plane rounds.
+    pub cut_rounds: usize,
+    /// Most violated rows added per round.
+    pub cuts_per_round: usize,
+    /// A row counts as violated below −margin (scaled units).
+    pub cut_margin: f64,
+}
+
+impl Default for QpSettings {
+    fn default() -> Self {
+        QpSettings { max_iterations: 200, tolerance: 1e-10, cut_rounds: 30, cuts_per_round: 200, cut_margin: 1e-9 }
+    }
+}
+
+/// How a QP solve ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum QpStatus {
+    /// Solved to tolerance.
+    Solved,
+    /// Solved to Clarabel's reduced tolerance.
+    AlmostSolved,
+}
+
+/// A QP solution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QpSolution {
+    /// Stiffnesses (≥ 0 up to the solver tolerance; tiny negatives clamped to 0).
+    pub k: DVector<f64>,
+    /// How it ended.
+    pub status: QpStatus,
+    /// Interior-point iterations over all rounds.
+    pub iterations: u32,
+    /// Cutting-plane rounds.
+    pub cut_rounds: usize,
+    /// Inequality rows in the last solve.
+    pub cuts: usize,
+    /// Largest violation of an equality (scaled units).
+    pub max_equality_residual: f64,
+}
+
+/// Solves the QP (see the module docs). `upper[j]` = None means unbounded.
+pub fn qp(
+    gram: &Gram,
+    equalities: &[LinearGroup],
+    inequalities: &[LinearGroup],
+    upper: &[Option<f64>],
+    l1: f64,
+    settings: &QpSettings,
+) -> Result<QpSolution> {
+    let p = gram.dim();
+    let d: Vec<f64> = (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();
+    let scaled = Scaled::new(gram, &d, l1);
+    let eqs: Vec<(DMatrix<f64>, DVector<f64>)> = equalities.iter().map(|g| scale_cols(g, &d)).collect();
+    let ineqs: Vec<(DMatrix<f64>, DVector<f64>)> = inequalities.iter().map(|g| scale_cols(g, &d)).collect();
+    let ub: Vec<Option<f64>> = upper.iter().zip(&d).map(|(u, dj)| u.map(|u| u / dj)).collect();
+
+    let mut active: Vec<(usize, usize)> = Vec::new(); // (group, row)
+    let mut iterations = 0;
+    let mut rounds = 0;
+    let x = loop {
+        let cut_rows: Vec<(DVector<f64>, f64)> =
+            active.iter().map(|&(g, r)| (ineqs[g].0.row(r).transpose(), ineqs[g].1[r])).collect();
+        let (status, x, iters) = solve_once(&scaled, &eqs, &cut_rows, &ub, settings)?;
+        iterations += iters;
+        match status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+            SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
+                return Err(diagnose(&scaled, equalities, &eqs, inequalities, &ineqs, &ub, settings));
+            }
+            other => {
+                return Err(Error::numerical("QP (Clarabel)", format!("the solver stopped with status {other:?}")));
+            }
+        }
+        // Violated inequality rows, most violated first.
+        let mut violated: Vec<(f64, usize, usize)> = Vec::new();
+        for (g, (m, h)) in ineqs.iter().enumerate() {
+            let r = m * &x - h;
+            for (row, v) in r.iter().enumerate() {
+                if *v < -settings.cut_margin && !active.contains(&(g, row)) {
+                    violated.push((*v, g, row));
+                }
+            }
+        }
+        if violated.is_empty() {
+            break (x, status);
+        }
+        rounds += 1;
+        if rounds > settings.cut_rounds {
+            return Err(Error::numerical(
+                "QP (Clarabel)",
+                format!(
+                    "{} inequality rows still violated after {} cutting-plane rounds",
+                    violated.len(),
+                    settings.cut_rounds
+                ),
+            ));
+        }
+        violated.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        active.extend(violated.iter().take(settings.cuts_per_round).map(|&(_, g, r)| (g, r)));
+    };
+    let (x, status) = x;
+    let x = polish(&scaled, gram, &d, l1, &eqs, &ineqs, &ub, x, settings);
+    let k = DVector::from_fn(p, |j, _| (x[j] * d[j]).max(0.0));
+    let max_equality_residual = eqs.iter().map(|(m, f)| (m * &x - f).amax()).fold(0.0, f64::max);
+    Ok(QpSolution {
+        k,
+        status: if status == SolverStatus::Solved { QpStatus::Solved } else { QpStatus::AlmostSolved },
+        iterations,
+        cut_rounds: rounds,
+        cuts: active.len(),
+        max_equality_residual,
+    })
+}
+
+/// Solution polishing. Interior-point iterates approach zero bounds only like √μ when the problem
+/// is degenerate (an exact fit: bound multipliers vanish too), leaving spurious 1e-5-size
+/// stiffnesses. Taking the elements clearly away from zero as the support, and the inequality rows
+/// at their bound as equations, the KKT system of the equality-constrained least squares on that
+/// support gives the vertex exactly; it is kept only if it is feasible and no worse.
+#[allow(clippy::too_many_arguments)]
+fn polish(
+    s: &Scaled,
+    gram: &Gram,
+    d: &[f64],
+    l1: f64,
+    eqs: &[(DMatrix<f64>, DVector<f64>)],
+    ineqs: &[(DMatrix<f64>, DVector<f64>)],
+    ub: &[Option<f64>],
+    x: DVector<f64>,
+    settings: &QpSettings,
+) -> DVector<f64> {
+    let objective = |v: &DVector<f64>| {
+        let pv = &s_dense(gram, d) * v;
+        0.5 * v.dot(&pv) + s.q.iter().zip(v.iter()).map(|(q, v)| q * v).sum::<f64>()
+    };
+    let mut best = x.clone();
+    let mut best_obj = objective(&x);
+    for threshold in [1e-3, 1e-5, 1e-7] {
+        if let Some(y) = polish_at(s, gram, d, l1, eqs, ineqs, ub, &x, threshold, settings) {
+            let o = objective(&y);
+            if o <= best_obj + 1e-12 * best_obj.abs().max(1.0) {
+                best = y;
+                best_obj = o;
+            }
+        }
+    }
+    best
+}
+
+/// G scaled to unit diagonal (dense).
+fn s_dense(gram: &Gram, d: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_fn(d.len(), d.len(), |i, j| gram.g[(i, j)] * d[i] * d[j])
+}
+
+/// One polishing attempt with elements above `threshold` × max as the support.
+#[allow(clippy::too_many_arguments)]
+fn polish_at(
+    s: &Scaled,
+    gram: &Gram,
+    d: &[f64],
+    l1: f64,
+    eqs: &[(DMatrix<f64>, DVector<f64>)],
+    ineqs: &[(DMatrix<f64>, DVector<f64>)],
+    ub: &[Option<f64>],
+    x: &DVector<f64>,
+    threshold: f64,
+    settings: &QpSettings,
+) -> Option<DVector<f64>> {
+    let n = s.n;
+    let xmax = x.amax().max(1e-300);
+    let support: Vec<usize> =
+        (0..n).filter(|&j| x[j] > threshold * xmax && ub[j].is_none_or(|u| x[j] < u * (1.0 - 1e-7))).collect();
+    let at_upper: Vec<usize> = (0..n).filter(|&j| ub[j].is_some_and(|u| x[j] >= u * (1.0 - 1e-7))).collect();
+    // Equations: the equality groups and the inequality rows at their bound.
+    let mut rows: Vec<(DVector<f64>, f64)> = Vec::new();
+    for (m, f) in eqs {
+        for i in 0..m.nrows() {
+            rows.push((m.row(i).transpose(), f[i]));
+        }
+    }
+    for (m, h) in ineqs {
+        let r = m * x - h;
+        for i in 0..m.nrows() {
+            if r[i].abs() <= 1e-7 {
+                rows.push((m.row(i).transpose(), h[i]));
+            }
+        }
+    }
+    let (ns, ne) = (support.len(), rows.len());
+    if ns == 0 || ne > ns {
+        return None;
+    }
+    // Scaled G and c − λ on the support, with the upper-bounded elements fixed at their bound.
+    let gs = |i: usize, j: usize| gram.g[(i, j)] * d[i] * d[j];
+    let mut kkt = DMatrix::zeros(ns + ne, ns + ne);
+    let mut rhs = DVector::zeros(ns + ne);
+    for (a, &i) in support.iter().enumerate() {
+        for (b, &j) in support.iter().enumerate() {
+            kkt[(a, b)] = gs(i, j);
+        }
+        let fixed: f64 = at_upper.iter().map(|&j| gs(i, j) * ub[j].unwrap_or(0.0)).sum();
+        rhs[a] = (gram.c[i] - l1) * d[i] - fixed;
+    }
+    for (r, (row, val)) in rows.iter().enumerate() {
+        let fixed: f64 = at_upper.iter().map(|&j| row[j] * ub[j].unwrap_or(0.0)).sum();
+        for (a, &i) in support.iter().enumerate() {
+            kkt[(ns + r, a)] = row[i];
+            kkt[(a, ns + r)] = row[i];
+        }
+        rhs[ns + r] = val - fixed;
+    }
+    let sol = kkt.lu().solve(&rhs)?;
+    let mut y = DVector::zeros(n);
+    let smax = sol.rows(0, ns).amax();
+    for (a, &i) in support.iter().enumerate() {
+        // Round-off below zero on an element at a vertex is clamped; anything more is infeasible.
+        y[i] = if sol[a] < 0.0 && sol[a] > -1e-10 * smax { 0.0 } else { sol[a] };
+    }
+    for &j in &at_upper {
+        y[j] = ub[j].unwrap_or(0.0);
+    }
+    let tol = 1e3 * settings.tolerance;
+    let feasible = y.iter().all(|v| v.is_finite() && *v >= 0.0)
+        && ub.iter().zip(y.iter()).all(|(u, v)| u.is_none_or(|u| *v <= u * (1.0 + 1e-12)))
+        && eqs.iter().all(|(m, f)| (m * &y - f).amax() <= tol.max(1e-9))
+        && ineqs.iter().all(|(m, h)| (m * &y - h).min() >= -settings.cut_margin);
+    feasible.then_some(y)
+}
+
+/// The objective in scaled unknowns x (k = D x): ½ xᵀ P x + qᵀ x.
+struct Scaled {
+    p_upper: CscMatrix<f64>,
+    q: Vec<f64>,
+    n: usize,
+}
+
+impl Scaled {
+    fn new(gram: &Gram, d: &[f64], l1: f64) -> Self {
+        let n = gram.dim();
+        let mut colptr = vec![0];
+        let mut rowval = Vec::new();
+        let mut nzval = Vec::new();
+        for j in 0..n {
+            for i in 0..=j {
+                let v = gram.g[(i, j)] * d[i] * d[j];
+                if v != 0.0 {
+                    rowval.push(i);
+                    nzval.push(v);
+                }
+            }
+            colptr.push(rowval.len());
+        }
+        let q = (0..n).map(|j| -(gram.c[j] - l1) * d[j]).collect();
+        Scaled { p_upper: CscMatrix::new(n, n, colptr, rowval, nzval), q, n }
+    }
+}
+
+fn scale_cols(g: &LinearGroup, d: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+    let mut m = g.matrix.clone();
+    for (j, dj) in d.iter().enumerate() {
+        m.column_mut(j).scale_mut(*dj);
+    }
+    (m, g.rhs.clone())
+}
+
+/// One Clarabel solve: equalities, the given inequality rows, bounds.
+fn solve_once(
+    s: &Scaled,
+    eqs: &[(DMatrix<f64>, DVector<f64>)],
+    cuts: &[(DVector<f64>, f64)],
+    ub: &[Option<f64>],
+    settings: &QpSettings,
+) -> Result<(SolverStatus, DVector<f64>, u32)> {
+    let n = s.n;
+    // Rows of A x + s = b, s ∈ cones, built column by column.
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    let mut b = Vec::new();
+    let mut r = 0;
+    let mut n_eq = 0;
+    for (m, f) in eqs {
+        for i in 0..m.nrows() {
+            for j in 0..n {
+                if m[(i, j)] != 0.0 {
+                    rows[j].push((r, m[(i, j)]));
+                }
+            }
+            b.push(f[i]);
+            r += 1;
+            n_eq += 1;
+        }
+    }
+    // −G x + s = −h (s ≥ 0).
+    for (gr, h) in cuts {
+        for j in 0..n {
+            if gr[j] != 0.0 {
+                rows[j].push((r, -gr[j]));
+            }
+        }
+        b.push(-h);
+        r += 1;
+    }
+    // −x + s = 0 (x ≥ 0).
+    for col in rows.iter_mut() {
+        col.push((r, -1.0));
+        b.push(0.0);
+        r += 1;
+    }
+    // x + s = u (x ≤ u).
+    for (j, u) in ub.iter().enumerate() {
+        if let Some(u) = u {
+            rows[j].push((r, 1.0));
+            b.push(*u);
+            r += 1;
+        }
+    }
+    let mut colptr = vec![0];
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for col in &rows {
+        for &(i, v) in col {
+            rowval.push(i);
+            nzval.push(v);
+        }
+        colptr.push(rowval.len());
+    }
+    let a = CscMatrix::new(r, n, colptr, rowval, nzval);
+    let mut cones = Vec::new();
+    if n_eq > 0 {
+        cones.push(SupportedConeT::ZeroConeT(n_eq));
+    }
+    cones.push(SupportedConeT::NonnegativeConeT(r - n_eq));
+    let cs = DefaultSettings {
+        verbose: false,
+        max_iter: settings.max_iterations,
+        tol_gap_abs: settings.tolerance,
+        tol_gap_rel: settings.tolerance,
+        tol_feas: settings.tolerance,
+        max_threads: 1,
+        presolve_enable: false,
+        ..DefaultSettings::default()
+    };
+    let mut solver = DefaultSolver::new(&s.p_upper, &s.q, &a, &b, &cones, cs)
+        .map_err(|e| Error::numerical("QP (Clarabel)", format!("could not set up the problem: {e:?}")))?;
+    solver.solve();
+    let x = DVector::from_column_slice(&solver.solution.x);
+    if matches!(solver.solution.status, SolverStatus::Solved | SolverStatus::AlmostSolved)
+        && x.iter().any(|v| !v.is_finite())
+    {
+        return Err(Error::numerical("QP (Clarabel)", "the solution is not finite"));
+    }
+    Ok((solver.solution.status, x, solver.solution.iterations))
+}
+
+/// Names the constraint group(s) that make the QP infeasible by dropping one at a time.
+fn diagnose(
+    s: &Scaled,
+    equalities: &[LinearGroup],
+    eqs: &[(DMatrix<f64>, DVector<f64>)],
+    inequalities: &[LinearGroup],
+    ineqs: &[(DMatrix<f64>, DVector<f64>)],
+    ub: &[Option<f64>],
+    settings: &QpSettings,
+) -> Error {
+    let feasible = |eqs: &[(DMatrix<f64>, DVector<f64>)], cuts: &[(DVector<f64>, f64)], ub: &[Option<f64>]| {
+        matches!(solve_once(s, eqs, cuts, ub, settings), Ok((SolverStatus::Solved | SolverStatus::AlmostSolved, _, _)))
+    };
+    let all_cuts: Vec<(DVector<f64>, f64)> =
+        ineqs.iter().flat_map(|(m, h)| (0..m.nrows()).map(move |r| (m.row(r).transpose(), h[r]))).collect();
+    let no_ub = vec![None; ub.len()];
+    let mut culprits = Vec::new();
+    for (i, g) in equalities.iter().enumerate() {
+        let rest: Vec<_> = eqs.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, e)| e.clone()).collect();
+        if feasible(&rest, &all_cuts, ub) {
+            culprits.push(format!("{} ({})", g.name, g.description));
+        }
+    }
+    for (i, g) in inequalities.iter().enumerate() {
+        let rest: Vec<(DVector<f64>, f64)> = ineqs
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .flat_map(|(_, (m, h))| (0..m.nrows()).map(move |r| (m.row(r).transpose(), h[r])))
+            .collect();
+        if feasible(eqs, &rest, ub) {
+            culprits.push(format!("{} ({})", g.name, g.description));
+        }
+    }
+    if ub.iter().any(Option::is_some) && feasible(eqs, &all_cuts, &no_ub) {
+        culprits.push("max_stiffness (the catalogue's stiffness limits)".into());
+    }
+    let (constraint, reason) = match culprits.len() {
+        0 => ("the constraints together".to_string(), "no single group can be dropped to restore feasibility; relax the requirements or widen the catalogue".to_string()),
+        _ => (
+            culprits.join("; "),
+            "cannot be met with non-negative stiffnesses of the available elements together with the other requirements; dropping it would make the fit feasible".to_string(),
+        ),
+    };
+    Error::Infeasible { constraint, reason }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::nnls::{NnlsSettings, nnls};
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
+        LinearGroup { name: name.into(), description: format!("{name} rows"), matrix: m, rhs }
+    }
+
+    #[test]
+    fn recovers_known_stiffnesses_and_agrees_with_nnls() {
+        let mut seed = 21;
+        let a = DMatrix::from_fn(60, 7, |_, _| lcg(&mut seed));
+        let k_true = DVector::from_vec(vec![0.0, 1.5, 0.0, 2.0, 0.7, 0.0, 3.0]);
+        let gram = Gram::from_rows(&a, &(&a * &k_true));
+        let sol = qp(&gram, &[], &[], &[None; 7], 0.0, &QpSettings::default()).unwrap();
+        assert!((&sol.k - &k_true).amax() < 1e-6, "{}", sol.k);
+        // A noisy right-hand side: both solvers find the same optimum.
+        let b = DVector::from_fn(60, |_, _| lcg(&mut seed));
+        let gram = Gram::from_rows(&a, &b);
+        let q = qp(&gram, &[], &[], &[None; 7], 0.0, &QpSettings::default()).unwrap();
+        let n = nnls(&gram, 0.0, &NnlsSettings::default()).unwrap();
+        assert!((&q.k - &n.k).amax() < 1e-6, "{} vs {}", q.k, n.k);
+    }
+
+    #[test]
+    fn equalities_are_exact_and_match_heavily_weighted_nnls() {
+        let mut seed = 5;
+        let a = DMatrix::from_fn(40, 6, |_, _| lcg(&mut seed));
+        let b = DVector::from_fn(40, |_, _| lcg(&mut seed));
+        let e = DMatrix::from_row_slice(1, 6, &[1.0, 1.0, 1.0, 1.0, 1.0, 1.0]);
+        let f = DVector::from_vec(vec![2.0]);
+        let gram = Gram::from_rows(&a, &b);
+        let q = qp(&gram, &[group("sum", e.clone(), f.clone())], &[], &[None; 6], 0.0, &QpSettings::default()).unwrap();
+        assert!((q.k.sum() - 2.0).abs() < 1e-8);
+        let mut weighted = gram.clone();
+        weighted.add_weighted(&e, &f, 1e4);
+        let n = nnls(&weighted, 0.0, &NnlsSettings::default()).unwrap();
+        assert!((&q.k - &n.k).amax() < 1e-5, "{} vs {}", q.k, n.k);
+    }
+
+    #[test]
+    fn infeasible_equalities_are_named() {
+        let a = DMatrix::identity(3, 3);
+        let gram = Gram::from_rows(&a, &DVector::from_element(3, 1.0));
+        let bad =
+            group("normalisation", DMatrix::from_row_slice(1, 3, &[1.0, 1.0, 1.0]), DVector::from_vec(vec![-1.0]));
+        let ok = group(
+            "equilibrium gradient",
+            DMatrix::from_row_slice(1, 3, &[1.0, -1.0, 0.0]),
+            DVector::from_vec(vec![0.0]),
+        );
+        let err = qp(&gram, &[ok, bad], &[], &[None; 3], 0.0, &QpSettings::default()).unwrap_err();
+        match err {
+            Error::Infeasible { constraint, .. } => {
+                assert!(constraint.contains("normalisation"), "{constraint}");
+                assert!(!constraint.contains("equilibrium"), "{constraint}");
+            }
+            e => panic!("{e}"),
+        }
+    }
+
+    #[test]
+    fn bounds_and_cutting_planes() {
+        let mut seed = 9;
+        let a = DMatrix::from_fn(50, 5, |_, _| lcg(&mut seed));
+        let b = DVector::from_fn(50, |_, _| 3.0 * lcg(&mut seed).abs());
+        let gram = Gram::from_rows(&a, &b);
+        let upper = [Some(0.5), None, Some(0.1), None, None];
+        // 2000 random inequality rows g·k ≥ −0.05.
+        let g = DMatrix::from_fn(2000, 5, |_, _| lcg(&mut seed));
+        let h = DVector::from_element(2000, -0.05);
+        let ineq = group("monotonicity", g.clone(), h.clone());
+        let cut = qp(&gram, &[], std::slice::from_ref(&ineq), &upper, 0.0, &QpSettings::default()).unwrap();
+        assert!((&g * &cut.k - &h).min() > -1e-7);
+        for (k, u) in cut.k.iter().zip(&upper) {
+            if let Some(u) = u {
+                assert!(*k <= u + 1e-8);
+            }
+        }
+        // All rows at once (no cutting planes) gives the same optimum.
+        let all = QpSettings { cuts_per_round: usize::MAX, ..QpSettings::default() };
+        let full = qp(&gram, &[], &[ineq], &upper, 0.0, &all).unwrap();
+        assert!((&cut.k - &full.k).amax() < 1e-5, "{} vs {}", cut.k, full.k);
+        assert!(cut.cuts < 2000);
+    }
+}

@@ -1,0 +1,121 @@
+//! Settings of the fit: the design's `[fit]` section.
+
+use serde::{Deserialize, Serialize};
+
+/// Which solver computes the stiffnesses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// Lawson–Hanson non-negative least squares; equalities by heavy weighting.
+    Nnls,
+    /// Clarabel quadratic program; equalities, bounds and monotonicity exact.
+    Qp,
+}
+
+impl SolverKind {
+    /// The name used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Nnls => "nnls",
+            SolverKind::Qp => "qp",
+        }
+    }
+}
+
+/// `[fit]`: how stiffnesses are fitted and evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FitSettings {
+    /// Small-oscillation frequency ω in rad/s: the potential is normalised so that
+    /// tr(M(q_eq)⁻¹∇²U(q_eq)) = n ω² (and ∇²U(q_eq) = ω² M(q_eq) with `hessian_match`).
+    pub frequency: f64,
+    /// `nnls` or `qp`.
+    pub solver: SolverKind,
+    /// Training geodesics (equally spaced directions on the metric unit circle, or a
+    /// low-discrepancy set on the sphere for three or more joints).
+    pub training_directions: usize,
+    /// Samples per training geodesic, evenly spaced in arc length out to the region's boundary.
+    pub training_samples: usize,
+    /// Held-out evaluation geodesics, in directions between the training ones.
+    pub evaluation_directions: usize,
+    /// Samples per evaluation geodesic.
+    pub evaluation_samples: usize,
+    /// Require ∇²U(q_eq) = ω² M(q_eq) (exactly with `qp`, by weighting with `nnls`).
+    pub hessian_match: bool,
+    /// Require ∂U/∂q·γ̇ ≥ 0 on the training samples (needs `qp`).
+    pub monotone: bool,
+    /// Use at most this many elements (0: no limit).
+    pub max_elements: usize,
+    /// L1 weight λ on Σ k in units of the scaled problem (0: none). Promotes sparsity
+    /// without a hard limit.
+    pub l1: f64,
+    /// Weight of the equalities relative to the tangentiality rows with `nnls` and inside the
+    /// sparse selection (which refits thousands of subsets with NNLS).
+    pub equality_weight: f64,
+    /// Most passes of exchange moves in the sparse selection.
+    pub swap_passes: usize,
+    /// An element counts as used when its peak torque over the region exceeds this fraction of
+    /// the largest element's peak torque.
+    pub used_threshold: f64,
+    /// Distance bands from q_eq for the residual statistics.
+    pub bands: usize,
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        FitSettings {
+            frequency: 1.0,
+            solver: SolverKind::Qp,
+            training_directions: 72,
+            training_samples: 40,
+            evaluation_directions: 360,
+            evaluation_samples: 100,
+            hessian_match: true,
+            monotone: false,
+            max_elements: 0,
+            l1: 0.0,
+            equality_weight: 30.0,
+            swap_passes: 50,
+            used_threshold: 1e-6,
+            bands: 4,
+        }
+    }
+}
+
+impl FitSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let err = |f: &str, r: &str| Err((format!("fit.{f}"), r.to_string()));
+        if !(self.frequency.is_finite() && self.frequency > 0.0) {
+            return err("frequency", "must be a positive number of rad/s");
+        }
+        if self.training_directions < 4 {
+            return err("training_directions", "must be at least 4");
+        }
+        if self.training_samples < 2 {
+            return err("training_samples", "must be at least 2");
+        }
+        if self.evaluation_directions < 4 {
+            return err("evaluation_directions", "must be at least 4");
+        }
+        if self.evaluation_samples < 2 {
+            return err("evaluation_samples", "must be at least 2");
+        }
+        if self.monotone && self.solver == SolverKind::Nnls {
+            return err("monotone", "monotonicity constraints need solver = \"qp\" (NNLS handles only k ≥ 0)");
+        }
+        if !(self.l1.is_finite() && self.l1 >= 0.0) {
+            return err("l1", "must be ≥ 0");
+        }
+        if !(self.equality_weight.is_finite() && self.equality_weight > 0.0) {
+            return err("equality_weight", "must be positive");
+        }
+        if !(self.used_threshold.is_finite() && (0.0..1.0).contains(&self.used_threshold)) {
+            return err("used_threshold", "must be a fraction in [0, 1)");
+        }
+        if self.bands == 0 || self.bands > 100 {
+            return err("bands", "must be 1 to 100");
+        }
+        Ok(())
+    }
+}
