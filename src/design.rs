@@ -37,6 +37,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::fit::settings::FitSettings;
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 use crate::model::{Chain, Link};
@@ -60,6 +61,8 @@ pub struct DesignFile {
     pub region: Option<RegionSpec>,
     /// Geodesic, log-map and region-check settings.
     pub geodesics: GeodesicSettings,
+    /// How stiffnesses are fitted and evaluated.
+    pub fit: FitSettings,
 }
 
 /// `[robot]`: links from the base outwards and gravity.
@@ -138,6 +141,8 @@ pub struct Design {
     pub region: Region,
     /// Geodesic settings.
     pub geodesics: GeodesicSettings,
+    /// Fit settings.
+    pub fit: FitSettings,
     /// The file as written (for sections later steps read).
     pub file: DesignFile,
 }
@@ -332,6 +337,7 @@ impl Design {
             }
         };
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
 
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into())
@@ -349,6 +355,7 @@ impl Design {
             q_eq,
             region,
             geodesics: file.geodesics,
+            fit: file.fit,
             file,
         })
     }

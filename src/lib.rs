@@ -17,5 +17,6 @@ pub mod linalg;
 pub mod model;
 pub mod ode;
 pub mod potential;
+pub mod report;
 pub mod residual;
 pub mod units;

@@ -5,5 +5,6 @@ pub mod lsq;
 pub mod nnls;
 pub mod problem;
 pub mod qp;
+pub mod run;
 pub mod selection;
 pub mod settings;

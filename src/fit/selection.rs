@@ -10,8 +10,11 @@
 //! run in parallel; the winner is the smallest objective with ties broken by candidate index, so
 //! the result does not depend on the thread count.
 
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 
+use super::lsq::Gram;
+use super::nnls::{NnlsSettings, nnls};
 use crate::error::Result;
 
 /// Settings of the sparse selection.
@@ -141,6 +144,47 @@ where
     evaluations += 1;
     let support = prune(&support, &k);
     Ok(Selection { support, objective, evaluations, swaps })
+}
+
+/// Backward elimination from `start` down to at most `k_max` elements on the normal equations:
+/// each step refits by NNLS and removes the element whose removal raises the objective least by
+/// the least-squares deletion estimate kⱼ² / (G_S⁻¹)ⱼⱼ (elements refitted to zero go first).
+/// The estimate costs one factorisation per step instead of one refit per element.
+pub fn backward_elimination(gram: &Gram, start: Vec<usize>, k_max: usize) -> Result<Vec<usize>> {
+    let settings = NnlsSettings::default();
+    let mut support = start;
+    loop {
+        let sol = nnls(&gram.subset(&support), 0.0, &settings)?;
+        let kept = prune(&support, sol.k.as_slice());
+        if kept.len() < support.len() {
+            support = kept;
+            continue;
+        }
+        if support.len() <= k_max {
+            return Ok(support);
+        }
+        let sub = gram.subset(&support);
+        let n = support.len();
+        let mut g = sub.g.clone();
+        let ridge = 1e-12 * g.diagonal().amax().max(1e-300);
+        for a in 0..n {
+            g[(a, a)] += ridge;
+        }
+        let inv = g.try_inverse().unwrap_or_else(|| DMatrix::identity(n, n));
+        let victim = (0..n)
+            .map(|a| (a, sol.k[a] * sol.k[a] / inv[(a, a)].max(1e-300)))
+            .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)))
+            .map(|(a, _)| a)
+            .unwrap_or(0);
+        support.remove(victim);
+    }
+}
+
+/// The objective and stiffnesses of the NNLS refit of `gram` on `support` (the usual objective
+/// for [`select`] and [`select_from`]).
+pub fn subset_nnls(gram: &Gram, support: &[usize]) -> Result<(f64, Vec<f64>)> {
+    let sol = nnls(&gram.subset(support), 0.0, &NnlsSettings::default())?;
+    Ok((sol.objective, sol.k.iter().copied().collect()))
 }
 
 /// The trial with the smallest objective, ties broken by trial index.

@@ -1,0 +1,477 @@
+//! Fitting a design end to end: fans, candidates, the solve, the evaluation, the bill of
+//! materials.
+//!
+//! Data flows one way: the region check fixes the region's extent; a training fan and a held-out
+//! evaluation fan (directions between the training ones) are traced; the catalogue expands into
+//! candidates over the range each coupling sweeps; candidates that never engage are dropped; the
+//! problem is assembled on the training fan and solved (with sparse selection if asked); the
+//! result is evaluated on the evaluation fan only.
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::lsq::Gram;
+use super::nnls::{NnlsSettings, nnls};
+use super::problem::{FitProblem, LinearGroup, Requirements, assemble};
+use super::qp::{QpSettings, QpStatus, qp};
+use super::selection::{SelectionSettings, backward_elimination, select_from, subset_nnls};
+use super::settings::{FitSettings, SolverKind};
+use crate::bom::BomRow;
+use crate::catalog::{Candidate, Catalog};
+use crate::design::Design;
+use crate::error::{Error, Result};
+use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
+use crate::potential::{ExactPotential, Potential, SpringSet};
+use crate::residual::{AngleSample, AngleStats, BandStats, band_stats, fan_angles, stats};
+
+/// Wall-clock seconds per step.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Region check and fans.
+    pub geodesics: f64,
+    /// Candidates and problem assembly.
+    pub assemble: f64,
+    /// Solve and selection.
+    pub solve: f64,
+    /// Evaluation on the held-out fan.
+    pub evaluate: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// How the stiffnesses were found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolveReport {
+    /// `nnls`, `qp` or `exact`.
+    pub solver: String,
+    /// `solved`, `almost_solved` (QP at reduced accuracy) or `reference` (exact potential).
+    pub status: String,
+    /// Sparse selection: subset refits performed (0 without a limit).
+    pub selection_evaluations: usize,
+    /// Sparse selection: exchange moves accepted.
+    pub selection_swaps: usize,
+    /// QP: cutting-plane rounds for monotonicity.
+    pub cut_rounds: usize,
+}
+
+/// How well a potential does on the held-out evaluation fan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evaluation {
+    /// Residual angles on the evaluation fan.
+    pub residuals: Vec<AngleSample>,
+    /// Their statistics.
+    pub stats: AngleStats,
+    /// Statistics by distance band.
+    pub bands: Vec<BandStats>,
+    /// |∂U/∂q(q_eq)| in N·m (total potential).
+    pub equilibrium_gradient_norm: f64,
+    /// ‖∇²U(q_eq) − ω² M(q_eq)‖_F / ‖ω² M(q_eq)‖_F.
+    pub hessian_rel_error: f64,
+    /// Evaluation samples where U decreases along the geodesic (∂U/∂q·γ̇ < 0).
+    pub monotone_violations: usize,
+}
+
+/// The outcome of a fit.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// Design name.
+    pub design: String,
+    /// Joints.
+    pub dof: usize,
+    /// Catalogue name (`exact` for the reference).
+    pub catalog: String,
+    /// Settings used.
+    pub settings: FitSettings,
+    /// Candidates after expansion (before dropping).
+    pub candidates: usize,
+    /// Candidates dropped because they never engage in the region.
+    pub dropped: usize,
+    /// The bill of materials (empty for the exact reference).
+    pub bom: Vec<BomRow>,
+    /// The fitted spring set (the BOM's elements and stiffnesses).
+    pub springs: SpringSet,
+    /// Residuals and checks on the held-out fan.
+    pub metrics: Evaluation,
+    /// How the solve went.
+    pub solve: SolveReport,
+    /// Time per step.
+    pub timings: Timings,
+    /// The region check.
+    pub region: RegionReport,
+    /// The training fan.
+    pub training: Fan,
+    /// The held-out evaluation fan.
+    pub evaluation: Fan,
+}
+
+impl FitOutcome {
+    /// Number of elements used.
+    pub fn used(&self) -> usize {
+        self.bom.len()
+    }
+}
+
+/// Fits `design` with the elements of `catalog`. `stage` is told when each step starts (for
+/// progress bars); the library itself prints nothing.
+pub fn fit(design: &Design, catalog: &Catalog, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+    settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
+    let t0 = Instant::now();
+    stage("checking the region");
+    let (region, training, evaluation) = fans(design, settings)?;
+    let t_geo = t0.elapsed().as_secs_f64();
+
+    stage("assembling the fit");
+    let t1 = Instant::now();
+    let q_eq = design.q_eq.as_slice();
+    let range = |a: &[f64]| {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+        for g in training.geodesics.iter().chain(&evaluation.geodesics) {
+            for i in 0..g.len() {
+                let x = at(g.q(i));
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+        }
+        let x = at(q_eq);
+        (lo.min(x), hi.max(x))
+    };
+    let expanded = catalog.expand(q_eq, range);
+    let n_expanded = expanded.len();
+    let candidates: Vec<Candidate> =
+        expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
+    let dropped = n_expanded - candidates.len();
+    if candidates.is_empty() {
+        return Err(Error::invalid(
+            &catalog.path,
+            "family",
+            format!("none of the {n_expanded} candidate elements engages anywhere in the region: nothing to fit"),
+        ));
+    }
+    let req =
+        Requirements { omega: settings.frequency, hessian_match: settings.hessian_match, monotone: settings.monotone };
+    let problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+    let t_asm = t1.elapsed().as_secs_f64();
+
+    stage("solving");
+    let t2 = Instant::now();
+    let (k, solve) = solve(&problem, &candidates, settings)?;
+    let t_solve = t2.elapsed().as_secs_f64();
+
+    stage("evaluating on held-out geodesics");
+    let t3 = Instant::now();
+    let (bom, springs) = bill_of_materials(catalog, &candidates, &k, &evaluation, q_eq, settings.used_threshold);
+    let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &evaluation)?;
+    let t_eval = t3.elapsed().as_secs_f64();
+    Ok(FitOutcome {
+        design: design.name.clone(),
+        dof: design.dof(),
+        catalog: catalog.name.clone(),
+        settings: *settings,
+        candidates: n_expanded,
+        dropped,
+        bom,
+        springs,
+        metrics,
+        solve,
+        timings: Timings {
+            geodesics: t_geo,
+            assemble: t_asm,
+            solve: t_solve,
+            evaluate: t_eval,
+            total: t0.elapsed().as_secs_f64(),
+        },
+        region,
+        training,
+        evaluation,
+    })
+}
+
+/// The exact reference U* = ½ω²r² evaluated like a fit (no springs, no bill of materials).
+pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+    settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
+    let t0 = Instant::now();
+    stage("checking the region");
+    let (region, training, evaluation) = fans(design, settings)?;
+    let t_geo = t0.elapsed().as_secs_f64();
+    stage("evaluating the exact potential (log map per sample)");
+    let t3 = Instant::now();
+    let exact = ExactPotential::new(&design.chain, &design.q_eq, settings.frequency, design.geodesics.ode);
+    let residuals = fan_angles(&design.chain, &evaluation, &exact)?;
+    let grad = exact.gradient(design.q_eq.as_slice())? + design.chain.gravity_gradient(design.q_eq.as_slice());
+    let hess = exact.hessian(design.q_eq.as_slice())? + design.chain.gravity_hessian(design.q_eq.as_slice());
+    let target = design.chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
+    let metrics = Evaluation {
+        stats: stats(&residuals),
+        bands: band_stats(&residuals, region.extent, settings.bands),
+        residuals,
+        equilibrium_gradient_norm: grad.norm(),
+        hessian_rel_error: (hess - &target).norm() / target.norm(),
+        monotone_violations: 0,
+    };
+    Ok(FitOutcome {
+        design: design.name.clone(),
+        dof: design.dof(),
+        catalog: "exact".into(),
+        settings: *settings,
+        candidates: 0,
+        dropped: 0,
+        bom: Vec::new(),
+        springs: SpringSet { elements: Vec::new(), stiffness: Vec::new() },
+        metrics,
+        solve: SolveReport {
+            solver: "exact".into(),
+            status: "reference".into(),
+            selection_evaluations: 0,
+            selection_swaps: 0,
+            cut_rounds: 0,
+        },
+        timings: Timings {
+            geodesics: t_geo,
+            evaluate: t3.elapsed().as_secs_f64(),
+            total: t0.elapsed().as_secs_f64(),
+            ..Timings::default()
+        },
+        region,
+        training,
+        evaluation,
+    })
+}
+
+/// The region check and the two fans.
+fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fan, Fan)> {
+    let region = design.valid_region()?;
+    let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
+    let ode = design.geodesics.ode;
+    let training = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: settings.training_directions,
+            phase: 0.0,
+            stop,
+            spacing: region.extent / settings.training_samples as f64,
+        },
+        ode,
+    )?;
+    // Held out: with the same count, phase ½ puts each direction halfway between two training
+    // ones; with another count, phase ½ of its own spacing never meets a training direction
+    // when the counts are multiples of each other (checked in tests).
+    let evaluation = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: settings.evaluation_directions,
+            phase: 0.5,
+            stop,
+            spacing: region.extent / settings.evaluation_samples as f64,
+        },
+        ode,
+    )?;
+    Ok((region, training, evaluation))
+}
+
+/// Whether a candidate's potential changes anywhere in the region (else it is dropped).
+fn engages(c: &Candidate, q_eq: &[f64], training: &Fan, evaluation: &Fan) -> bool {
+    let e = &c.element;
+    let (_, slope, curv) = e.profile.eval(e.deflection(q_eq));
+    if slope != 0.0 || curv != 0.0 {
+        return true;
+    }
+    training
+        .geodesics
+        .iter()
+        .chain(&evaluation.geodesics)
+        .any(|g| (0..g.len()).any(|i| e.profile.slope(e.deflection(g.q(i))) != 0.0))
+}
+
+/// Solves the assembled problem with the chosen solver and, with `max_elements`, the sparse
+/// selection. Returns the stiffness of every candidate.
+fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings) -> Result<(Vec<f64>, SolveReport)> {
+    let p = candidates.len();
+    let gram = Gram::from_rows(&problem.rows, &problem.rhs);
+    // Equalities folded in with weight W per row: a violation δ of an equation costs as much as
+    // δ / equality_weight of residual on every tangentiality row.
+    let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
+    let mut weighted = gram.clone();
+    for eq in &problem.equalities {
+        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
+    }
+    let upper: Vec<Option<f64>> = candidates.iter().map(|c| c.max_stiffness).collect();
+    let mut report = SolveReport {
+        solver: settings.solver.name().into(),
+        status: "solved".into(),
+        selection_evaluations: 0,
+        selection_swaps: 0,
+        cut_rounds: 0,
+    };
+    let support: Vec<usize> = if settings.max_elements > 0 && settings.max_elements < p {
+        let dense = nnls(&weighted, 0.0, &NnlsSettings::default())?;
+        let start: Vec<usize> = (0..p).filter(|&j| dense.k[j] > 0.0).collect();
+        let start = backward_elimination(&weighted, start, settings.max_elements)?;
+        let sel_settings = SelectionSettings { max_elements: settings.max_elements, swap_passes: settings.swap_passes };
+        let sel = select_from(p, sel_settings, start, |s| subset_nnls(&weighted, s))?;
+        report.selection_evaluations = sel.evaluations;
+        report.selection_swaps = sel.swaps;
+        sel.support
+    } else {
+        (0..p).collect()
+    };
+    let sub_upper: Vec<Option<f64>> = support.iter().map(|&j| upper[j]).collect();
+    let k_sub = match settings.solver {
+        SolverKind::Nnls => nnls_bounded(&weighted.subset(&support), settings.l1, &sub_upper)?,
+        SolverKind::Qp => {
+            let restrict = |groups: &[LinearGroup]| -> Vec<LinearGroup> {
+                groups
+                    .iter()
+                    .map(|g| LinearGroup {
+                        matrix: DMatrix::from_fn(g.matrix.nrows(), support.len(), |r, a| g.matrix[(r, support[a])]),
+                        ..g.clone()
+                    })
+                    .collect()
+            };
+            let sol = qp(
+                &gram.subset(&support),
+                &restrict(&problem.equalities),
+                &restrict(&problem.inequalities),
+                &sub_upper,
+                settings.l1,
+                &QpSettings::default(),
+            )?;
+            report.cut_rounds = sol.cut_rounds;
+            if sol.status == QpStatus::AlmostSolved {
+                report.status = "almost_solved".into();
+            }
+            sol.k
+        }
+    };
+    let mut k = vec![0.0; p];
+    for (a, &j) in support.iter().enumerate() {
+        k[j] = k_sub[a];
+    }
+    Ok((k, report))
+}
+
+/// NNLS with upper bounds by clamp-and-refit: elements above their bound are fixed at it and the
+/// rest refitted, until none exceeds its bound. Not the exact bounded optimum in general (use the
+/// QP for that) but it never violates a bound and equals NNLS when no bound is active.
+fn nnls_bounded(gram: &Gram, l1: f64, upper: &[Option<f64>]) -> Result<DVector<f64>> {
+    let p = gram.dim();
+    let mut fixed: Vec<usize> = Vec::new();
+    loop {
+        let free: Vec<usize> = (0..p).filter(|j| !fixed.contains(j)).collect();
+        let values: Vec<f64> = fixed.iter().map(|&j| upper[j].unwrap_or(0.0)).collect();
+        let sol = nnls(&gram.fix(&free, &fixed, &values), l1, &NnlsSettings::default())?;
+        let mut k = DVector::zeros(p);
+        for (a, &j) in free.iter().enumerate() {
+            k[j] = sol.k[a];
+        }
+        for (&j, v) in fixed.iter().zip(&values) {
+            k[j] = *v;
+        }
+        let over: Vec<usize> = free.iter().copied().filter(|&j| upper[j].is_some_and(|u| k[j] > u)).collect();
+        if over.is_empty() {
+            return Ok(k);
+        }
+        fixed.extend(over);
+        fixed.sort_unstable();
+    }
+}
+
+/// The used elements (peak torque above the threshold) as bill-of-materials rows and springs.
+fn bill_of_materials(
+    catalog: &Catalog,
+    candidates: &[Candidate],
+    k: &[f64],
+    evaluation: &Fan,
+    q_eq: &[f64],
+    threshold: f64,
+) -> (Vec<BomRow>, SpringSet) {
+    // Peak torque on x and engaged deflection of each candidate over the region.
+    let peaks: Vec<(f64, f64)> = candidates
+        .iter()
+        .zip(k)
+        .map(|(c, &kj)| {
+            let e = &c.element;
+            let mut torque: f64 = 0.0;
+            let mut defl: f64 = 0.0;
+            let mut visit = |q: &[f64]| {
+                let d = e.deflection(q);
+                let slope = e.profile.slope(d);
+                torque = torque.max((kj * slope).abs());
+                if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
+                    defl = defl.max(d.abs());
+                }
+            };
+            visit(q_eq);
+            for g in &evaluation.geodesics {
+                for i in 0..g.len() {
+                    visit(g.q(i));
+                }
+            }
+            (torque, defl)
+        })
+        .collect();
+    let max_peak = peaks.iter().map(|p| p.0).fold(0.0, f64::max);
+    let used: Vec<usize> = (0..candidates.len()).filter(|&j| k[j] > 0.0 && peaks[j].0 > threshold * max_peak).collect();
+    let bom: Vec<BomRow> = used
+        .iter()
+        .enumerate()
+        .map(|(i, &j)| {
+            let c = &candidates[j];
+            let stock_rate = nearest(&c.stock_rates, k[j]);
+            BomRow {
+                id: format!("S{:02}", i + 1),
+                family: catalog.families[c.family].name.clone(),
+                element: c.element.clone(),
+                stiffness: k[j],
+                max_torque_nm: peaks[j].0,
+                max_deflection_rad: peaks[j].1,
+                stock_rate,
+                tolerance: c.tolerance,
+            }
+        })
+        .collect();
+    let springs = SpringSet {
+        elements: used.iter().map(|&j| candidates[j].element.clone()).collect(),
+        stiffness: used.iter().map(|&j| k[j]).collect(),
+    };
+    (bom, springs)
+}
+
+/// The stock rate nearest to `k` in ratio (rates are usually geometric series).
+pub fn nearest(rates: &[f64], k: f64) -> Option<f64> {
+    rates.iter().copied().min_by(|a, b| (a / k).ln().abs().total_cmp(&(b / k).ln().abs()))
+}
+
+/// Residuals and checks of a spring set on a fan (held-out geodesics): the figures users compare.
+pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, fan: &Fan) -> Result<Evaluation> {
+    let chain = &design.chain;
+    let q0 = design.q_eq.as_slice();
+    let residuals = fan_angles(chain, fan, springs)?;
+    let grad = springs.gradient(q0)? + chain.gravity_gradient(q0);
+    let hess = springs.hessian(q0)? + chain.gravity_hessian(q0);
+    let target = chain.mass_matrix(&design.q_eq) * omega.powi(2);
+    let mut monotone_violations = 0;
+    for g in &fan.geodesics {
+        for i in 0..g.len() {
+            let q = g.q(i);
+            let grad = springs.gradient(q)? + chain.gravity_gradient(q);
+            let rate: f64 = grad.iter().zip(g.qd(i)).map(|(a, b)| a * b).sum();
+            if rate < -1e-12 * grad.norm() {
+                monotone_violations += 1;
+            }
+        }
+    }
+    let extent = fan.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max);
+    Ok(Evaluation {
+        stats: stats(&residuals),
+        bands: band_stats(&residuals, extent, bands),
+        residuals,
+        equilibrium_gradient_norm: grad.norm(),
+        hessian_rel_error: (hess - &target).norm() / target.norm(),
+        monotone_violations,
+    })
+}
