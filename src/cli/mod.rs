@@ -2,13 +2,15 @@
 //! command resolves them into a run of library calls; printing and progress bars live here only.
 
 mod check;
-// mod geodesics;
+mod fit;
+mod geodesics;
 mod progress;
 
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+use springfit::fit::settings::SolverKind;
 use springfit::{Error, ErrorKind};
 
 /// The design used when none is given: the paper's double pendulum.
@@ -23,7 +25,7 @@ pub const DEFAULT_DESIGN: &str = "designs/double_pendulum.toml";
 region, the arm swings back and forth through its equilibrium on a fixed geodesic of its inertia \
 metric (a strict normal mode). It fits non-negative stiffnesses of real elastic elements from a \
 spring catalogue and checks the design before it is built.",
-    after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\nExit codes: 0 ok, 1 the design could not be met, 2 bad input or usage."
+    after_help = "Examples:\n  springfit fit                      # the paper's design, outputs in out/double_pendulum\n  springfit check designs/double_pendulum.toml\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\nExit codes: 0 ok, 1 the design could not be met, 2 bad input or usage."
 )]
 pub struct Cli {
     /// Print nothing but errors (no progress bars, no summaries).
@@ -38,6 +40,29 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Fit spring stiffnesses from the design's catalogue and write the bill of materials.
+    #[command(
+        after_help = "Examples:\n  springfit fit\n  springfit fit designs/double_pendulum_dense.toml --out out/dense\n  springfit fit --exact\n\n\
+Writes bom.csv, bom.md, summary.json, residuals.csv, histogram.svg/.png, potential.svg/.png and\n\
+report.md into the output folder, all at once (nothing is left half-written on an error)."
+    )]
+    Fit {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Output folder (default: out/<design name>, out/<design name>_exact with --exact).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Evaluate the exact potential ½ω²r² (the physical limit, ~0°) instead of fitting springs.
+        #[arg(long)]
+        exact: bool,
+        /// Override the design's solver.
+        #[arg(long, value_enum)]
+        solver: Option<SolverArg>,
+        /// Override the design's element budget (0: no limit).
+        #[arg(long, value_name = "K")]
+        max_elements: Option<usize>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -52,10 +77,19 @@ geodesics.svg/.png (the fan in joint space and the same motions in Cartesian spa
         /// Design file (TOML).
         #[arg(default_value = DEFAULT_DESIGN)]
         design: PathBuf,
-        /// Output folder (default: out/<design name>/geodesics). Replaced atomically.
+        /// Output folder (default: out/<design name>_geodesics). Replaced atomically.
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+}
+
+/// `--solver` values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum SolverArg {
+    /// Lawson–Hanson non-negative least squares (equalities by weighting).
+    Nnls,
+    /// Clarabel quadratic program (constraints exact).
+    Qp,
 }
 
 /// Parses the command line and runs the command.
@@ -70,7 +104,14 @@ pub fn run() -> Result<()> {
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {
         Command::Check { design } => check::run(&design, &progress),
-        Command::Geodesics { .. } => unimplemented!(),
+        Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
+        Command::Fit { design, out, exact, solver, max_elements } => {
+            let solver = solver.map(|s| match s {
+                SolverArg::Nnls => SolverKind::Nnls,
+                SolverArg::Qp => SolverKind::Qp,
+            });
+            fit::run(fit::FitArgs { design, out, exact, solver, max_elements }, &progress)
+        }
     }
 }
 

@@ -1,5 +1,8 @@
 //! Outputs: atomic output folders, figures, tables and the files each command writes.
 
 pub mod contour;
+pub mod figures;
+pub mod fit;
+pub mod geodesics;
 pub mod output;
 pub mod plot;

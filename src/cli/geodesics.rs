@@ -1,0 +1,45 @@
+//! `springfit geodesics`: the fan, the region check and their plots.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use springfit::design::Design;
+use springfit::geodesic::{Fan, FanSpec, Stop};
+use springfit::report::output::OutputDir;
+
+use super::progress::Progress;
+
+pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
+    let design = Design::load(path)?;
+    let step = progress.step("checking the region");
+    let region = design.valid_region();
+    step.finish();
+    let region = region?;
+    let step = progress.step("tracing the fan");
+    let spec = FanSpec {
+        count: design.geodesics.directions,
+        phase: 0.0,
+        stop: Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc },
+        spacing: region.extent / design.geodesics.samples as f64,
+    };
+    let fan = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode);
+    step.finish();
+    let fan = fan?;
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
+    let step = progress.step("writing outputs");
+    let dir = OutputDir::create(&target)?;
+    springfit::report::geodesics::write(&dir, &design, &fan, &region)?;
+    let written = dir.commit();
+    step.finish();
+    let written = written?;
+    let bound = if region.largest_radius_is_lower_bound { "≥ " } else { "" };
+    progress.say(format!(
+        "{}: {} geodesics, {} samples; largest valid geodesic-ball radius {bound}{:.4}",
+        design.name,
+        fan.geodesics.len(),
+        fan.sample_count(),
+        region.largest_radius
+    ));
+    progress.say(format!("wrote {} (geodesics.csv, region.json, geodesics.svg, geodesics.png)", written.display()));
+    Ok(())
+}

@@ -1,0 +1,257 @@
+//! The figures of the fit and geodesics commands, built from results as plain data.
+
+use nalgebra::DVector;
+
+use super::plot::{Figure, Layer, Panel, Style, cyclic, histogram, palette};
+use crate::design::Design;
+use crate::error::Result;
+use crate::geodesic::Fan;
+use crate::potential::Potential;
+use crate::residual::{AngleSample, AngleStats};
+
+/// Every `step`-th geodesic of a fan as joint-space polylines (first two joints).
+pub fn fan_lines(fan: &Fan, step: usize) -> Vec<Vec<(f64, f64)>> {
+    fan.geodesics.iter().step_by(step.max(1)).map(|g| (0..g.len()).map(|i| (g.q(i)[0], g.q(i)[1])).collect()).collect()
+}
+
+/// The region's boundary as traced by a fan: the end points of its geodesics, closed.
+pub fn boundary_line(fan: &Fan) -> Vec<(f64, f64)> {
+    let mut b: Vec<(f64, f64)> = fan
+        .geodesics
+        .iter()
+        .filter(|g| !g.is_empty())
+        .map(|g| {
+            let q = g.q(g.len() - 1);
+            (q[0], q[1])
+        })
+        .collect();
+    if let Some(&first) = b.first() {
+        b.push(first);
+    }
+    b
+}
+
+/// Geodesics in joint space (coloured by direction, the region's boundary in black) and the same
+/// motions in Cartesian space: the arm at the equilibrium and the path of its tip along each
+/// geodesic (the paper's table of equilibria shows the idea).
+pub fn geodesics_figure(design: &Design, fan: &Fan, title: &str) -> Figure {
+    let count = fan.geodesics.len();
+    let step = (count / 36).max(1);
+    let mut joint_layers = Vec::new();
+    let mut cart_layers = Vec::new();
+    for (i, g) in fan.geodesics.iter().enumerate().step_by(step) {
+        let color = cyclic(i as f64 / count as f64);
+        let n = g.len();
+        joint_layers.push(Layer::Lines {
+            lines: vec![(0..n).map(|k| (g.q(k)[0], g.q(k)[1.min(design.dof() - 1)])).collect()],
+            style: Style::line(color, 1),
+            label: None,
+        });
+        let tip: Vec<(f64, f64)> = (0..n)
+            .map(|k| {
+                let p = design.chain.joint_positions(g.q(k));
+                let t = p[p.len() - 1];
+                (t[0], t[1])
+            })
+            .collect();
+        cart_layers.push(Layer::Lines { lines: vec![tip], style: Style::line(color, 1), label: None });
+    }
+    if design.dof() >= 2 {
+        joint_layers.push(Layer::Lines {
+            lines: vec![boundary_line(fan)],
+            style: Style::line((0, 0, 0), 2),
+            label: Some("region boundary".into()),
+        });
+    }
+    joint_layers.push(Layer::Points {
+        points: vec![(design.q_eq[0], design.q_eq[1.min(design.dof() - 1)])],
+        style: Style::fill((0, 0, 0), 1.0),
+        size: 4,
+        label: Some("equilibrium".into()),
+    });
+    let arm: Vec<(f64, f64)> =
+        design.chain.joint_positions(design.q_eq.as_slice()).iter().map(|p| (p[0], p[1])).collect();
+    cart_layers.push(Layer::Lines {
+        lines: vec![arm.clone()],
+        style: Style::line((40, 40, 40), 4),
+        label: Some("arm at q_eq".into()),
+    });
+    cart_layers.push(Layer::Points { points: arm, style: Style::fill((40, 40, 40), 1.0), size: 4, label: None });
+    let (xl, yl) = if design.dof() >= 2 { ("q₁ (rad)", "q₂ (rad)") } else { ("q₁ (rad)", "q₁ (rad)") };
+    Figure {
+        title: Some(title.into()),
+        width: 1300,
+        height: 620,
+        rows: 1,
+        cols: 2,
+        panels: vec![
+            Panel {
+                title: format!("Geodesics from q_eq in joint space ({} of {count})", count.div_ceil(step)),
+                x_label: xl.into(),
+                y_label: yl.into(),
+                equal_aspect: true,
+                legend: true,
+                layers: joint_layers,
+                ..Panel::default()
+            },
+            Panel {
+                title: "Tip paths in Cartesian space".into(),
+                x_label: "x (m)".into(),
+                y_label: "y (m)".into(),
+                equal_aspect: true,
+                legend: true,
+                layers: cart_layers,
+                ..Panel::default()
+            },
+        ],
+    }
+}
+
+/// Bin edges symmetric about 0 covering every sample, with a round width.
+pub fn symmetric_edges(samples: &[f64], bins: usize) -> Vec<f64> {
+    let m = samples.iter().filter(|v| v.is_finite()).fold(0.0f64, |a, v| a.max(v.abs()));
+    let m = if m > 0.0 { nice_ceil(m * 1.02) } else { 1.0 };
+    (0..=bins).map(|k| -m + 2.0 * m * k as f64 / bins as f64).collect()
+}
+
+/// The smallest 1, 2, 2.5 or 5 × 10ᵏ at or above x.
+pub fn nice_ceil(x: f64) -> f64 {
+    let e = 10f64.powf(x.log10().floor());
+    for f in [1.0, 2.0, 2.5, 5.0, 10.0] {
+        if f * e >= x {
+            return f * e;
+        }
+    }
+    10.0 * e
+}
+
+/// Notes with the residual statistics.
+pub fn stats_notes(st: &AngleStats) -> Vec<String> {
+    vec![
+        format!("{} samples", st.count),
+        format!("median |angle| = {:.4}°", st.median_abs),
+        format!("p95 |angle| = {:.4}°", st.p95_abs),
+        format!("p99 |angle| = {:.4}°", st.p99_abs),
+        format!("max |angle| = {:.4}°", st.max_abs),
+    ]
+}
+
+/// The signed residual-angle histogram with its statistics (the paper's Fig. 4).
+pub fn histogram_figure(residuals: &[AngleSample], st: &AngleStats, title: &str, signed: bool) -> Figure {
+    let angles: Vec<f64> = residuals.iter().map(|r| r.angle_deg).collect();
+    let edges = if signed {
+        symmetric_edges(&angles, 60)
+    } else {
+        let m = nice_ceil(angles.iter().fold(0.0f64, |a, v| a.max(*v)).max(1e-12) * 1.02);
+        (0..=60).map(|k| m * k as f64 / 60.0).collect()
+    };
+    let counts = histogram(&angles, &edges);
+    Figure::single(
+        Panel {
+            title: title.into(),
+            x_label: if signed { "signed residual angle (°)".into() } else { "residual angle (°)".into() },
+            y_label: "samples".into(),
+            notes: stats_notes(st),
+            layers: vec![
+                Layer::Histogram { edges, counts, style: Style::fill(palette(0), 0.55), label: None },
+                Layer::VLine { x: 0.0, style: Style::line((0, 0, 0), 1).dashed() },
+            ],
+            ..Panel::default()
+        },
+        900,
+        560,
+    )
+}
+
+/// Isolines of the total potential over the region's bounding box, with geodesics and the region
+/// boundary on top (the paper's Fig. 5b). For a perfect potential the isolines are the geodesic
+/// circles, crossed at right angles (in the metric) by the geodesics.
+pub fn potential_figure(
+    design: &Design,
+    potential: &dyn Potential,
+    fan: &Fan,
+    omega: f64,
+    title: &str,
+) -> Result<Figure> {
+    let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+    for g in &fan.geodesics {
+        for i in 0..g.len() {
+            let q = g.q(i);
+            lo = (lo.0.min(q[0]), lo.1.min(q[1]));
+            hi = (hi.0.max(q[0]), hi.1.max(q[1]));
+        }
+    }
+    let pad = (0.08 * (hi.0 - lo.0), 0.08 * (hi.1 - lo.1));
+    let (nx, ny) = (90, 90);
+    let x: Vec<f64> =
+        (0..nx).map(|i| lo.0 - pad.0 + (hi.0 - lo.0 + 2.0 * pad.0) * i as f64 / (nx - 1) as f64).collect();
+    let y: Vec<f64> =
+        (0..ny).map(|j| lo.1 - pad.1 + (hi.1 - lo.1 + 2.0 * pad.1) * j as f64 / (ny - 1) as f64).collect();
+    let mut z = Vec::with_capacity(nx * ny);
+    let mut q = design.q_eq.clone();
+    for &yy in &y {
+        for &xx in &x {
+            q[0] = xx;
+            q[1] = yy;
+            z.push(potential.value(q.as_slice())? + design.chain.gravity_potential(q.as_slice()));
+        }
+    }
+    // Levels of ½ω²r² at r = R/8, 2R/8, …, R: where a perfect potential's isolines would be.
+    let extent = fan.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max);
+    let u0 = potential.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
+    let levels: Vec<f64> = (1..=8).map(|k| u0 + 0.5 * omega * omega * (extent * k as f64 / 8.0).powi(2)).collect();
+    let step = (fan.geodesics.len() / 24).max(1);
+    let layers = vec![
+        Layer::Lines {
+            lines: fan_lines(fan, step),
+            style: Style::line((150, 150, 150), 1),
+            label: Some("geodesics".into()),
+        },
+        Layer::Contours { x, y, z, levels, style: Style::line(palette(1), 2), label: Some("isolines of U".into()) },
+        Layer::Lines {
+            lines: vec![boundary_line(fan)],
+            style: Style::line((0, 0, 0), 2).dashed(),
+            label: Some("region boundary".into()),
+        },
+        Layer::Points {
+            points: vec![(design.q_eq[0], design.q_eq[1])],
+            style: Style::fill((0, 0, 0), 1.0),
+            size: 4,
+            label: Some("equilibrium".into()),
+        },
+    ];
+    Ok(Figure::single(
+        Panel {
+            title: title.into(),
+            x_label: "q₁ (rad)".into(),
+            y_label: "q₂ (rad)".into(),
+            equal_aspect: true,
+            legend: true,
+            notes: vec!["isolines at U(q_eq) + ½ω²(kR/8)², k = 1…8".into()],
+            layers,
+            ..Panel::default()
+        },
+        900,
+        800,
+    ))
+}
+
+/// A joint-space vector as text.
+pub fn fmt_q(q: &DVector<f64>) -> String {
+    format!("({})", q.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_numbers() {
+        assert_eq!(nice_ceil(0.7), 1.0);
+        assert_eq!(nice_ceil(1.3), 2.0);
+        assert_eq!(nice_ceil(2.2), 2.5);
+        assert_eq!(nice_ceil(0.031), 0.05);
+        let e = symmetric_edges(&[-0.3, 0.1], 4);
+        assert_eq!(e, vec![-0.5, -0.25, 0.0, 0.25, 0.5]);
+    }
+}

@@ -1,0 +1,203 @@
+//! The files `springfit fit` writes.
+
+use serde::Serialize;
+
+use super::figures::{fmt_q, histogram_figure, potential_figure};
+use super::output::OutputDir;
+use super::plot::render;
+use crate::bom;
+use crate::design::Design;
+use crate::error::Result;
+use crate::fit::run::{FitOutcome, Timings};
+use crate::potential::{ExactPotential, Potential};
+use crate::residual::{AngleSample, AngleStats, BandStats};
+
+/// `summary.json`. Key order is fixed; everything but `timings_s` is deterministic.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub design: String,
+    pub dof: usize,
+    pub catalog: String,
+    pub solver: String,
+    pub candidates: usize,
+    pub dropped: usize,
+    pub used: usize,
+    pub frequency_rad_s: f64,
+    pub residual_deg: AngleStats,
+    pub equilibrium_gradient_norm: f64,
+    pub hessian_rel_error: f64,
+    pub monotone_violations: usize,
+    pub timings_s: Timings,
+    /// `solved`, `almost_solved` or `reference`.
+    pub status: String,
+    /// The element budget (0: none).
+    pub max_elements: usize,
+    pub selection_evaluations: usize,
+    pub selection_swaps: usize,
+    /// Residual statistics by distance band from q_eq.
+    pub bands: Vec<BandStats>,
+    pub region: RegionSummary,
+}
+
+/// The region part of the summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct RegionSummary {
+    pub description: String,
+    pub extent: f64,
+    pub largest_radius: f64,
+    pub largest_radius_is_lower_bound: bool,
+}
+
+impl Summary {
+    /// The summary of a fit.
+    pub fn new(o: &FitOutcome) -> Summary {
+        Summary {
+            design: o.design.clone(),
+            dof: o.dof,
+            catalog: o.catalog.clone(),
+            solver: o.solve.solver.clone(),
+            candidates: o.candidates,
+            dropped: o.dropped,
+            used: o.used(),
+            frequency_rad_s: o.settings.frequency,
+            residual_deg: o.metrics.stats,
+            equilibrium_gradient_norm: o.metrics.equilibrium_gradient_norm,
+            hessian_rel_error: o.metrics.hessian_rel_error,
+            monotone_violations: o.metrics.monotone_violations,
+            timings_s: o.timings,
+            status: o.solve.status.clone(),
+            max_elements: o.settings.max_elements,
+            selection_evaluations: o.solve.selection_evaluations,
+            selection_swaps: o.solve.selection_swaps,
+            bands: o.metrics.bands.clone(),
+            region: RegionSummary {
+                description: o.region.region.clone(),
+                extent: o.region.extent,
+                largest_radius: o.region.largest_radius,
+                largest_radius_is_lower_bound: o.region.largest_radius_is_lower_bound,
+            },
+        }
+    }
+}
+
+/// `residuals.csv`: direction, s, q…, angle_deg.
+pub fn residuals_csv(dof: usize, residuals: &[AngleSample]) -> String {
+    let mut s = String::from("direction,s");
+    for i in 1..=dof {
+        s.push_str(&format!(",q{i}"));
+    }
+    s.push_str(",angle_deg\n");
+    for r in residuals {
+        s.push_str(&format!("{},{}", r.direction, r.s));
+        for q in &r.q {
+            s.push_str(&format!(",{q}"));
+        }
+        s.push_str(&format!(",{}\n", r.angle_deg));
+    }
+    s
+}
+
+/// Writes every output of a fit (or of the exact reference) into `out`.
+pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
+    let exact = o.solve.solver == "exact";
+    let label = if exact {
+        format!("{} — exact ½ω²r²", o.design)
+    } else {
+        format!("{} — {} ({}), {} springs", o.design, o.catalog, o.solve.solver, o.used())
+    };
+    if !exact {
+        out.write("bom.csv", bom::to_csv(&o.bom))?;
+        out.write("bom.md", bom::to_markdown(&o.design, &o.bom))?;
+    }
+    let summary = Summary::new(o);
+    let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
+    out.write("summary.json", json + "\n")?;
+    out.write("residuals.csv", residuals_csv(o.dof, &o.metrics.residuals))?;
+    let signed = o.dof == 2;
+    render(
+        &histogram_figure(
+            &o.metrics.residuals,
+            &o.metrics.stats,
+            &format!("Residual angles on held-out geodesics: {label}"),
+            signed,
+        ),
+        &out.path("histogram"),
+    )?;
+    let has_potential_plot = o.dof >= 2;
+    if has_potential_plot {
+        let title = format!("Potential isolines and geodesics: {label}");
+        let fig = if exact {
+            let pot = ExactPotential::new(&design.chain, &design.q_eq, o.settings.frequency, design.geodesics.ode);
+            potential_figure(design, &pot as &dyn Potential, &o.evaluation, o.settings.frequency, &title)?
+        } else {
+            potential_figure(design, &o.springs, &o.evaluation, o.settings.frequency, &title)?
+        };
+        render(&fig, &out.path("potential"))?;
+    }
+    out.write("report.md", report_md(design, o, &summary, has_potential_plot))?;
+    Ok(())
+}
+
+fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool) -> String {
+    let exact = o.solve.solver == "exact";
+    let mut r = format!("# springfit fit: {}\n\n", o.design);
+    if !design.description.is_empty() {
+        r.push_str(&format!("{}\n\n", design.description));
+    }
+    r.push_str(&format!(
+        "- robot: {} links; equilibrium q_eq = {}; region: {} (largest valid geodesic-ball radius {}{:.3})\n",
+        o.dof,
+        fmt_q(&design.q_eq),
+        o.region.region,
+        if o.region.largest_radius_is_lower_bound { "≥ " } else { "" },
+        o.region.largest_radius
+    ));
+    if exact {
+        r.push_str(&format!(
+            "- potential: the exact reference U* = ½ω²r², ω = {} rad/s (evaluated through the log map)\n",
+            o.settings.frequency
+        ));
+    } else {
+        r.push_str(&format!(
+            "- catalogue: {} ({} candidates, {} dropped as never engaging); solver: {} ({}); element budget: {}\n- used elements: {}\n",
+            o.catalog,
+            o.candidates,
+            o.dropped,
+            o.solve.solver,
+            o.solve.status,
+            if o.settings.max_elements == 0 { "none".to_string() } else { o.settings.max_elements.to_string() },
+            o.used()
+        ));
+    }
+    r.push_str(&format!(
+        "- frequency ω = {} rad/s; |∇U(q_eq)| = {:.3e} N·m; Hessian relative error {:.3e}; monotonicity violations {}\n\n",
+        o.settings.frequency, s.equilibrium_gradient_norm, s.hessian_rel_error, s.monotone_violations
+    ));
+    r.push_str(&format!(
+        "## Residual angles on held-out geodesics\n\n{} samples on {} geodesics between the training directions.\n\n| band (arc length) | samples | median | p95 | p99 | max |\n| --- | ---: | ---: | ---: | ---: | ---: |\n",
+        s.residual_deg.count,
+        o.evaluation.geodesics.len()
+    ));
+    for b in &s.bands {
+        r.push_str(&format!(
+            "| {:.2}–{:.2} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n",
+            b.from, b.to, b.stats.count, b.stats.median_abs, b.stats.p95_abs, b.stats.p99_abs, b.stats.max_abs
+        ));
+    }
+    let st = &s.residual_deg;
+    r.push_str(&format!(
+        "| **all** | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n\n![histogram](histogram.svg)\n\n",
+        st.count, st.median_abs, st.p95_abs, st.p99_abs, st.max_abs
+    ));
+    if potential_plot {
+        r.push_str("## Potential\n\n![potential](potential.svg)\n\n");
+    }
+    if !exact {
+        r.push_str("## Bill of materials\n\nSee [bom.md](bom.md) (table) and [bom.csv](bom.csv) (machine-readable; `springfit` rebuilds the potential from it).\n\n");
+    }
+    r.push_str(&format!(
+        "## Files\n\n- [summary.json](summary.json): the figures above\n- [residuals.csv](residuals.csv): every evaluated sample\n\nTimings: geodesics {:.3} s, assemble {:.3} s, solve {:.3} s, evaluate {:.3} s, total {:.3} s.\n",
+        s.timings_s.geodesics, s.timings_s.assemble, s.timings_s.solve, s.timings_s.evaluate, s.timings_s.total
+    ));
+    r
+}
