@@ -32,9 +32,12 @@ pub struct QpSettings {
 
 impl Default for QpSettings {
     fn default() -> Self {
-        QpSettings { max_iterations: 200, tolerance: 1e-10, cut_rounds: 30, cuts_per_round: 200, cut_margin: 1e-9 }
+        QpSettings { max_iterations: 200, tolerance: 1e-8, cut_rounds: 30, cuts_per_round: 200, cut_margin: 1e-9 }
     }
 }
+
+/// Ridge added to the scaled Hessian (see [`Scaled::new`]).
+const RIDGE: f64 = 1e-10;
 
 /// How a QP solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -136,11 +139,15 @@ pub fn qp(
     })
 }
 
-/// Solution polishing. Interior-point iterates approach zero bounds only like √μ when the problem
-/// is degenerate (an exact fit: bound multipliers vanish too), leaving spurious 1e-5-size
-/// stiffnesses. Taking the elements clearly away from zero as the support, and the inequality rows
-/// at their bound as equations, the KKT system of the equality-constrained least squares on that
-/// support gives the vertex exactly; it is kept only if it is feasible and no worse.
+/// Solution polishing by an active-set method started from the interior-point solution.
+///
+/// Interior-point iterates approach zero bounds only like √μ when the problem is degenerate (an
+/// exact fit, or hundreds of nearly dependent candidates): every element stays slightly positive
+/// and the equalities hold only to the solver's tolerance. Starting from the elements the
+/// interior point clearly uses, Lawson–Hanson's active-set iteration with the equalities (and the
+/// inequality rows at their bound) kept exact through the KKT system of each passive set walks to
+/// the exact vertex solution: few elements, equalities to round-off. The result is kept only if
+/// it is feasible and no worse than the interior-point solution.
 #[allow(clippy::too_many_arguments)]
 fn polish(
     s: &Scaled,
@@ -150,51 +157,13 @@ fn polish(
     eqs: &[(DMatrix<f64>, DVector<f64>)],
     ineqs: &[(DMatrix<f64>, DVector<f64>)],
     ub: &[Option<f64>],
-    x: DVector<f64>,
+    x_ipm: DVector<f64>,
     settings: &QpSettings,
 ) -> DVector<f64> {
-    let objective = |v: &DVector<f64>| {
-        let pv = &s_dense(gram, d) * v;
-        0.5 * v.dot(&pv) + s.q.iter().zip(v.iter()).map(|(q, v)| q * v).sum::<f64>()
-    };
-    let mut best = x.clone();
-    let mut best_obj = objective(&x);
-    for threshold in [1e-3, 1e-5, 1e-7] {
-        if let Some(y) = polish_at(s, gram, d, l1, eqs, ineqs, ub, &x, threshold, settings) {
-            let o = objective(&y);
-            if o <= best_obj + 1e-12 * best_obj.abs().max(1.0) {
-                best = y;
-                best_obj = o;
-            }
-        }
-    }
-    best
-}
-
-/// G scaled to unit diagonal (dense).
-fn s_dense(gram: &Gram, d: &[f64]) -> DMatrix<f64> {
-    DMatrix::from_fn(d.len(), d.len(), |i, j| gram.g[(i, j)] * d[i] * d[j])
-}
-
-/// One polishing attempt with elements above `threshold` × max as the support.
-#[allow(clippy::too_many_arguments)]
-fn polish_at(
-    s: &Scaled,
-    gram: &Gram,
-    d: &[f64],
-    l1: f64,
-    eqs: &[(DMatrix<f64>, DVector<f64>)],
-    ineqs: &[(DMatrix<f64>, DVector<f64>)],
-    ub: &[Option<f64>],
-    x: &DVector<f64>,
-    threshold: f64,
-    settings: &QpSettings,
-) -> Option<DVector<f64>> {
     let n = s.n;
-    let xmax = x.amax().max(1e-300);
-    let support: Vec<usize> =
-        (0..n).filter(|&j| x[j] > threshold * xmax && ub[j].is_none_or(|u| x[j] < u * (1.0 - 1e-7))).collect();
-    let at_upper: Vec<usize> = (0..n).filter(|&j| ub[j].is_some_and(|u| x[j] >= u * (1.0 - 1e-7))).collect();
+    let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
+    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1) * d[i]);
+    let objective = |v: &DVector<f64>| 0.5 * v.dot(&(&g * v)) - c.dot(v);
     // Equations: the equality groups and the inequality rows at their bound.
     let mut rows: Vec<(DVector<f64>, f64)> = Vec::new();
     for (m, f) in eqs {
@@ -203,79 +172,140 @@ fn polish_at(
         }
     }
     for (m, h) in ineqs {
-        let r = m * x - h;
+        let r = m * &x_ipm - h;
         for i in 0..m.nrows() {
-            if r[i].abs() <= 1e-7 {
+            if r[i].abs() <= 1e-6 {
                 rows.push((m.row(i).transpose(), h[i]));
             }
         }
     }
-    let (ns, ne) = (support.len(), rows.len());
+    let ne = rows.len();
+    let xmax = x_ipm.amax().max(1e-300);
+    let at_upper: Vec<bool> = (0..n).map(|j| ub[j].is_some_and(|u| x_ipm[j] >= u * (1.0 - 1e-6))).collect();
+    let mut passive: Vec<bool> = (0..n).map(|j| !at_upper[j] && x_ipm[j] > 1e-6 * xmax).collect();
+    let mut x = DVector::from_fn(n, |j, _| {
+        if at_upper[j] {
+            ub[j].unwrap_or(0.0)
+        } else if passive[j] {
+            x_ipm[j]
+        } else {
+            0.0
+        }
+    });
+    let tol = 1e-10 * c.amax().max(1e-300);
+    for _ in 0..3 * n + 10 {
+        let idx: Vec<usize> = (0..n).filter(|&j| passive[j]).collect();
+        let Some((z, nu)) = kkt_solve(&g, &c, &rows, &idx, &at_upper, ub) else { return x_ipm };
+        if z.iter().all(|v| *v > 0.0) {
+            for (a, &j) in idx.iter().enumerate() {
+                x[j] = z[a];
+            }
+            // Dual check: an element at zero whose increase lowers the objective enters.
+            let mut w = &c - &g * &x;
+            for (r, (row, _)) in rows.iter().enumerate() {
+                w -= row * nu[r];
+            }
+            let entering = (0..n)
+                .filter(|&j| !passive[j] && !at_upper[j] && w[j] > tol)
+                .max_by(|&a, &b| w[a].total_cmp(&w[b]).then(b.cmp(&a)));
+            match entering {
+                Some(j) => passive[j] = true,
+                None => break,
+            }
+        } else {
+            // Step towards z until the first passive element reaches zero; drop it.
+            let mut alpha: f64 = 1.0;
+            for (a, &j) in idx.iter().enumerate() {
+                if z[a] <= 0.0 {
+                    alpha = alpha.min(x[j] / (x[j] - z[a]));
+                }
+            }
+            for (a, &j) in idx.iter().enumerate() {
+                x[j] += alpha * (z[a] - x[j]);
+                if x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax) {
+                    x[j] = 0.0;
+                    passive[j] = false;
+                }
+            }
+            if idx.iter().all(|&j| !passive[j]) && ne > 0 {
+                return x_ipm;
+            }
+        }
+    }
+    let eq_tol = 1e-9;
+    let feasible = x.iter().all(|v| v.is_finite() && *v >= 0.0)
+        && ub.iter().zip(x.iter()).all(|(u, v)| u.is_none_or(|u| *v <= u * (1.0 + 1e-12)))
+        && eqs.iter().all(|(m, f)| (m * &x - f).amax() <= eq_tol)
+        && ineqs.iter().all(|(m, h)| (m * &x - h).min() >= -settings.cut_margin);
+    let better = objective(&x) <= objective(&x_ipm) + 1e-9 * objective(&x_ipm).abs().max(1e-12);
+    if feasible && better { x } else { x_ipm }
+}
+
+/// The KKT system of min ½xᵀGx − cᵀx on the passive set with the rows as equations (elements at
+/// their upper bound fixed there, all others at zero). Returns the passive values and the
+/// multipliers, or None when the system is singular (the passive set cannot meet the rows).
+fn kkt_solve(
+    g: &DMatrix<f64>,
+    c: &DVector<f64>,
+    rows: &[(DVector<f64>, f64)],
+    idx: &[usize],
+    at_upper: &[bool],
+    ub: &[Option<f64>],
+) -> Option<(DVector<f64>, DVector<f64>)> {
+    let (ns, ne) = (idx.len(), rows.len());
     if ns == 0 || ne > ns {
         return None;
     }
-    // Scaled G and c − λ on the support, with the upper-bounded elements fixed at their bound.
-    let gs = |i: usize, j: usize| gram.g[(i, j)] * d[i] * d[j];
+    let fixed: Vec<(usize, f64)> = (0..g.nrows()).filter(|&j| at_upper[j]).map(|j| (j, ub[j].unwrap_or(0.0))).collect();
     let mut kkt = DMatrix::zeros(ns + ne, ns + ne);
     let mut rhs = DVector::zeros(ns + ne);
-    for (a, &i) in support.iter().enumerate() {
-        for (b, &j) in support.iter().enumerate() {
-            kkt[(a, b)] = gs(i, j);
+    for (a, &i) in idx.iter().enumerate() {
+        for (b, &j) in idx.iter().enumerate() {
+            kkt[(a, b)] = g[(i, j)];
         }
-        let fixed: f64 = at_upper.iter().map(|&j| gs(i, j) * ub[j].unwrap_or(0.0)).sum();
-        rhs[a] = (gram.c[i] - l1) * d[i] - fixed;
+        kkt[(a, a)] += 1e-13;
+        rhs[a] = c[i] - fixed.iter().map(|&(j, u)| g[(i, j)] * u).sum::<f64>();
     }
     for (r, (row, val)) in rows.iter().enumerate() {
-        let fixed: f64 = at_upper.iter().map(|&j| row[j] * ub[j].unwrap_or(0.0)).sum();
-        for (a, &i) in support.iter().enumerate() {
+        for (a, &i) in idx.iter().enumerate() {
             kkt[(ns + r, a)] = row[i];
             kkt[(a, ns + r)] = row[i];
         }
-        rhs[ns + r] = val - fixed;
+        rhs[ns + r] = val - fixed.iter().map(|&(j, u)| row[j] * u).sum::<f64>();
     }
     let sol = kkt.lu().solve(&rhs)?;
-    let mut y = DVector::zeros(n);
-    let smax = sol.rows(0, ns).amax();
-    for (a, &i) in support.iter().enumerate() {
-        // Round-off below zero on an element at a vertex is clamped; anything more is infeasible.
-        y[i] = if sol[a] < 0.0 && sol[a] > -1e-10 * smax { 0.0 } else { sol[a] };
+    if sol.iter().any(|v| !v.is_finite()) {
+        return None;
     }
-    for &j in &at_upper {
-        y[j] = ub[j].unwrap_or(0.0);
-    }
-    let tol = 1e3 * settings.tolerance;
-    let feasible = y.iter().all(|v| v.is_finite() && *v >= 0.0)
-        && ub.iter().zip(y.iter()).all(|(u, v)| u.is_none_or(|u| *v <= u * (1.0 + 1e-12)))
-        && eqs.iter().all(|(m, f)| (m * &y - f).amax() <= tol.max(1e-9))
-        && ineqs.iter().all(|(m, h)| (m * &y - h).min() >= -settings.cut_margin);
-    feasible.then_some(y)
+    Some((sol.rows(0, ns).into_owned(), sol.rows(ns, ne).into_owned()))
 }
 
 /// The objective in scaled unknowns x (k = D x): ½ xᵀ P x + qᵀ x.
 struct Scaled {
-    p_upper: CscMatrix<f64>,
+    /// Upper-triangular factor R with RᵀR = D G D + ridge·I.
+    r: DMatrix<f64>,
     q: Vec<f64>,
     n: usize,
 }
 
 impl Scaled {
+    /// The objective is handed to Clarabel in factor form, ½‖y‖² + qᵀx with y = R x, rather than
+    /// as ½ xᵀ(DGD)x: the KKT systems then see the conditioning of R, the square root of that of
+    /// G. With the hundreds of nearly dependent columns of a rich catalogue (crank phases span two
+    /// functions per coupling) the direct form stalls with a numerical error. A ridge of 1e-10 on
+    /// the unit diagonal keeps the factorisation defined.
     fn new(gram: &Gram, d: &[f64], l1: f64) -> Self {
         let n = gram.dim();
-        let mut colptr = vec![0];
-        let mut rowval = Vec::new();
-        let mut nzval = Vec::new();
-        for j in 0..n {
-            for i in 0..=j {
-                let v = gram.g[(i, j)] * d[i] * d[j];
-                if v != 0.0 {
-                    rowval.push(i);
-                    nzval.push(v);
-                }
+        let mut ridge = RIDGE;
+        let r = loop {
+            let m = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j] + if i == j { ridge } else { 0.0 });
+            if let Some(ch) = m.cholesky() {
+                break ch.l().transpose();
             }
-            colptr.push(rowval.len());
-        }
+            ridge *= 100.0;
+        };
         let q = (0..n).map(|j| -(gram.c[j] - l1) * d[j]).collect();
-        Scaled { p_upper: CscMatrix::new(n, n, colptr, rowval, nzval), q, n }
+        Scaled { r, q, n }
     }
 }
 
@@ -296,11 +326,22 @@ fn solve_once(
     settings: &QpSettings,
 ) -> Result<(SolverStatus, DVector<f64>, u32)> {
     let n = s.n;
-    // Rows of A x + s = b, s ∈ cones, built column by column.
-    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    // Variables (x, y), y = R x. Rows of A z + s = b, s ∈ cones, built column by column.
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); 2 * n];
     let mut b = Vec::new();
     let mut r = 0;
-    let mut n_eq = 0;
+    // R x − y = 0.
+    for i in 0..n {
+        for j in i..n {
+            if s.r[(i, j)] != 0.0 {
+                rows[j].push((r, s.r[(i, j)]));
+            }
+        }
+        rows[n + i].push((r, -1.0));
+        b.push(0.0);
+        r += 1;
+    }
+    let mut n_eq = n;
     for (m, f) in eqs {
         for i in 0..m.nrows() {
             for j in 0..n {
@@ -324,7 +365,7 @@ fn solve_once(
         r += 1;
     }
     // −x + s = 0 (x ≥ 0).
-    for col in rows.iter_mut() {
+    for col in rows.iter_mut().take(n) {
         col.push((r, -1.0));
         b.push(0.0);
         r += 1;
@@ -347,7 +388,16 @@ fn solve_once(
         }
         colptr.push(rowval.len());
     }
-    let a = CscMatrix::new(r, n, colptr, rowval, nzval);
+    let a = CscMatrix::new(r, 2 * n, colptr, rowval, nzval);
+    // P = blockdiag(0, I); q = (q_x, 0).
+    let p_upper = CscMatrix::new(
+        2 * n,
+        2 * n,
+        (0..=2 * n).map(|j| j.saturating_sub(n)).collect(),
+        (n..2 * n).collect(),
+        vec![1.0; n],
+    );
+    let q: Vec<f64> = s.q.iter().copied().chain(std::iter::repeat_n(0.0, n)).collect();
     let mut cones = Vec::new();
     if n_eq > 0 {
         cones.push(SupportedConeT::ZeroConeT(n_eq));
@@ -363,10 +413,10 @@ fn solve_once(
         presolve_enable: false,
         ..DefaultSettings::default()
     };
-    let mut solver = DefaultSolver::new(&s.p_upper, &s.q, &a, &b, &cones, cs)
+    let mut solver = DefaultSolver::new(&p_upper, &q, &a, &b, &cones, cs)
         .map_err(|e| Error::numerical("QP (Clarabel)", format!("could not set up the problem: {e:?}")))?;
     solver.solve();
-    let x = DVector::from_column_slice(&solver.solution.x);
+    let x = DVector::from_column_slice(&solver.solution.x[..n]);
     if matches!(solver.solution.status, SolverStatus::Solved | SolverStatus::AlmostSolved)
         && x.iter().any(|v| !v.is_finite())
     {
