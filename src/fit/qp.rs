@@ -247,11 +247,31 @@ fn polish(
 fn kkt_solve(
     g: &DMatrix<f64>,
     c: &DVector<f64>,
-    rows: &[(DVector<f64>, f64)],
+    all_rows: &[(DVector<f64>, f64)],
     idx: &[usize],
     at_upper: &[bool],
     ub: &[Option<f64>],
 ) -> Option<(DVector<f64>, DVector<f64>)> {
+    // Keep a linearly independent subset of the rows restricted to the passive set (modified
+    // Gram–Schmidt): equality groups are often redundant there (e.g. both components of the
+    // equilibrium gradient carried by one element), which would make the KKT matrix singular.
+    // Consistency of the dropped rows is checked by the caller's feasibility test.
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    let mut kept: Vec<&(DVector<f64>, f64)> = Vec::new();
+    for row in all_rows {
+        let mut v = DVector::from_fn(idx.len(), |a, _| row.0[idx[a]]);
+        let norm = v.norm();
+        for b in &basis {
+            let p = b.dot(&v);
+            v -= b * p;
+        }
+        if norm > 0.0 && v.norm() > 1e-10 * norm {
+            let vn = v.norm();
+            basis.push(v / vn);
+            kept.push(row);
+        }
+    }
+    let rows = kept;
     let (ns, ne) = (idx.len(), rows.len());
     if ns == 0 || ne > ns {
         return None;
@@ -277,7 +297,16 @@ fn kkt_solve(
     if sol.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    Some((sol.rows(0, ns).into_owned(), sol.rows(ns, ne).into_owned()))
+    // Multipliers of dropped rows are zero.
+    let mut nu = DVector::zeros(all_rows.len());
+    let mut r = 0;
+    for (k, row) in all_rows.iter().enumerate() {
+        if r < ne && std::ptr::eq(row, rows[r]) {
+            nu[k] = sol[ns + r];
+            r += 1;
+        }
+    }
+    Some((sol.rows(0, ns).into_owned(), nu))
 }
 
 /// The objective in scaled unknowns x (k = D x): ½ xᵀ P x + qᵀ x.

@@ -287,6 +287,10 @@ fn engages(c: &Candidate, q_eq: &[f64], training: &Fan, evaluation: &Fan) -> boo
         .any(|g| (0..g.len()).any(|i| e.profile.slope(e.deflection(g.q(i))) != 0.0))
 }
 
+/// Largest equality residual (scaled units: ω²·mean diag M(q_eq)) NNLS may leave before the fit
+/// counts as infeasible.
+const NNLS_EQUALITY_TOLERANCE: f64 = 1e-3;
+
 /// Solves the assembled problem with the chosen solver and, with `max_elements`, the sparse
 /// selection. Returns the stiffness of every candidate.
 fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings) -> Result<(Vec<f64>, SolveReport)> {
@@ -321,7 +325,23 @@ fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings)
     };
     let sub_upper: Vec<Option<f64>> = support.iter().map(|&j| upper[j]).collect();
     let k_sub = match settings.solver {
-        SolverKind::Nnls => nnls_bounded(&weighted.subset(&support), settings.l1, &sub_upper)?,
+        SolverKind::Nnls => {
+            let k = nnls_bounded(&weighted.subset(&support), settings.l1, &sub_upper)?;
+            // Weighted equalities can be missed silently: check them like the QP would.
+            for g in &problem.equalities {
+                let sub = DMatrix::from_fn(g.matrix.nrows(), support.len(), |r, a| g.matrix[(r, support[a])]);
+                let residual = (sub * &k - &g.rhs).amax();
+                if residual > NNLS_EQUALITY_TOLERANCE {
+                    return Err(Error::Infeasible {
+                        constraint: format!("{} ({})", g.name, g.description),
+                        reason: format!(
+                            "NNLS with weighted equalities leaves a residual of {residual:.2e} (in units of ω²·mean diag M(q_eq)); the available elements cannot meet it"
+                        ),
+                    });
+                }
+            }
+            k
+        }
         SolverKind::Qp => {
             let restrict = |groups: &[LinearGroup]| -> Vec<LinearGroup> {
                 groups
