@@ -82,8 +82,11 @@ fn main() {
             for i in 0..g.len() {
                 let q = DVector::from_column_slice(g.q(i));
                 let p = log.solve(&mut shooter, &q, guess.as_ref()).unwrap();
-                // Extrapolate along the sweep: the next point is one spacing further.
-                guess = Some(&p.v * ((g.s(i) + 0.1) / g.s(i)));
+                // Warm start for the next point from this one: v + (d exp)⁻¹ Δq.
+                if i + 1 < g.len() {
+                    let dq = DVector::from_column_slice(g.q(i + 1)) - &q;
+                    guess = p.jacobian.clone().lu().solve(&dq).map(|dv| &p.v + dv);
+                }
                 black_box(p);
             }
         }

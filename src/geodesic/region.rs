@@ -374,8 +374,8 @@ mod tests {
     }
 
     #[test]
-    fn rejects_a_region_with_crossing_geodesics() {
-        // Far beyond the largest valid radius, geodesics from (0, 0) cross.
+    fn rejects_a_region_past_the_largest_valid_radius() {
+        // Far beyond the largest valid radius (2π, the conjugate point along q₁).
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, 0.0]);
         let report = check_region(&chain, &q_eq, &Region::Ball { radius: 9.0 }, &settings()).unwrap();
@@ -387,6 +387,49 @@ mod tests {
         let ok =
             check_region(&chain, &q_eq, &Region::Ball { radius: 0.95 * report.largest_radius }, &settings()).unwrap();
         assert!(ok.valid, "{}", ok.reason);
+    }
+
+    /// Two synthetic traces that cross (an X) and one that does not.
+    #[test]
+    fn planar_crossings_are_found_between_traced_curves() {
+        use crate::geodesic::Geodesic;
+        let trace = |dir: [f64; 2], offset: [f64; 2]| {
+            let mut g = Geodesic::new(2, DVector::from_vec(dir.to_vec()));
+            for k in 0..=20 {
+                let s = k as f64 * 0.1;
+                g.push(s, &[offset[0] + s * dir[0], offset[1] + s * dir[1], dir[0], dir[1]]);
+            }
+            JacobiTrace { geodesic: g, det: vec![1.0; 21], conjugate: None }
+        };
+        // Lines y = x − 1 and y = 1 − x (from s = 0 at x = 0) cross at (1, 0), reached at s = √2.
+        let a = trace([std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2], [0.0, -1.0]);
+        let b = trace([std::f64::consts::FRAC_1_SQRT_2, -std::f64::consts::FRAC_1_SQRT_2], [0.0, 1.0]);
+        let c = trace([1.0, 0.0], [0.0, 5.0]);
+        let found = planar_crossings(&[a, b, c], 0.05);
+        assert_eq!(found.len(), 1);
+        match &found[0] {
+            RegionFailure::Crossing { s, q, directions } => {
+                assert_eq!(directions, &[0, 1]);
+                assert!((s[0] - 2f64.sqrt()).abs() < 1e-12 && (s[1] - 2f64.sqrt()).abs() < 1e-12);
+                assert!((q[0] - 1.0).abs() < 1e-12 && q[1].abs() < 1e-12);
+            }
+            f => panic!("{f:?}"),
+        }
+    }
+
+    #[test]
+    fn geodesics_past_the_conjugate_point_cross() {
+        // From (0, 0) the geodesics near the q₁ axis focus at s = 2π and cross beyond it: the
+        // crossing test finds them, none before the conjugate point.
+        let chain = Chain::paper_double_pendulum();
+        let q_eq = DVector::from_vec(vec![0.0, 0.0]);
+        let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
+        let mut shooter = Shooter::new(&chain, &q_eq, Default::default());
+        let traces: Vec<JacobiTrace> =
+            unit_vectors(2, 180, 0.0).iter().map(|u| shooter.trace_jacobi(&frame.to_joint(u), 8.5, 0.05).unwrap()).collect();
+        let crossings = planar_crossings(&traces, 0.05);
+        assert!(!crossings.is_empty());
+        assert!(crossings[0].radius() > 2.0 * PI - 0.05, "first crossing at {}", crossings[0].radius());
     }
 
     #[test]

@@ -1,0 +1,69 @@
+//! Benchmarks of the fit: the library call per design and `springfit fit` end to end.
+//!
+//! `cargo bench --bench fit`. Figures are recorded in BENCHMARKS.md.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use springfit::catalog::Catalog;
+use springfit::design::Design;
+use springfit::fit::run::fit;
+
+fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
+    f();
+    let mut t: Vec<Duration> = (0..reps)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed()
+        })
+        .collect();
+    t.sort();
+    (t[t.len() / 2], t[0])
+}
+
+fn main() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    println!("springfit fit benchmarks (median / min over repeats)");
+    for name in ["double_pendulum", "double_pendulum_dense", "double_pendulum_workshop", "double_pendulum_paper_window"] {
+        let design = Design::load(&root.join(format!("designs/{name}.toml"))).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let mut last = None;
+        let (med, min) = time(5, || {
+            last = Some(black_box(fit(&design, &catalog, &design.fit, &|_| {}).unwrap()));
+        });
+        let o = last.unwrap();
+        let t = o.timings;
+        println!(
+            "fit {name}: {:.0} ms / {:.0} ms (geodesics {:.0}, assemble {:.0}, solve {:.0}, evaluate {:.0} ms); {} springs, p99 {:.4}°, max {:.4}°",
+            ms(med),
+            ms(min),
+            t.geodesics * 1e3,
+            t.assemble * 1e3,
+            t.solve * 1e3,
+            t.evaluate * 1e3,
+            o.used(),
+            o.metrics.stats.p99_abs,
+            o.metrics.stats.max_abs
+        );
+    }
+    // The main job as a user runs it: process start, fit, plots and files.
+    let out = std::env::temp_dir().join(format!("springfit-bench-{}", std::process::id()));
+    let (med, min) = time(5, || {
+        let status = Command::new(env!("CARGO_BIN_EXE_springfit"))
+            .args(["--quiet", "fit", "--out"])
+            .arg(&out)
+            .current_dir(root)
+            .status()
+            .unwrap();
+        assert!(status.success());
+    });
+    println!("springfit fit (default design, end to end with outputs): {:.0} ms / {:.0} ms", ms(med), ms(min));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
