@@ -13,6 +13,7 @@ pub mod design;
 pub mod elements;
 pub mod fit;
 pub mod geodesic;
+pub mod label;
 pub mod linalg;
 pub mod model;
 pub mod ode;

@@ -41,6 +41,12 @@ impl MetricFrame {
     pub fn to_frame(&self, v: &DVector<f64>) -> DVector<f64> {
         &self.to_frame * v
     }
+
+    /// The transpose of [`MetricFrame::to_frame`] applied to a covector: pulls a gradient with
+    /// respect to frame coordinates back to one with respect to joint velocities.
+    pub fn to_frame_transpose(&self, g: &DVector<f64>) -> DVector<f64> {
+        self.to_frame.tr_mul(g)
+    }
 }
 
 /// `count` Euclidean unit vectors in ℝⁿ: for n = 1 the two signs, for n = 2 angles

@@ -425,8 +425,10 @@ mod tests {
         let q_eq = DVector::from_vec(vec![0.0, 0.0]);
         let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
         let mut shooter = Shooter::new(&chain, &q_eq, Default::default());
-        let traces: Vec<JacobiTrace> =
-            unit_vectors(2, 180, 0.0).iter().map(|u| shooter.trace_jacobi(&frame.to_joint(u), 8.5, 0.05).unwrap()).collect();
+        let traces: Vec<JacobiTrace> = unit_vectors(2, 180, 0.0)
+            .iter()
+            .map(|u| shooter.trace_jacobi(&frame.to_joint(u), 8.5, 0.05).unwrap())
+            .collect();
         let crossings = planar_crossings(&traces, 0.05);
         assert!(!crossings.is_empty());
         assert!(crossings[0].radius() > 2.0 * PI - 0.05, "first crossing at {}", crossings[0].radius());
