@@ -36,11 +36,14 @@ use nalgebra::DVector;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
+use crate::control::ControllerSettings;
 use crate::error::{Error, Result};
 use crate::fit::settings::FitSettings;
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 use crate::model::{Chain, Link};
+use crate::scenario::ScenarioSpec;
+use crate::simulate::SimSettings;
 use crate::units::Angle;
 
 /// The design file as written.
@@ -63,6 +66,12 @@ pub struct DesignFile {
     pub geodesics: GeodesicSettings,
     /// How stiffnesses are fitted and evaluated.
     pub fit: FitSettings,
+    /// How simulations are integrated.
+    pub simulate: SimSettings,
+    /// Controller gains shared by the scenarios.
+    pub controllers: ControllerSettings,
+    /// Simulation scenarios.
+    pub scenario: Vec<ScenarioSpec>,
 }
 
 /// `[robot]`: links from the base outwards and gravity.
@@ -143,6 +152,10 @@ pub struct Design {
     pub geodesics: GeodesicSettings,
     /// Fit settings.
     pub fit: FitSettings,
+    /// Simulation settings.
+    pub simulate: SimSettings,
+    /// Controller gains.
+    pub controllers: ControllerSettings,
     /// The file as written (for sections later steps read).
     pub file: DesignFile,
 }
@@ -338,6 +351,17 @@ impl Design {
         };
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        let mut names = std::collections::HashSet::new();
+        for (i, sc) in file.scenario.iter().enumerate() {
+            if !names.insert(sc.name.clone()) {
+                return Err(invalid(
+                    &format!("scenario[{i}].name"),
+                    format!("`{}` is used by an earlier scenario", sc.name),
+                ));
+            }
+        }
 
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into())
@@ -356,6 +380,8 @@ impl Design {
             region,
             geodesics: file.geodesics,
             fit: file.fit,
+            simulate: file.simulate,
+            controllers: file.controllers,
             file,
         })
     }

@@ -50,6 +50,7 @@ pub trait LogField: Send {
 }
 
 /// The exact log map with warm starts.
+#[derive(Clone)]
 pub struct ExactLog<'a> {
     log: LogMap<'a>,
     shooter: Shooter<'a>,
@@ -102,6 +103,7 @@ impl LogField for ExactLog<'_> {
 /// The log map of a two-joint arm tabulated on a grid and interpolated by bicubic Hermite
 /// patches from the exact values and derivatives at the nodes (cross derivatives by central
 /// differences of the node derivatives). Queries outside the grid fall back to the exact log map.
+#[derive(Clone)]
 pub struct LogTable<'a> {
     x: Vec<f64>,
     y: Vec<f64>,

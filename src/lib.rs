@@ -4,11 +4,15 @@
 //! released from rest anywhere in a region, the arm swings through its equilibrium on a fixed
 //! geodesic of the inertia metric. See `DESIGN.md` for the maths and the words used here.
 
+// Index loops mirror the formulas (Σᵢ Mᵢⱼ q̇ⱼ …) and stay the clearest way to write them.
+#![allow(clippy::needless_range_loop)]
+
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
 pub mod bom;
 pub mod catalog;
+pub mod control;
 pub mod design;
 pub mod elements;
 pub mod fit;
@@ -20,4 +24,6 @@ pub mod ode;
 pub mod potential;
 pub mod report;
 pub mod residual;
+pub mod scenario;
+pub mod simulate;
 pub mod units;

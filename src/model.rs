@@ -71,6 +71,8 @@ pub struct Chain {
 pub struct Workspace {
     /// Mass matrix, then its Cholesky factor (column-major).
     m: Vec<f64>,
+    /// The mass matrix itself after [`Chain::prepare`].
+    m_full: Vec<f64>,
     sin: Vec<f64>,
     cos: Vec<f64>,
     h: Vec<f64>,
@@ -82,9 +84,25 @@ pub struct Workspace {
 }
 
 impl Workspace {
+    /// M(q) from the last [`Chain::prepare`] (symmetric, so row- and column-major agree).
+    pub fn mass(&self) -> &[f64] {
+        &self.m_full
+    }
+
+    /// h(q, q̇) = C(q, q̇) q̇ from the last [`Chain::prepare`].
+    pub fn coriolis(&self) -> &[f64] {
+        &self.h
+    }
+
+    /// Solves M x = b in place with the factor from the last [`Chain::prepare`].
+    pub fn solve(&self, b: &mut [f64]) {
+        linalg::cholesky_solve(&self.m, self.h.len(), b);
+    }
+
     fn new(n: usize, pairs: usize) -> Self {
         Workspace {
             m: vec![0.0; n * n],
+            m_full: vec![0.0; n * n],
             sin: vec![0.0; pairs],
             cos: vec![0.0; pairs],
             h: vec![0.0; n],
@@ -407,6 +425,37 @@ impl Chain {
         true
     }
 
+    /// Evaluates M(q) and h(q, q̇) into the workspace and factors M, for the closed-loop
+    /// dynamics, which need M itself (controllers), solves with it and the Coriolis term. Returns
+    /// false if M is not positive definite.
+    pub fn prepare(&self, ws: &mut Workspace, q: &[f64], qd: &[f64]) -> bool {
+        let n = self.dof();
+        self.fill_trig(q, ws);
+        self.fill_mass(ws);
+        ws.m_full.copy_from_slice(&ws.m);
+        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        linalg::cholesky_in_place(&mut ws.m, n)
+    }
+
+    /// ∂U_g/∂q into `out` without allocating.
+    pub fn gravity_gradient_into(&self, q: &[f64], out: &mut [f64]) {
+        let [gx, gy] = self.gravity;
+        if gx == 0.0 && gy == 0.0 {
+            out.fill(0.0);
+            return;
+        }
+        let n = self.dof();
+        let total: f64 = q.iter().sum();
+        // φ_t from the top: φ_{n−1} = Σq, φ_{t−1} = φ_t − q_t.
+        let mut phi = total;
+        let mut acc = 0.0;
+        for t in (0..n).rev() {
+            acc += self.gravity_lever[t] * (-gx * phi.sin() + gy * phi.cos());
+            out[t] = acc;
+            phi -= q[t];
+        }
+    }
+
     /// Joint accelerations of the full dynamics M q̈ + h(q, q̇) = τ for a given total torque τ
     /// (spring, gravity, damping and control torques already summed by the caller).
     pub fn acceleration(&self, ws: &mut Workspace, q: &[f64], qd: &[f64], tau: &[f64], qdd: &mut [f64]) -> bool {
@@ -579,6 +628,9 @@ mod tests {
         let h = 1e-6;
         for q in points(3, 10) {
             let g = chain.gravity_gradient(q.as_slice());
+            let mut g2 = [0.0; 3];
+            chain.gravity_gradient_into(q.as_slice(), &mut g2);
+            assert!((g.iter().zip(&g2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)) < 1e-13);
             let hess = chain.gravity_hessian(q.as_slice());
             for p in 0..3 {
                 let mut qp = q.clone();

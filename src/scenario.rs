@@ -1,0 +1,610 @@
+//! Scenarios: named simulation set-ups declared in the design file, and their metrics.
+//!
+//! ```toml
+//! [[scenario]]
+//! name = "free"            # releases from rest, no control (the paper's Fig. 5)
+//! kind = "free"
+//! releases = [{ mode = 0.0, energy = 10.0 }, { mode = "pi/3", energy = 10.0 }]
+//! starts = [[0.3, 1.9]]    # and/or explicit configurations
+//!
+//! [[scenario]]
+//! name = "switch"          # θ_d raised by `step` every `every` seconds (Fig. 6)
+//! kind = "switch"
+//! mode = 0.0
+//! energy = 10.0
+//!
+//! [[scenario]]
+//! name = "swingup"         # from E0 to E_d against joint damping (Fig. 7)
+//! kind = "swingup"
+//! mode = "pi/4"
+//! ```
+//!
+//! A mode is an angle θ (two joints; the initial joint velocity direction (cos θ/2, sin θ/2), as
+//! the paper's label) or a direction vector of joint velocities (any number of joints). Starting
+//! points "on a mode at energy E" are found by the tool: at rest on the geodesic of that mode where
+//! U − U(q_eq) = E.
+
+use nalgebra::DVector;
+use serde::{Deserialize, Serialize};
+
+use crate::control::{ControllerSettings, EnergyLaw};
+use crate::design::Design;
+use crate::error::{Error, Result};
+use crate::geodesic::logmap::wrap_angle;
+use crate::geodesic::{MetricFrame, Shooter, Stop};
+use crate::simulate::{EnergyControl, ModeControl, ModeTarget, RunResult, RunSpec};
+use crate::units::Angle;
+
+/// The kind of scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScenarioKind {
+    /// Releases from rest without control.
+    Free,
+    /// Mode switching with the mode controller.
+    Switch,
+    /// Swing-up against damping with energy regulation, in several controller variants.
+    Swingup,
+}
+
+/// A mode as written: an angle θ or a direction of joint velocities.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum ModeSpec {
+    /// θ (two joints).
+    Angle(f64),
+    /// A direction of joint velocities.
+    Vector(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for ModeSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Vector(Vec<f64>),
+            Angle(Angle),
+        }
+        match Raw::deserialize(d).map_err(|_| {
+            serde::de::Error::custom(
+                "a mode is an angle θ (\"pi/4\", 0.5) or a direction of joint velocities ([1.0, 0.0, -0.5])",
+            )
+        })? {
+            Raw::Vector(v) => Ok(ModeSpec::Vector(v)),
+            Raw::Angle(a) => Ok(ModeSpec::Angle(a.0)),
+        }
+    }
+}
+
+/// A release: at rest on a mode where the potential has risen by `energy`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Release {
+    /// The mode.
+    pub mode: ModeSpec,
+    /// U − U(q_eq) at the release point, J.
+    pub energy: f64,
+}
+
+/// `[[scenario]]` as written. Fields a kind does not use are errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    /// Name (outputs are `sim_<name>.*`).
+    pub name: String,
+    /// `free`, `switch` or `swingup`.
+    pub kind: ScenarioKind,
+    /// Duration, s (default: free 20, switch 100, swingup 20).
+    #[serde(default)]
+    pub duration: Option<f64>,
+    /// Joint damping D = d·I, N·m·s/rad (default: 0; swingup 0.3).
+    #[serde(default)]
+    pub damping: Option<f64>,
+    /// free: explicit start configurations (rad).
+    #[serde(default)]
+    pub starts: Vec<Vec<Angle>>,
+    /// free: releases on modes at energies.
+    #[serde(default)]
+    pub releases: Vec<Release>,
+    /// switch, swingup: the (first) desired mode, also where the arm starts (default θ = 0).
+    #[serde(default)]
+    pub mode: Option<ModeSpec>,
+    /// switch: energy of the start point, J (default 10).
+    #[serde(default)]
+    pub energy: Option<f64>,
+    /// switch: increment of θ_d (default π/6).
+    #[serde(default)]
+    pub step: Option<Angle>,
+    /// switch: seconds between increments (default 15).
+    #[serde(default)]
+    pub every: Option<f64>,
+    /// swingup: start energy E0, J (default 5).
+    #[serde(default)]
+    pub e0: Option<f64>,
+    /// swingup: target energy E_d, J (default 20).
+    #[serde(default)]
+    pub ed: Option<f64>,
+    /// swingup: variants to run among `energy`, `negative_damping`, `energy_compensated`
+    /// (default all three).
+    #[serde(default)]
+    pub variants: Vec<String>,
+}
+
+/// A scenario resolved into runs.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// Name.
+    pub name: String,
+    /// Kind.
+    pub kind: ScenarioKind,
+    /// Its runs.
+    pub runs: Vec<RunSpec>,
+}
+
+/// The metrics of one run (`sim_<name>.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunMetrics {
+    /// Largest |label − label at start| outside the ε-ball, degrees of the label (free runs).
+    pub mode_drift_deg: Option<f64>,
+    /// Seconds from each mode step until |Δθ| < 3° for the rest of the step (None: never).
+    pub settling_s: Vec<Option<f64>>,
+    /// |mean E over the last 5 s − E_d| / E_d (runs with energy regulation).
+    pub energy_rel_error_last5s: Option<f64>,
+    /// (mean E over the last 5 s − E_d) / E_d: negative for a deficit.
+    pub energy_signed_error_last5s: Option<f64>,
+    /// Largest |E − E(0)| / |E(0)| (free runs).
+    pub energy_drift_rel: Option<f64>,
+    /// ∫|P| per source, J.
+    pub flux: FluxSummary,
+    /// (∫|P_θ| + ∫|P_E| + ∫|P_comp|) / ∫|P_U|.
+    pub actuator_share: f64,
+    /// Largest |τᵢ| per source, N·m.
+    pub peak_torque_nm: PeakTorques,
+}
+
+/// Fluxes in the JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FluxSummary {
+    pub potential: f64,
+    pub mode: f64,
+    pub energy: f64,
+    pub damping: f64,
+    pub compensation: f64,
+    pub gravity: f64,
+}
+
+/// Peak torques in the JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PeakTorques {
+    pub spring: f64,
+    pub gravity: f64,
+    pub damping: f64,
+    pub mode: f64,
+    pub energy: f64,
+    pub compensation: f64,
+}
+
+impl ScenarioSpec {
+    /// Resolves the scenario into runs for `design`; errors name `scenario[index].field`.
+    pub fn resolve(
+        &self,
+        index: usize,
+        design: &Design,
+        energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>,
+    ) -> Result<Scenario> {
+        let n = design.dof();
+        let field = |f: &str| format!("scenario[{index}].{f}");
+        let bad = |f: &str, r: String| Error::invalid(&design.path, field(f), r);
+        let unused = |f: &str, present: bool| -> Result<()> {
+            if present { Err(bad(f, format!("does not apply to kind = \"{}\"", kind_name(self.kind)))) } else { Ok(()) }
+        };
+        if self.name.trim().is_empty() || self.name.contains(['/', '\\']) {
+            return Err(bad("name", format!("`{}` cannot name an output file", self.name)));
+        }
+        let duration = self.duration.unwrap_or(match self.kind {
+            ScenarioKind::Switch => 100.0,
+            _ => 20.0,
+        });
+        if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
+            return Err(bad("duration", format!("must be positive (s), got {duration}")));
+        }
+        let d = self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 });
+        if !(d.is_finite() && d >= 0.0) {
+            return Err(bad("damping", format!("must be ≥ 0, got {d}")));
+        }
+        let base = |name: String, q0: Vec<f64>| RunSpec {
+            name,
+            q0,
+            qd0: vec![0.0; n],
+            duration,
+            damping: vec![d; n],
+            mode: None,
+            energy: None,
+            parasitic: None,
+        };
+        let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
+        let runs = match self.kind {
+            ScenarioKind::Free => {
+                unused("mode", self.mode.is_some())?;
+                unused("energy", self.energy.is_some())?;
+                unused("step", self.step.is_some())?;
+                unused("every", self.every.is_some())?;
+                unused("e0", self.e0.is_some())?;
+                unused("ed", self.ed.is_some())?;
+                unused("variants", !self.variants.is_empty())?;
+                if self.starts.is_empty() && self.releases.is_empty() {
+                    return Err(bad(
+                        "releases",
+                        "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into(),
+                    ));
+                }
+                let mut runs = Vec::new();
+                for (k, s) in self.starts.iter().enumerate() {
+                    if s.len() != n {
+                        return Err(bad(
+                            &format!("starts[{k}]"),
+                            format!("has {} angles but the robot has {n} joints", s.len()),
+                        ));
+                    }
+                    runs.push(base(format!("start_{}", k + 1), s.iter().map(|a| a.0).collect()));
+                }
+                for (k, r) in self.releases.iter().enumerate() {
+                    let u = mode_direction(&r.mode, n, &frame).map_err(|e| bad(&format!("releases[{k}].mode"), e))?;
+                    let q0 = start_on_mode(design, &u, r.energy, energy_at)
+                        .map_err(|e| bad(&format!("releases[{k}].energy"), e))?;
+                    runs.push(base(format!("release_{}", k + 1), q0));
+                }
+                runs
+            }
+            ScenarioKind::Switch => {
+                unused("starts", !self.starts.is_empty())?;
+                unused("releases", !self.releases.is_empty())?;
+                unused("e0", self.e0.is_some())?;
+                unused("ed", self.ed.is_some())?;
+                unused("variants", !self.variants.is_empty())?;
+                if n != 2 {
+                    return Err(bad("kind", "mode switching by θ steps needs two joints".into()));
+                }
+                let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
+                    ModeSpec::Angle(a) => a,
+                    ModeSpec::Vector(_) => {
+                        return Err(bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
+                    }
+                };
+                let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
+                let every = self.every.unwrap_or(15.0);
+                if !(every.is_finite() && every > 0.0) {
+                    return Err(bad("every", format!("must be positive (s), got {every}")));
+                }
+                let energy = self.energy.unwrap_or(10.0);
+                let u = mode_direction(&ModeSpec::Angle(theta0), n, &frame).map_err(|e| bad("mode", e))?;
+                let q0 = start_on_mode(design, &u, energy, energy_at).map_err(|e| bad("energy", e))?;
+                let steps = (duration / every).ceil() as usize;
+                let schedule = (0..steps.max(1))
+                    .map(|k| (k as f64 * every, ModeTarget::Angle(wrap_angle(theta0 + step * k as f64))))
+                    .collect();
+                let mut run = base("switch".into(), q0);
+                run.mode = Some(ModeControl { schedule });
+                vec![run]
+            }
+            ScenarioKind::Swingup => {
+                unused("starts", !self.starts.is_empty())?;
+                unused("releases", !self.releases.is_empty())?;
+                unused("energy", self.energy.is_some())?;
+                unused("step", self.step.is_some())?;
+                unused("every", self.every.is_some())?;
+                let e0 = self.e0.unwrap_or(5.0);
+                let ed = self.ed.unwrap_or(20.0);
+                if !(ed.is_finite() && ed > 0.0) {
+                    return Err(bad("ed", format!("must be positive (J), got {ed}")));
+                }
+                let mode = self.mode.clone().unwrap_or(ModeSpec::Angle(0.0));
+                let u = mode_direction(&mode, n, &frame).map_err(|e| bad("mode", e))?;
+                let q0 = start_on_mode(design, &u, e0, energy_at).map_err(|e| bad("e0", e))?;
+                // The energy target must be reachable inside the region along this mode.
+                start_on_mode(design, &u, ed, energy_at).map_err(|e| bad("ed", e))?;
+                let target = match (&mode, n) {
+                    (ModeSpec::Angle(a), 2) => ModeTarget::Angle(*a),
+                    _ => ModeTarget::Direction(frame.to_frame(&u).normalize()),
+                };
+                let variants: Vec<String> = if self.variants.is_empty() {
+                    vec!["energy".into(), "negative_damping".into(), "energy_compensated".into()]
+                } else {
+                    self.variants.clone()
+                };
+                let mut runs = Vec::new();
+                for (k, v) in variants.iter().enumerate() {
+                    let (law, compensate) = match v.as_str() {
+                        "energy" => (EnergyLaw::Energy, false),
+                        "negative_damping" => (EnergyLaw::NegativeDamping, false),
+                        "energy_compensated" => (EnergyLaw::Energy, true),
+                        other => {
+                            return Err(bad(
+                                &format!("variants[{k}]"),
+                                format!(
+                                    "unknown variant `{other}`: expected energy, negative_damping or energy_compensated"
+                                ),
+                            ));
+                        }
+                    };
+                    let mut run = base(v.clone(), q0.clone());
+                    run.mode = Some(ModeControl { schedule: vec![(0.0, target.clone())] });
+                    run.energy = Some(EnergyControl { law, target: ed, compensate_damping: compensate });
+                    runs.push(run);
+                }
+                runs
+            }
+        };
+        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs })
+    }
+}
+
+fn kind_name(k: ScenarioKind) -> &'static str {
+    match k {
+        ScenarioKind::Free => "free",
+        ScenarioKind::Switch => "switch",
+        ScenarioKind::Swingup => "swingup",
+    }
+}
+
+/// The metric-unit joint velocity of a mode.
+fn mode_direction(mode: &ModeSpec, n: usize, frame: &MetricFrame) -> std::result::Result<DVector<f64>, String> {
+    let v = match mode {
+        ModeSpec::Angle(theta) => {
+            if n != 2 {
+                return Err(format!(
+                    "an angle names a mode of a two-joint arm; give a direction of {n} joint velocities"
+                ));
+            }
+            DVector::from_vec(vec![(theta / 2.0).cos(), (theta / 2.0).sin()])
+        }
+        ModeSpec::Vector(v) => {
+            if v.len() != n {
+                return Err(format!("has {} entries but the robot has {n} joints", v.len()));
+            }
+            if v.iter().any(|x| !x.is_finite()) || v.iter().all(|x| *x == 0.0) {
+                return Err("must be a finite, non-zero direction".into());
+            }
+            DVector::from_column_slice(v)
+        }
+    };
+    let len = frame.to_frame(&v).norm();
+    Ok(v / len)
+}
+
+/// At rest on the geodesic with unit initial velocity `u`, the point where U − U(q_eq) = `energy`
+/// (the first such point along the geodesic, inside the region's probe radius).
+pub fn start_on_mode(
+    design: &Design,
+    u: &DVector<f64>,
+    energy: f64,
+    energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>,
+) -> std::result::Result<Vec<f64>, String> {
+    if !(energy.is_finite() && energy > 0.0) {
+        return Err(format!("must be a positive energy (J), got {energy}"));
+    }
+    let mut shooter = Shooter::new(&design.chain, &design.q_eq, design.geodesics.ode);
+    let extent = match &design.region {
+        crate::geodesic::Region::Ball { radius } => *radius,
+        crate::geodesic::Region::Box { .. } => design.geodesics.max_arc,
+    };
+    let stop = Stop::Region { region: &design.region, max_arc: extent };
+    let geo = shooter.trace(u, stop, extent / 400.0).map_err(|e| e.to_string())?;
+    let mut prev = (0.0, 0.0);
+    for i in 0..geo.len() {
+        let e = energy_at(geo.q(i)).map_err(|e| e.to_string())?;
+        if e >= energy {
+            // Bisection on the arc length between the bracketing samples, with exp.
+            let (mut a, mut b) = (prev.0, geo.s(i));
+            for _ in 0..60 {
+                let m = 0.5 * (a + b);
+                let q = shooter.exp(&(u * m)).map_err(|e| e.to_string())?;
+                if energy_at(q.as_slice()).map_err(|e| e.to_string())? >= energy {
+                    b = m;
+                } else {
+                    a = m;
+                }
+            }
+            return Ok(shooter.exp(&(u * b)).map_err(|e| e.to_string())?.as_slice().to_vec());
+        }
+        prev = (geo.s(i), e);
+    }
+    Err(format!(
+        "the potential rises only by {:.3} J along this mode inside the region: {energy} J is out of reach (raise ω or enlarge the region)",
+        prev.1
+    ))
+}
+
+/// Metrics of a run. `controllers` gives ε (samples inside the ε-ball are skipped for labels).
+pub fn metrics(
+    result: &RunResult,
+    spec: &RunSpec,
+    _controllers: &ControllerSettings,
+    kind: ScenarioKind,
+) -> RunMetrics {
+    let tr = &result.trace;
+    let deg = |x: f64| x.to_degrees();
+    let two = tr.n == 2;
+    let label_dev = |i: usize, reference: f64| -> f64 {
+        if two { wrap_angle(tr.label[i] - reference).abs() } else { tr.label[i] - reference }
+    };
+    let outside: Vec<usize> = (0..tr.t.len()).filter(|&i| !tr.in_ball[i] && tr.label[i].is_finite()).collect();
+    let mode_drift_deg = (kind == ScenarioKind::Free).then(|| {
+        let start = outside.first().map(|&i| if two { tr.label[i] } else { 0.0 }).unwrap_or(f64::NAN);
+        outside.iter().map(|&i| deg(label_dev(i, start))).fold(0.0, f64::max)
+    });
+    let mut settling_s = Vec::new();
+    if let Some(mode) = &spec.mode {
+        if kind == ScenarioKind::Switch {
+            for (k, (t0, _)) in mode.schedule.iter().enumerate() {
+                let t1 = mode.schedule.get(k + 1).map(|s| s.0).unwrap_or(spec.duration + 1e-9);
+                let window: Vec<usize> = outside.iter().copied().filter(|&i| tr.t[i] >= *t0 && tr.t[i] < t1).collect();
+                let ok = |i: usize| {
+                    let target = tr.label_target[i];
+                    deg(if two { wrap_angle(tr.label[i] - target).abs() } else { tr.label[i] }) < 3.0
+                };
+                // Settled from the earliest sample after which every sample of the step is within 3°.
+                let mut settle = None;
+                for &i in window.iter().rev() {
+                    if !ok(i) {
+                        break;
+                    }
+                    settle = Some(tr.t[i] - t0);
+                }
+                settling_s.push(settle);
+            }
+        }
+    }
+    let (mut energy_rel, mut energy_signed) = (None, None);
+    if let Some(ec) = spec.energy {
+        let t_end = tr.t.last().copied().unwrap_or(0.0);
+        let last: Vec<f64> = tr.t.iter().zip(&tr.energy).filter(|(t, _)| **t >= t_end - 5.0).map(|(_, e)| *e).collect();
+        if !last.is_empty() {
+            let mean = last.iter().sum::<f64>() / last.len() as f64;
+            energy_rel = Some((mean - ec.target).abs() / ec.target);
+            energy_signed = Some((mean - ec.target) / ec.target);
+        }
+    }
+    let energy_drift_rel = (kind == ScenarioKind::Free).then(|| {
+        let e0 = tr.energy.first().copied().unwrap_or(0.0);
+        tr.energy.iter().map(|e| (e - e0).abs()).fold(0.0, f64::max) / e0.abs().max(1e-300)
+    });
+    let f = result.fluxes;
+    let p = result.peak_torque;
+    RunMetrics {
+        mode_drift_deg,
+        settling_s,
+        energy_rel_error_last5s: energy_rel,
+        energy_signed_error_last5s: energy_signed,
+        energy_drift_rel,
+        flux: FluxSummary {
+            potential: f.potential,
+            mode: f.mode,
+            energy: f.energy,
+            damping: f.damping,
+            compensation: f.compensation,
+            gravity: f.gravity,
+        },
+        actuator_share: (f.mode + f.energy + f.compensation) / f.potential.max(1e-300),
+        peak_torque_nm: PeakTorques {
+            spring: p[0],
+            gravity: p[1],
+            damping: p[2],
+            mode: p[3],
+            energy: p[4],
+            compensation: p[5],
+        },
+    }
+}
+
+/// Where the mode label comes from during simulations.
+#[derive(Clone)]
+pub enum LabelSource<'a> {
+    /// The tabulated log map (two joints).
+    Table(crate::label::LogTable<'a>),
+    /// The exact log map.
+    Exact(crate::label::ExactLog<'a>),
+}
+
+impl<'a> LabelSource<'a> {
+    /// A fresh field for one run (each run owns its warm-start state).
+    pub fn field(&self) -> Box<dyn crate::label::LogField + 'a> {
+        match self {
+            LabelSource::Table(t) => Box::new(t.clone()),
+            LabelSource::Exact(e) => Box::new(e.clone()),
+        }
+    }
+}
+
+/// The label source for a design and, for a table, its largest error against the exact label on
+/// held-out geodesics (degrees) and the number of samples compared.
+pub fn label_source<'a>(
+    design: &'a Design,
+    settings: &crate::simulate::SimSettings,
+) -> Result<(LabelSource<'a>, Option<(f64, usize)>)> {
+    use crate::geodesic::{Fan, FanSpec};
+    use crate::label::{ExactLog, LogTable};
+    use crate::simulate::LabelKind;
+    let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
+    if settings.label == LabelKind::Exact || design.dof() != 2 {
+        return Ok((LabelSource::Exact(exact), None));
+    }
+    let region = design.valid_region()?;
+    let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
+    let ode = design.geodesics.ode;
+    let fan = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec { count: 72, phase: 0.0, stop, spacing: region.extent / 40.0 },
+        ode,
+    )?;
+    let nodes = settings.table_nodes;
+    let mut table = LogTable::build(&design.chain, &design.q_eq, &fan, ode, nodes, nodes, 0.25)?;
+    let check = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec { count: 36, phase: 0.5, stop, spacing: region.extent / 20.0 },
+        ode,
+    )?;
+    let err = table.label_error(&design.chain, &design.q_eq, &check, ode, 0.05 * region.extent)?;
+    Ok((LabelSource::Table(table), Some(err)))
+}
+
+/// One scenario's results.
+pub struct ScenarioOutcome {
+    /// The resolved scenario.
+    pub scenario: Scenario,
+    /// Per run: result and metrics, in run order.
+    pub runs: Vec<(RunResult, RunMetrics)>,
+}
+
+/// Resolves and runs scenario `index` of the design with the elastic potential `potential`.
+/// Runs go in parallel; each owns its label field, so results do not depend on the thread count.
+pub fn run_scenario<'a>(
+    design: &'a Design,
+    potential: &'a crate::simulate::ElasticPotential,
+    label: &LabelSource<'a>,
+    settings: &crate::simulate::SimSettings,
+    controllers: &ControllerSettings,
+    index: usize,
+) -> Result<ScenarioOutcome> {
+    use rayon::prelude::*;
+    let spec = &design.file.scenario[index];
+    let mut energy_field = label.field();
+    let mut lv = crate::label::LogValue::zeros(design.dof());
+    let q0 = design.q_eq.as_slice().to_vec();
+    let chain = &design.chain;
+    let mut nominal = |q: &[f64]| -> Result<f64> {
+        Ok(match potential {
+            crate::simulate::ElasticPotential::Springs(s) => {
+                s.elements.iter().zip(&s.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
+                    + chain.gravity_potential(q)
+            }
+            crate::simulate::ElasticPotential::Exact { omega } => {
+                energy_field.eval(q, &mut lv)?;
+                let v = DVector::from_column_slice(&lv.v);
+                0.5 * omega * omega * v.dot(&(chain.mass_matrix(&design.q_eq) * &v))
+            }
+        })
+    };
+    let u0 = nominal(&q0)?;
+    let mut energy_at = |q: &[f64]| -> Result<f64> { Ok(nominal(q)? - u0) };
+    let scenario = spec.resolve(index, design, &mut energy_at)?;
+    let results: Vec<Result<(RunResult, RunMetrics)>> = scenario
+        .runs
+        .par_iter()
+        .map(|run| {
+            let mut dynamics =
+                crate::simulate::Dynamics::new(chain, &design.q_eq, potential, *controllers, run, Some(label.field()))?;
+            let result = crate::simulate::run(&mut dynamics, settings).map_err(|e| match e {
+                Error::Numerical { context, reason } => {
+                    Error::Numerical { context: format!("scenario {} run {}: {context}", spec.name, run.name), reason }
+                }
+                other => other,
+            })?;
+            let m = metrics(&result, run, controllers, scenario.kind);
+            Ok((result, m))
+        })
+        .collect();
+    let runs = results.into_iter().collect::<Result<Vec<_>>>()?;
+    Ok(ScenarioOutcome { scenario, runs })
+}

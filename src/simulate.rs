@@ -1,0 +1,625 @@
+//! Closed-loop simulation: the arm with its springs, damping and controllers.
+//!
+//! M q̈ + C q̇ + ∂U_g/∂q + D q̇ + ∂U_e/∂q = τ_c, with τ_c the sum of the active controllers
+//! ([`crate::control`]). The state carries, besides (q, q̇), one quadrature per torque source
+//! accumulating ∫|τᵀq̇| dt, so the energy fluxes of the paper's Table II come out of the same
+//! integration at the same order (the paper's Σ|τᵀq̇|δt is its rectangle-rule version). Fixed-step
+//! RK4 at a given rate is the default; the adaptive option uses Dormand–Prince with error control
+//! on (q, q̇) and samples the output on its dense interpolant.
+//!
+//! The right-hand side allocates nothing; a run is sequential, runs go in parallel.
+
+use nalgebra::DVector;
+use serde::{Deserialize, Serialize};
+
+use crate::control::{ControllerSettings, EnergyLaw, LabelGradient, dot, energy_torque, mode_torque};
+use crate::error::{Error, Result};
+use crate::geodesic::MetricFrame;
+use crate::geodesic::logmap::wrap_angle;
+use crate::label::{LogField, LogValue, angle_label, sphere_distance};
+use crate::model::{Chain, Workspace};
+use crate::ode::{Dopri5, OdeSettings};
+use crate::potential::SpringSet;
+
+/// The torque sources, in the order of the output columns.
+pub const SOURCES: [&str; 6] = ["spring", "gravity", "damping", "mode", "energy", "compensation"];
+const SPRING: usize = 0;
+const GRAVITY: usize = 1;
+const DAMPING: usize = 2;
+const MODE: usize = 3;
+const ENERGY: usize = 4;
+const COMPENSATION: usize = 5;
+const NSRC: usize = 6;
+
+/// Time integration scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Classical Runge–Kutta with a fixed step 1/rate.
+    #[default]
+    Rk4,
+    /// Dormand–Prince 5(4) with error control on (q, q̇).
+    Adaptive,
+}
+
+/// Which label the mode controller uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LabelKind {
+    /// The log map tabulated on a grid (two joints; its error is measured and reported).
+    #[default]
+    Table,
+    /// Newton shooting at every evaluation (slow; any number of joints).
+    Exact,
+}
+
+/// `[simulate]`: integration settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimSettings {
+    /// Steps per second of RK4 (and outputs are never denser than this).
+    pub rate: f64,
+    /// `rk4` or `adaptive`.
+    pub integrator: Integrator,
+    /// Tolerances of the adaptive integrator.
+    pub ode: OdeSettings,
+    /// `table` (two joints) or `exact`.
+    pub label: LabelKind,
+    /// Nodes per axis of the label table.
+    pub table_nodes: usize,
+    /// Time between output samples, s.
+    pub output_interval: f64,
+}
+
+impl Default for SimSettings {
+    fn default() -> Self {
+        SimSettings {
+            rate: 1000.0,
+            integrator: Integrator::Rk4,
+            ode: OdeSettings { rtol: 1e-8, atol: 1e-10, ..OdeSettings::default() },
+            label: LabelKind::Table,
+            table_nodes: 121,
+            output_interval: 0.01,
+        }
+    }
+}
+
+impl SimSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.rate.is_finite() && self.rate >= 10.0 && self.rate <= 1e6) {
+            return Err(("simulate.rate".into(), format!("must be 10 to 1e6 Hz, got {}", self.rate)));
+        }
+        if !(self.output_interval.is_finite() && self.output_interval > 0.0) {
+            return Err(("simulate.output_interval".into(), "must be positive".into()));
+        }
+        if self.table_nodes < 8 || self.table_nodes > 2000 {
+            return Err(("simulate.table_nodes".into(), "must be 8 to 2000".into()));
+        }
+        self.ode.validate("simulate.ode")
+    }
+}
+
+/// A desired mode: an angle θ (two joints) or a direction u in the metric frame (any number).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModeTarget {
+    /// θ_d.
+    Angle(f64),
+    /// A unit vector in the metric frame at q_eq (±u the same mode).
+    Direction(DVector<f64>),
+}
+
+/// Mode control of a run: the desired mode as a schedule of (start time, target).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeControl {
+    /// Steps of the schedule, by increasing start time (the first at t = 0).
+    pub schedule: Vec<(f64, ModeTarget)>,
+}
+
+impl ModeControl {
+    fn target(&self, t: f64) -> &ModeTarget {
+        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
+        &self.schedule[k].1
+    }
+}
+
+/// Energy regulation of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnergyControl {
+    /// τ_E or τ_nD.
+    pub law: EnergyLaw,
+    /// E_d in J.
+    pub target: f64,
+    /// Add the damping feed-forward D q̇.
+    pub compensate_damping: bool,
+}
+
+/// Parasitic springs ½ ε (q − q_eq)ᵀ diag(κ) (q − q_eq): unknown to the controllers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parasitic {
+    /// Scale ε.
+    pub eps: f64,
+    /// κᵢ in N·m/rad.
+    pub kappa: Vec<f64>,
+}
+
+/// The elastic potential the arm has.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ElasticPotential {
+    /// A spring set (fitted, or read from a bill of materials).
+    Springs(SpringSet),
+    /// U_e = ½ω²r² − U_g through the log field.
+    Exact {
+        /// ω in rad/s.
+        omega: f64,
+    },
+}
+
+/// One simulation run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSpec {
+    /// Name of the run within its scenario.
+    pub name: String,
+    /// Start configuration.
+    pub q0: Vec<f64>,
+    /// Start velocity.
+    pub qd0: Vec<f64>,
+    /// Duration, s.
+    pub duration: f64,
+    /// Diagonal of the joint damping D, N·m·s/rad.
+    pub damping: Vec<f64>,
+    /// Mode selection, if on.
+    pub mode: Option<ModeControl>,
+    /// Energy regulation, if on.
+    pub energy: Option<EnergyControl>,
+    /// Parasitic springs, if any.
+    pub parasitic: Option<Parasitic>,
+}
+
+/// The sampled result of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    /// Joints.
+    pub n: usize,
+    /// Sample times.
+    pub t: Vec<f64>,
+    /// q per sample (flat, n per sample).
+    pub q: Vec<f64>,
+    /// q̇ per sample.
+    pub qd: Vec<f64>,
+    /// Torques per sample: NSRC sources × n (flat).
+    pub tau: Vec<f64>,
+    /// E = ½q̇ᵀMq̇ + U(q) − U(q_eq) with the nominal U (springs and gravity).
+    pub energy: Vec<f64>,
+    /// Label per sample: θ (two joints) or the distance Δ to the reference mode (three or
+    /// more), NaN inside the ε-ball.
+    pub label: Vec<f64>,
+    /// Desired label per sample (NaN without mode control; 0 for Δ).
+    pub label_target: Vec<f64>,
+    /// Whether the sample is inside the ε-ball.
+    pub in_ball: Vec<bool>,
+}
+
+/// ∫|τᵀq̇| dt per source, J.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Fluxes {
+    /// The elastic potential (springs and parasitic springs).
+    pub potential: f64,
+    /// Gravity.
+    pub gravity: f64,
+    /// Joint damping.
+    pub damping: f64,
+    /// Mode selection.
+    pub mode: f64,
+    /// Energy regulation.
+    pub energy: f64,
+    /// Damping compensation.
+    pub compensation: f64,
+}
+
+/// A finished run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunResult {
+    /// The run's name.
+    pub name: String,
+    /// Samples.
+    pub trace: Trace,
+    /// Energy fluxes.
+    pub fluxes: Fluxes,
+    /// Largest |τᵢ| per source over the run, N·m.
+    pub peak_torque: [f64; NSRC],
+}
+
+/// Everything a run's right-hand side needs, with its scratch space.
+pub struct Dynamics<'a> {
+    chain: &'a Chain,
+    q_eq: Vec<f64>,
+    frame: MetricFrame,
+    potential: &'a ElasticPotential,
+    /// U(q_eq) with the nominal potential (energies are measured from it).
+    u0: f64,
+    omega2_m_eq: Vec<f64>,
+    controllers: ControllerSettings,
+    spec: &'a RunSpec,
+    field: Option<Box<dyn LogField + 'a>>,
+    ws: Workspace,
+    lv: LogValue,
+    tau: [Vec<f64>; NSRC],
+    buf: Vec<f64>,
+    buf2: Vec<f64>,
+    peak: [f64; NSRC],
+    error: Option<Error>,
+    reference: Option<DVector<f64>>,
+}
+
+impl<'a> Dynamics<'a> {
+    /// Sets up the dynamics of a run. `field` evaluates log(q): needed for mode control, for the
+    /// exact potential and for the label output.
+    pub fn new(
+        chain: &'a Chain,
+        q_eq: &DVector<f64>,
+        potential: &'a ElasticPotential,
+        controllers: ControllerSettings,
+        spec: &'a RunSpec,
+        field: Option<Box<dyn LogField + 'a>>,
+    ) -> Result<Dynamics<'a>> {
+        let n = chain.dof();
+        let m_eq = chain.mass_matrix(q_eq);
+        let frame = MetricFrame::new(&m_eq)?;
+        let omega2 = match potential {
+            ElasticPotential::Exact { omega } => omega * omega,
+            ElasticPotential::Springs(_) => 0.0,
+        };
+        let mut d = Dynamics {
+            chain,
+            q_eq: q_eq.as_slice().to_vec(),
+            frame,
+            potential,
+            u0: 0.0,
+            omega2_m_eq: m_eq.iter().map(|m| m * omega2).collect(),
+            controllers,
+            spec,
+            field,
+            ws: chain.workspace(),
+            lv: LogValue::zeros(n),
+            tau: std::array::from_fn(|_| vec![0.0; n]),
+            buf: vec![0.0; n],
+            buf2: vec![0.0; n],
+            peak: [0.0; NSRC],
+            error: None,
+            reference: None,
+        };
+        if matches!(potential, ElasticPotential::Exact { .. }) && d.field.is_none() {
+            return Err(Error::Setting {
+                field: "potential".into(),
+                reason: "the exact potential needs a log field".into(),
+            });
+        }
+        let q_eq = d.q_eq.clone();
+        d.u0 = d.nominal_potential(&q_eq)?;
+        Ok(d)
+    }
+
+    /// U_e + U_g at q (nominal: without parasitic springs).
+    fn nominal_potential(&mut self, q: &[f64]) -> Result<f64> {
+        let ue = match self.potential {
+            ElasticPotential::Springs(s) => {
+                s.elements.iter().zip(&s.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
+            }
+            ElasticPotential::Exact { .. } => {
+                let field = self.field.as_mut().expect("checked in new");
+                field.eval(q, &mut self.lv)?;
+                let n = q.len();
+                let v = &self.lv.v;
+                let mut r = 0.0;
+                for i in 0..n {
+                    for j in 0..n {
+                        r += v[i] * self.omega2_m_eq[i + n * j] * v[j];
+                    }
+                }
+                0.5 * r - self.chain.gravity_potential(q)
+            }
+        };
+        Ok(ue + self.chain.gravity_potential(q))
+    }
+
+    /// The energy E at a state.
+    pub fn energy(&mut self, q: &[f64], qd: &[f64]) -> Result<f64> {
+        let u = self.nominal_potential(q)?;
+        let m = self.chain.mass_matrix(&DVector::from_column_slice(q));
+        let kin = 0.5
+            * qd.iter().enumerate().map(|(i, a)| a * (0..q.len()).map(|j| m[(i, j)] * qd[j]).sum::<f64>()).sum::<f64>();
+        Ok(kin + u - self.u0)
+    }
+
+    /// Label at q: (θ or Δ, target) for output; NaN inside the ε-ball.
+    pub fn label(&mut self, t: f64, q: &[f64]) -> Result<(f64, f64, bool)> {
+        let n = q.len();
+        let dist = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let in_ball = dist <= self.controllers.epsilon;
+        let Some(field) = self.field.as_mut() else { return Ok((f64::NAN, f64::NAN, in_ball)) };
+        if dist == 0.0 {
+            return Ok((f64::NAN, f64::NAN, true));
+        }
+        field.eval(q, &mut self.lv)?;
+        if n == 2 {
+            let (theta, _) = angle_label(&self.lv);
+            let target = match self.spec.mode.as_ref().map(|m| m.target(t)) {
+                Some(ModeTarget::Angle(a)) => wrap_angle(*a),
+                _ => f64::NAN,
+            };
+            Ok((if in_ball { f64::NAN } else { theta }, target, in_ball))
+        } else {
+            let reference = match self.spec.mode.as_ref().map(|m| m.target(t)) {
+                Some(ModeTarget::Direction(u)) => u.clone(),
+                _ => {
+                    if self.reference.is_none() {
+                        let w = self.frame.to_frame(&DVector::from_column_slice(&self.lv.v));
+                        self.reference = Some(w.normalize());
+                    }
+                    self.reference.clone().expect("set above")
+                }
+            };
+            let (delta, _) = sphere_distance(&self.lv, &self.frame, &reference);
+            Ok((if in_ball { f64::NAN } else { delta }, 0.0, in_ball))
+        }
+    }
+
+    /// The state derivative: (q̇, q̈, |P| per source).
+    pub fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> bool {
+        match self.rhs_inner(t, y, dy) {
+            Ok(()) => true,
+            Err(e) => {
+                self.error = Some(e);
+                false
+            }
+        }
+    }
+
+    fn rhs_inner(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<()> {
+        let n = self.chain.dof();
+        let (q, rest) = y.split_at(n);
+        let qd = &rest[..n];
+        if !self.chain.prepare(&mut self.ws, q, qd) {
+            return Err(Error::numerical(
+                "simulation",
+                format!("the mass matrix is not positive definite at t = {t:.4} s"),
+            ));
+        }
+        for tau in self.tau.iter_mut() {
+            tau.fill(0.0);
+        }
+        // Elastic potential (and parasitic springs).
+        match self.potential {
+            ElasticPotential::Springs(s) => {
+                s.gradient_into(q, &mut self.buf);
+                for i in 0..n {
+                    self.tau[SPRING][i] = -self.buf[i];
+                }
+            }
+            ElasticPotential::Exact { .. } => {
+                let field = self.field.as_mut().expect("checked in new");
+                field.eval(q, &mut self.lv)?;
+                // ∇U* = ω² (∂v/∂q)ᵀ M_eq v.
+                for j in 0..n {
+                    self.buf2[j] = (0..n).map(|k| self.omega2_m_eq[j + n * k] * self.lv.v[k]).sum();
+                }
+                self.chain.gravity_gradient_into(q, &mut self.buf);
+                for i in 0..n {
+                    let g: f64 = (0..n).map(|j| self.lv.dvdq[j * n + i] * self.buf2[j]).sum();
+                    // U_e = U* − U_g: its torque is −∇U* + ∇U_g.
+                    self.tau[SPRING][i] = -g + self.buf[i];
+                }
+            }
+        }
+        if let Some(p) = &self.spec.parasitic {
+            for i in 0..n {
+                self.tau[SPRING][i] -= p.eps * p.kappa[i] * (q[i] - self.q_eq[i]);
+            }
+        }
+        self.chain.gravity_gradient_into(q, &mut self.buf);
+        for i in 0..n {
+            self.tau[GRAVITY][i] = -self.buf[i];
+            self.tau[DAMPING][i] = -self.spec.damping[i] * qd[i];
+        }
+        // Mode selection.
+        if let Some(mode) = &self.spec.mode {
+            let dist2: f64 = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum();
+            if dist2.sqrt() > self.controllers.epsilon {
+                let field = self.field.as_mut().ok_or_else(|| Error::Setting {
+                    field: "label".into(),
+                    reason: "mode control needs a label".into(),
+                })?;
+                field.eval(q, &mut self.lv)?;
+                let (delta, mut g) = match mode.target(t) {
+                    ModeTarget::Angle(theta_d) if n == 2 => {
+                        let (theta, g) = angle_label(&self.lv);
+                        (wrap_angle(theta - theta_d), g.to_vec())
+                    }
+                    ModeTarget::Direction(u) => sphere_distance(&self.lv, &self.frame, u),
+                    ModeTarget::Angle(_) => {
+                        return Err(Error::Setting {
+                            field: "mode".into(),
+                            reason: "an angle mode needs two joints; give a direction vector".into(),
+                        });
+                    }
+                };
+                if self.controllers.gradient == LabelGradient::Paper {
+                    for gi in g.iter_mut() {
+                        *gi *= dist2;
+                    }
+                }
+                self.buf.copy_from_slice(&g);
+                self.ws.solve(&mut self.buf);
+                mode_torque(&self.controllers, delta, &g, &self.buf, qd, self.ws.mass(), &mut self.tau[MODE]);
+            }
+        }
+        // Energy regulation and damping compensation.
+        if let Some(ec) = self.spec.energy {
+            let u = self.nominal_potential(q)?;
+            let m = self.ws.mass();
+            let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
+            let e = kin + u - self.u0;
+            energy_torque(ec.law, &self.controllers, ec.target - e, qd, self.ws.mass(), &mut self.tau[ENERGY]);
+            if ec.compensate_damping {
+                for i in 0..n {
+                    self.tau[COMPENSATION][i] = self.spec.damping[i] * qd[i];
+                }
+            }
+        }
+        // q̈ = M⁻¹ (Σ τ − h).
+        for i in 0..n {
+            self.buf[i] = self.tau.iter().map(|t| t[i]).sum::<f64>() - self.ws.coriolis()[i];
+        }
+        self.ws.solve(&mut self.buf);
+        dy[..n].copy_from_slice(qd);
+        dy[n..2 * n].copy_from_slice(&self.buf);
+        let flux = |k: usize| dot(&self.tau[k], qd).abs();
+        dy[2 * n] = flux(SPRING);
+        dy[2 * n + 1] = flux(GRAVITY);
+        dy[2 * n + 2] = flux(DAMPING);
+        dy[2 * n + 3] = flux(MODE);
+        dy[2 * n + 4] = flux(ENERGY);
+        dy[2 * n + 5] = flux(COMPENSATION);
+        for (k, tau) in self.tau.iter().enumerate() {
+            for v in tau {
+                self.peak[k] = self.peak[k].max(v.abs());
+            }
+        }
+        Ok(())
+    }
+
+    fn take_error(&mut self, fallback: String) -> Error {
+        self.error.take().unwrap_or_else(|| Error::numerical("simulation", fallback))
+    }
+}
+
+/// Runs one simulation.
+pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunResult> {
+    let spec = dynamics.spec;
+    let n = dynamics.chain.dof();
+    if spec.q0.len() != n || spec.qd0.len() != n || spec.damping.len() != n {
+        return Err(Error::Setting {
+            field: "run".into(),
+            reason: format!("start state and damping need {n} entries"),
+        });
+    }
+    let dim = 2 * n + NSRC;
+    let mut y = vec![0.0; dim];
+    y[..n].copy_from_slice(&spec.q0);
+    y[n..2 * n].copy_from_slice(&spec.qd0);
+    let h = 1.0 / settings.rate;
+    let out_every = settings.output_interval.max(h);
+    let mut trace = Trace {
+        n,
+        t: Vec::new(),
+        q: Vec::new(),
+        qd: Vec::new(),
+        tau: Vec::new(),
+        energy: Vec::new(),
+        label: Vec::new(),
+        label_target: Vec::new(),
+        in_ball: Vec::new(),
+    };
+    let record = |d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace| -> Result<()> {
+        // Torques at this state (a right-hand-side evaluation) and the outputs.
+        let mut tmp = vec![0.0; y.len()];
+        if !d.rhs(t, y, &mut tmp) {
+            return Err(d.take_error(format!("right-hand side failed at t = {t:.4} s")));
+        }
+        trace.t.push(t);
+        trace.q.extend_from_slice(&y[..n]);
+        trace.qd.extend_from_slice(&y[n..2 * n]);
+        for tau in &d.tau {
+            trace.tau.extend_from_slice(tau);
+        }
+        let e = d.energy(&y[..n], &y[n..2 * n])?;
+        trace.energy.push(e);
+        let (label, target, in_ball) = d.label(t, &y[..n])?;
+        trace.label.push(label);
+        trace.label_target.push(target);
+        trace.in_ball.push(in_ball);
+        Ok(())
+    };
+    let mut next_out = 0.0;
+    match settings.integrator {
+        Integrator::Rk4 => {
+            let steps = (spec.duration * settings.rate).round() as usize;
+            let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
+            let mut tmp = vec![0.0; dim];
+            for step in 0..=steps {
+                let t = step as f64 * h;
+                if t + 1e-9 * h >= next_out {
+                    record(dynamics, t, &y, &mut trace)?;
+                    next_out += out_every;
+                }
+                if step == steps {
+                    break;
+                }
+                let fail = |d: &mut Dynamics<'_>| d.take_error(format!("right-hand side failed at t = {t:.4} s"));
+                if !dynamics.rhs(t, &y, &mut k1) {
+                    return Err(fail(dynamics));
+                }
+                for i in 0..dim {
+                    tmp[i] = y[i] + 0.5 * h * k1[i];
+                }
+                if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k2) {
+                    return Err(fail(dynamics));
+                }
+                for i in 0..dim {
+                    tmp[i] = y[i] + 0.5 * h * k2[i];
+                }
+                if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k3) {
+                    return Err(fail(dynamics));
+                }
+                for i in 0..dim {
+                    tmp[i] = y[i] + h * k3[i];
+                }
+                if !dynamics.rhs(t + h, &tmp, &mut k4) {
+                    return Err(fail(dynamics));
+                }
+                for i in 0..dim {
+                    y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+                }
+                if y[..2 * n].iter().any(|v| !v.is_finite()) {
+                    return Err(Error::numerical(
+                        "simulation",
+                        format!("the state became non-finite at t = {:.4} s", t + h),
+                    ));
+                }
+            }
+        }
+        Integrator::Adaptive => {
+            let mut ode = Dopri5::new(dim, OdeSettings { max_step: h.max(settings.ode.max_step), ..settings.ode })
+                .with_error_components(2 * n);
+            let mut rhs = |t: f64, yy: &[f64], d: &mut [f64]| dynamics.rhs(t, yy, d);
+            ode.start(&mut rhs, 0.0, &y, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
+            let mut samples: Vec<(f64, Vec<f64>)> = vec![(0.0, y.clone())];
+            next_out = out_every;
+            loop {
+                let done =
+                    ode.step(&mut rhs, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
+                while next_out <= ode.t() + 1e-12 {
+                    let mut s = vec![0.0; dim];
+                    ode.dense(next_out, &mut s);
+                    samples.push((next_out, s));
+                    next_out += out_every;
+                }
+                if done {
+                    break;
+                }
+            }
+            y.copy_from_slice(ode.y());
+            for (t, s) in samples {
+                record(dynamics, t, &s, &mut trace)?;
+            }
+        }
+    }
+    let f = &y[2 * n..];
+    Ok(RunResult {
+        name: spec.name.clone(),
+        trace,
+        fluxes: Fluxes { potential: f[0], gravity: f[1], damping: f[2], mode: f[3], energy: f[4], compensation: f[5] },
+        peak_torque: dynamics.peak,
+    })
+}
