@@ -11,7 +11,7 @@
 //! [[family]]
 //! name = "joint torsion spring"
 //! profile = "linear"              # linear | cubic | crank | compression
-//! couplings = "joints"            # "joints", { pairs = [[1, 1], [1, -1]] } or [[1, 0], [1, -2]]
+//! couplings = "joints"            # "joints", { pairs = [[1, 1]] }, { all_pairs = … } or [[1, -2]]
 //! offsets = "equilibrium"         # "equilibrium", { grid = 9 }, { phases = 12 } or angles
 //! unit = "N*m/rad"                # optional; must match the profile
 //! max_stiffness = 40.0            # optional, in the profile's unit
@@ -79,6 +79,8 @@ pub enum CouplingSpec {
     /// Every pair of adjacent joints (i, i+1) with each gear-ratio pattern (r₁, r₂):
     /// a = r₁ eᵢ + r₂ eᵢ₊₁.
     Pairs(Vec<[f64; 2]>),
+    /// Every pair of joints (i < j), adjacent or not, with each ratio pattern.
+    AllPairs(Vec<[f64; 2]>),
     /// Explicit coupling vectors, one entry per joint.
     List(Vec<Vec<f64>>),
 }
@@ -91,17 +93,25 @@ impl<'de> Deserialize<'de> for CouplingSpec {
             pairs: Vec<[f64; 2]>,
         }
         #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct AllPairsTable {
+            all_pairs: Vec<[f64; 2]>,
+        }
+        #[derive(Deserialize)]
         #[serde(untagged)]
         enum Raw {
             Word(String),
             Pairs(PairsTable),
+            AllPairs(AllPairsTable),
             List(Vec<Vec<f64>>),
         }
-        let msg = "couplings must be \"joints\", { pairs = [[r1, r2], ...] } or a list of coupling vectors such as [[1, 0], [1, -1]]";
+        let msg = "couplings must be \"joints\", { pairs = [[r1, r2], ...] } (adjacent joints), \
+                   { all_pairs = [[r1, r2], ...] } (every pair) or a list of coupling vectors such as [[1, 0], [1, -1]]";
         match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
             Raw::Word(w) if w == "joints" => Ok(CouplingSpec::Joints),
             Raw::Word(_) => Err(serde::de::Error::custom(msg)),
             Raw::Pairs(p) => Ok(CouplingSpec::Pairs(p.pairs)),
+            Raw::AllPairs(p) => Ok(CouplingSpec::AllPairs(p.all_pairs)),
             Raw::List(l) => Ok(CouplingSpec::List(l)),
         }
     }
@@ -251,23 +261,28 @@ impl Catalog {
                 CouplingSpec::Joints => {
                     (0..dof).map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect()).collect()
                 }
-                CouplingSpec::Pairs(ratios) => {
+                CouplingSpec::Pairs(ratios) | CouplingSpec::AllPairs(ratios) => {
                     if dof < 2 {
                         return Err(invalid(field("couplings"), "pairs need at least two joints".into()));
                     }
+                    let all = matches!(f.couplings, CouplingSpec::AllPairs(_));
                     let mut out = Vec::new();
                     for (k, r) in ratios.iter().enumerate() {
                         if !(r[0].is_finite() && r[1].is_finite()) || r[0] == 0.0 || r[1] == 0.0 {
+                            let key = if all { "all_pairs" } else { "pairs" };
                             return Err(invalid(
-                                format!("family[{i}].couplings.pairs[{k}]"),
+                                format!("family[{i}].couplings.{key}[{k}]"),
                                 "both gear ratios must be finite and non-zero".into(),
                             ));
                         }
                         for j in 0..dof - 1 {
-                            let mut a = vec![0.0; dof];
-                            a[j] = r[0];
-                            a[j + 1] = r[1];
-                            out.push(a);
+                            let last = if all { dof - 1 } else { j + 1 };
+                            for l in j + 1..=last {
+                                let mut a = vec![0.0; dof];
+                                a[j] = r[0];
+                                a[l] = r[1];
+                                out.push(a);
+                            }
                         }
                     }
                     out

@@ -155,8 +155,13 @@ pub struct RunMetrics {
     pub energy_drift_rel: Option<f64>,
     /// ∫|P| per source, J.
     pub flux: FluxSummary,
-    /// (∫|P_θ| + ∫|P_E| + ∫|P_comp|) / ∫|P_U|.
+    /// (∫|P_θ| + ∫|P_E|) / ∫|P_U| over the whole run (`DESIGN.md`'s definition).
     pub actuator_share: f64,
+    /// The same over the last 5 s (the steady state after a swing-up or a mode switch).
+    pub actuator_share_last5s: f64,
+    /// (∫|P_θ| + ∫|P_E| + ∫|P_comp|) / ∫|P_U|: with the damping compensation, which actuators
+    /// deliver too (whole run).
+    pub actuator_share_with_compensation: f64,
     /// Largest |τᵢ| per source, N·m.
     pub peak_torque_nm: PeakTorques,
 }
@@ -484,7 +489,14 @@ pub fn metrics(
             compensation: f.compensation,
             gravity: f.gravity,
         },
-        actuator_share: (f.mode + f.energy + f.compensation) / f.potential.max(1e-300),
+        actuator_share: (f.mode + f.energy) / f.potential.max(1e-300),
+        actuator_share_last5s: {
+            let from = tr.t.last().copied().unwrap_or(0.0) - 5.0;
+            // Sources: 0 spring, 3 mode, 4 energy (see simulate::SOURCES).
+            let actuators: f64 = [3, 4].iter().map(|&s| tr.flux_from(s, from)).sum();
+            actuators / tr.flux_from(0, from).max(1e-300)
+        },
+        actuator_share_with_compensation: (f.mode + f.energy + f.compensation) / f.potential.max(1e-300),
         peak_torque_nm: PeakTorques {
             spring: p[0],
             gravity: p[1],

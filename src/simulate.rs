@@ -200,6 +200,26 @@ pub struct Trace {
     pub in_ball: Vec<bool>,
 }
 
+impl Trace {
+    /// Power τᵀq̇ of source `source` (index into [`SOURCES`]) at each sample, W.
+    pub fn power(&self, source: usize) -> Vec<f64> {
+        let (n, w) = (self.n, NSRC * self.n);
+        (0..self.t.len()).map(|k| (0..n).map(|i| self.tau[k * w + source * n + i] * self.qd[k * n + i]).sum()).collect()
+    }
+
+    /// ∫|P| of a source over samples with t ≥ `from`, by the rectangle rule on the samples.
+    pub fn flux_from(&self, source: usize, from: f64) -> f64 {
+        let p = self.power(source);
+        let mut total = 0.0;
+        for k in 0..self.t.len().saturating_sub(1) {
+            if self.t[k] >= from {
+                total += p[k].abs() * (self.t[k + 1] - self.t[k]);
+            }
+        }
+        total
+    }
+}
+
 /// ∫|τᵀq̇| dt per source, J.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct Fluxes {

@@ -5,6 +5,7 @@ mod check;
 mod fit;
 mod geodesics;
 mod progress;
+mod simulate;
 
 use std::path::PathBuf;
 
@@ -63,6 +64,33 @@ report.md into the output folder, all at once (nothing is left half-written on a
         #[arg(long, value_name = "K")]
         max_elements: Option<usize>,
     },
+    /// Simulate the design's scenarios in closed loop: free releases, mode switching, swing-up.
+    #[command(
+        after_help = "Examples:\n  springfit simulate\n  springfit simulate --scenario swingup\n  springfit simulate --bom out/double_pendulum/bom.csv\n  springfit simulate --exact\n\n\
+Writes, per scenario, sim_<name>.csv (t, q, q̇, torque per source, E, label), sim_<name>.json\n\
+(mode drift, settling times, energy error, fluxes, actuator share, peak torques) and plots\n\
+(phase plane, q(t), torques, label, power) as SVG and PNG."
+    )]
+    Simulate {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Run only this scenario.
+        #[arg(long, value_name = "NAME")]
+        scenario: Option<String>,
+        /// Output folder (default: out/<design name>_simulate). Replaced atomically.
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Use the exact potential ½ω²r² instead of springs.
+        #[arg(long, conflicts_with = "bom")]
+        exact: bool,
+        /// Use the springs of this bill of materials instead of fitting.
+        #[arg(long, value_name = "FILE")]
+        bom: Option<PathBuf>,
+        /// Use the exact (log-map) label instead of the table (slow).
+        #[arg(long)]
+        exact_label: bool,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -104,6 +132,9 @@ pub fn run() -> Result<()> {
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {
         Command::Check { design } => check::run(&design, &progress),
+        Command::Simulate { design, scenario, out, exact, bom, exact_label } => {
+            simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &progress)
+        }
         Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {

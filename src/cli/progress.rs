@@ -32,10 +32,12 @@ impl Progress {
         Step { bar, started: Instant::now() }
     }
 
-    /// Prints a line of results to stdout unless quiet.
+    /// Prints a line of results to stdout unless quiet. A closed stdout (`springfit … | head`)
+    /// is not an error worth a panic: the line is dropped.
     pub fn say(&self, line: impl AsRef<str>) {
         if !self.quiet {
-            println!("{}", line.as_ref());
+            use std::io::Write;
+            let _ = writeln!(std::io::stdout(), "{}", line.as_ref());
         }
     }
 }

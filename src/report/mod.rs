@@ -6,3 +6,4 @@ pub mod fit;
 pub mod geodesics;
 pub mod output;
 pub mod plot;
+pub mod simulate;

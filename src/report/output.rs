@@ -58,6 +58,19 @@ impl OutputDir {
         std::fs::write(&p, bytes).map_err(|e| Error::io(self.target.join(name), e))
     }
 
+    /// Copies the files of the previous folder (if any) whose names `keep` accepts into the
+    /// staging folder, so a partial rerun (one scenario of several) replaces only its own files.
+    pub fn keep_previous(&self, keep: impl Fn(&str) -> bool) -> Result<()> {
+        let Ok(entries) = std::fs::read_dir(&self.target) else { return Ok(()) };
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if e.path().is_file() && keep(&name) {
+                std::fs::copy(e.path(), self.path(&name)).map_err(|err| Error::io(e.path(), err))?;
+            }
+        }
+        Ok(())
+    }
+
     /// Moves the staged files into place, replacing any previous folder.
     pub fn commit(mut self) -> Result<PathBuf> {
         let backup = self.staging.with_file_name(format!(

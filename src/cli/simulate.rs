@@ -1,0 +1,151 @@
+//! `springfit simulate`: closed-loop runs of the design's scenarios.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use springfit::bom;
+use springfit::catalog::Catalog;
+use springfit::design::Design;
+use springfit::error::Error;
+use springfit::fit::run::fit;
+use springfit::geodesic::{Fan, FanSpec, Stop};
+use springfit::report::output::OutputDir;
+use springfit::scenario::{label_source, run_scenario};
+use springfit::simulate::{ElasticPotential, LabelKind};
+
+use super::progress::Progress;
+
+pub struct SimArgs {
+    pub design: PathBuf,
+    pub scenario: Option<String>,
+    pub out: Option<PathBuf>,
+    pub exact: bool,
+    pub bom: Option<PathBuf>,
+    pub exact_label: bool,
+}
+
+pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
+    let design = Design::load(&args.design)?;
+    if design.file.scenario.is_empty() {
+        return Err(Error::invalid(&design.path, "scenario", "the design declares no [[scenario]] to simulate").into());
+    }
+    let indices: Vec<usize> = match &args.scenario {
+        Some(name) => {
+            vec![design.file.scenario.iter().position(|s| &s.name == name).ok_or_else(|| Error::Setting {
+                field: "--scenario".into(),
+                reason: format!(
+                    "no scenario `{name}` in {} (it has: {})",
+                    design.path.display(),
+                    design.file.scenario.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            })?]
+        }
+        None => (0..design.file.scenario.len()).collect(),
+    };
+    let (potential, potential_name) = if args.exact {
+        (ElasticPotential::Exact { omega: design.fit.frequency }, "exact ½ω²r²".to_string())
+    } else if let Some(path) = &args.bom {
+        let rows = bom::read(path)?;
+        if rows[0].element.coupling.len() != design.dof() {
+            return Err(Error::invalid(
+                path,
+                "coupling",
+                format!(
+                    "the springs act on {} joints but the design has {}",
+                    rows[0].element.coupling.len(),
+                    design.dof()
+                ),
+            )
+            .into());
+        }
+        (ElasticPotential::Springs(bom::spring_set(&rows)), format!("springs ({})", path.display()))
+    } else {
+        let step = progress.step("fitting the springs");
+        let catalog_path = design.catalog.clone().ok_or_else(|| {
+            Error::invalid(&design.path, "catalog", "the design names no spring catalogue; give --bom or --exact")
+        })?;
+        let catalog = Catalog::load(&catalog_path, design.dof())?;
+        let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+        step.finish();
+        let outcome = outcome?;
+        progress.say(format!("fitted {} springs (p99 residual {:.4}°)", outcome.used(), outcome.metrics.stats.p99_abs));
+        (ElasticPotential::Springs(outcome.springs), "springs (fit)".to_string())
+    };
+    let mut settings = design.simulate;
+    if args.exact_label {
+        settings.label = LabelKind::Exact;
+    }
+    let step = progress.step("preparing the mode label");
+    let label = label_source(&design, &settings);
+    step.finish();
+    let (label, label_error) = label?;
+    let label_name = if label_error.is_some() { "table" } else { "exact" };
+    if let Some((err, count)) = label_error {
+        progress.say(format!(
+            "tabulated mode label: largest error {err:.2e}° against the exact label on {count} held-out samples"
+        ));
+    }
+    let region = design.valid_region()?;
+    let fan = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: 72,
+            phase: 0.0,
+            stop: Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc },
+            spacing: region.extent / 50.0,
+        },
+        design.geodesics.ode,
+    )?;
+    let target = args.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_simulate", design.name)));
+    let dir = OutputDir::create(&target)?;
+    if let Some(only) = &args.scenario {
+        // A rerun of one scenario keeps the other scenarios' files of the previous run.
+        let own = format!("sim_{only}");
+        dir.keep_previous(|name| {
+            !(name == format!("{own}.csv") || name == format!("{own}.json") || name.starts_with(&format!("{own}_")))
+        })?;
+    }
+    for i in indices {
+        let name = design.file.scenario[i].name.clone();
+        let step = progress.step(&format!("scenario {name}"));
+        let outcome = run_scenario(&design, &potential, &label, &settings, &design.controllers, i);
+        let secs = step.finish();
+        let outcome = outcome?;
+        springfit::report::simulate::write(
+            &dir,
+            &design,
+            &outcome,
+            &potential,
+            &potential_name,
+            label_name,
+            label_error.map(|e| e.0),
+            &fan,
+        )?;
+        progress.say(format!("scenario {name} ({} run(s), {secs:.2} s):", outcome.runs.len()));
+        for (r, m) in &outcome.runs {
+            let mut parts = vec![format!(
+                "actuator share {:.3} % (last 5 s {:.3} %)",
+                100.0 * m.actuator_share,
+                100.0 * m.actuator_share_last5s
+            )];
+            if m.flux.compensation > 0.0 {
+                parts.push(format!("with damping compensation {:.3} %", 100.0 * m.actuator_share_with_compensation));
+            }
+            if let Some(d) = m.mode_drift_deg {
+                parts.push(format!("mode drift {d:.3}°"));
+            }
+            if let Some(e) = m.energy_signed_error_last5s {
+                parts.push(format!("E − E_d over the last 5 s {:+.2} %", 100.0 * e));
+            }
+            if !m.settling_s.is_empty() {
+                let worst = m.settling_s.iter().map(|s| s.unwrap_or(f64::INFINITY)).fold(0.0, f64::max);
+                parts.push(format!("slowest mode step settles in {worst:.2} s"));
+            }
+            progress.say(format!("  {}: {}", r.name, parts.join(", ")));
+        }
+    }
+    let written = dir.commit()?;
+    progress.say(format!("wrote {}", written.display()));
+    Ok(())
+}
