@@ -27,7 +27,8 @@ fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     println!("springfit fit benchmarks (median / min over repeats)");
-    for name in ["double_pendulum", "double_pendulum_dense", "double_pendulum_workshop", "double_pendulum_paper_window"] {
+    for name in ["double_pendulum", "double_pendulum_dense", "double_pendulum_workshop", "double_pendulum_paper_window"]
+    {
         let design = Design::load(&root.join(format!("designs/{name}.toml"))).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let mut last = None;

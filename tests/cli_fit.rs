@@ -14,15 +14,38 @@ fn summary(dir: &Path) -> serde_json::Value {
 #[test]
 fn the_default_design_meets_its_accuracy_targets() {
     let dir = temp_dir("fit-default");
-    let run = springfit(&dir, &["fit", repo().join("designs/double_pendulum.toml").to_str().unwrap(), "--out", "result"]).ok();
+    let run =
+        springfit(&dir, &["fit", repo().join("designs/double_pendulum.toml").to_str().unwrap(), "--out", "result"])
+            .ok();
     let out = dir.join("result");
-    for f in ["bom.csv", "bom.md", "summary.json", "residuals.csv", "histogram.svg", "histogram.png", "potential.svg", "potential.png", "report.md"] {
+    for f in [
+        "bom.csv",
+        "bom.md",
+        "summary.json",
+        "residuals.csv",
+        "histogram.svg",
+        "histogram.png",
+        "potential.svg",
+        "potential.png",
+        "report.md",
+    ] {
         assert!(out.join(f).is_file(), "missing {f}\n{}", run.report());
     }
     let s = summary(&out);
     for key in [
-        "design", "dof", "catalog", "solver", "candidates", "dropped", "used", "frequency_rad_s", "residual_deg",
-        "equilibrium_gradient_norm", "hessian_rel_error", "monotone_violations", "timings_s",
+        "design",
+        "dof",
+        "catalog",
+        "solver",
+        "candidates",
+        "dropped",
+        "used",
+        "frequency_rad_s",
+        "residual_deg",
+        "equilibrium_gradient_norm",
+        "hessian_rel_error",
+        "monotone_violations",
+        "timings_s",
     ] {
         assert!(s.get(key).is_some(), "summary.json lacks {key}");
     }
@@ -59,15 +82,28 @@ fn bad_catalogues_get_clear_errors() {
     let dir = temp_dir("fit-bad-catalog");
     let good_catalog = std::fs::read_to_string(repo().join("catalogs/workshop.toml")).unwrap();
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
-        ("unknown_profile", good_catalog.replacen("profile = \"linear\"", "profile = \"spiral\"", 1), vec!["family[0].profile", "unknown profile"]),
-        ("negative_bound", good_catalog.replacen("max_stiffness = 220.0", "max_stiffness = -5.0", 1), vec!["family[0].max_stiffness", "positive"]),
-        ("wrong_length", good_catalog.replacen("couplings = [[1, 0], [0, 1]]", "couplings = [[1, 0, 0], [0, 1]]", 1), vec!["family[2].couplings[0]", "3 entries"]),
+        (
+            "unknown_profile",
+            good_catalog.replacen("profile = \"linear\"", "profile = \"spiral\"", 1),
+            vec!["family[0].profile", "unknown profile"],
+        ),
+        (
+            "negative_bound",
+            good_catalog.replacen("max_stiffness = 220.0", "max_stiffness = -5.0", 1),
+            vec!["family[0].max_stiffness", "positive"],
+        ),
+        (
+            "wrong_length",
+            good_catalog.replacen("couplings = [[1, 0], [0, 1]]", "couplings = [[1, 0, 0], [0, 1]]", 1),
+            vec!["family[2].couplings[0]", "3 entries"],
+        ),
         ("empty", "name = \"empty\"\n".to_string(), vec!["family", "no candidate"]),
     ];
     for (name, text, needles) in cases {
         assert_ne!(text, good_catalog, "case {name} did not change the catalogue");
         write(&dir, &format!("catalogs/{name}.toml"), &text);
-        let design = design_text("double_pendulum_workshop.toml").replace("../catalogs/workshop.toml", &format!("../catalogs/{name}.toml"));
+        let design = design_text("double_pendulum_workshop.toml")
+            .replace("../catalogs/workshop.toml", &format!("../catalogs/{name}.toml"));
         let path = write(&dir, &format!("designs/{name}.toml"), &design);
         springfit(&dir, &["fit", path.to_str().unwrap(), "--out", "out"]).fails(2, &needles);
         assert!(!dir.join("out").exists(), "no output may be written on error");
@@ -84,10 +120,14 @@ fn an_infeasible_fit_exits_with_1_names_the_constraint_and_keeps_previous_result
     let path = write(&dir, "designs/infeasible.toml", &design);
     write(&dir, "out/bom.csv", "previous results");
     for solver in ["qp", "nnls"] {
-        springfit(&dir, &["fit", path.to_str().unwrap(), "--out", "out", "--solver", solver]).fails(1, &["infeasible", "Hessian match"]);
+        springfit(&dir, &["fit", path.to_str().unwrap(), "--out", "out", "--solver", solver])
+            .fails(1, &["infeasible", "Hessian match"]);
         assert_eq!(std::fs::read_to_string(dir.join("out/bom.csv")).unwrap(), "previous results");
-        let leftovers: Vec<_> =
-            std::fs::read_dir(&dir).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().starts_with('.')).collect();
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+            .collect();
         assert!(leftovers.is_empty(), "staging folders left behind: {leftovers:?}");
     }
 }

@@ -27,7 +27,13 @@ fn repo(p: &str) -> std::path::PathBuf {
 fn known_stiffnesses_are_recovered_by_both_solvers_from_geodesic_rows() {
     let chain = Chain::paper_double_pendulum();
     let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
-    let fan = Fan::trace(&chain, &q_eq, FanSpec { count: 24, phase: 0.0, stop: Stop::Arc(2.0), spacing: 0.1 }, OdeSettings::default()).unwrap();
+    let fan = Fan::trace(
+        &chain,
+        &q_eq,
+        FanSpec { count: 24, phase: 0.0, stop: Stop::Arc(2.0), spacing: 0.1 },
+        OdeSettings::default(),
+    )
+    .unwrap();
     let el = |profile, coupling: [f64; 2], offset| Candidate {
         element: Element { profile, coupling: coupling.to_vec(), offset },
         family: 0,
@@ -44,7 +50,8 @@ fn known_stiffnesses_are_recovered_by_both_solvers_from_geodesic_rows() {
         el(Profile::Compression(Side::Minus), [1.0, 2.0], 2.5),
         el(Profile::Crank, [2.0, -1.0], 1.0),
     ];
-    let problem = assemble(&chain, &q_eq, &fan, &candidates, Requirements { omega: 2.0, hessian_match: true, monotone: false });
+    let problem =
+        assemble(&chain, &q_eq, &fan, &candidates, Requirements { omega: 2.0, hessian_match: true, monotone: false });
     let k_true = DVector::from_vec(vec![3.0, 0.0, 1.5, 0.7, 2.0, 0.0, 0.4]);
     // Right-hand sides that the known stiffnesses meet exactly.
     let b = &problem.rows * &k_true;
@@ -66,7 +73,13 @@ fn known_stiffnesses_are_recovered_by_both_solvers_from_geodesic_rows() {
 }
 
 fn quick(design: &Design) -> FitSettings {
-    FitSettings { training_directions: 36, training_samples: 20, evaluation_directions: 48, evaluation_samples: 20, ..design.fit }
+    FitSettings {
+        training_directions: 36,
+        training_samples: 20,
+        evaluation_directions: 48,
+        evaluation_samples: 20,
+        ..design.fit
+    }
 }
 
 #[test]

@@ -1,0 +1,72 @@
+//! Benchmarks of the closed-loop simulation. `cargo bench --bench simulate`; figures in
+//! BENCHMARKS.md.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use springfit::catalog::Catalog;
+use springfit::design::Design;
+use springfit::fit::run::fit;
+use springfit::scenario::{label_source, run_scenario};
+use springfit::simulate::ElasticPotential;
+
+fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
+    f();
+    let mut t: Vec<Duration> = (0..reps)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed()
+        })
+        .collect();
+    t.sort();
+    (t[t.len() / 2], t[0])
+}
+
+fn main() {
+    let d = Design::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml")).unwrap();
+    let catalog = Catalog::load(d.catalog.as_ref().unwrap(), d.dof()).unwrap();
+    let pot = ElasticPotential::Springs(fit(&d, &catalog, &d.fit, &|_| {}).unwrap().springs);
+    println!("springfit simulation benchmarks (median / min over repeats)");
+    let mut err = None;
+    let (med, min) = time(3, || {
+        let (_, e) = black_box(label_source(&d, &d.simulate).unwrap());
+        err = e;
+    });
+    println!(
+        "label table {}×{} nodes: {:.0} ms / {:.0} ms; largest label error {:.2e}° on {} held-out samples",
+        d.simulate.table_nodes,
+        d.simulate.table_nodes,
+        ms(med),
+        ms(min),
+        err.unwrap().0,
+        err.unwrap().1
+    );
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let switch = d.file.scenario.iter().position(|s| s.name == "switch").unwrap();
+    let (med, min) = time(5, || {
+        black_box(run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, switch).unwrap());
+    });
+    println!(
+        "switch scenario: 100 s at 1 kHz, RK4, springs + mode controller with the tabulated label: {:.0} ms / {:.0} ms",
+        ms(med),
+        ms(min)
+    );
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let swing = d.file.scenario.iter().position(|s| s.name == "swingup").unwrap();
+        let (med, min) = time(5, || {
+            pool.install(|| black_box(run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, swing).unwrap()));
+        });
+        println!(
+            "swing-up scenario (3 variants × 20 s at 1 kHz), {threads} thread(s): {:.0} ms / {:.0} ms",
+            ms(med),
+            ms(min)
+        );
+    }
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}

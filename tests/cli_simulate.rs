@@ -1,0 +1,53 @@
+//! `springfit simulate` through the binary.
+
+mod util;
+
+use util::{repo, springfit, temp_dir};
+
+#[test]
+fn swingup_writes_metrics_per_variant_and_plots() {
+    let dir = temp_dir("sim-swingup");
+    let design = repo().join("designs/double_pendulum.toml");
+    // Fit first, then simulate the springs of its bill of materials.
+    springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "fit"]).ok();
+    let run = springfit(
+        &dir,
+        &["simulate", design.to_str().unwrap(), "--scenario", "swingup", "--bom", "fit/bom.csv", "--out", "sim"],
+    )
+    .ok();
+    let out = dir.join("sim");
+    for f in ["sim_swingup.csv", "sim_swingup.json"] {
+        assert!(out.join(f).is_file(), "missing {f}\n{}", run.report());
+    }
+    for plot in ["phase", "q", "torques", "label", "power"] {
+        for ext in ["svg", "png"] {
+            assert!(out.join(format!("sim_swingup_{plot}.{ext}")).is_file(), "missing {plot}.{ext}");
+        }
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sim_swingup.json")).unwrap()).unwrap();
+    for variant in ["energy", "negative_damping", "energy_compensated"] {
+        let m = &json["runs"][variant];
+        for key in ["energy_rel_error_last5s", "flux", "actuator_share", "peak_torque_nm"] {
+            assert!(m.get(key).is_some(), "{variant} lacks {key}: {m}");
+        }
+        for src in ["potential", "mode", "energy", "damping"] {
+            assert!(m["flux"][src].as_f64().is_some(), "{variant} flux lacks {src}");
+        }
+    }
+    assert!(json["runs"]["energy_compensated"]["energy_rel_error_last5s"].as_f64().unwrap() < 0.02);
+    let csv = std::fs::read_to_string(out.join("sim_swingup.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(header.starts_with("run,t,q1,q2,qd1,qd2,tau_spring1"), "{header}");
+    assert!(header.ends_with("E,label,label_target"), "{header}");
+    assert!(json["potential"].as_str().unwrap().contains("bom.csv"));
+}
+
+#[test]
+fn an_unknown_scenario_is_named() {
+    let dir = temp_dir("sim-unknown");
+    let design = repo().join("designs/double_pendulum.toml");
+    springfit(&dir, &["simulate", design.to_str().unwrap(), "--scenario", "moonwalk", "--exact"])
+        .fails(2, &["moonwalk", "free, switch, swingup"]);
+    assert!(!dir.join("out").exists());
+}
