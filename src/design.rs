@@ -44,6 +44,7 @@ use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 use crate::model::{Chain, Link};
 use crate::scenario::ScenarioSpec;
 use crate::simulate::SimSettings;
+use crate::sweep::SweepSettings;
 use crate::units::Angle;
 
 /// The design file as written.
@@ -72,6 +73,8 @@ pub struct DesignFile {
     pub controllers: ControllerSettings,
     /// Simulation scenarios.
     pub scenario: Vec<ScenarioSpec>,
+    /// Sensitivity sweeps.
+    pub sweep: SweepSettings,
 }
 
 /// `[robot]`: links from the base outwards and gravity.
@@ -353,6 +356,7 @@ impl Design {
         file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         let mut names = std::collections::HashSet::new();
         for (i, sc) in file.scenario.iter().enumerate() {
             if !names.insert(sc.name.clone()) {

@@ -24,6 +24,8 @@ pub mod ode;
 pub mod potential;
 pub mod report;
 pub mod residual;
+pub mod rng;
 pub mod scenario;
 pub mod simulate;
+pub mod sweep;
 pub mod units;

@@ -301,11 +301,16 @@ impl Chain {
     /// Gravity potential U_g(q) = Σ mᵢ g·cᵢ(q) in J.
     pub fn gravity_potential(&self, q: &[f64]) -> f64 {
         let [gx, gy] = self.gravity;
-        self.link_angles(q)
-            .iter()
-            .zip(&self.gravity_lever)
-            .map(|(phi, lever)| lever * (gx * phi.cos() + gy * phi.sin()))
-            .sum()
+        if gx == 0.0 && gy == 0.0 {
+            return 0.0;
+        }
+        let mut phi = 0.0;
+        let mut u = 0.0;
+        for (qi, lever) in q.iter().zip(&self.gravity_lever) {
+            phi += qi;
+            u += lever * (gx * phi.cos() + gy * phi.sin());
+        }
+        u
     }
 
     /// ∂U_g/∂q in N·m.
@@ -434,6 +439,16 @@ impl Chain {
         self.fill_mass(ws);
         ws.m_full.copy_from_slice(&ws.m);
         self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        linalg::cholesky_in_place(&mut ws.m, n)
+    }
+
+    /// Evaluates and factors M(q) into the workspace (no Coriolis term): for repeated solves
+    /// M x = b at one configuration ([`Workspace::solve`]).
+    pub fn factor_mass(&self, ws: &mut Workspace, q: &[f64]) -> bool {
+        let n = self.dof();
+        self.fill_trig(q, ws);
+        self.fill_mass(ws);
+        ws.m_full.copy_from_slice(&ws.m);
         linalg::cholesky_in_place(&mut ws.m, n)
     }
 

@@ -20,6 +20,11 @@ pub trait Potential: Sync {
     fn value(&self, q: &[f64]) -> Result<f64>;
     /// ∂U_e/∂q in N·m.
     fn gradient(&self, q: &[f64]) -> Result<DVector<f64>>;
+    /// ∂U_e/∂q into `out` (implementations on hot paths override it to avoid allocating).
+    fn gradient_into(&self, q: &[f64], out: &mut [f64]) -> Result<()> {
+        out.copy_from_slice(self.gradient(q)?.as_slice());
+        Ok(())
+    }
     /// ∂²U_e/∂q² in N·m/rad.
     fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>>;
 }
@@ -47,11 +52,36 @@ impl SpringSet {
         }
     }
 
-    /// Gradient without allocation-heavy paths (the simulation's hot loop).
+    /// Gradient without allocating (the simulation's hot loop).
     pub fn gradient_into(&self, q: &[f64], out: &mut [f64]) {
+        self.gradient_scaled_into(q, None, out);
+    }
+
+    /// U_e and its gradient in one pass (one trigonometric evaluation per element), the gradient
+    /// into `out`.
+    pub fn value_gradient_into(&self, q: &[f64], out: &mut [f64]) -> f64 {
         out.fill(0.0);
+        let mut u = 0.0;
         for (e, k) in self.elements.iter().zip(&self.stiffness) {
             if *k == 0.0 {
+                continue;
+            }
+            let (v, slope, _) = e.profile.eval(e.deflection(q));
+            u += k * v;
+            for (o, a) in out.iter_mut().zip(&e.coupling) {
+                *o += k * slope * a;
+            }
+        }
+        u
+    }
+
+    /// Gradient with each stiffness multiplied by `scale[j]` (manufacturing deviations), into
+    /// `out`.
+    pub fn gradient_scaled_into(&self, q: &[f64], scale: Option<&[f64]>, out: &mut [f64]) {
+        out.fill(0.0);
+        for (j, (e, k)) in self.elements.iter().zip(&self.stiffness).enumerate() {
+            let k = k * scale.map_or(1.0, |s| s[j]);
+            if k == 0.0 {
                 continue;
             }
             let slope = k * e.profile.slope(e.deflection(q));
@@ -73,8 +103,13 @@ impl Potential for SpringSet {
 
     fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
         let mut g = DVector::zeros(q.len());
-        self.gradient_into(q, g.as_mut_slice());
+        SpringSet::gradient_into(self, q, g.as_mut_slice());
         Ok(g)
+    }
+
+    fn gradient_into(&self, q: &[f64], out: &mut [f64]) -> Result<()> {
+        SpringSet::gradient_into(self, q, out);
+        Ok(())
     }
 
     fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {

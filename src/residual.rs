@@ -96,11 +96,26 @@ fn geodesic_angles(
     g: &Geodesic,
     potential: &dyn Potential,
 ) -> Result<Vec<AngleSample>> {
+    // Allocation-free per sample: this runs for every sample of every evaluation fan, thousands
+    // of times in a tolerance sweep.
+    let n = chain.dof();
+    let mut ws = chain.workspace();
+    let (mut grad, mut grav) = (vec![0.0; n], vec![0.0; n]);
     (0..g.len())
         .map(|i| {
             let q = g.q(i);
-            let grad = potential.gradient(q)? + chain.gravity_gradient(q);
-            Ok(AngleSample { direction, s: g.s(i), q: q.to_vec(), angle_deg: residual_angle(chain, q, g.qd(i), &grad) })
+            potential.gradient_into(q, &mut grad)?;
+            chain.gravity_gradient_into(q, &mut grav);
+            for (a, b) in grad.iter_mut().zip(&grav) {
+                *a += b;
+            }
+            let angle_deg = if chain.factor_mass(&mut ws, q) {
+                ws.solve(&mut grad);
+                angle_between(&grad, g.qd(i))
+            } else {
+                f64::NAN
+            };
+            Ok(AngleSample { direction, s: g.s(i), q: q.to_vec(), angle_deg })
         })
         .collect()
 }

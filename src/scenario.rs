@@ -225,6 +225,7 @@ impl ScenarioSpec {
             mode: None,
             energy: None,
             parasitic: None,
+            stiffness_scale: None,
         };
         let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
         let runs = match self.kind {

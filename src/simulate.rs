@@ -174,6 +174,9 @@ pub struct RunSpec {
     pub energy: Option<EnergyControl>,
     /// Parasitic springs, if any.
     pub parasitic: Option<Parasitic>,
+    /// Built stiffness / nominal stiffness per element of a spring-set potential (manufacturing
+    /// deviations); like parasitic springs, unknown to the controllers.
+    pub stiffness_scale: Option<Vec<f64>>,
 }
 
 /// The sampled result of a run.
@@ -267,6 +270,7 @@ pub struct Dynamics<'a> {
     tau: [Vec<f64>; NSRC],
     buf: Vec<f64>,
     buf2: Vec<f64>,
+    gbuf: Vec<f64>,
     peak: [f64; NSRC],
     error: Option<Error>,
     reference: Option<DVector<f64>>,
@@ -305,6 +309,7 @@ impl<'a> Dynamics<'a> {
             tau: std::array::from_fn(|_| vec![0.0; n]),
             buf: vec![0.0; n],
             buf2: vec![0.0; n],
+            gbuf: Vec::with_capacity(n),
             peak: [0.0; NSRC],
             error: None,
             reference: None,
@@ -410,9 +415,17 @@ impl<'a> Dynamics<'a> {
             tau.fill(0.0);
         }
         // Elastic potential (and parasitic springs).
+        // The nominal U (for the energy controller) comes with the spring gradient when the
+        // springs are as designed.
+        let mut nominal_u = None;
         match self.potential {
             ElasticPotential::Springs(s) => {
-                s.gradient_into(q, &mut self.buf);
+                if self.spec.stiffness_scale.is_none() {
+                    let ue = s.value_gradient_into(q, &mut self.buf);
+                    nominal_u = Some(ue + self.chain.gravity_potential(q));
+                } else {
+                    s.gradient_scaled_into(q, self.spec.stiffness_scale.as_deref(), &mut self.buf);
+                }
                 for i in 0..n {
                     self.tau[SPRING][i] = -self.buf[i];
                 }
@@ -451,12 +464,19 @@ impl<'a> Dynamics<'a> {
                     reason: "mode control needs a label".into(),
                 })?;
                 field.eval(q, &mut self.lv)?;
-                let (delta, mut g) = match mode.target(t) {
+                let mut g = std::mem::take(&mut self.gbuf);
+                let delta = match mode.target(t) {
                     ModeTarget::Angle(theta_d) if n == 2 => {
-                        let (theta, g) = angle_label(&self.lv);
-                        (wrap_angle(theta - theta_d), g.to_vec())
+                        let (theta, grad) = angle_label(&self.lv);
+                        g.clear();
+                        g.extend_from_slice(&grad);
+                        wrap_angle(theta - theta_d)
                     }
-                    ModeTarget::Direction(u) => sphere_distance(&self.lv, &self.frame, u),
+                    ModeTarget::Direction(u) => {
+                        let (delta, grad) = sphere_distance(&self.lv, &self.frame, u);
+                        g = grad;
+                        delta
+                    }
                     ModeTarget::Angle(_) => {
                         return Err(Error::Setting {
                             field: "mode".into(),
@@ -472,11 +492,15 @@ impl<'a> Dynamics<'a> {
                 self.buf.copy_from_slice(&g);
                 self.ws.solve(&mut self.buf);
                 mode_torque(&self.controllers, delta, &g, &self.buf, qd, self.ws.mass(), &mut self.tau[MODE]);
+                self.gbuf = g;
             }
         }
         // Energy regulation and damping compensation.
         if let Some(ec) = self.spec.energy {
-            let u = self.nominal_potential(q)?;
+            let u = match nominal_u {
+                Some(u) => u,
+                None => self.nominal_potential(q)?,
+            };
             let m = self.ws.mass();
             let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
             let e = kin + u - self.u0;

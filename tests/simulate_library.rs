@@ -105,6 +105,7 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
         mode: Some(ModeControl { schedule: vec![(0.0, ModeTarget::Direction(target))] }),
         energy: None,
         parasitic: None,
+        stiffness_scale: None,
     };
     let settings = SimSettings { rate: 400.0, ..d.simulate };
     let controllers = ControllerSettings { k_theta: 5.0, ..d.controllers };

@@ -6,6 +6,7 @@ mod fit;
 mod geodesics;
 mod progress;
 mod simulate;
+mod sweep;
 
 use std::path::PathBuf;
 
@@ -91,6 +92,32 @@ Writes, per scenario, sim_<name>.csv (t, q, q̇, torque per source, E, label), s
         #[arg(long)]
         exact_label: bool,
     },
+    /// Sensitivity of a fitted design: parasitic springs, manufacturing tolerance, stock rates.
+    #[command(
+        after_help = "Examples:\n  springfit sweep\n  springfit sweep --shard 1/4 --out shards/1   # on a batch scheduler, one per task\n  springfit sweep --merge shards/1 shards/2 shards/3 shards/4\n\n\
+Writes sweep.csv (one row per run), sweep.json (the tables), tolerance.md, bom_stock.csv and\n\
+plots. A shard writes sweep_shard.json; merging the shards gives the same tables as one run."
+    )]
+    Sweep {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Output folder (default: out/<design name>_sweep, or …_sweep_shard_<i>_of_<N>).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Compute only shard i of N of the runs (1-based), e.g. 3/8.
+        #[arg(long, value_name = "i/N", conflicts_with = "merge")]
+        shard: Option<String>,
+        /// Join the shards in these folders into the tables.
+        #[arg(long, value_name = "DIR", num_args = 1..)]
+        merge: Vec<PathBuf>,
+        /// Override the number of Monte Carlo builds per tolerance level.
+        #[arg(long, value_name = "N")]
+        builds: Option<usize>,
+        /// Override the seed of the builds.
+        #[arg(long, value_name = "S")]
+        seed: Option<u64>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -132,6 +159,9 @@ pub fn run() -> Result<()> {
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {
         Command::Check { design } => check::run(&design, &progress),
+        Command::Sweep { design, out, shard, merge, builds, seed } => {
+            sweep::run(sweep::SweepArgs { design, out, shard, merge, builds, seed }, &progress)
+        }
         Command::Simulate { design, scenario, out, exact, bom, exact_label } => {
             simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &progress)
         }

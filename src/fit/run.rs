@@ -90,6 +90,8 @@ pub struct FitOutcome {
     pub dropped: usize,
     /// The bill of materials (empty for the exact reference).
     pub bom: Vec<BomRow>,
+    /// Stock rates the catalogue offers, by family name (for snapping).
+    pub stock_rates: std::collections::BTreeMap<String, Vec<f64>>,
     /// The fitted spring set (the BOM's elements and stiffnesses).
     pub springs: SpringSet,
     /// Residuals and checks on the held-out fan.
@@ -173,6 +175,7 @@ pub fn fit(design: &Design, catalog: &Catalog, settings: &FitSettings, stage: &d
         candidates: n_expanded,
         dropped,
         bom,
+        stock_rates: catalog.families.iter().map(|f| (f.name.clone(), f.stock_rates.clone())).collect(),
         springs,
         metrics,
         solve,
@@ -219,6 +222,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
         candidates: 0,
         dropped: 0,
         bom: Vec::new(),
+        stock_rates: Default::default(),
         springs: SpringSet { elements: Vec::new(), stiffness: Vec::new() },
         metrics,
         solve: SolveReport {
@@ -494,4 +498,44 @@ pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, 
         hessian_rel_error: (hess - &target).norm() / target.norm(),
         monotone_violations,
     })
+}
+
+/// Refits the stiffnesses of `elements` on the training fan with some of them fixed
+/// (`fixed[j] = Some(k)`), by NNLS with the equalities weighted as in the fit: what is left free
+/// compensates what was fixed (stock-rate snapping). Returns every element's stiffness.
+pub fn refit_with_fixed(
+    design: &Design,
+    settings: &FitSettings,
+    training: &Fan,
+    elements: &[crate::elements::Element],
+    fixed: &[Option<f64>],
+) -> Result<Vec<f64>> {
+    let candidates: Vec<Candidate> = elements
+        .iter()
+        .map(|e| Candidate {
+            element: e.clone(),
+            family: 0,
+            max_stiffness: None,
+            stock_rates: Vec::new(),
+            tolerance: 0.0,
+        })
+        .collect();
+    let req = Requirements { omega: settings.frequency, hessian_match: settings.hessian_match, monotone: false };
+    let problem = assemble(&design.chain, &design.q_eq, training, &candidates, req);
+    let mut weighted = Gram::from_rows(&problem.rows, &problem.rhs);
+    let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
+    for eq in &problem.equalities {
+        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
+    }
+    let free: Vec<usize> = (0..elements.len()).filter(|&j| fixed[j].is_none()).collect();
+    let fixed_idx: Vec<usize> = (0..elements.len()).filter(|&j| fixed[j].is_some()).collect();
+    let values: Vec<f64> = fixed_idx.iter().map(|&j| fixed[j].unwrap_or(0.0)).collect();
+    let mut k: Vec<f64> = fixed.iter().map(|f| f.unwrap_or(0.0)).collect();
+    if !free.is_empty() {
+        let sol = nnls(&weighted.fix(&free, &fixed_idx, &values), 0.0, &NnlsSettings::default())?;
+        for (a, &j) in free.iter().enumerate() {
+            k[j] = sol.k[a];
+        }
+    }
+    Ok(k)
 }

@@ -7,3 +7,4 @@ pub mod geodesics;
 pub mod output;
 pub mod plot;
 pub mod simulate;
+pub mod sweep;

@@ -1,0 +1,235 @@
+//! The files `springfit sweep` writes.
+
+use super::output::OutputDir;
+use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
+use crate::bom::{self, BomRow};
+use crate::error::Result;
+use crate::simulate::SOURCES;
+use crate::sweep::{ItemResult, SweepTables, WorkItem};
+
+/// `sweep.csv`: one row per item.
+pub fn items_csv(results: &[ItemResult]) -> String {
+    let mut s = String::from(
+        "index,kind,eps,tolerance,build,flux_potential,flux_mode,flux_energy,actuator_share,residual_p99_deg\n",
+    );
+    let mut sorted: Vec<&ItemResult> = results.iter().collect();
+    sorted.sort_by_key(|r| r.index);
+    for r in sorted {
+        let (kind, eps, tol, build) = match r.item {
+            WorkItem::Parasitic { eps } => ("parasitic", format!("{eps}"), String::new(), String::new()),
+            WorkItem::Build { level, build } => (
+                "build",
+                String::new(),
+                level.map(|l| format!("{l}")).unwrap_or_else(|| "catalogue".into()),
+                format!("{build}"),
+            ),
+            WorkItem::Stock => ("stock", String::new(), String::new(), String::new()),
+        };
+        s.push_str(&format!(
+            "{},{kind},{eps},{tol},{build},{},{},{},{},{}\n",
+            r.index, r.flux_potential, r.flux_mode, r.flux_energy, r.actuator_share, r.residual_p99_deg
+        ));
+    }
+    s
+}
+
+/// `tolerance.md`: the three tables a person reads.
+pub fn tables_md(design: &str, t: &SweepTables) -> String {
+    let mut s = format!("# Sensitivity of {design}\n\n## Parasitic springs (the paper's Table II)\n\n");
+    s.push_str("| ε | ∫\\|P_Ũ\\| (J) | ∫\\|P_θ\\| (J) | ∫\\|P_E\\| (J) | actuator share |\n| ---: | ---: | ---: | ---: | ---: |\n");
+    for r in &t.parasitic {
+        s.push_str(&format!(
+            "| {} | {:.2} | {:.2} | {:.2} | {:.3} % |\n",
+            r.eps,
+            r.flux_potential,
+            r.flux_mode,
+            r.flux_energy,
+            100.0 * r.actuator_share
+        ));
+    }
+    s.push_str("\nThe paper's neural-network potential: ε = 0: 354.56 / 2.86 / 0.03 J (share 0.82 %); ε = 1: 565.60 / 20.92 / 181.83 J.\n");
+    s.push_str("\n## Manufacturing tolerance\n\nResidual angles of each build are taken on held-out geodesics from the equilibrium the built springs actually have (its shift from q_eq is listed); the actuator share comes from the closed-loop run, whose controllers still assume the nominal springs and q_eq.\n\n| tolerance | distribution | builds | actuator share p50 | p95 | residual p99 p50 | p95 | equilibrium shift p50 | p95 |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+    for l in &t.tolerance_levels {
+        s.push_str(&format!(
+            "| {} | {:?} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {:.4} rad | {:.4} rad |\n",
+            l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
+            l.distribution,
+            l.builds,
+            100.0 * l.actuator_share_p50,
+            100.0 * l.actuator_share_p95,
+            l.residual_p99_deg_p50,
+            l.residual_p99_deg_p95,
+            l.equilibrium_shift_rad_p50,
+            l.equilibrium_shift_rad_p95
+        ));
+    }
+    if let Some(st) = &t.stock {
+        s.push_str(&format!(
+            "\n## Stock rates\n\nEach stiffness snapped to the nearest stock rate (largest torque first, the others refitted after each snap); see `bom_stock.csv`.\n\n| | residual p99 | actuator share |\n| --- | ---: | ---: |\n| fitted | {:.3}° | {:.3} % |\n| snapped | {:.3}° | {:.3} % |\n",
+            st.residual_p99_deg_before, 100.0 * st.actuator_share_before, st.residual_p99_deg_after, 100.0 * st.actuator_share_after
+        ));
+    }
+    s
+}
+
+/// Writes the sweep's outputs. `bom` is the nominal bill of materials (for `bom_stock.csv`).
+pub fn write(
+    out: &OutputDir,
+    design: &str,
+    tables: &SweepTables,
+    results: &[ItemResult],
+    bom: &[BomRow],
+) -> Result<()> {
+    out.write("sweep.csv", items_csv(results))?;
+    out.write("sweep.json", serde_json::to_string_pretty(tables).expect("serialises") + "\n")?;
+    out.write("tolerance.md", tables_md(design, tables))?;
+    if let Some(k) = results.iter().find_map(|r| r.stock_stiffness.clone()) {
+        let rows: Vec<BomRow> = bom
+            .iter()
+            .zip(&k)
+            .map(|(row, &k)| BomRow {
+                stiffness: k,
+                max_torque_nm: row.max_torque_nm * if row.stiffness > 0.0 { k / row.stiffness } else { 1.0 },
+                stock_rate: row.stock_rate.map(|_| k),
+                ..row.clone()
+            })
+            .collect();
+        out.write("bom_stock.csv", bom::to_csv(&rows))?;
+    }
+    let mut parasitic: Vec<&ItemResult> =
+        results.iter().filter(|r| matches!(r.item, WorkItem::Parasitic { .. })).collect();
+    parasitic.sort_by_key(|r| r.index);
+    if !parasitic.is_empty() {
+        let eps = |r: &ItemResult| if let WorkItem::Parasitic { eps } = r.item { eps } else { f64::NAN };
+        let lines: Vec<Layer> = parasitic
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| {
+                let s = r.series.as_ref()?;
+                let pts: Vec<(f64, f64)> = s.q.chunks(2).map(|c| (c[0], c[1])).collect();
+                Some(Layer::Lines {
+                    lines: vec![pts],
+                    style: Style::line(palette(i), 1),
+                    label: Some(format!("ε = {}", eps(r))),
+                })
+            })
+            .collect();
+        let phase = Panel {
+            title: "Trajectories with parasitic springs (the paper's Fig. 8a)".into(),
+            x_label: "q₁ (rad)".into(),
+            y_label: "q₂ (rad)".into(),
+            equal_aspect: true,
+            legend: true,
+            layers: lines,
+            ..Panel::default()
+        };
+        render(&Figure::single(phase, 900, 800), &out.path("sweep_parasitic_phase"))?;
+        // Power by source for three ε (the paper's Fig. 8c–e): the smallest non-zero, a middle one
+        // and the largest.
+        let picks: Vec<&ItemResult> = {
+            let nz: Vec<&ItemResult> = parasitic.iter().copied().filter(|r| eps(r) > 0.0).collect();
+            let mut p = Vec::new();
+            if let Some(f) = nz.first() {
+                p.push(*f);
+            }
+            if nz.len() > 2 {
+                p.push(nz[nz.len() / 2]);
+            }
+            if let Some(l) = nz.last() {
+                if p.last().is_none_or(|x| x.index != l.index) {
+                    p.push(*l);
+                }
+            }
+            p
+        };
+        let panels: Vec<Panel> = picks
+            .iter()
+            .filter_map(|r| {
+                let s = r.series.as_ref()?;
+                let ns = SOURCES.len();
+                let layers = [(0usize, "spring"), (3, "mode"), (4, "energy")]
+                    .iter()
+                    .map(|&(src, name)| Layer::Lines {
+                        lines: vec![s.t.iter().enumerate().map(|(k, &t)| (t, s.power[k * ns + src])).collect()],
+                        style: Style::line(palette(src), if src == 0 { 1 } else { 2 }),
+                        label: Some(name.into()),
+                    })
+                    .collect();
+                Some(Panel {
+                    title: format!("ε = {}", eps(r)),
+                    x_label: "t (s)".into(),
+                    y_label: "power (W)".into(),
+                    legend: true,
+                    layers,
+                    ..Panel::default()
+                })
+            })
+            .collect();
+        if !panels.is_empty() {
+            let rows = panels.len();
+            render(
+                &Figure {
+                    title: Some("Power by source with parasitic springs".into()),
+                    width: 1000,
+                    height: 330 * rows as u32 + 40,
+                    rows,
+                    cols: 1,
+                    panels,
+                },
+                &out.path("sweep_parasitic_power"),
+            )?;
+        }
+    }
+    // Tolerance distributions.
+    if !tables.tolerance_levels.is_empty() {
+        let mut share_boxes = Vec::new();
+        let mut resid_layers = Vec::new();
+        for (i, l) in tables.tolerance_levels.iter().enumerate() {
+            let builds: Vec<&ItemResult> = results
+                .iter()
+                .filter(|r| matches!(r.item, WorkItem::Build { level, .. } if level == l.tolerance))
+                .collect();
+            let name = l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into());
+            let shares: Vec<f64> = builds.iter().map(|r| 100.0 * r.actuator_share).collect();
+            share_boxes.push(BoxItem::from_samples(&name, &shares, palette(i)));
+            let resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
+            let hi = resid.iter().fold(0.0f64, |a, v| a.max(*v)) * 1.05 + 1e-9;
+            let edges: Vec<f64> = (0..=30).map(|k| hi * k as f64 / 30.0).collect();
+            let counts = histogram(&resid, &edges);
+            resid_layers.push(Layer::Histogram {
+                edges,
+                counts,
+                style: Style::fill(palette(i), 0.45),
+                label: Some(name),
+            });
+        }
+        let panels = vec![
+            Panel {
+                title: "Actuator share per build".into(),
+                y_label: "actuator share (%)".into(),
+                layers: vec![Layer::Boxes { items: share_boxes }],
+                ..Panel::default()
+            },
+            Panel {
+                title: "p99 residual angle per build".into(),
+                x_label: "p99 |angle| (°)".into(),
+                y_label: "builds".into(),
+                legend: true,
+                layers: resid_layers,
+                ..Panel::default()
+            },
+        ];
+        render(
+            &Figure {
+                title: Some(format!("{design}: manufacturing tolerance")),
+                width: 1300,
+                height: 560,
+                rows: 1,
+                cols: 2,
+                panels,
+            },
+            &out.path("sweep_tolerance"),
+        )?;
+    }
+    Ok(())
+}

@@ -1,0 +1,557 @@
+//! Sensitivity and manufacturability: parasitic springs, manufacturing tolerance, stock rates.
+//!
+//! A sweep is a list of independent *work items*, each a closed-loop run of the design's
+//! sensitivity scenario (and, for builds, an evaluation of the residual angles) with the springs
+//! perturbed one way:
+//!
+//! * **parasitic** (the paper's Table II): Ũ = U + ½ε(q − q_eq)ᵀdiag(κ)(q − q_eq) with
+//!   κᵢ = max|∂U_e/∂qᵢ| / max|qᵢ − q_eq,ᵢ| over the region, for each ε;
+//! * **tolerance**: a Monte Carlo build with each stiffness scaled by 1 + δ, δ uniform in
+//!   ±tolerance or normal with σ = tolerance/3 truncated at ±tolerance (the catalogue's tolerance
+//!   per element, or a level given in the sweep settings for all elements);
+//! * **stock**: each stiffness snapped to the nearest stock rate, largest torque first, the others
+//!   refitted after each snap.
+//!
+//! The controllers always use the nominal potential (the one the designer computed), as the
+//! paper's sensitivity analysis does. Items are numbered; a build draws from its own random
+//! stream, so any subset of items (a shard) gives the same numbers as in a full run, and merged
+//! shards give the same tables bit for bit.
+
+use serde::{Deserialize, Serialize};
+
+use crate::control::ControllerSettings;
+use crate::design::Design;
+use crate::error::{Error, Result};
+use crate::fit::run::{FitOutcome, nearest, refit_with_fixed};
+use crate::potential::SpringSet;
+use crate::residual::percentile;
+use crate::rng::SplitMix64;
+use crate::scenario::{LabelSource, ScenarioKind, metrics};
+use crate::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, SimSettings, run};
+
+/// How manufacturing deviations are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Distribution {
+    /// δ uniform in [−t, t].
+    #[default]
+    Uniform,
+    /// δ normal with σ = t/3, truncated at ±t.
+    Normal,
+}
+
+/// `[sweep]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SweepSettings {
+    /// The scenario run for every item (a run with both controllers, e.g. a swing-up from E_d to
+    /// E_d without damping; its first run is used).
+    pub scenario: String,
+    /// Parasitic scales ε.
+    pub epsilons: Vec<f64>,
+    /// Monte Carlo builds per tolerance level.
+    pub builds: usize,
+    /// Seed of the builds.
+    pub seed: u64,
+    /// `uniform` or `normal`.
+    pub distribution: Distribution,
+    /// Tolerance levels applied to every element (fractions); empty: each element's catalogue
+    /// tolerance.
+    pub tolerances: Vec<f64>,
+    /// Held-out geodesics per build (from the build's own equilibrium).
+    pub evaluation_directions: usize,
+    /// Samples per geodesic per build.
+    pub evaluation_samples: usize,
+}
+
+impl Default for SweepSettings {
+    fn default() -> Self {
+        SweepSettings {
+            scenario: "sensitivity".into(),
+            epsilons: vec![0.0, 0.01, 0.05, 0.1, 0.5, 1.0],
+            builds: 200,
+            seed: 1,
+            distribution: Distribution::Uniform,
+            tolerances: Vec::new(),
+            evaluation_directions: 120,
+            evaluation_samples: 50,
+        }
+    }
+}
+
+impl SweepSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
+        for (i, e) in self.epsilons.iter().enumerate() {
+            if !(e.is_finite() && *e >= 0.0) {
+                return Err((format!("sweep.epsilons[{i}]"), format!("must be ≥ 0, got {e}")));
+            }
+        }
+        for (i, t) in self.tolerances.iter().enumerate() {
+            if !(t.is_finite() && (0.0..1.0).contains(t)) {
+                return Err((format!("sweep.tolerances[{i}]"), format!("must be a fraction in [0, 1), got {t}")));
+            }
+        }
+        if self.evaluation_directions < 4 || self.evaluation_samples < 2 {
+            return Err(("sweep.evaluation_directions".into(), "needs at least 4 directions of 2 samples".into()));
+        }
+        if self.builds > 1_000_000 {
+            return Err(("sweep.builds".into(), "at most 1 000 000".into()));
+        }
+        Ok(())
+    }
+}
+
+/// One unit of work.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WorkItem {
+    /// Parasitic springs at scale `eps`.
+    Parasitic { eps: f64 },
+    /// Build `build` at tolerance level `level` (None: the catalogue's tolerances).
+    Build { level: Option<f64>, build: usize },
+    /// Stock-rate snapping.
+    Stock,
+}
+
+/// A time series kept for the parasitic runs' plots.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Series {
+    /// Times.
+    pub t: Vec<f64>,
+    /// q₁, q₂ per sample (flat).
+    pub q: Vec<f64>,
+    /// Power per source per sample (flat, [`SOURCES`] order).
+    pub power: Vec<f64>,
+}
+
+/// The result of one item.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ItemResult {
+    /// Position in the plan.
+    pub index: usize,
+    /// What was run.
+    pub item: WorkItem,
+    /// ∫|P_Ũ|, J.
+    pub flux_potential: f64,
+    /// ∫|P_θ|, J.
+    pub flux_mode: f64,
+    /// ∫|P_E|, J.
+    pub flux_energy: f64,
+    /// (∫|P_θ| + ∫|P_E|)/∫|P_Ũ|.
+    pub actuator_share: f64,
+    /// p99 |residual angle| on the held-out geodesics, degrees (builds and stock: after).
+    pub residual_p99_deg: f64,
+    /// The same for the nominal springs (stock: before snapping).
+    pub residual_p99_deg_before: Option<f64>,
+    /// Actuator share with the nominal springs (stock: before snapping).
+    pub actuator_share_before: Option<f64>,
+    /// How far the built springs move the equilibrium, |q_eq′ − q_eq| in rad (builds, stock).
+    pub equilibrium_shift_rad: Option<f64>,
+    /// Stiffnesses after snapping (stock only), in BOM order.
+    pub stock_stiffness: Option<Vec<f64>>,
+    /// Time series (parasitic only).
+    pub series: Option<Series>,
+}
+
+/// Everything the items need, built once per process.
+pub struct SweepContext<'a> {
+    /// The design.
+    pub design: &'a Design,
+    /// The nominal fit.
+    pub fit: &'a FitOutcome,
+    /// Label for the mode controller.
+    pub label: &'a LabelSource<'a>,
+    /// Simulation settings.
+    pub sim: SimSettings,
+    /// Controller gains.
+    pub controllers: ControllerSettings,
+    /// Sweep settings.
+    pub settings: SweepSettings,
+    /// The run every item perturbs.
+    pub base: RunSpec,
+    /// κ per joint.
+    pub kappa: Vec<f64>,
+    /// The nominal potential.
+    pub nominal: ElasticPotential,
+}
+
+/// The items of a sweep, in a fixed order: parasitic, then builds per level, then stock.
+pub fn plan(settings: &SweepSettings, has_stock: bool) -> Vec<WorkItem> {
+    let mut items: Vec<WorkItem> = settings.epsilons.iter().map(|&eps| WorkItem::Parasitic { eps }).collect();
+    let levels: Vec<Option<f64>> = if settings.tolerances.is_empty() {
+        vec![None]
+    } else {
+        settings.tolerances.iter().map(|t| Some(*t)).collect()
+    };
+    for level in levels {
+        items.extend((0..settings.builds).map(|build| WorkItem::Build { level, build }));
+    }
+    if has_stock {
+        items.push(WorkItem::Stock);
+    }
+    items
+}
+
+/// κᵢ = max|∂U_e/∂qᵢ| / max|qᵢ − q_eq,ᵢ| over the samples of the fit's evaluation fan.
+pub fn kappa(design: &Design, springs: &SpringSet, fit: &FitOutcome) -> Vec<f64> {
+    let n = design.dof();
+    let (mut tau, mut dq) = (vec![0.0f64; n], vec![0.0f64; n]);
+    let mut g = vec![0.0; n];
+    for geo in &fit.evaluation.geodesics {
+        for k in 0..geo.len() {
+            let q = geo.q(k);
+            springs.gradient_into(q, &mut g);
+            for i in 0..n {
+                tau[i] = tau[i].max(g[i].abs());
+                dq[i] = dq[i].max((q[i] - design.q_eq[i]).abs());
+            }
+        }
+    }
+    (0..n).map(|i| if dq[i] > 0.0 { tau[i] / dq[i] } else { 0.0 }).collect()
+}
+
+impl<'a> SweepContext<'a> {
+    /// Runs the items `indices` of `items` in parallel; results in index order.
+    pub fn run(&self, items: &[WorkItem], indices: &[usize]) -> Result<Vec<ItemResult>> {
+        use rayon::prelude::*;
+        let results: Vec<Result<ItemResult>> = indices.par_iter().map(|&i| self.run_item(i, items[i])).collect();
+        results.into_iter().collect()
+    }
+
+    fn springs(&self) -> &SpringSet {
+        match &self.nominal {
+            ElasticPotential::Springs(s) => s,
+            ElasticPotential::Exact { .. } => unreachable!("sweeps perturb spring sets"),
+        }
+    }
+
+    fn closed_loop(
+        &self,
+        potential: &ElasticPotential,
+        spec: &RunSpec,
+    ) -> Result<(crate::simulate::RunResult, crate::scenario::RunMetrics)> {
+        let mut dynamics = Dynamics::new(
+            &self.design.chain,
+            &self.design.q_eq,
+            potential,
+            self.controllers,
+            spec,
+            Some(self.label.field()),
+        )?;
+        let result = run(&mut dynamics, &self.sim)?;
+        let m = metrics(&result, spec, &self.controllers, ScenarioKind::Swingup);
+        Ok((result, m))
+    }
+
+    /// The p99 residual angle of a built spring set on held-out geodesics from the equilibrium
+    /// it actually has, and how far that is from the nominal one. Deviating stiffnesses no
+    /// longer cancel their preloads at q_eq, so the arm rests elsewhere; judging its modes about
+    /// the old q_eq would charge the shift, not the shape of the potential, to every sample near
+    /// it. NaN if the built arm has no stable equilibrium near q_eq.
+    fn residual_about_own_equilibrium(&self, built: &SpringSet) -> Result<(f64, f64)> {
+        use crate::geodesic::{Fan, FanSpec, Stop};
+        let d = self.design;
+        let Some(q_eq) = equilibrium(d, built) else { return Ok((f64::NAN, f64::NAN)) };
+        let shift = (&q_eq - &d.q_eq).norm();
+        let extent = self.fit.region.extent;
+        let stop = match &d.region {
+            crate::geodesic::Region::Ball { radius } => Stop::Arc(*radius),
+            region => Stop::Region { region, max_arc: d.geodesics.max_arc },
+        };
+        let fan = Fan::trace(
+            &d.chain,
+            &q_eq,
+            FanSpec {
+                count: self.settings.evaluation_directions,
+                phase: 0.5,
+                stop,
+                spacing: extent / self.settings.evaluation_samples as f64,
+            },
+            d.geodesics.ode,
+        )?;
+        let angles = crate::residual::fan_angles(&d.chain, &fan, built)?;
+        Ok((crate::residual::stats(&angles).p99_abs, shift))
+    }
+
+    fn run_item(&self, index: usize, item: WorkItem) -> Result<ItemResult> {
+        let blank = |item| ItemResult {
+            index,
+            item,
+            flux_potential: 0.0,
+            flux_mode: 0.0,
+            flux_energy: 0.0,
+            actuator_share: 0.0,
+            residual_p99_deg: f64::NAN,
+            residual_p99_deg_before: None,
+            actuator_share_before: None,
+            equilibrium_shift_rad: None,
+            stock_stiffness: None,
+            series: None,
+        };
+        let fill = |r: &mut ItemResult, m: &crate::scenario::RunMetrics| {
+            r.flux_potential = m.flux.potential;
+            r.flux_mode = m.flux.mode;
+            r.flux_energy = m.flux.energy;
+            r.actuator_share = m.actuator_share;
+        };
+        match item {
+            WorkItem::Parasitic { eps } => {
+                let mut spec = self.base.clone();
+                spec.name = format!("eps_{eps}");
+                spec.parasitic = Some(Parasitic { eps, kappa: self.kappa.clone() });
+                let (res, m) = self.closed_loop(&self.nominal, &spec)?;
+                let mut r = blank(item);
+                fill(&mut r, &m);
+                r.residual_p99_deg = self.fit.metrics.stats.p99_abs;
+                let tr = &res.trace;
+                let n = tr.n;
+                let powers: Vec<Vec<f64>> = (0..SOURCES.len()).map(|s| tr.power(s)).collect();
+                r.series = Some(Series {
+                    t: tr.t.clone(),
+                    q: (0..tr.t.len()).flat_map(|k| [tr.q[k * n], tr.q[k * n + 1.min(n - 1)]]).collect(),
+                    power: (0..tr.t.len()).flat_map(|k| powers.iter().map(move |p| p[k])).collect(),
+                });
+                Ok(r)
+            }
+            WorkItem::Build { level, build } => {
+                let springs = self.springs();
+                let mut rng = SplitMix64::stream(self.settings.seed, (index as u64) << 20 | build as u64);
+                let scale: Vec<f64> = self
+                    .fit
+                    .bom
+                    .iter()
+                    .map(|row| {
+                        let t = level.unwrap_or(row.tolerance);
+                        1.0 + t * match self.settings.distribution {
+                            Distribution::Uniform => 2.0 * rng.uniform() - 1.0,
+                            Distribution::Normal => (rng.normal() / 3.0).clamp(-1.0, 1.0),
+                        }
+                    })
+                    .collect();
+                let built = springs.scaled(&scale);
+                let (p99, shift) = self.residual_about_own_equilibrium(&built)?;
+                let mut spec = self.base.clone();
+                spec.name = format!("build_{build}");
+                spec.stiffness_scale = Some(scale);
+                let (_, m) = self.closed_loop(&self.nominal, &spec)?;
+                let mut r = blank(item);
+                fill(&mut r, &m);
+                r.residual_p99_deg = p99;
+                r.equilibrium_shift_rad = Some(shift);
+                Ok(r)
+            }
+            WorkItem::Stock => {
+                let bom = &self.fit.bom;
+                let elements: Vec<_> = bom.iter().map(|r| r.element.clone()).collect();
+                let mut fixed: Vec<Option<f64>> = vec![None; bom.len()];
+                let mut k: Vec<f64> = bom.iter().map(|r| r.stiffness).collect();
+                // Snap the element carrying the largest torque first; refit the rest each time.
+                let mut order: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].stock_rate.is_some()).collect();
+                order.sort_by(|&a, &b| bom[b].max_torque_nm.total_cmp(&bom[a].max_torque_nm).then(a.cmp(&b)));
+                let rates = |j: usize| -> Vec<f64> {
+                    let fam = &bom[j].family;
+                    // The catalogue's stock rates of the element's family, from the fit's rows.
+                    self.fit.stock_rates.get(fam).cloned().unwrap_or_default()
+                };
+                for &j in &order {
+                    let snapped = nearest(&rates(j), k[j].max(1e-300)).unwrap_or(k[j]);
+                    fixed[j] = Some(snapped);
+                    k = refit_with_fixed(self.design, &self.fit.settings, &self.fit.training, &elements, &fixed)?;
+                }
+                let snapped = SpringSet { elements, stiffness: k.clone() };
+                let (p99, shift) = self.residual_about_own_equilibrium(&snapped)?;
+                let (_, before) = self.closed_loop(&self.nominal, &self.base)?;
+                let after_pot = ElasticPotential::Springs(snapped);
+                let (_, after) = self.closed_loop(&after_pot, &self.base)?;
+                let mut r = blank(item);
+                fill(&mut r, &after);
+                r.residual_p99_deg = p99;
+                r.equilibrium_shift_rad = Some(shift);
+                r.residual_p99_deg_before = Some(self.fit.metrics.stats.p99_abs);
+                r.actuator_share_before = Some(before.actuator_share);
+                r.stock_stiffness = Some(k);
+                Ok(r)
+            }
+        }
+    }
+}
+
+/// The equilibrium of a spring set (plus gravity) nearest the design's, by Newton's method on
+/// ∇U = 0 from q_eq; None if it does not converge to a minimum within 0.5 rad.
+pub fn equilibrium(design: &Design, springs: &SpringSet) -> Option<nalgebra::DVector<f64>> {
+    use crate::potential::Potential;
+    let chain = &design.chain;
+    let mut q = design.q_eq.clone();
+    for _ in 0..50 {
+        let g = springs.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
+        if g.amax() < 1e-12 * (1.0 + springs.stiffness.iter().fold(0.0f64, |a, k| a.max(*k))) {
+            let h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
+            return h.cholesky().is_some().then_some(q);
+        }
+        let h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
+        let step = h.lu().solve(&g)?;
+        q -= step;
+        if (&q - &design.q_eq).amax() > 0.5 || q.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+    }
+    None
+}
+
+/// One row of the parasitic table.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ParasiticRow {
+    pub eps: f64,
+    pub flux_potential: f64,
+    pub flux_mode: f64,
+    pub flux_energy: f64,
+    pub actuator_share: f64,
+}
+
+/// Percentiles of a tolerance level.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ToleranceSummary {
+    /// The level (None: the catalogue's own tolerances).
+    pub tolerance: Option<f64>,
+    /// `uniform` or `normal`.
+    pub distribution: Distribution,
+    pub builds: usize,
+    pub actuator_share_p50: f64,
+    pub actuator_share_p95: f64,
+    pub residual_p99_deg_p50: f64,
+    pub residual_p99_deg_p95: f64,
+    /// |q_eq′ − q_eq| percentiles, rad.
+    pub equilibrium_shift_rad_p50: f64,
+    pub equilibrium_shift_rad_p95: f64,
+}
+
+/// Stock snapping before and after.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StockSummary {
+    pub residual_p99_deg_before: f64,
+    pub residual_p99_deg_after: f64,
+    pub actuator_share_before: f64,
+    pub actuator_share_after: f64,
+}
+
+/// `sweep.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SweepTables {
+    pub parasitic: Vec<ParasiticRow>,
+    /// The first tolerance level (the schema's single object).
+    pub tolerance: Option<ToleranceSummary>,
+    /// Every tolerance level.
+    pub tolerance_levels: Vec<ToleranceSummary>,
+    pub stock: Option<StockSummary>,
+}
+
+/// Builds the tables from the results of every item (in any order).
+pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
+    let mut sorted: Vec<&ItemResult> = results.iter().collect();
+    sorted.sort_by_key(|r| r.index);
+    let parasitic = sorted
+        .iter()
+        .filter_map(|r| match r.item {
+            WorkItem::Parasitic { eps } => Some(ParasiticRow {
+                eps,
+                flux_potential: r.flux_potential,
+                flux_mode: r.flux_mode,
+                flux_energy: r.flux_energy,
+                actuator_share: r.actuator_share,
+            }),
+            _ => None,
+        })
+        .collect();
+    let mut levels: Vec<Option<f64>> = Vec::new();
+    for r in &sorted {
+        if let WorkItem::Build { level, .. } = r.item {
+            if !levels.contains(&level) {
+                levels.push(level);
+            }
+        }
+    }
+    let tolerance_levels: Vec<ToleranceSummary> = levels
+        .iter()
+        .map(|level| {
+            let builds: Vec<&&ItemResult> =
+                sorted.iter().filter(|r| matches!(r.item, WorkItem::Build { level: l, .. } if l == *level)).collect();
+            let mut share: Vec<f64> = builds.iter().map(|r| r.actuator_share).collect();
+            let mut resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
+            let mut shift: Vec<f64> = builds.iter().map(|r| r.equilibrium_shift_rad.unwrap_or(f64::NAN)).collect();
+            share.sort_by(f64::total_cmp);
+            resid.sort_by(f64::total_cmp);
+            shift.sort_by(f64::total_cmp);
+            ToleranceSummary {
+                tolerance: *level,
+                distribution: settings.distribution,
+                builds: builds.len(),
+                actuator_share_p50: percentile(&share, 50.0),
+                actuator_share_p95: percentile(&share, 95.0),
+                residual_p99_deg_p50: percentile(&resid, 50.0),
+                residual_p99_deg_p95: percentile(&resid, 95.0),
+                equilibrium_shift_rad_p50: percentile(&shift, 50.0),
+                equilibrium_shift_rad_p95: percentile(&shift, 95.0),
+            }
+        })
+        .collect();
+    let stock = sorted.iter().find(|r| r.item == WorkItem::Stock).map(|r| StockSummary {
+        residual_p99_deg_before: r.residual_p99_deg_before.unwrap_or(f64::NAN),
+        residual_p99_deg_after: r.residual_p99_deg,
+        actuator_share_before: r.actuator_share_before.unwrap_or(f64::NAN),
+        actuator_share_after: r.actuator_share,
+    });
+    SweepTables { parasitic, tolerance: tolerance_levels.first().cloned(), tolerance_levels, stock }
+}
+
+/// Parses a shard specification `i/N` (1-based i).
+pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
+    let bad = || Error::Setting {
+        field: "--shard".into(),
+        reason: format!("`{text}` is not of the form i/N with 1 ≤ i ≤ N"),
+    };
+    let (a, b) = text.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+    if n == 0 || i == 0 || i > n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// The item indices of shard i of N: every N-th item starting at i − 1, so expensive items of
+/// one kind spread over the shards.
+pub fn shard_indices(count: usize, shard: (usize, usize)) -> Vec<usize> {
+    (shard.0 - 1..count).step_by(shard.1).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_cover_every_item_once() {
+        for n in 1..6 {
+            let mut all: Vec<usize> = (1..=n).flat_map(|i| shard_indices(23, (i, n))).collect();
+            all.sort_unstable();
+            assert_eq!(all, (0..23).collect::<Vec<_>>());
+        }
+        assert_eq!(parse_shard("2/5").unwrap(), (2, 5));
+        for bad in ["0/3", "4/3", "x/2", "3", "1/0"] {
+            assert!(parse_shard(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn plan_orders_items() {
+        let s = SweepSettings {
+            epsilons: vec![0.0, 0.1],
+            builds: 3,
+            tolerances: vec![0.05, 0.1],
+            ..SweepSettings::default()
+        };
+        let p = plan(&s, true);
+        assert_eq!(p.len(), 2 + 6 + 1);
+        assert_eq!(p[2], WorkItem::Build { level: Some(0.05), build: 0 });
+        assert_eq!(p[8], WorkItem::Stock);
+    }
+}

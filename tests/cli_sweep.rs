@@ -1,0 +1,52 @@
+//! `springfit sweep` through the binary: shards merge into the full run's tables, bit for bit.
+
+mod util;
+
+use util::{design_text, repo, springfit, temp_dir, write};
+
+/// The paper's design with a shorter, smaller sweep (the mechanics are the same).
+fn small_design(dir: &std::path::Path) -> std::path::PathBuf {
+    let catalog = repo().join("catalogs/workshop.toml");
+    let text = design_text("double_pendulum_workshop.toml")
+        .replace("../catalogs/workshop.toml", catalog.to_str().unwrap())
+        .replace("epsilons = [0.0, 0.01, 0.05, 0.1, 0.5, 1.0]", "epsilons = [0.0, 0.1, 1.0]")
+        .replace("builds = 200", "builds = 5")
+        .replace(
+            "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 20.0",
+            "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 4.0",
+        );
+    assert!(text.contains("duration = 4.0") && text.contains("builds = 5"));
+    write(dir, "small.toml", &text)
+}
+
+#[test]
+fn shards_merge_into_the_same_tables_and_threads_do_not_matter() {
+    let dir = temp_dir("sweep-shards");
+    let design = small_design(&dir);
+    let d = design.to_str().unwrap();
+    let full = springfit(&dir, &["sweep", d, "--out", "full"]).ok();
+    assert!(full.stdout().contains("stock rates"), "{}", full.report());
+    springfit(&dir, &["--threads", "1", "sweep", d, "--out", "one"]).ok();
+    springfit(&dir, &["sweep", d, "--shard", "1/2", "--out", "s1"]).ok();
+    springfit(&dir, &["sweep", d, "--shard", "2/2", "--out", "s2"]).ok();
+    springfit(&dir, &["sweep", d, "--merge", "s1", "s2", "--out", "merged"]).ok();
+    let read = |p: &str| std::fs::read_to_string(dir.join(p)).unwrap();
+    for f in ["sweep.json", "sweep.csv", "tolerance.md", "bom_stock.csv"] {
+        assert_eq!(read(&format!("full/{f}")), read(&format!("merged/{f}")), "{f} differs after merging");
+        assert_eq!(read(&format!("full/{f}")), read(&format!("one/{f}")), "{f} differs with one thread");
+    }
+    let json: serde_json::Value = serde_json::from_str(&read("full/sweep.json")).unwrap();
+    let rows = json["parasitic"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    let shares: Vec<f64> = rows.iter().map(|r| r["actuator_share"].as_f64().unwrap()).collect();
+    assert!(shares[0] < shares[1] && shares[1] < shares[2], "actuator share should rise with ε: {shares:?}");
+    for key in ["builds", "actuator_share_p50", "actuator_share_p95", "residual_p99_deg_p50", "residual_p99_deg_p95"] {
+        assert!(json["tolerance"].get(key).is_some(), "tolerance lacks {key}");
+    }
+    for key in ["residual_p99_deg_before", "residual_p99_deg_after"] {
+        assert!(json["stock"][key].as_f64().is_some(), "stock lacks {key}");
+    }
+    // An incomplete merge is refused.
+    springfit(&dir, &["sweep", d, "--merge", "s1", "--out", "partial"]).fails(2, &["missing", "merge every shard"]);
+    springfit(&dir, &["sweep", d, "--shard", "3/2"]).fails(2, &["--shard", "i/N"]);
+}
