@@ -2,6 +2,7 @@
 //! command resolves them into a run of library calls; printing and progress bars live here only.
 
 mod check;
+mod compare;
 mod fit;
 mod geodesics;
 mod progress;
@@ -118,6 +119,41 @@ plots. A shard writes sweep_shard.json; merging the shards gives the same tables
         #[arg(long, value_name = "S")]
         seed: Option<u64>,
     },
+    /// Compare fits side by side: histograms on shared bins, box plots and a table.
+    #[command(
+        after_help = "Examples:\n  springfit compare out/double_pendulum out/double_pendulum_dense out/double_pendulum_workshop --exact\n  springfit compare designs/double_pendulum.toml designs/double_pendulum_workshop.toml\n\n\
+Inputs are output folders of `springfit fit` or design files (fitted on the fly). Writes\n\
+compare.csv, compare.md and compare.svg/.png (default folder out/compare)."
+    )]
+    Compare {
+        /// Fit output folders or design files.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output folder (default: out/compare).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Add the exact potential ½ω²r² of the first input's design as a reference.
+        #[arg(long)]
+        exact: bool,
+    },
+    /// The best residual per spring budget and per region size.
+    #[command(after_help = "Example:\n  springfit pareto designs/double_pendulum.toml\n\n\
+Fits the design's catalogue with K = 2 … K_max springs, and with its budget on geodesic balls\n\
+from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.svg/.png.")]
+    Pareto {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Output folder (default: out/<design name>_pareto).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Largest budget (default: the design's max_elements, at least 16).
+        #[arg(long, value_name = "N")]
+        k_max: Option<usize>,
+        /// Radii of the region-size curve (default: 8 from 0.5 to the largest valid radius).
+        #[arg(long, value_name = "R,R,…", value_delimiter = ',')]
+        radii: Option<Vec<f64>>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -159,6 +195,8 @@ pub fn run() -> Result<()> {
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {
         Command::Check { design } => check::run(&design, &progress),
+        Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &progress),
+        Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &progress),
         Command::Sweep { design, out, shard, merge, builds, seed } => {
             sweep::run(sweep::SweepArgs { design, out, shard, merge, builds, seed }, &progress)
         }

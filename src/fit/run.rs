@@ -118,78 +118,121 @@ impl FitOutcome {
 /// Fits `design` with the elements of `catalog`. `stage` is told when each step starts (for
 /// progress bars); the library itself prints nothing.
 pub fn fit(design: &Design, catalog: &Catalog, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
-    settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
     let t0 = Instant::now();
-    stage("checking the region");
-    let (region, training, evaluation) = fans(design, settings)?;
-    let t_geo = t0.elapsed().as_secs_f64();
+    let prepared = Prepared::new(design, catalog, settings, stage)?;
+    let mut outcome = prepared.solve(settings, stage)?;
+    outcome.timings.total = t0.elapsed().as_secs_f64();
+    Ok(outcome)
+}
 
-    stage("assembling the fit");
-    let t1 = Instant::now();
-    let q_eq = design.q_eq.as_slice();
-    let range = |a: &[f64]| {
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
-        for g in training.geodesics.iter().chain(&evaluation.geodesics) {
-            for i in 0..g.len() {
-                let x = at(g.q(i));
-                lo = lo.min(x);
-                hi = hi.max(x);
+/// A fit up to the solve: region, fans, candidates and the assembled problem. One preparation
+/// serves several solves that differ only in solver settings (the spring budgets of a Pareto
+/// sweep).
+pub struct Prepared<'a> {
+    design: &'a Design,
+    catalog: &'a Catalog,
+    region: RegionReport,
+    training: Fan,
+    evaluation: Fan,
+    candidates: Vec<Candidate>,
+    n_expanded: usize,
+    problem: FitProblem,
+    t_geo: f64,
+    t_asm: f64,
+}
+
+impl<'a> Prepared<'a> {
+    /// Checks the region, traces the fans, expands the catalogue and assembles the problem.
+    pub fn new(
+        design: &'a Design,
+        catalog: &'a Catalog,
+        settings: &FitSettings,
+        stage: &dyn Fn(&str),
+    ) -> Result<Prepared<'a>> {
+        settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
+        let t0 = Instant::now();
+        stage("checking the region");
+        let (region, training, evaluation) = fans(design, settings)?;
+        let t_geo = t0.elapsed().as_secs_f64();
+
+        stage("assembling the fit");
+        let t1 = Instant::now();
+        let q_eq = design.q_eq.as_slice();
+        let range = |a: &[f64]| {
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+            for g in training.geodesics.iter().chain(&evaluation.geodesics) {
+                for i in 0..g.len() {
+                    let x = at(g.q(i));
+                    lo = lo.min(x);
+                    hi = hi.max(x);
+                }
             }
+            let x = at(q_eq);
+            (lo.min(x), hi.max(x))
+        };
+        let expanded = catalog.expand(q_eq, range);
+        let n_expanded = expanded.len();
+        let candidates: Vec<Candidate> =
+            expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
+        if candidates.is_empty() {
+            return Err(Error::invalid(
+                &catalog.path,
+                "family",
+                format!("none of the {n_expanded} candidate elements engages anywhere in the region: nothing to fit"),
+            ));
         }
-        let x = at(q_eq);
-        (lo.min(x), hi.max(x))
-    };
-    let expanded = catalog.expand(q_eq, range);
-    let n_expanded = expanded.len();
-    let candidates: Vec<Candidate> =
-        expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
-    let dropped = n_expanded - candidates.len();
-    if candidates.is_empty() {
-        return Err(Error::invalid(
-            &catalog.path,
-            "family",
-            format!("none of the {n_expanded} candidate elements engages anywhere in the region: nothing to fit"),
-        ));
+        let req = Requirements {
+            omega: settings.frequency,
+            hessian_match: settings.hessian_match,
+            monotone: settings.monotone,
+        };
+        let problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        let t_asm = t1.elapsed().as_secs_f64();
+        Ok(Prepared { design, catalog, region, training, evaluation, candidates, n_expanded, problem, t_geo, t_asm })
     }
-    let req =
-        Requirements { omega: settings.frequency, hessian_match: settings.hessian_match, monotone: settings.monotone };
-    let problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
-    let t_asm = t1.elapsed().as_secs_f64();
 
-    stage("solving");
-    let t2 = Instant::now();
-    let (k, solve) = solve(&problem, &candidates, settings)?;
-    let t_solve = t2.elapsed().as_secs_f64();
+    /// Solves and evaluates with `settings` (which must agree with the preparation's in
+    /// frequency, Hessian match and monotonicity; the solver, budget and weights may differ).
+    pub fn solve(&self, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+        settings.validate().map_err(|(f, r)| Error::invalid(&self.design.path, f, r))?;
+        let (design, catalog) = (self.design, self.catalog);
+        stage("solving");
+        let t2 = Instant::now();
+        let (k, solve) = solve(&self.problem, &self.candidates, settings)?;
+        let t_solve = t2.elapsed().as_secs_f64();
 
-    stage("evaluating on held-out geodesics");
-    let t3 = Instant::now();
-    let (bom, springs) = bill_of_materials(catalog, &candidates, &k, &evaluation, q_eq, settings.used_threshold);
-    let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &evaluation)?;
-    let t_eval = t3.elapsed().as_secs_f64();
-    Ok(FitOutcome {
-        design: design.name.clone(),
-        dof: design.dof(),
-        catalog: catalog.name.clone(),
-        settings: *settings,
-        candidates: n_expanded,
-        dropped,
-        bom,
-        stock_rates: catalog.families.iter().map(|f| (f.name.clone(), f.stock_rates.clone())).collect(),
-        springs,
-        metrics,
-        solve,
-        timings: Timings {
-            geodesics: t_geo,
-            assemble: t_asm,
-            solve: t_solve,
-            evaluate: t_eval,
-            total: t0.elapsed().as_secs_f64(),
-        },
-        region,
-        training,
-        evaluation,
-    })
+        stage("evaluating on held-out geodesics");
+        let t3 = Instant::now();
+        let q_eq = design.q_eq.as_slice();
+        let (bom, springs) =
+            bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
+        let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
+        let t_eval = t3.elapsed().as_secs_f64();
+        Ok(FitOutcome {
+            design: design.name.clone(),
+            dof: design.dof(),
+            catalog: catalog.name.clone(),
+            settings: *settings,
+            candidates: self.n_expanded,
+            dropped: self.n_expanded - self.candidates.len(),
+            bom,
+            stock_rates: catalog.families.iter().map(|f| (f.name.clone(), f.stock_rates.clone())).collect(),
+            springs,
+            metrics,
+            solve,
+            timings: Timings {
+                geodesics: self.t_geo,
+                assemble: self.t_asm,
+                solve: t_solve,
+                evaluate: t_eval,
+                total: self.t_geo + self.t_asm + t_solve + t_eval,
+            },
+            region: self.region.clone(),
+            training: self.training.clone(),
+            evaluation: self.evaluation.clone(),
+        })
+    }
 }
 
 /// The exact reference U* = ½ω²r² evaluated like a fit (no springs, no bill of materials).

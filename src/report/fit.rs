@@ -16,6 +16,8 @@ use crate::residual::{AngleSample, AngleStats, BandStats};
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
     pub design: String,
+    /// The design file the fit came from (absolute when it could be resolved).
+    pub design_file: String,
     pub dof: usize,
     pub catalog: String,
     pub solver: String,
@@ -49,10 +51,14 @@ pub struct RegionSummary {
 }
 
 impl Summary {
-    /// The summary of a fit.
-    pub fn new(o: &FitOutcome) -> Summary {
+    /// The summary of a fit of the design in `design_file`.
+    pub fn new(o: &FitOutcome, design_file: &std::path::Path) -> Summary {
         Summary {
             design: o.design.clone(),
+            design_file: std::fs::canonicalize(design_file)
+                .unwrap_or_else(|_| design_file.to_path_buf())
+                .display()
+                .to_string(),
             dof: o.dof,
             catalog: o.catalog.clone(),
             solver: o.solve.solver.clone(),
@@ -109,7 +115,7 @@ pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
         out.write("bom.csv", bom::to_csv(&o.bom))?;
         out.write("bom.md", bom::to_markdown(&o.design, &o.bom))?;
     }
-    let summary = Summary::new(o);
+    let summary = Summary::new(o, &design.path);
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
     out.write("summary.json", json + "\n")?;
     out.write("residuals.csv", residuals_csv(o.dof, &o.metrics.residuals))?;

@@ -1,5 +1,6 @@
 //! Outputs: atomic output folders, figures, tables and the files each command writes.
 
+pub mod compare;
 pub mod contour;
 pub mod figures;
 pub mod fit;

@@ -1,0 +1,302 @@
+//! Comparing designs: fit results side by side, and what accuracy a spring budget or a region
+//! size costs.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::bom;
+use crate::catalog::Catalog;
+use crate::design::Design;
+use crate::error::{Error, Result};
+use crate::fit::run::{FitOutcome, Prepared, fit};
+use crate::fit::settings::FitSettings;
+use crate::geodesic::Region;
+use crate::residual::{AngleStats, stats};
+
+/// One fit as the comparison sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitRecord {
+    /// Legend and table label.
+    pub label: String,
+    /// Design name.
+    pub design: String,
+    /// Design file, if known.
+    pub design_file: Option<PathBuf>,
+    /// Catalogue name (`exact` for the reference).
+    pub catalog: String,
+    /// Solver (`exact` for the reference).
+    pub solver: String,
+    /// Springs used.
+    pub used: usize,
+    /// Residual statistics.
+    pub stats: AngleStats,
+    /// Every residual angle (degrees).
+    pub angles: Vec<f64>,
+    /// Total stiffness per unit.
+    pub totals: Vec<(String, f64)>,
+    /// Actuator share from a simulation of the design, if one was found.
+    pub actuator_share: Option<f64>,
+    /// Where it came from (a folder or a design file).
+    pub source: PathBuf,
+}
+
+/// The record of a fit just computed.
+pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
+    FitRecord {
+        label: outcome.design.clone(),
+        design: outcome.design.clone(),
+        design_file: Some(design_file.to_path_buf()),
+        catalog: outcome.catalog.clone(),
+        solver: outcome.solve.solver.clone(),
+        used: outcome.used(),
+        stats: outcome.metrics.stats,
+        angles: outcome.metrics.residuals.iter().map(|r| r.angle_deg).collect(),
+        totals: totals(&outcome.bom),
+        actuator_share: None,
+        source: design_file.to_path_buf(),
+    }
+}
+
+fn totals(rows: &[bom::BomRow]) -> Vec<(String, f64)> {
+    let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
+    units.sort_unstable();
+    units.dedup();
+    units
+        .iter()
+        .map(|u| (u.to_string(), rows.iter().filter(|r| r.element.profile.unit() == *u).map(|r| r.stiffness).sum()))
+        .collect()
+}
+
+/// Reads the output folder of `springfit fit`. A folder without `summary.json` and
+/// `residuals.csv` is refused with a message saying so.
+pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
+    let not_fit = |what: &str| {
+        Error::invalid(
+            dir,
+            "folder",
+            format!(
+                "is not an output folder of `springfit fit`: {what} (run `springfit fit --out {}` first)",
+                dir.display()
+            ),
+        )
+    };
+    if !dir.is_dir() {
+        return Err(not_fit("no such folder"));
+    }
+    let summary_path = dir.join("summary.json");
+    let residuals_path = dir.join("residuals.csv");
+    if !summary_path.is_file() {
+        return Err(not_fit("it has no summary.json"));
+    }
+    if !residuals_path.is_file() {
+        return Err(not_fit("it has no residuals.csv"));
+    }
+    let text = std::fs::read_to_string(&summary_path).map_err(|e| Error::io(&summary_path, e))?;
+    let summary: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
+        path: summary_path.clone(),
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    })?;
+    let field = |k: &str| {
+        summary
+            .get(k)
+            .ok_or_else(|| Error::invalid(&summary_path, k, "missing: not a summary written by `springfit fit`"))
+    };
+    let design = field("design")?.as_str().unwrap_or("?").to_string();
+    let text = std::fs::read_to_string(&residuals_path).map_err(|e| Error::io(&residuals_path, e))?;
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or("");
+    if !header.starts_with("direction,s,") || !header.ends_with(",angle_deg") {
+        return Err(Error::invalid(&residuals_path, "header", "expected `direction,s,q…,angle_deg`"));
+    }
+    let mut angles = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let v = line.rsplit(',').next().and_then(|x| x.trim().parse::<f64>().ok()).ok_or_else(|| {
+            Error::invalid(&residuals_path, format!("line {}", i + 2), "the last field is not a number")
+        })?;
+        angles.push(v);
+    }
+    let samples: Vec<crate::residual::AngleSample> = angles
+        .iter()
+        .map(|&a| crate::residual::AngleSample { direction: 0, s: 0.0, q: Vec::new(), angle_deg: a })
+        .collect();
+    let bom_path = dir.join("bom.csv");
+    let rows = if bom_path.is_file() { bom::read(&bom_path)? } else { Vec::new() };
+    Ok(FitRecord {
+        label: design.clone(),
+        design,
+        design_file: summary.get("design_file").and_then(|v| v.as_str()).map(PathBuf::from),
+        catalog: field("catalog")?.as_str().unwrap_or("?").to_string(),
+        solver: field("solver")?.as_str().unwrap_or("?").to_string(),
+        used: field("used")?.as_u64().unwrap_or(0) as usize,
+        stats: stats(&samples),
+        angles,
+        totals: totals(&rows),
+        actuator_share: simulation_share(dir),
+        source: dir.to_path_buf(),
+    })
+}
+
+/// The actuator share of the design's `sensitivity` (else `switch`) scenario from the
+/// simulation folder next to a fit folder (`<folder>_simulate`), if there is one.
+fn simulation_share(dir: &Path) -> Option<f64> {
+    let name = dir.file_name()?.to_string_lossy().into_owned();
+    let sim = dir.with_file_name(format!("{name}_simulate"));
+    for scenario in ["sensitivity", "switch"] {
+        let Ok(text) = std::fs::read_to_string(sim.join(format!("sim_{scenario}.json"))) else { continue };
+        let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { continue };
+        if let Some(share) =
+            json["runs"].as_object().and_then(|runs| runs.values().next()).and_then(|r| r["actuator_share"].as_f64())
+        {
+            return Some(share);
+        }
+    }
+    None
+}
+
+/// Makes labels unique: records of the same design get their catalogue, solver and spring count.
+pub fn disambiguate(records: &mut [FitRecord]) {
+    let names: Vec<String> = records.iter().map(|r| r.design.clone()).collect();
+    for r in records.iter_mut() {
+        if names.iter().filter(|n| **n == r.design).count() > 1 {
+            r.label = if r.solver == "exact" {
+                format!("{} (exact)", r.design)
+            } else {
+                format!("{} ({}, {}, {} springs)", r.design, r.catalog, r.solver, r.used)
+            };
+        }
+    }
+    // Still equal (the same fit twice): number them.
+    for i in 0..records.len() {
+        let dup = (0..i).filter(|&j| records[j].label == records[i].label).count();
+        if dup > 0 {
+            records[i].label = format!("{} #{}", records[i].label, dup + 1);
+        }
+    }
+}
+
+/// The comparison table as CSV.
+pub fn table_csv(records: &[FitRecord]) -> String {
+    let mut s = String::from(
+        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share\n",
+    );
+    for r in records {
+        let totals = r.totals.iter().map(|(u, t)| format!("{t} {u}")).collect::<Vec<_>>().join("; ");
+        s.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{}\n",
+            bom::csv_field(&r.label),
+            bom::csv_field(&r.design),
+            bom::csv_field(&r.catalog),
+            r.solver,
+            r.used,
+            bom::csv_field(&totals),
+            r.stats.median_abs,
+            r.stats.p95_abs,
+            r.stats.p99_abs,
+            r.stats.max_abs,
+            r.actuator_share.map(|a| a.to_string()).unwrap_or_default()
+        ));
+    }
+    s
+}
+
+/// The comparison table as Markdown.
+pub fn table_md(records: &[FitRecord]) -> String {
+    let mut s = String::from(
+        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from the design's simulation (`sensitivity` scenario) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    for r in records {
+        let totals = if r.totals.is_empty() {
+            "–".to_string()
+        } else {
+            r.totals.iter().map(|(u, t)| format!("{t:.2} {u}")).collect::<Vec<_>>().join(", ")
+        };
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° | {} |\n",
+            r.label.replace('|', "/"),
+            r.catalog,
+            r.solver,
+            r.used,
+            totals,
+            r.stats.median_abs,
+            r.stats.p95_abs,
+            r.stats.p99_abs,
+            r.stats.max_abs,
+            r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into())
+        ));
+    }
+    s
+}
+
+/// A point of the accuracy-versus-budget curve.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BudgetPoint {
+    /// The budget K.
+    pub budget: usize,
+    /// Springs the best set found uses (≤ K).
+    pub used: usize,
+    /// Residual statistics.
+    pub stats: AngleStats,
+}
+
+/// A point of the accuracy-versus-region curve.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RadiusPoint {
+    /// Geodesic-ball radius.
+    pub radius: f64,
+    /// Springs used.
+    pub used: usize,
+    /// Residual statistics.
+    pub stats: AngleStats,
+}
+
+/// The best residual found for every budget in `budgets`, ascending (one preparation, one solve
+/// per budget). "At most K springs" allows every smaller set, so when the search for K finds a
+/// worse set (by p99) than for a smaller budget, that smaller set is reported for K too.
+pub fn budget_curve(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    budgets: &[usize],
+    stage: &dyn Fn(&str),
+) -> Result<Vec<BudgetPoint>> {
+    let prepared = Prepared::new(design, catalog, settings, stage)?;
+    let mut sorted = budgets.to_vec();
+    sorted.sort_unstable();
+    let mut best: Option<BudgetPoint> = None;
+    let mut out = Vec::new();
+    for k in sorted {
+        stage(&format!("budget {k}"));
+        let o = prepared.solve(&FitSettings { max_elements: k, ..*settings }, &|_| {})?;
+        let here = BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats };
+        let point = match best {
+            Some(b) if b.stats.p99_abs < here.stats.p99_abs => BudgetPoint { budget: k, ..b },
+            _ => here,
+        };
+        best = Some(point);
+        out.push(point);
+    }
+    Ok(out)
+}
+
+/// The residual of the design's fit on geodesic balls of each radius in `radii`.
+pub fn radius_curve(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    radii: &[f64],
+    stage: &dyn Fn(&str),
+) -> Result<Vec<RadiusPoint>> {
+    radii
+        .iter()
+        .map(|&r| {
+            stage(&format!("radius {r:.2}"));
+            let mut d = design.clone();
+            d.region = Region::Ball { radius: r };
+            let o = fit(&d, catalog, settings, &|_| {})?;
+            Ok(RadiusPoint { radius: r, used: o.used(), stats: o.metrics.stats })
+        })
+        .collect()
+}

@@ -1,0 +1,60 @@
+//! `springfit compare` and `springfit pareto` through the binary.
+
+mod util;
+
+use util::{repo, springfit, temp_dir, write};
+
+#[test]
+fn compare_refuses_a_folder_that_is_not_a_fit_output() {
+    let dir = temp_dir("compare-refuse");
+    write(&dir, "notafit/readme.txt", "hello");
+    springfit(&dir, &["compare", "notafit", "--out", "cmp"])
+        .fails(2, &["notafit", "not an output folder of `springfit fit`", "summary.json"]);
+    springfit(&dir, &["compare", "nowhere", "--out", "cmp"]).fails(2, &["nowhere", "no such folder"]);
+    assert!(!dir.join("cmp").exists());
+}
+
+#[test]
+fn compare_takes_solvers_catalogues_and_designs_together() {
+    let dir = temp_dir("compare-mixed");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["fit", d, "--solver", "nnls", "--out", "nnls"]).ok();
+    springfit(&dir, &["fit", d, "--solver", "qp", "--out", "qp"]).ok();
+    let workshop = repo().join("designs/double_pendulum_workshop.toml");
+    let run = springfit(&dir, &["compare", "nnls", "qp", workshop.to_str().unwrap(), "--exact", "--out", "cmp"]).ok();
+    for f in ["compare.csv", "compare.md", "compare.svg", "compare.png"] {
+        assert!(dir.join("cmp").join(f).is_file(), "missing {f}\n{}", run.report());
+    }
+    let csv = std::fs::read_to_string(dir.join("cmp/compare.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    assert!(
+        rows[0].contains("nnls")
+            && rows[1].contains(",qp,")
+            && rows[2].contains("workshop")
+            && rows[3].contains("exact"),
+        "{csv}"
+    );
+    // The two fits of one design get distinct labels.
+    let fields: Vec<Vec<String>> = rows.iter().map(|r| springfit::bom::split_csv_line(r).unwrap()).collect();
+    assert_ne!(fields[0][0], fields[1][0]);
+    assert_eq!(fields[0][3], "nnls");
+    assert_eq!(fields[1][3], "qp");
+    let exact_p99: f64 = fields[3][8].parse().unwrap();
+    assert!(exact_p99 < 1e-3);
+}
+
+#[test]
+fn pareto_tables_budgets_and_radii() {
+    let dir = temp_dir("pareto");
+    let design = repo().join("designs/double_pendulum_workshop.toml");
+    springfit(&dir, &["pareto", design.to_str().unwrap(), "--k-max", "5", "--radii", "1.0,2.0", "--out", "p"]).ok();
+    let csv = std::fs::read_to_string(dir.join("p/pareto.csv")).unwrap();
+    let budget_rows: Vec<&str> = csv.lines().filter(|l| l.starts_with("budget,")).collect();
+    assert_eq!(budget_rows.len(), 4);
+    let p99: Vec<f64> = budget_rows.iter().map(|r| r.split(',').nth(6).unwrap().parse().unwrap()).collect();
+    assert!(p99.windows(2).all(|w| w[1] <= w[0]), "a larger budget may not be worse: {p99:?}");
+    assert_eq!(csv.lines().filter(|l| l.starts_with("radius,")).count(), 2);
+    assert!(dir.join("p/pareto.png").is_file());
+}
