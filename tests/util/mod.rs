@@ -84,12 +84,17 @@ impl Run {
     }
 }
 
-/// Runs `springfit ARGS` in `dir`.
+/// Runs `springfit ARGS` in `dir` (on two worker threads).
 pub fn springfit(dir: &Path, args: &[&str]) -> Run {
+    springfit_threads(dir, args, 2)
+}
+
+/// Runs `springfit ARGS` in `dir` with `RAYON_NUM_THREADS = threads`.
+pub fn springfit_threads(dir: &Path, args: &[&str], threads: usize) -> Run {
     let output = Command::new(env!("CARGO_BIN_EXE_springfit"))
         .args(args)
         .current_dir(dir)
-        .env("RAYON_NUM_THREADS", "2")
+        .env("RAYON_NUM_THREADS", threads.to_string())
         .output()
         .expect("run springfit");
     Run { args: args.iter().map(|s| s.to_string()).collect(), dir: dir.to_path_buf(), output }
