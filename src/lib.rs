@@ -22,6 +22,7 @@ pub mod label;
 pub mod linalg;
 pub mod model;
 pub mod ode;
+pub mod ode853;
 pub mod potential;
 pub mod report;
 pub mod residual;
