@@ -75,6 +75,32 @@ impl<'de> Deserialize<'de> for ModeSpec {
     }
 }
 
+/// A target energy as written: one value or steps `[[t, E], …]`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum EnergySpec {
+    /// A constant E_d.
+    Value(f64),
+    /// (start time, E_d) steps.
+    Steps(Vec<[f64; 2]>),
+}
+
+impl<'de> Deserialize<'de> for EnergySpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Value(f64),
+            Steps(Vec<[f64; 2]>),
+        }
+        match Raw::deserialize(d).map_err(|_| {
+            serde::de::Error::custom("an energy target is a number of joules or steps [[t, E], …] from t = 0")
+        })? {
+            Raw::Value(v) => Ok(EnergySpec::Value(v)),
+            Raw::Steps(s) => Ok(EnergySpec::Steps(s)),
+        }
+    }
+}
+
 /// A release: at rest on a mode where the potential has risen by `energy`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -120,9 +146,10 @@ pub struct ScenarioSpec {
     /// swingup: start energy E0, J (default 5).
     #[serde(default)]
     pub e0: Option<f64>,
-    /// swingup: target energy E_d, J (default 20).
+    /// swingup: target energy E_d, J (default 20), or a schedule of steps `[[t, E_d], …]`
+    /// starting at t = 0.
     #[serde(default)]
-    pub ed: Option<f64>,
+    pub ed: Option<EnergySpec>,
     /// swingup: variants to run among `energy`, `negative_damping`, `energy_compensated`
     /// (default all three).
     #[serde(default)]
@@ -299,10 +326,19 @@ impl ScenarioSpec {
                 unused("step", self.step.is_some())?;
                 unused("every", self.every.is_some())?;
                 let e0 = self.e0.unwrap_or(5.0);
-                let ed = self.ed.unwrap_or(20.0);
-                if !(ed.is_finite() && ed > 0.0) {
-                    return Err(bad("ed", format!("must be positive (J), got {ed}")));
+                let schedule: Vec<(f64, f64)> = match self.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
+                    EnergySpec::Value(v) => vec![(0.0, v)],
+                    EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
+                };
+                if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
+                    return Err(bad("ed", "steps must start at t = 0 and increase in time".into()));
                 }
+                for (t, e) in &schedule {
+                    if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
+                        return Err(bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
+                    }
+                }
+                let ed = schedule.iter().map(|s| s.1).fold(0.0, f64::max);
                 let mode = self.mode.clone().unwrap_or(ModeSpec::Angle(0.0));
                 let u = mode_direction(&mode, n, &frame).map_err(|e| bad("mode", e))?;
                 let q0 = start_on_mode(design, &u, e0, energy_at).map_err(|e| bad("e0", e))?;
@@ -334,7 +370,8 @@ impl ScenarioSpec {
                     };
                     let mut run = base(v.clone(), q0.clone());
                     run.mode = Some(ModeControl { schedule: vec![(0.0, target.clone())] });
-                    run.energy = Some(EnergyControl { law, target: ed, compensate_damping: compensate });
+                    run.energy =
+                        Some(EnergyControl { law, schedule: schedule.clone(), compensate_damping: compensate });
                     runs.push(run);
                 }
                 runs
@@ -461,13 +498,14 @@ pub fn metrics(
         }
     }
     let (mut energy_rel, mut energy_signed) = (None, None);
-    if let Some(ec) = spec.energy {
+    if let Some(ec) = &spec.energy {
         let t_end = tr.t.last().copied().unwrap_or(0.0);
         let last: Vec<f64> = tr.t.iter().zip(&tr.energy).filter(|(t, _)| **t >= t_end - 5.0).map(|(_, e)| *e).collect();
         if !last.is_empty() {
             let mean = last.iter().sum::<f64>() / last.len() as f64;
-            energy_rel = Some((mean - ec.target).abs() / ec.target);
-            energy_signed = Some((mean - ec.target) / ec.target);
+            let target = ec.final_target();
+            energy_rel = Some((mean - target).abs() / target);
+            energy_signed = Some((mean - target) / target);
         }
     }
     let energy_drift_rel = (kind == ScenarioKind::Free).then(|| {

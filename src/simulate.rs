@@ -124,14 +124,27 @@ impl ModeControl {
 }
 
 /// Energy regulation of a run.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct EnergyControl {
     /// τ_E or τ_nD.
     pub law: EnergyLaw,
-    /// E_d in J.
-    pub target: f64,
+    /// E_d in J as a schedule of (start time, value), by increasing time, the first at t = 0.
+    pub schedule: Vec<(f64, f64)>,
     /// Add the damping feed-forward D q̇.
     pub compensate_damping: bool,
+}
+
+impl EnergyControl {
+    /// E_d at time t.
+    pub fn target(&self, t: f64) -> f64 {
+        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
+        self.schedule[k].1
+    }
+
+    /// The last E_d of the schedule (what the end of a run is judged against).
+    pub fn final_target(&self) -> f64 {
+        self.schedule.last().map_or(0.0, |s| s.1)
+    }
 }
 
 /// Parasitic springs ½ ε (q − q_eq)ᵀ diag(κ) (q − q_eq): unknown to the controllers.
@@ -496,7 +509,7 @@ impl<'a> Dynamics<'a> {
             }
         }
         // Energy regulation and damping compensation.
-        if let Some(ec) = self.spec.energy {
+        if let Some(ec) = &self.spec.energy {
             let u = match nominal_u {
                 Some(u) => u,
                 None => self.nominal_potential(q)?,
@@ -504,7 +517,7 @@ impl<'a> Dynamics<'a> {
             let m = self.ws.mass();
             let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
             let e = kin + u - self.u0;
-            energy_torque(ec.law, &self.controllers, ec.target - e, qd, self.ws.mass(), &mut self.tau[ENERGY]);
+            energy_torque(ec.law, &self.controllers, ec.target(t) - e, qd, self.ws.mass(), &mut self.tau[ENERGY]);
             if ec.compensate_damping {
                 for i in 0..n {
                     self.tau[COMPENSATION][i] = self.spec.damping[i] * qd[i];

@@ -119,3 +119,63 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
     let m = metrics(&result, &spec, &controllers, ScenarioKind::Switch);
     assert!(m.flux.mode > 0.0);
 }
+
+#[test]
+fn the_adaptive_integrator_agrees_with_rk4_and_reports_underflow() {
+    use springfit::ode::OdeSettings;
+    use springfit::simulate::Integrator;
+    let d = design("double_pendulum_workshop.toml");
+    let pot = fitted(&d);
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let free = scenario_index(&d, "free");
+    let rk4 = run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, free).unwrap();
+    let adaptive_settings = SimSettings { integrator: Integrator::Adaptive, ..d.simulate };
+    let adaptive = run_scenario(&d, &pot, &label, &adaptive_settings, &d.controllers, free).unwrap();
+    for ((a, ma), (b, _)) in adaptive.runs.iter().zip(&rk4.runs) {
+        assert!(ma.energy_drift_rel.unwrap() < 1e-6, "{}: {:?}", a.name, ma.energy_drift_rel);
+        let (qa, qb) = (&a.trace.q, &b.trace.q);
+        assert_eq!(qa.len(), qb.len());
+        let diff = qa.iter().zip(qb).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        assert!(diff < 1e-5, "{}: adaptive and RK4 differ by {diff}", a.name);
+    }
+    // A step-size floor the dynamics cannot respect is reported with the run and the time.
+    let broken = SimSettings {
+        integrator: Integrator::Adaptive,
+        ode: OdeSettings { rtol: 1e-12, atol: 1e-14, min_step: 0.05, ..OdeSettings::default() },
+        ..d.simulate
+    };
+    let err = run_scenario(&d, &pot, &label, &broken, &d.controllers, free).err().expect("underflow").to_string();
+    assert!(err.contains("scenario free run release_") && err.contains("step size underflow at t ="), "{err}");
+}
+
+#[test]
+fn energy_targets_follow_a_schedule() {
+    let base =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum_workshop.toml"))
+            .unwrap();
+    let catalog = Path::new(env!("CARGO_MANIFEST_DIR")).join("catalogs/workshop.toml");
+    let text = base
+        .replace("../catalogs/workshop.toml", catalog.to_str().unwrap())
+        .replace("ed = 20.0", "ed = [[0.0, 12.0], [10.0, 20.0]]");
+    let path = std::env::temp_dir().join(format!("springfit-schedule-{}.toml", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    let d = Design::load(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let out = run_scenario(
+        &d,
+        &ElasticPotential::Exact { omega: d.fit.frequency },
+        &label,
+        &d.simulate,
+        &d.controllers,
+        scenario_index(&d, "swingup"),
+    )
+    .unwrap();
+    let (r, m) = out.runs.iter().find(|(r, _)| r.name == "energy_compensated").unwrap();
+    let at = |time: f64| {
+        let k = r.trace.t.iter().position(|&t| t >= time).unwrap();
+        r.trace.energy[k]
+    };
+    assert!((at(9.5) - 12.0).abs() < 0.5, "E(9.5 s) = {}", at(9.5));
+    assert!(m.energy_rel_error_last5s.unwrap() < 0.02, "{m:?}");
+}

@@ -569,6 +569,17 @@ mod tests {
     }
 
     #[test]
+    fn a_solver_stopped_early_is_an_error_naming_the_status() {
+        let mut seed = 17;
+        let a = DMatrix::from_fn(30, 6, |_, _| lcg(&mut seed));
+        let b = DVector::from_fn(30, |_, _| lcg(&mut seed));
+        let gram = Gram::from_rows(&a, &b);
+        let s = QpSettings { max_iterations: 1, ..QpSettings::default() };
+        let err = qp(&gram, &[], &[], &[None; 6], 0.0, &s).unwrap_err().to_string();
+        assert!(err.contains("QP (Clarabel)") && err.contains("MaxIterations"), "{err}");
+    }
+
+    #[test]
     fn bounds_and_cutting_planes() {
         let mut seed = 9;
         let a = DMatrix::from_fn(50, 5, |_, _| lcg(&mut seed));

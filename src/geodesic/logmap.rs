@@ -324,6 +324,32 @@ mod tests {
     }
 
     #[test]
+    fn a_point_beyond_the_valid_region_is_reported_not_returned() {
+        // Far beyond the conjugate locus of (0, 0) exp is not one-to-one; Newton with
+        // continuation must either find a genuine solution or say where it failed.
+        let chain = Chain::paper_double_pendulum();
+        let q_eq = DVector::from_vec(vec![0.0, 0.0]);
+        let log = LogMap::new(
+            &chain,
+            &q_eq,
+            OdeSettings::default(),
+            LogSettings { max_iterations: 6, ..LogSettings::default() },
+        );
+        let q = DVector::from_vec(vec![9.0, 25.0]);
+        match log.log(&q) {
+            Ok(p) => {
+                // A root was found: it must really map to q.
+                let back = log.shooter().exp(&p.v).unwrap();
+                assert!((back - &q).amax() < 1e-8);
+            }
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains("log map") && msg.contains("9.0") && msg.contains("25.0"), "{msg}");
+            }
+        }
+    }
+
+    #[test]
     fn wraps_angles() {
         assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
         assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
