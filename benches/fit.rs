@@ -2,27 +2,17 @@
 //!
 //! `cargo bench --bench fit`. Figures are recorded in BENCHMARKS.md.
 
+mod common;
+
 use std::hint::black_box;
 use std::path::Path;
 use std::process::Command;
-use std::time::{Duration, Instant};
 
 use springfit::catalog::Catalog;
 use springfit::design::Design;
 use springfit::fit::run::fit;
 
-fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
-    f();
-    let mut t: Vec<Duration> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed()
-        })
-        .collect();
-    t.sort();
-    (t[t.len() / 2], t[0])
-}
+use common::{ms, time};
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -63,8 +53,4 @@ fn main() {
     });
     println!("springfit fit (default design, end to end with outputs): {:.0} ms / {:.0} ms", ms(med), ms(min));
     let _ = std::fs::remove_dir_all(&out);
-}
-
-fn ms(d: Duration) -> f64 {
-    d.as_secs_f64() * 1e3
 }

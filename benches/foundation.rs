@@ -5,8 +5,10 @@
 //! are recorded in BENCHMARKS.md.
 
 use std::f64::consts::PI;
+mod common;
+
 use std::hint::black_box;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use nalgebra::DVector;
 use springfit::geodesic::logmap::LogSettings;
@@ -15,23 +17,11 @@ use springfit::geodesic::{Fan, FanSpec, GeodesicSettings, LogMap, Region, Stop};
 use springfit::model::Chain;
 use springfit::ode::OdeSettings;
 
-/// Times `f` `reps` times after one warm-up run; returns (median, min).
-fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
-    f();
-    let mut t: Vec<Duration> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed()
-        })
-        .collect();
-    t.sort();
-    (t[t.len() / 2], t[0])
-}
-
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
 }
+
+use common::{ms, time};
 
 fn main() {
     let chain = Chain::paper_double_pendulum();
@@ -104,8 +94,4 @@ fn main() {
         ms(med),
         ms(min)
     );
-}
-
-fn ms(d: Duration) -> f64 {
-    d.as_secs_f64() * 1e3
 }

@@ -1,9 +1,10 @@
 //! Benchmarks of the closed-loop simulation. `cargo bench --bench simulate`; figures in
 //! BENCHMARKS.md.
 
+mod common;
+
 use std::hint::black_box;
 use std::path::Path;
-use std::time::{Duration, Instant};
 
 use springfit::catalog::Catalog;
 use springfit::design::Design;
@@ -11,18 +12,7 @@ use springfit::fit::run::fit;
 use springfit::scenario::{label_source, run_scenario};
 use springfit::simulate::ElasticPotential;
 
-fn time<F: FnMut()>(reps: usize, mut f: F) -> (Duration, Duration) {
-    f();
-    let mut t: Vec<Duration> = (0..reps)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed()
-        })
-        .collect();
-    t.sort();
-    (t[t.len() / 2], t[0])
-}
+use common::{ms, time};
 
 fn main() {
     let d = Design::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml")).unwrap();
@@ -70,8 +60,4 @@ fn main() {
             ms(min)
         );
     }
-}
-
-fn ms(d: Duration) -> f64 {
-    d.as_secs_f64() * 1e3
 }

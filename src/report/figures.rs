@@ -14,6 +14,16 @@ pub fn fan_lines(fan: &Fan, step: usize) -> Vec<Vec<(f64, f64)>> {
     fan.geodesics.iter().step_by(step.max(1)).map(|g| (0..g.len()).map(|i| (g.q(i)[0], g.q(i)[1])).collect()).collect()
 }
 
+/// The equilibrium as a black dot in the (q₁, q₂) plane (q₁ twice for a one-joint arm).
+pub fn equilibrium_layer(design: &Design) -> Layer {
+    Layer::Points {
+        points: vec![(design.q_eq[0], design.q_eq[1.min(design.dof() - 1)])],
+        style: Style::fill((0, 0, 0), 1.0),
+        size: 4,
+        label: Some("equilibrium".into()),
+    }
+}
+
 /// The region's boundary as traced by a fan: the end points of its geodesics, closed.
 pub fn boundary_line(fan: &Fan) -> Vec<(f64, f64)> {
     let mut b: Vec<(f64, f64)> = fan
@@ -63,12 +73,7 @@ pub fn geodesics_figure(design: &Design, fan: &Fan, title: &str) -> Figure {
             label: Some("region boundary".into()),
         });
     }
-    joint_layers.push(Layer::Points {
-        points: vec![(design.q_eq[0], design.q_eq[1.min(design.dof() - 1)])],
-        style: Style::fill((0, 0, 0), 1.0),
-        size: 4,
-        label: Some("equilibrium".into()),
-    });
+    joint_layers.push(equilibrium_layer(design));
     let arm: Vec<(f64, f64)> =
         design.chain.joint_positions(design.q_eq.as_slice()).iter().map(|p| (p[0], p[1])).collect();
     cart_layers.push(Layer::Lines {
@@ -213,12 +218,7 @@ pub fn potential_figure(
             style: Style::line((0, 0, 0), 2).dashed(),
             label: Some("region boundary".into()),
         },
-        Layer::Points {
-            points: vec![(design.q_eq[0], design.q_eq[1])],
-            style: Style::fill((0, 0, 0), 1.0),
-            size: 4,
-            label: Some("equilibrium".into()),
-        },
+        equilibrium_layer(design),
     ];
     Ok(Figure::single(
         Panel {

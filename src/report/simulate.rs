@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::figures::{boundary_line, fan_lines};
+use super::figures::{boundary_line, equilibrium_layer, fan_lines};
 use super::output::OutputDir;
 use super::plot::{Figure, Layer, Panel, Style, palette, render};
 use crate::design::Design;
@@ -169,12 +169,7 @@ fn phase_figure(
             });
         }
     }
-    layers.push(Layer::Points {
-        points: vec![(design.q_eq[0], design.q_eq[1.min(design.dof() - 1)])],
-        style: Style::fill((0, 0, 0), 1.0),
-        size: 4,
-        label: Some("equilibrium".into()),
-    });
+    layers.push(equilibrium_layer(design));
     Ok(Figure::single(
         Panel {
             title: title.into(),
