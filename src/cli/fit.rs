@@ -53,6 +53,13 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
             let catalog = Catalog::load(&path, design.dof())?;
             fit(&design, &catalog, &settings, &stage)
         };
+        // Infeasibility and numerical failures carry no file of their own: name the design.
+        let result = result.map_err(|e| match e {
+            Error::Infeasible { .. } | Error::Numerical { .. } => {
+                anyhow::Error::new(e).context(design.path.display().to_string())
+            }
+            other => other.into(),
+        });
         if let Some(s) = step.borrow_mut().take() {
             s.finish();
         }

@@ -30,6 +30,18 @@ impl OutputDir {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        // A file where a folder must be: say so instead of the system's "File exists".
+        if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
+            if !blocker.is_dir() {
+                return Err(Error::io(
+                    blocker,
+                    std::io::Error::other(format!(
+                        "is a file, so the output folder {} cannot be created there",
+                        target.display()
+                    )),
+                ));
+            }
+        }
         std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         if target.exists() && !target.is_dir() {
             return Err(Error::io(target, std::io::Error::other("exists and is not a folder")));
