@@ -32,7 +32,7 @@ pub struct LogSettings {
 
 impl Default for LogSettings {
     fn default() -> Self {
-        LogSettings { tol: 1e-11, max_iterations: 25, continuation_stages: 8, final_step: 1e-7 }
+        LogSettings { tol: 1e-11, max_iterations: 25, continuation_stages: 8, final_step: 1e-6 }
     }
 }
 
