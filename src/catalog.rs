@@ -214,8 +214,14 @@ pub struct Candidate {
 impl Catalog {
     /// Reads and validates a catalogue for a robot with `dof` joints.
     pub fn load(path: &Path, dof: usize) -> Result<Catalog> {
-        let text = read_text(path)?;
-        let file: CatalogFile = parse_toml(path, &text)?;
+        Catalog::parse(path, &read_text(path)?, dof)
+    }
+
+    /// Parses and validates the text of a catalogue for a robot with `dof` joints (what
+    /// [`Catalog::load`] does once the file is read). Never panics: every problem in `text` is
+    /// an [`Error`].
+    pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Catalog> {
+        let file: CatalogFile = parse_toml(path, text)?;
         Catalog::from_file(path, file, dof)
     }
 
@@ -423,9 +429,7 @@ mod tests {
     use super::*;
 
     fn load(text: &str, dof: usize) -> Result<Catalog> {
-        let path = Path::new("catalogs/test.toml");
-        let file: CatalogFile = parse_toml(path, text)?;
-        Catalog::from_file(path, file, dof)
+        Catalog::parse(Path::new("catalogs/test.toml"), text, dof)
     }
 
     const GOOD: &str = r#"

@@ -218,8 +218,14 @@ pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
 impl Design {
     /// Reads and validates a design file.
     pub fn load(path: &Path) -> Result<Design> {
-        let text = read_text(path)?;
-        let file: DesignFile = parse_toml(path, &text)?;
+        Design::parse(path, &read_text(path)?)
+    }
+
+    /// Parses and validates the text of a design file (what [`Design::load`] does once the file
+    /// is read). `path` is used for messages and to resolve the catalogue. Never panics: every
+    /// problem in `text` is an [`Error`].
+    pub fn parse(path: &Path, text: &str) -> Result<Design> {
+        let file: DesignFile = parse_toml(path, text)?;
         Design::from_file(path, file)
     }
 
@@ -441,9 +447,7 @@ radius = 2.0
 "#;
 
     fn load(text: &str) -> Result<Design> {
-        let path = Path::new("designs/test.toml");
-        let file: DesignFile = parse_toml(path, text)?;
-        Design::from_file(path, file)
+        Design::parse(Path::new("designs/test.toml"), text)
     }
 
     #[test]
