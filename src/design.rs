@@ -274,16 +274,32 @@ impl Design {
             links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
             file.robot.gravity,
         );
+        // Finite inputs can still overflow: M holds products such as mass·length², so a link of
+        // 1e160 m has an infinite mass matrix.
+        let overflow = |m: &nalgebra::DMatrix<f64>| !m.iter().all(|x| x.is_finite());
+        let too_large = || {
+            invalid(
+                "robot.links",
+                "the mass matrix overflows: the links' masses, lengths, centres of mass or inertias are too large"
+                    .into(),
+            )
+        };
         // A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
         // outermost such link would make M singular.
-        let m = chain.mass_matrix(&DVector::zeros(n));
-        let scale = m.amax();
-        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
-            return Err(invalid(
+        let singular = || {
+            invalid(
                 "robot.links",
                 "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis"
                     .into(),
-            ));
+            )
+        };
+        let m = chain.mass_matrix(&DVector::zeros(n));
+        if overflow(&m) {
+            return Err(too_large());
+        }
+        let scale = m.amax();
+        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
+            return Err(singular());
         }
 
         let q = &file.equilibrium.q;
@@ -291,6 +307,14 @@ impl Design {
             return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
         }
         let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+        // Everything downstream starts at the equilibrium: M must be finite and invertible there too.
+        let m_eq = chain.mass_matrix(&q_eq);
+        if overflow(&m_eq) {
+            return Err(too_large());
+        }
+        if m_eq.cholesky().is_none() {
+            return Err(singular());
+        }
 
         let spec = file.region.as_ref().ok_or_else(|| {
             invalid(
@@ -495,6 +519,29 @@ radius = 2.0
         let text = PAPER.replace("com = 1.0\ninertia = 1.0\n[equilibrium]", "com = [1]\ninertia = 1.0\n[equilibrium]");
         let err = load(&text).unwrap_err().to_string();
         assert!(err.contains("field `robot.links[1].com`"), "{err}");
+    }
+
+    /// Inputs the fuzz target `design` (fuzz/fuzz_targets/design.rs) turned up: each must be an
+    /// error naming the field, never a design with a non-finite equilibrium or mass matrix.
+    #[test]
+    fn non_finite_angles_and_overflowing_links_are_errors() {
+        let cases = [
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [nan, \"pi/2\"]"), "equilibrium.q", "not a finite angle"),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [-inf, \"pi/2\"]"), "equilibrium.q", "not a finite angle"),
+            (
+                PAPER.replace("kind = \"ball\"\nradius = 2.0", "kind = \"box\"\nlower = [-inf, 0]\nupper = [1, 3]"),
+                "region.lower",
+                "not a finite angle",
+            ),
+            (PAPER.replacen("mass = 1.0\nlength = 2.0", "mass = 1e300\nlength = 1e300", 1), "robot.links", "overflows"),
+            (PAPER.replacen("com = 1.0", "com = 1e160", 1), "robot.links", "overflows"),
+        ];
+        for (text, field, reason) in cases {
+            let err = load(&text).unwrap_err().to_string();
+            assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
+        }
+        // Large but finite angles are fine.
+        assert!(load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1e300, \"pi/2\"]")).is_ok());
     }
 
     #[test]
