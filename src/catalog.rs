@@ -528,7 +528,7 @@ offsets = { phases = 4 }
         assert_eq!(cands3.iter().filter(|c| c.element.profile == Profile::Crank).count(), 2 * 2 * 3 + 4);
     }
 
-    /// Inputs found by fuzzing the catalogue loader (fuzz/fuzz_targets/catalog.rs): a phase count
+    /// Inputs run through the fuzz target fuzz/fuzz_targets/catalog.rs by hand: a phase count
     /// of zero expanded into nothing, a huge one into an allocation of terabytes, and many
     /// couplings times a fine grid into a million candidates deduplicated in quadratic time.
     #[test]

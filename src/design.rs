@@ -521,7 +521,7 @@ radius = 2.0
         assert!(err.contains("field `robot.links[1].com`"), "{err}");
     }
 
-    /// Inputs the fuzz target `design` (fuzz/fuzz_targets/design.rs) turned up: each must be an
+    /// Inputs run through the fuzz target fuzz/fuzz_targets/design.rs by hand: each must be an
     /// error naming the field, never a design with a non-finite equilibrium or mass matrix.
     #[test]
     fn non_finite_angles_and_overflowing_links_are_errors() {
