@@ -46,6 +46,9 @@ use crate::scenario::ScenarioSpec;
 use crate::simulate::SimSettings;
 use crate::units::Angle;
 
+/// The longest chain springfit handles (design files; couplings in bills of materials).
+pub const MAX_LINKS: usize = 8;
+
 /// The design file as written.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -239,10 +242,10 @@ impl Design {
                 "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into(),
             ));
         }
-        if links.len() > 8 {
+        if links.len() > MAX_LINKS {
             return Err(invalid(
                 "robot.links",
-                format!("{} links: springfit handles chains of up to 8 links", links.len()),
+                format!("{} links: springfit handles chains of up to {MAX_LINKS} links", links.len()),
             ));
         }
         for (i, l) in links.iter().enumerate() {
