@@ -277,6 +277,13 @@ impl Design {
             links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
             file.robot.gravity,
         );
+        // The gravity potential, torque and Hessian are bounded by this (with room for their sums).
+        if !(16.0 * chain.gravity_bound()).is_finite() {
+            return Err(invalid(
+                "robot.gravity",
+                "the gravity potential overflows: gravity times the links' masses and lengths is too large".into(),
+            ));
+        }
         // Finite inputs can still overflow: M holds products such as mass·length², so a link of
         // 1e160 m has an infinite mass matrix.
         let overflow = |m: &nalgebra::DMatrix<f64>| !m.iter().all(|x| x.is_finite());
@@ -310,6 +317,10 @@ impl Design {
             return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
         }
         let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+        // M and U_g take sums of joint angles: finite angles of 1e308 rad still overflow.
+        if !chain.link_angles(q_eq.as_slice()).iter().all(|phi| phi.is_finite()) {
+            return Err(invalid("equilibrium.q", "the angles are too large: their sums overflow".into()));
+        }
         // Everything downstream starts at the equilibrium: M must be finite and invertible there too.
         let m_eq = chain.mass_matrix(&q_eq);
         if overflow(&m_eq) {
@@ -543,8 +554,13 @@ radius = 2.0
             let err = load(&text).unwrap_err().to_string();
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
-        // Large but finite angles are fine.
+        // Large but finite angles are fine, unless their sums overflow.
         assert!(load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1e300, \"pi/2\"]")).is_ok());
+        let err = load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1.7e308, 1.7e308]")).unwrap_err().to_string();
+        assert!(err.contains("equilibrium.q") && err.contains("overflow"), "{err}");
+        let err = load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e307]")).unwrap_err().to_string();
+        assert!(err.contains("robot.gravity") && err.contains("overflows"), "{err}");
+        assert!(load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e300]")).is_ok());
     }
 
     #[test]

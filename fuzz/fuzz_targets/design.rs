@@ -21,6 +21,13 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(m.shape(), (n, n));
             assert!(m.iter().all(|x| x.is_finite()), "non-finite mass matrix {m}");
             assert!(m.clone().cholesky().is_some(), "mass matrix at the equilibrium is not positive definite: {m}");
+            let q = design.q_eq.as_slice();
+            let u = design.chain.gravity_potential(q);
+            let g = design.chain.gravity_gradient(q);
+            let h = design.chain.gravity_hessian(q);
+            assert!(u.is_finite() && g.iter().chain(h.iter()).all(|x| x.is_finite()), "gravity {u} {g} {h}");
+            let _ = design.chain.christoffel(&design.q_eq);
+            let _ = design.chain.joint_positions(q);
             match &design.region {
                 Region::Ball { radius } => assert!(radius.is_finite() && *radius > 0.0),
                 Region::Box { lower, upper } => {
