@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use crate::design::read_text;
+use crate::design::{MAX_LINKS, read_text};
 use crate::elements::{Element, Profile, fmt_number};
 use crate::error::{Error, Result};
 use crate::potential::SpringSet;
@@ -140,6 +140,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| bad(ln, "coupling", format!("`{}` is not a list of numbers joined by `;`", f[4])))?;
+        if coupling.len() > MAX_LINKS {
+            return Err(bad(
+                ln,
+                "coupling",
+                format!("has {} entries: springfit handles chains of up to {MAX_LINKS} joints", coupling.len()),
+            ));
+        }
         if coupling.iter().all(|a| *a == 0.0) {
             return Err(bad(ln, "coupling", "a coupling of all zeros moves nothing".into()));
         }
@@ -283,6 +290,20 @@ mod tests {
             let err = parse(Path::new("bom.csv"), &text).unwrap_err().to_string();
             assert!(err.contains(expected), "expected `{expected}` in `{err}`");
         }
+    }
+
+    /// A bill of materials is read back into a spring set whose Hessian is n × n per element: a
+    /// coupling of thousands of entries (run through fuzz/fuzz_targets/bom.rs) made
+    /// evaluating it take seconds. No design has more than eight joints.
+    #[test]
+    fn couplings_longer_than_the_longest_chain_are_errors() {
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0\n");
+        let wide = vec!["1"; 2000].join(";");
+        let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
+        assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");
+        assert!(parse(Path::new("bom.csv"), &row(&["1"; 9].join(";"))).is_err());
+        let rows = parse(Path::new("bom.csv"), &row(&["1"; 8].join(";"))).unwrap();
+        assert_eq!(rows[0].element.coupling.len(), 8);
     }
 
     #[test]

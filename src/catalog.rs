@@ -21,6 +21,7 @@
 //!
 //! Compression springs also take `side = "+"`, `"-"` or `"both"`.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
@@ -29,6 +30,12 @@ use crate::design::{parse_toml, read_text};
 use crate::elements::{Element, Profile, Side};
 use crate::error::{Error, Result};
 use crate::units::Angle;
+
+/// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).
+pub const MAX_OFFSETS: usize = 1000;
+
+/// Most candidate elements a catalogue may expand into (the shipped catalogues have about 500).
+pub const MAX_CANDIDATES: usize = 20_000;
 
 /// The catalogue file as written.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -214,8 +221,14 @@ pub struct Candidate {
 impl Catalog {
     /// Reads and validates a catalogue for a robot with `dof` joints.
     pub fn load(path: &Path, dof: usize) -> Result<Catalog> {
-        let text = read_text(path)?;
-        let file: CatalogFile = parse_toml(path, &text)?;
+        Catalog::parse(path, &read_text(path)?, dof)
+    }
+
+    /// Parses and validates the text of a catalogue for a robot with `dof` joints (what
+    /// [`Catalog::load`] does once the file is read). Never panics: every problem in `text` is
+    /// an [`Error`].
+    pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Catalog> {
+        let file: CatalogFile = parse_toml(path, text)?;
         Catalog::from_file(path, file, dof)
     }
 
@@ -229,6 +242,7 @@ impl Catalog {
             ));
         }
         let mut families = Vec::new();
+        let mut candidates = 0usize;
         for (i, f) in file.family.iter().enumerate() {
             let field = |name: &str| format!("family[{i}].{name}");
             let side = f.side.as_deref();
@@ -309,15 +323,44 @@ impl Catalog {
             if couplings.is_empty() {
                 return Err(invalid(field("couplings"), "lists no coupling".into()));
             }
-            match &f.offsets {
-                OffsetSpec::Grid { count, .. } if *count < 1 || *count > 1000 => {
-                    return Err(invalid(field("offsets"), format!("grid must have 1 to 1000 points, got {count}")));
+            let offsets = match &f.offsets {
+                OffsetSpec::Grid { count, .. } if *count < 1 || *count > MAX_OFFSETS => {
+                    return Err(invalid(
+                        field("offsets"),
+                        format!("grid must have 1 to {MAX_OFFSETS} points, got {count}"),
+                    ));
+                }
+                OffsetSpec::Phases { count } if *count < 1 || *count > MAX_OFFSETS => {
+                    return Err(invalid(
+                        field("offsets"),
+                        format!("phases must be 1 to {MAX_OFFSETS} per turn, got {count}"),
+                    ));
                 }
                 OffsetSpec::List(l) if l.is_empty() => {
                     return Err(invalid(field("offsets"), "the list is empty".into()));
                 }
-                _ => {}
-            }
+                OffsetSpec::Equilibrium => 1,
+                OffsetSpec::Grid { count, equilibrium } => count + usize::from(*equilibrium),
+                OffsetSpec::Phases { count } => *count,
+                OffsetSpec::List(l) => l.len(),
+            };
+            // Each coupling × offset × side is one candidate (a column of the fit): bound the total
+            // before `expand` builds them.
+            candidates = couplings
+                .len()
+                .checked_mul(offsets)
+                .and_then(|c| c.checked_mul(profiles.len()))
+                .and_then(|c| c.checked_add(candidates))
+                .filter(|c| *c <= MAX_CANDIDATES)
+                .ok_or_else(|| {
+                    invalid(
+                        format!("family[{i}]"),
+                        format!(
+                            "the catalogue expands into more than {MAX_CANDIDATES} candidate elements for a robot with \
+                             {dof} joints: list fewer couplings or offsets"
+                        ),
+                    )
+                })?;
             if let Some(k) = f.max_stiffness {
                 if !(k.is_finite() && k > 0.0) {
                     return Err(invalid(field("max_stiffness"), format!("must be positive, got {k}")));
@@ -358,6 +401,9 @@ impl Catalog {
     /// coupling and offset from two families) are kept once, the first family winning.
     pub fn expand(&self, q_eq: &[f64], range: impl Fn(&[f64]) -> (f64, f64)) -> Vec<Candidate> {
         let mut out: Vec<Candidate> = Vec::new();
+        // Offsets kept so far per profile and coupling (bit patterns, −0 as 0): duplicates are
+        // looked for among these only, not among all candidates.
+        let mut kept: HashMap<(Profile, Vec<u64>), Vec<f64>> = HashMap::new();
         for (fi, f) in self.families.iter().enumerate() {
             for a in &f.couplings {
                 let at_eq: f64 = a.iter().zip(q_eq).map(|(a, q)| a * q).sum();
@@ -380,12 +426,15 @@ impl Catalog {
                         v
                     }
                 };
+                let key: Vec<u64> = a.iter().map(|x| if *x == 0.0 { 0 } else { x.to_bits() }).collect();
                 for &x0 in &offsets {
                     for &profile in &f.profiles {
-                        let element = Element { profile, coupling: a.clone(), offset: x0 };
-                        if out.iter().any(|c| same_element(&c.element, &element)) {
+                        let seen = kept.entry((profile, key.clone())).or_default();
+                        if seen.iter().any(|&x| same_offset(x, x0)) {
                             continue;
                         }
+                        seen.push(x0);
+                        let element = Element { profile, coupling: a.clone(), offset: x0 };
                         out.push(Candidate {
                             element,
                             family: fi,
@@ -401,8 +450,9 @@ impl Catalog {
     }
 }
 
-fn same_element(a: &Element, b: &Element) -> bool {
-    a.profile == b.profile && a.coupling == b.coupling && (a.offset - b.offset).abs() <= 1e-12 * (1.0 + a.offset.abs())
+/// Whether a new offset `b` repeats a kept offset `a` (of the same profile and coupling).
+fn same_offset(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * (1.0 + a.abs())
 }
 
 fn normalise_unit(u: &str) -> String {
@@ -423,9 +473,7 @@ mod tests {
     use super::*;
 
     fn load(text: &str, dof: usize) -> Result<Catalog> {
-        let path = Path::new("catalogs/test.toml");
-        let file: CatalogFile = parse_toml(path, text)?;
-        Catalog::from_file(path, file, dof)
+        Catalog::parse(Path::new("catalogs/test.toml"), text, dof)
     }
 
     const GOOD: &str = r#"
@@ -478,6 +526,37 @@ offsets = { phases = 4 }
         let c3 = load(&text3, 3).unwrap();
         let cands3 = c3.expand(&[0.0, 0.0, 0.0], |_| (-1.0, 1.0));
         assert_eq!(cands3.iter().filter(|c| c.element.profile == Profile::Crank).count(), 2 * 2 * 3 + 4);
+    }
+
+    /// Inputs run through the fuzz target fuzz/fuzz_targets/catalog.rs by hand: a phase count
+    /// of zero expanded into nothing, a huge one into an allocation of terabytes, and many
+    /// couplings times a fine grid into a million candidates deduplicated in quadratic time.
+    #[test]
+    fn offset_counts_and_candidate_totals_are_bounded() {
+        let family = |couplings: &str, offsets: &str| {
+            format!("[[family]]\nname = \"x\"\nprofile = \"crank\"\ncouplings = {couplings}\noffsets = {offsets}\n")
+        };
+        let many: Vec<String> = (1..=300).map(|r| format!("[1, {r}]")).collect();
+        let many = format!("{{ all_pairs = [{}] }}", many.join(", "));
+        let cases = [
+            (family("\"joints\"", "{ phases = 0 }"), "family[0].offsets", "phases must be 1 to 1000"),
+            (family("\"joints\"", "{ phases = 100000000000 }"), "family[0].offsets", "phases must be 1 to 1000"),
+            (family("\"joints\"", "{ grid = 18446744073709551615 }"), "family[0].offsets", "grid must have 1 to 1000"),
+            (family(&many, "{ grid = 1000 }"), "family[0]", "more than 20000 candidate elements"),
+            (
+                family("\"joints\"", "{ grid = 1000, equilibrium = true }").repeat(8),
+                "family[6]",
+                "more than 20000 candidate elements",
+            ),
+        ];
+        for (text, field, reason) in cases {
+            let err = load(&text, 3).unwrap_err().to_string();
+            assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
+        }
+        // Just under the bound: expands, and the repeated families add nothing.
+        let text = family("\"joints\"", "{ grid = 1000 }").repeat(6);
+        let c = load(&text, 3).unwrap();
+        assert_eq!(c.expand(&[0.0; 3], |_| (-1.0, 1.0)).len(), 3000);
     }
 
     #[test]

@@ -47,6 +47,9 @@ use crate::simulate::SimSettings;
 use crate::sweep::SweepSettings;
 use crate::units::Angle;
 
+/// The longest chain springfit handles (design files; couplings in bills of materials).
+pub const MAX_LINKS: usize = 8;
+
 /// The design file as written.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -221,8 +224,14 @@ pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
 impl Design {
     /// Reads and validates a design file.
     pub fn load(path: &Path) -> Result<Design> {
-        let text = read_text(path)?;
-        let file: DesignFile = parse_toml(path, &text)?;
+        Design::parse(path, &read_text(path)?)
+    }
+
+    /// Parses and validates the text of a design file (what [`Design::load`] does once the file
+    /// is read). `path` is used for messages and to resolve the catalogue. Never panics: every
+    /// problem in `text` is an [`Error`].
+    pub fn parse(path: &Path, text: &str) -> Result<Design> {
+        let file: DesignFile = parse_toml(path, text)?;
         Design::from_file(path, file)
     }
 
@@ -236,10 +245,10 @@ impl Design {
                 "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into(),
             ));
         }
-        if links.len() > 8 {
+        if links.len() > MAX_LINKS {
             return Err(invalid(
                 "robot.links",
-                format!("{} links: springfit handles chains of up to 8 links", links.len()),
+                format!("{} links: springfit handles chains of up to {MAX_LINKS} links", links.len()),
             ));
         }
         for (i, l) in links.iter().enumerate() {
@@ -271,16 +280,39 @@ impl Design {
             links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
             file.robot.gravity,
         );
+        // The gravity potential, torque and Hessian are bounded by this (with room for their sums).
+        if !(16.0 * chain.gravity_bound()).is_finite() {
+            return Err(invalid(
+                "robot.gravity",
+                "the gravity potential overflows: gravity times the links' masses and lengths is too large".into(),
+            ));
+        }
+        // Finite inputs can still overflow: M holds products such as mass·length², so a link of
+        // 1e160 m has an infinite mass matrix.
+        let overflow = |m: &nalgebra::DMatrix<f64>| !m.iter().all(|x| x.is_finite());
+        let too_large = || {
+            invalid(
+                "robot.links",
+                "the mass matrix overflows: the links' masses, lengths, centres of mass or inertias are too large"
+                    .into(),
+            )
+        };
         // A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
         // outermost such link would make M singular.
-        let m = chain.mass_matrix(&DVector::zeros(n));
-        let scale = m.amax();
-        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
-            return Err(invalid(
+        let singular = || {
+            invalid(
                 "robot.links",
                 "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis"
                     .into(),
-            ));
+            )
+        };
+        let m = chain.mass_matrix(&DVector::zeros(n));
+        if overflow(&m) {
+            return Err(too_large());
+        }
+        let scale = m.amax();
+        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
+            return Err(singular());
         }
 
         let q = &file.equilibrium.q;
@@ -288,6 +320,18 @@ impl Design {
             return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
         }
         let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+        // M and U_g take sums of joint angles: finite angles of 1e308 rad still overflow.
+        if !chain.link_angles(q_eq.as_slice()).iter().all(|phi| phi.is_finite()) {
+            return Err(invalid("equilibrium.q", "the angles are too large: their sums overflow".into()));
+        }
+        // Everything downstream starts at the equilibrium: M must be finite and invertible there too.
+        let m_eq = chain.mass_matrix(&q_eq);
+        if overflow(&m_eq) {
+            return Err(too_large());
+        }
+        if m_eq.cholesky().is_none() {
+            return Err(singular());
+        }
 
         let spec = file.region.as_ref().ok_or_else(|| {
             invalid(
@@ -445,9 +489,7 @@ radius = 2.0
 "#;
 
     fn load(text: &str) -> Result<Design> {
-        let path = Path::new("designs/test.toml");
-        let file: DesignFile = parse_toml(path, text)?;
-        Design::from_file(path, file)
+        Design::parse(Path::new("designs/test.toml"), text)
     }
 
     #[test]
@@ -495,6 +537,34 @@ radius = 2.0
         let text = PAPER.replace("com = 1.0\ninertia = 1.0\n[equilibrium]", "com = [1]\ninertia = 1.0\n[equilibrium]");
         let err = load(&text).unwrap_err().to_string();
         assert!(err.contains("field `robot.links[1].com`"), "{err}");
+    }
+
+    /// Inputs run through the fuzz target fuzz/fuzz_targets/design.rs by hand: each must be an
+    /// error naming the field, never a design with a non-finite equilibrium or mass matrix.
+    #[test]
+    fn non_finite_angles_and_overflowing_links_are_errors() {
+        let cases = [
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [nan, \"pi/2\"]"), "equilibrium.q", "not a finite angle"),
+            (PAPER.replace("q = [0, \"pi/2\"]", "q = [-inf, \"pi/2\"]"), "equilibrium.q", "not a finite angle"),
+            (
+                PAPER.replace("kind = \"ball\"\nradius = 2.0", "kind = \"box\"\nlower = [-inf, 0]\nupper = [1, 3]"),
+                "region.lower",
+                "not a finite angle",
+            ),
+            (PAPER.replacen("mass = 1.0\nlength = 2.0", "mass = 1e300\nlength = 1e300", 1), "robot.links", "overflows"),
+            (PAPER.replacen("com = 1.0", "com = 1e160", 1), "robot.links", "overflows"),
+        ];
+        for (text, field, reason) in cases {
+            let err = load(&text).unwrap_err().to_string();
+            assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
+        }
+        // Large but finite angles are fine, unless their sums overflow.
+        assert!(load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1e300, \"pi/2\"]")).is_ok());
+        let err = load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1.7e308, 1.7e308]")).unwrap_err().to_string();
+        assert!(err.contains("equilibrium.q") && err.contains("overflow"), "{err}");
+        let err = load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e307]")).unwrap_err().to_string();
+        assert!(err.contains("robot.gravity") && err.contains("overflows"), "{err}");
+        assert!(load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e300]")).is_ok());
     }
 
     #[test]

@@ -298,6 +298,13 @@ impl Chain {
         }
     }
 
+    /// |g| Σ_t |G_t|: the largest |U_g| over all configurations in J, which also bounds every entry
+    /// of ∇U_g and ∇²U_g (infinite when gravity times the masses and levers overflows).
+    pub fn gravity_bound(&self) -> f64 {
+        let [gx, gy] = self.gravity;
+        gx.hypot(gy) * self.gravity_lever.iter().map(|g| g.abs()).sum::<f64>()
+    }
+
     /// Gravity potential U_g(q) = Σ mᵢ g·cᵢ(q) in J.
     pub fn gravity_potential(&self, q: &[f64]) -> f64 {
         let [gx, gy] = self.gravity;

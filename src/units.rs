@@ -66,6 +66,10 @@ impl<'de> Deserialize<'de> for Angle {
             Raw::Int(i) => i as f64,
             Raw::Text(s) => Angle::parse(&s).map_err(serde::de::Error::custom)?,
         };
+        // TOML has `nan` and `inf`: an angle must be a finite number, as written in text or not.
+        if !v.is_finite() {
+            return Err(serde::de::Error::custom(format!("`{v}` is not a finite angle")));
+        }
         Ok(Angle(v))
     }
 }
