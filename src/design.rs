@@ -374,6 +374,15 @@ impl Design {
                 };
                 let (lower, upper) = (get(&spec.lower, "lower")?, get(&spec.upper, "upper")?);
                 for i in 0..n {
+                    if lower[i].abs() > 1e4 || upper[i].abs() > 1e4 {
+                        return Err(invalid(
+                            &format!("region.lower[{i}]"),
+                            format!(
+                                "box corners beyond ±10⁴ rad ({} … {}) are not a region of an arm",
+                                lower[i], upper[i]
+                            ),
+                        ));
+                    }
                     if lower[i] >= upper[i] {
                         return Err(invalid(
                             &format!("region.lower[{i}]"),

@@ -308,6 +308,12 @@ impl ScenarioSpec {
                 if !(every.is_finite() && every > 0.0) {
                     return Err(bad("every", format!("must be positive (s), got {every}")));
                 }
+                if duration / every > 10_000.0 {
+                    return Err(bad(
+                        "every",
+                        format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
+                    ));
+                }
                 let energy = self.energy.unwrap_or(10.0);
                 let u = mode_direction(&ModeSpec::Angle(theta0), n, &frame).map_err(|e| bad("mode", e))?;
                 let q0 = start_on_mode(design, &u, energy, energy_at).map_err(|e| bad("energy", e))?;

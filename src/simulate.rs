@@ -601,7 +601,14 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
     let mut next_out = 0.0;
     match settings.integrator {
         Integrator::Rk4 => {
-            let steps = (spec.duration * settings.rate).round() as usize;
+            let steps = (spec.duration * settings.rate).round();
+            if steps > 1e9 {
+                return Err(Error::Setting {
+                    field: "simulate.rate".into(),
+                    reason: format!("{:.0} steps for {} s at {} Hz: at most 10⁹", steps, spec.duration, settings.rate),
+                });
+            }
+            let steps = steps as usize;
             let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
             let mut tmp = vec![0.0; dim];
             for step in 0..=steps {

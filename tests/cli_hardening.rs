@@ -93,3 +93,16 @@ fn outputs_are_byte_identical_across_runs_and_thread_counts() {
         assert!(!text.contains("nan") && !text.contains("inf"), "{f} holds a non-finite number");
     }
 }
+
+#[test]
+fn absurd_settings_are_refused_before_any_work() {
+    let dir = temp_dir("absurd");
+    let catalog = repo().join("catalogs/workshop.toml");
+    let base =
+        design_text("double_pendulum_workshop.toml").replace("../catalogs/workshop.toml", catalog.to_str().unwrap());
+    let every = write(&dir, "every.toml", &base.replace("every = 15.0", "every = 1e-300"));
+    springfit(&dir, &["simulate", every.to_str().unwrap(), "--exact", "--scenario", "switch", "--out", "s"])
+        .fails(2, &["every.toml", "scenario[1].every", "at most 10000"]);
+    let dirs = write(&dir, "dirs.toml", &base.replace("[fit]", "[geodesics]\ndirections = 1000000000000\n\n[fit]"));
+    springfit(&dir, &["check", dirs.to_str().unwrap()]).fails(2, &["dirs.toml", "geodesics.directions", "8 to 100000"]);
+}

@@ -89,17 +89,29 @@ impl FitSettings {
         if !(self.frequency.is_finite() && self.frequency > 0.0) {
             return err("frequency", "must be a positive number of rad/s");
         }
-        if self.training_directions < 4 {
-            return err("training_directions", "must be at least 4");
+        if !(4..=100_000).contains(&self.training_directions) {
+            return err("training_directions", "must be 4 to 100000");
         }
-        if self.training_samples < 2 {
-            return err("training_samples", "must be at least 2");
+        if !(2..=100_000).contains(&self.training_samples) {
+            return err("training_samples", "must be 2 to 100000");
         }
-        if self.evaluation_directions < 4 {
-            return err("evaluation_directions", "must be at least 4");
+        if !(4..=100_000).contains(&self.evaluation_directions) {
+            return err("evaluation_directions", "must be 4 to 100000");
         }
-        if self.evaluation_samples < 2 {
-            return err("evaluation_samples", "must be at least 2");
+        if !(2..=100_000).contains(&self.evaluation_samples) {
+            return err("evaluation_samples", "must be 2 to 100000");
+        }
+        if self.training_directions * self.training_samples > 2_000_000 {
+            return err(
+                "training_samples",
+                "training_directions × training_samples must stay below 2·10⁶ (each sample is a row of the fit)",
+            );
+        }
+        if self.evaluation_directions * self.evaluation_samples > 20_000_000 {
+            return err("evaluation_samples", "evaluation_directions × evaluation_samples must stay below 2·10⁷");
+        }
+        if self.swap_passes > 100_000 {
+            return err("swap_passes", "must be at most 100000");
         }
         if self.monotone && self.solver == SolverKind::Nnls {
             return err("monotone", "monotonicity constraints need solver = \"qp\" (NNLS handles only k ≥ 0)");

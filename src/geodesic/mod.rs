@@ -188,14 +188,18 @@ impl Default for GeodesicSettings {
 impl GeodesicSettings {
     /// Checks the settings, naming the bad field.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        if self.directions < 8 {
-            return Err(("geodesics.directions".into(), "must be at least 8".into()));
+        // Upper limits keep a typo (directions = 3600000) from exhausting memory later.
+        if !(8..=100_000).contains(&self.directions) {
+            return Err(("geodesics.directions".into(), "must be 8 to 100000".into()));
         }
-        if self.check_directions < 8 {
-            return Err(("geodesics.check_directions".into(), "must be at least 8".into()));
+        if !(8..=100_000).contains(&self.check_directions) {
+            return Err(("geodesics.check_directions".into(), "must be 8 to 100000".into()));
         }
-        if self.samples < 4 {
-            return Err(("geodesics.samples".into(), "must be at least 4".into()));
+        if !(4..=100_000).contains(&self.samples) {
+            return Err(("geodesics.samples".into(), "must be 4 to 100000".into()));
+        }
+        if self.directions * self.samples > 50_000_000 || self.check_directions * self.samples > 50_000_000 {
+            return Err(("geodesics.samples".into(), "directions × samples must stay below 5·10⁷".into()));
         }
         if !(self.probe_factor.is_finite() && self.probe_factor >= 1.0) {
             return Err(("geodesics.probe_factor".into(), "must be a number ≥ 1".into()));
