@@ -30,4 +30,5 @@ pub mod rng;
 pub mod scenario;
 pub mod simulate;
 pub mod sweep;
+pub mod tolerance;
 pub mod units;

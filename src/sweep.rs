@@ -29,16 +29,7 @@ use crate::rng::SplitMix64;
 use crate::scenario::{LabelSource, ScenarioKind, metrics};
 use crate::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, SimSettings, run};
 
-/// How manufacturing deviations are drawn.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum Distribution {
-    /// δ uniform in [−t, t].
-    #[default]
-    Uniform,
-    /// δ normal with σ = t/3, truncated at ±t.
-    Normal,
-}
+pub use crate::tolerance::Distribution;
 
 /// `[sweep]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -323,10 +314,7 @@ impl<'a> SweepContext<'a> {
                     .iter()
                     .map(|row| {
                         let t = level.unwrap_or(row.tolerance);
-                        1.0 + t * match self.settings.distribution {
-                            Distribution::Uniform => 2.0 * rng.uniform() - 1.0,
-                            Distribution::Normal => (rng.normal() / 3.0).clamp(-1.0, 1.0),
-                        }
+                        1.0 + t * self.settings.distribution.draw_unit(&mut rng)
                     })
                     .collect();
                 let built = springs.scaled(&scale);

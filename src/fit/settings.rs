@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::tolerance::{Distribution, ToleranceSpec};
+
 /// Which solver computes the stiffnesses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -59,6 +61,16 @@ pub struct FitSettings {
     pub used_threshold: f64,
     /// Distance bands from q_eq for the residual statistics.
     pub bands: usize,
+    /// The rate tolerance to design for and to judge builds at: `"none"` (the drawing only),
+    /// `"catalogue"` (each family's `tolerance`) or a ± fraction for every element.
+    pub tolerance: ToleranceSpec,
+    /// How build deviations are drawn: `uniform` in ±t or `normal` with σ = t/3 truncated at ±t.
+    pub distribution: Distribution,
+    /// Monte Carlo builds behind the as-built figures (0: none).
+    pub builds: usize,
+    /// Seed of the as-built builds (each build has its own stream, so figures do not depend on
+    /// the thread count).
+    pub seed: u64,
 }
 
 impl Default for FitSettings {
@@ -78,6 +90,10 @@ impl Default for FitSettings {
             swap_passes: 50,
             used_threshold: 1e-6,
             bands: 4,
+            tolerance: ToleranceSpec::None,
+            distribution: Distribution::Uniform,
+            builds: 200,
+            seed: 1,
         }
     }
 }
@@ -127,6 +143,12 @@ impl FitSettings {
         }
         if self.bands == 0 || self.bands > 100 {
             return err("bands", "must be 1 to 100");
+        }
+        if let Err(reason) = self.tolerance.validate() {
+            return err("tolerance", &reason);
+        }
+        if self.builds > 100_000 {
+            return err("builds", "must be at most 100000");
         }
         Ok(())
     }
