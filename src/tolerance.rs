@@ -3,7 +3,7 @@
 //!
 //! A build scales each stiffness, k_i → k_i (1 + δ_i), with δ_i independent, mean 0 and bounded by
 //! the element's ± tolerance t_i. Two laws are offered, as stock springs are specified either way:
-//! uniform in [−t, t], or normal with σ = t/3 truncated at ±t. The fit (to design for the build),
+//! uniform in [−t, t], or normal with σ = t/3 clipped at ±t. The fit (to design for the build),
 //! the as-built figures and the sweep all draw from these laws, so they share this module.
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -15,7 +15,7 @@ pub enum Distribution {
     /// δ uniform in [−t, t].
     #[default]
     Uniform,
-    /// δ normal with σ = t/3, truncated at ±t.
+    /// δ normal with σ = t/3, clipped at ±t.
     Normal,
 }
 
@@ -36,17 +36,18 @@ impl Distribution {
         }
     }
 
-    /// Variance of δ for tolerance `t`: t²/3 for the uniform law; for the normal law the variance
-    /// of N(0, (t/3)²) truncated at ±3σ, which is σ² (1 − 2·3·φ(3)/(2Φ(3) − 1)) ≈ 0.9733 σ².
+    /// Variance of δ for tolerance `t`: t²/3 for the uniform law. The normal law is N(0, σ²),
+    /// σ = t/3, clipped at ±t (the 0.27 % of draws beyond ±3σ are set to ±t), whose variance is
+    /// σ² (2Φ(3) − 1 − 6φ(3) + 18 (1 − Φ(3))) ≈ 0.99501 σ².
     pub fn variance(self, t: f64) -> f64 {
         match self {
             Distribution::Uniform => t * t / 3.0,
             Distribution::Normal => {
                 // φ(3) = e^{-4.5}/√(2π); 2Φ(3) − 1 = erf(3/√2) = 0.997300203936740.
                 let phi3 = (-4.5f64).exp() / (2.0 * std::f64::consts::PI).sqrt();
-                let mass = 0.997_300_203_936_740;
+                let inside = 0.997_300_203_936_740;
                 let s2 = (t / 3.0) * (t / 3.0);
-                s2 * (1.0 - 2.0 * 3.0 * phi3 / mass)
+                s2 * (inside - 6.0 * phi3 + 9.0 * (1.0 - inside))
             }
         }
     }

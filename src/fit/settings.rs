@@ -64,7 +64,7 @@ pub struct FitSettings {
     /// The rate tolerance to design for and to judge builds at: `"none"` (the drawing only),
     /// `"catalogue"` (each family's `tolerance`) or a ± fraction for every element.
     pub tolerance: ToleranceSpec,
-    /// How build deviations are drawn: `uniform` in ±t or `normal` with σ = t/3 truncated at ±t.
+    /// How build deviations are drawn: `uniform` in ±t or `normal` with σ = t/3 clipped at ±t.
     pub distribution: Distribution,
     /// Monte Carlo builds behind the as-built figures (0: none).
     pub builds: usize,
