@@ -71,18 +71,31 @@ fn totals(rows: &[bom::BomRow]) -> Vec<(String, f64)> {
 /// Reads the output folder of `springfit fit`. A folder without `summary.json` and
 /// `residuals.csv` is refused with a message saying so.
 pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
+    // The hint never suggests fitting into an existing folder: that folder is someone else's.
     let not_fit = |what: &str| {
         Error::invalid(
             dir,
             "folder",
             format!(
-                "is not an output folder of `springfit fit`: {what} (run `springfit fit --out {}` first)",
-                dir.display()
+                "is not an output folder of `springfit fit`: {what} (give a fit output folder or a design file; \
+                 `springfit fit DESIGN --out NEW_FOLDER` writes one)"
             ),
         )
     };
     if !dir.is_dir() {
-        return Err(not_fit("no such folder"));
+        return Err(Error::invalid(
+            dir,
+            "folder",
+            format!(
+                "no such folder (give a design file, or fit one first: `springfit fit DESIGN --out {}`)",
+                dir.display()
+            ),
+        ));
+    }
+    if let Some(m) = crate::report::output::Manifest::read(dir)? {
+        if m.command != "fit" {
+            return Err(not_fit(&format!("it was written by `springfit {}`", m.command)));
+        }
     }
     let summary_path = dir.join("summary.json");
     let residuals_path = dir.join("residuals.csv");

@@ -119,6 +119,7 @@ fn an_infeasible_fit_exits_with_1_names_the_constraint_and_keeps_previous_result
     let design = design_text("double_pendulum.toml").replace("../catalogs/paper.toml", "../catalogs/joints.toml");
     let path = write(&dir, "designs/infeasible.toml", &design);
     write(&dir, "out/bom.csv", "previous results");
+    write(&dir, "out/.springfit-manifest.json", r#"{"springfit": "0.1.0", "command": "fit", "files": ["bom.csv"]}"#);
     for solver in ["qp", "nnls"] {
         springfit(&dir, &["fit", path.to_str().unwrap(), "--out", "out", "--solver", solver])
             .fails(1, &["infeasible", "Hessian match"]);

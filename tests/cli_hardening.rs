@@ -57,6 +57,12 @@ fn a_run_failing_midway_leaves_the_previous_results() {
     text.push_str("\n[[scenario]]\nname = \"too_high\"\nkind = \"swingup\"\nduration = 1.0\ne0 = 5.0\ned = 5000.0\n");
     let design = write(&dir, "design.toml", &text);
     write(&dir, "sim/sim_swingup.json", "previous");
+    // The folder is a previous output of `simulate` (its manifest says so), so it may be replaced.
+    write(
+        &dir,
+        "sim/.springfit-manifest.json",
+        r#"{"springfit": "0.1.0", "command": "simulate", "files": ["sim_swingup.json"]}"#,
+    );
     let run = springfit(&dir, &["simulate", design.to_str().unwrap(), "--exact", "--out", "sim"])
         .fails(2, &["scenario[", "ed", "out of reach"]);
     assert_eq!(std::fs::read_to_string(dir.join("sim/sim_swingup.json")).unwrap(), "previous", "{}", run.report());

@@ -30,6 +30,8 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
         }
         .into());
     }
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join("compare"));
+    springfit::report::output::check(&target, "compare")?;
     let mut records: Vec<FitRecord> = Vec::new();
     for input in inputs {
         let record = if input.extension().is_some_and(|e| e == "toml") && input.is_file() {
@@ -60,8 +62,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
         records.push(r);
     }
     disambiguate(&mut records);
-    let target = out.unwrap_or_else(|| PathBuf::from("out").join("compare"));
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "compare")?;
     // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
     let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
     springfit::report::compare::write_compare(&dir, &records, signed)?;
@@ -88,6 +89,8 @@ pub fn pareto(
     progress: &Progress,
 ) -> Result<()> {
     let (design, catalog) = load_design_catalog(path)?;
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
+    springfit::report::output::check(&target, "pareto")?;
     let k_max = k_max.unwrap_or(design.fit.max_elements.max(16));
     if k_max < 2 {
         return Err(Error::Setting { field: "--k-max".into(), reason: "must be at least 2".into() }.into());
@@ -123,8 +126,7 @@ pub fn pareto(
     let rcurve = radius_curve(&design, &catalog, &design.fit, &radii, &|_| {});
     step.finish();
     let rcurve = rcurve?;
-    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "pareto")?;
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
     let written = dir.commit()?;
     progress.say("budget K: springs used, p99, max");

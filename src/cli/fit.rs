@@ -32,6 +32,7 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
     settings.validate().map_err(|(field, reason)| Error::Setting { field, reason })?;
     let default_name = if args.exact { format!("{}_exact", design.name) } else { design.name.clone() };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
+    springfit::report::output::check(&target, "fit")?;
     let outcome = {
         let step = std::cell::RefCell::new(None::<super::progress::Step>);
         let stage = |name: &str| {
@@ -66,7 +67,7 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         result?
     };
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "fit")?;
     springfit::report::fit::write(&dir, &design, &outcome)?;
     let written = dir.commit();
     step.finish();

@@ -11,6 +11,8 @@ use super::progress::Progress;
 
 pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
     let design = Design::load(path)?;
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
+    springfit::report::output::check(&target, "geodesics")?;
     let step = progress.step("checking the region");
     let region = design.valid_region();
     step.finish();
@@ -25,9 +27,8 @@ pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()>
     let fan = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode);
     step.finish();
     let fan = fan?;
-    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "geodesics")?;
     springfit::report::geodesics::write(&dir, &design, &fan, &region)?;
     let written = dir.commit();
     step.finish();

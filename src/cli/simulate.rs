@@ -42,6 +42,8 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         }
         None => (0..design.file.scenario.len()).collect(),
     };
+    let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_simulate", design.name)));
+    springfit::report::output::check(&target, "simulate")?;
     let (potential, potential_name) = if args.exact {
         (ElasticPotential::Exact { omega: design.fit.frequency }, "exact ½ω²r²".to_string())
     } else if let Some(path) = &args.bom {
@@ -97,8 +99,7 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         },
         design.geodesics.ode,
     )?;
-    let target = args.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_simulate", design.name)));
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "simulate")?;
     if let Some(only) = &args.scenario {
         // A rerun of one scenario keeps the other scenarios' files of the previous run.
         let own = format!("sim_{only}");

@@ -66,6 +66,15 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     let print =
         format!("{} {} {}", serde_json::to_string(&settings)?, builds_note(&settings), env!("CARGO_PKG_VERSION"));
     let fp = fingerprint(&[&design_text, &catalog_text, &print]);
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    let target = args.out.clone().unwrap_or_else(|| {
+        let name = match shard {
+            Some((i, n)) => format!("{}_sweep_shard_{i}_of_{n}", design.name),
+            None => format!("{}_sweep", design.name),
+        };
+        PathBuf::from("out").join(name)
+    });
+    springfit::report::output::check(&target, "sweep")?;
 
     let step = progress.step("fitting the springs");
     let outcome = fit(&design, &catalog, &design.fit, &|_| {});
@@ -122,7 +131,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
             }
             .into());
         }
-        return finish(&design, &outcome, &settings, &results, args.out, progress);
+        return finish(&design, &outcome, &settings, &results, &target, progress);
     }
 
     let step = progress.step("preparing the mode label");
@@ -160,7 +169,6 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         base,
         nominal,
     };
-    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
     let indices = match shard {
         Some(s) => shard_indices(items.len(), s),
         None => (0..items.len()).collect(),
@@ -171,9 +179,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     let results = results?;
     progress.say(format!("{} items in {secs:.1} s", results.len()));
     if let Some((i, n)) = shard {
-        let target =
-            args.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_sweep_shard_{i}_of_{n}", design.name)));
-        let dir = OutputDir::create(&target)?;
+        let dir = OutputDir::create(&target, "sweep")?;
         let file =
             ShardFile { design: design.name.clone(), fingerprint: fp, shard: (i, n), items: items.len(), results };
         dir.write("sweep_shard.json", serde_json::to_string(&file)?)?;
@@ -185,7 +191,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         ));
         return Ok(());
     }
-    finish(&design, &outcome, &settings, &results, args.out, progress)
+    finish(&design, &outcome, &settings, &results, &target, progress)
 }
 
 fn builds_note(s: &springfit::sweep::SweepSettings) -> String {
@@ -197,12 +203,11 @@ fn finish(
     outcome: &FitOutcome,
     settings: &springfit::sweep::SweepSettings,
     results: &[ItemResult],
-    out: Option<PathBuf>,
+    target: &Path,
     progress: &Progress,
 ) -> Result<()> {
     let t = tables(settings, results);
-    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_sweep", design.name)));
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(target, "sweep")?;
     springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
     let written = dir.commit()?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");

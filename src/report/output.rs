@@ -1,57 +1,196 @@
-//! Atomic output folders: a command's files appear all together or not at all.
+//! Output folders that never lose a user's files: a command's files appear all together or not at
+//! all, and springfit only ever replaces or removes files it wrote itself.
 //!
-//! Files are written into a hidden staging folder next to the target (same parent, so the final
-//! rename stays on one file system). [`OutputDir::commit`] moves any previous folder aside,
-//! renames the staging folder into place and only then deletes the old one; if the rename fails
-//! the old folder is put back. Dropping an uncommitted [`OutputDir`] (an error, a panic) removes
-//! the staging folder, so an interrupted or failed run leaves the previous results intact.
+//! Every output folder carries a manifest, [`MANIFEST`], naming the command that wrote it and the
+//! files it wrote. A command writes
+//!
+//! - into a folder that does not exist yet (it is created whole: staged, then renamed into place);
+//! - into an existing empty folder, or one whose manifest names the same command: the new files
+//!   are swapped in one by one, the files of the previous run's manifest that the new run no
+//!   longer writes are removed, and every other file or subfolder is left as it is;
+//! - never into any other existing folder (a folder with files but no manifest, or the output
+//!   folder of another command): that is refused, before any work, with a message saying what to
+//!   do.
+//!
+//! Files are first written into a hidden staging folder next to the target (same parent, so the
+//! renames stay on one file system). On commit the previous files are moved into a hidden backup
+//! folder, the new ones moved in, and only then is the backup deleted; if a step fails, the new
+//! files are taken out again and the previous ones put back. Dropping an uncommitted
+//! [`OutputDir`] (an error, a panic) removes the staging folder, so a failed run leaves the
+//! previous results intact.
 
-use std::path::{Path, PathBuf};
+use std::collections::BTreeSet;
+use std::path::{Component, Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
-/// A staging folder that becomes the output folder on commit.
+/// The manifest's file name inside an output folder.
+pub const MANIFEST: &str = ".springfit-manifest.json";
+
+/// What an output folder's manifest records: who wrote the folder and which files.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// The springfit version that wrote the folder.
+    pub springfit: String,
+    /// The command that wrote it (`fit`, `simulate`, …); only this command may write there again.
+    pub command: String,
+    /// The files springfit wrote, relative to the folder, `/`-separated, sorted.
+    pub files: Vec<String>,
+    /// Subfolders springfit created for its files (removed again once empty).
+    #[serde(default)]
+    pub folders: Vec<String>,
+}
+
+impl Manifest {
+    fn empty(command: &str) -> Manifest {
+        Manifest {
+            springfit: env!("CARGO_PKG_VERSION").to_string(),
+            command: command.to_string(),
+            files: Vec::new(),
+            folders: Vec::new(),
+        }
+    }
+
+    /// Reads the manifest of `folder`, if it has one.
+    pub fn read(folder: &Path) -> Result<Option<Manifest>> {
+        let path = folder.join(MANIFEST);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let m: Manifest = serde_json::from_str(&text).map_err(|e| {
+            refusal(
+                folder,
+                &format!("its springfit manifest {MANIFEST} does not parse ({e}), so springfit cannot tell its own files from others"),
+            )
+        })?;
+        for f in m.files.iter().chain(&m.folders) {
+            if !is_plain_relative(f) {
+                return Err(refusal(
+                    folder,
+                    &format!("its springfit manifest {MANIFEST} lists `{f}`, which is not a path inside the folder"),
+                ));
+            }
+        }
+        Ok(Some(m))
+    }
+}
+
+/// A path such as `a.csv` or `plots/a.png`: relative, no `..`, no root.
+fn is_plain_relative(p: &str) -> bool {
+    !p.is_empty() && Path::new(p).components().all(|c| matches!(c, Component::Normal(_)))
+}
+
+/// The error for a folder springfit must not write into, with what to do about it.
+fn refusal(folder: &Path, why: &str) -> Error {
+    Error::io(
+        folder,
+        std::io::Error::other(format!(
+            "{why}; springfit never replaces files it did not write: choose another --out (a new or empty folder) or remove this folder yourself"
+        )),
+    )
+}
+
+/// What is at the target before a run.
+#[derive(Debug)]
+enum Previous {
+    /// Nothing: the folder is created whole.
+    Absent,
+    /// An empty folder or a folder of the same command: files are swapped in.
+    Managed(Manifest),
+}
+
+/// Checks that `command` may write its outputs to `target` (see the module documentation), without
+/// writing anything. Commands call it before any work so a refusal costs nothing.
+pub fn check(target: &Path, command: &str) -> Result<()> {
+    inspect(target, command).map(|_| ())
+}
+
+fn inspect(target: &Path, command: &str) -> Result<Previous> {
+    let parent = parent_of(target);
+    // A file where a folder must be: say so instead of the system's "File exists".
+    if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
+        if !blocker.is_dir() {
+            return Err(Error::io(
+                blocker,
+                std::io::Error::other(format!(
+                    "is a file, so the output folder {} cannot be created there",
+                    target.display()
+                )),
+            ));
+        }
+    }
+    if !target.exists() {
+        return Ok(Previous::Absent);
+    }
+    if !target.is_dir() {
+        return Err(Error::io(target, std::io::Error::other("exists and is not a folder")));
+    }
+    match Manifest::read(target)? {
+        Some(m) if m.command == command => Ok(Previous::Managed(m)),
+        Some(m) => Err(refusal(
+            target,
+            &format!(
+                "this is an output folder of `springfit {}`, and `springfit {command}` does not replace another command's files",
+                m.command
+            ),
+        )),
+        None => {
+            let mut entries = std::fs::read_dir(target).map_err(|e| Error::io(target, e))?;
+            if entries.next().is_some() {
+                Err(refusal(target, &format!("the folder is not empty and has no springfit manifest ({MANIFEST})")))
+            } else {
+                Ok(Previous::Managed(Manifest::empty(command)))
+            }
+        }
+    }
+}
+
+fn parent_of(target: &Path) -> PathBuf {
+    match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// A staging folder whose files become the output folder's on commit.
 #[derive(Debug)]
 pub struct OutputDir {
     target: PathBuf,
     staging: PathBuf,
+    command: String,
+    previous: Previous,
     committed: bool,
 }
 
 impl OutputDir {
-    /// Creates the staging folder for `target` (creating the parent folders as needed).
-    pub fn create(target: &Path) -> Result<OutputDir> {
+    /// Creates the staging folder for the outputs of `command` (`fit`, `simulate`, …) in `target`,
+    /// creating the parent folders as needed. Refuses a target that is not new, empty or an
+    /// output folder of the same command.
+    pub fn create(target: &Path, command: &str) -> Result<OutputDir> {
         let name = target
             .file_name()
             .ok_or_else(|| Error::io(target, std::io::Error::other("an output folder needs a name")))?
             .to_string_lossy()
             .into_owned();
-        let parent = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        // A file where a folder must be: say so instead of the system's "File exists".
-        if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
-            if !blocker.is_dir() {
-                return Err(Error::io(
-                    blocker,
-                    std::io::Error::other(format!(
-                        "is a file, so the output folder {} cannot be created there",
-                        target.display()
-                    )),
-                ));
-            }
-        }
+        let previous = inspect(target, command)?;
+        let parent = parent_of(target);
         std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-        if target.exists() && !target.is_dir() {
-            return Err(Error::io(target, std::io::Error::other("exists and is not a folder")));
-        }
         let staging = parent.join(format!(".{name}.springfit-tmp-{}", std::process::id()));
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
         std::fs::create_dir(&staging).map_err(|e| Error::io(&parent, e))?;
-        Ok(OutputDir { target: target.to_path_buf(), staging, committed: false })
+        Ok(OutputDir {
+            target: target.to_path_buf(),
+            staging,
+            command: command.to_string(),
+            previous,
+            committed: false,
+        })
     }
 
     /// Where a file named `name` is staged (for writers that create files themselves).
@@ -67,47 +206,51 @@ impl OutputDir {
     /// Writes a file into the staging folder.
     pub fn write(&self, name: &str, bytes: impl AsRef<[u8]>) -> Result<()> {
         let p = self.path(name);
+        if let Some(parent) = p.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(self.target.join(name), e))?;
+        }
         std::fs::write(&p, bytes).map_err(|e| Error::io(self.target.join(name), e))
     }
 
-    /// Copies the files of the previous folder (if any) whose names `keep` accepts into the
-    /// staging folder, so a partial rerun (one scenario of several) replaces only its own files.
+    /// Keeps the previous run's files (those its manifest lists) whose names `keep` accepts, so a
+    /// partial rerun (one scenario of several) replaces only its own files. Files springfit did
+    /// not write are never touched anyway.
     pub fn keep_previous(&self, keep: impl Fn(&str) -> bool) -> Result<()> {
-        let Ok(entries) = std::fs::read_dir(&self.target) else { return Ok(()) };
-        for e in entries.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            if e.path().is_file() && keep(&name) {
-                std::fs::copy(e.path(), self.path(&name)).map_err(|err| Error::io(e.path(), err))?;
+        let Previous::Managed(m) = &self.previous else { return Ok(()) };
+        for name in &m.files {
+            let from = self.target.join(name);
+            if from.is_file() && keep(name) {
+                let to = self.path(name);
+                if let Some(parent) = to.parent() {
+                    std::fs::create_dir_all(parent).map_err(|e| Error::io(&to, e))?;
+                }
+                std::fs::copy(&from, &to).map_err(|err| Error::io(&from, err))?;
             }
         }
         Ok(())
     }
 
-    /// Moves the staged files into place, replacing any previous folder.
+    /// Moves the staged files into place (see the module documentation) and returns the folder.
     pub fn commit(mut self) -> Result<PathBuf> {
-        let backup = self.staging.with_file_name(format!(
-            ".{}.springfit-old-{}",
-            self.target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
-            std::process::id()
-        ));
-        let had_old = self.target.exists();
-        if had_old {
-            if backup.exists() {
-                std::fs::remove_dir_all(&backup).map_err(|e| Error::io(&backup, e))?;
+        let (files, folders) = staged_listing(&self.staging)?;
+        let manifest = Manifest {
+            springfit: env!("CARGO_PKG_VERSION").to_string(),
+            command: self.command.clone(),
+            files,
+            folders,
+        };
+        // Inspect again: the folder may have changed while the command ran.
+        match inspect(&self.target, &self.command)? {
+            Previous::Absent => {
+                write_manifest(&self.staging, &manifest)?;
+                std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
             }
-            std::fs::rename(&self.target, &backup).map_err(|e| Error::io(&self.target, e))?;
-        }
-        if let Err(e) = std::fs::rename(&self.staging, &self.target) {
-            if had_old {
-                let _ = std::fs::rename(&backup, &self.target);
+            Previous::Managed(old) => {
+                swap_in(&self.target, &self.staging, &old, &manifest)?;
+                let _ = std::fs::remove_dir_all(&self.staging);
             }
-            return Err(Error::io(&self.target, e));
         }
         self.committed = true;
-        if had_old {
-            // The new results are in place; a leftover backup is harmless but tidy up.
-            let _ = std::fs::remove_dir_all(&backup);
-        }
         Ok(self.target.clone())
     }
 }
@@ -118,6 +261,123 @@ impl Drop for OutputDir {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
+}
+
+/// The files and subfolders staged under `root` (relative, `/`-separated, sorted).
+fn staged_listing(root: &Path) -> Result<(Vec<String>, Vec<String>)> {
+    fn walk(root: &Path, dir: &Path, files: &mut Vec<String>, folders: &mut Vec<String>) -> Result<()> {
+        for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+            let e = e.map_err(|err| Error::io(dir, err))?;
+            let p = e.path();
+            let rel = p.strip_prefix(root).unwrap_or(&p);
+            let rel = rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
+            if p.is_dir() {
+                folders.push(rel);
+                walk(root, &p, files, folders)?;
+            } else if rel != MANIFEST {
+                files.push(rel);
+            }
+        }
+        Ok(())
+    }
+    let (mut files, mut folders) = (Vec::new(), Vec::new());
+    walk(root, root, &mut files, &mut folders)?;
+    files.sort();
+    folders.sort();
+    Ok((files, folders))
+}
+
+/// Writes the manifest into `folder` through a temporary file and a rename, so it is never
+/// half-written.
+fn write_manifest(folder: &Path, m: &Manifest) -> Result<()> {
+    let text =
+        serde_json::to_string_pretty(m).map_err(|e| Error::io(folder.join(MANIFEST), std::io::Error::other(e)))?;
+    let tmp = folder.join(format!("{MANIFEST}.tmp-{}", std::process::id()));
+    std::fs::write(&tmp, text + "\n").map_err(|e| Error::io(folder.join(MANIFEST), e))?;
+    std::fs::rename(&tmp, folder.join(MANIFEST)).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(folder.join(MANIFEST), e)
+    })
+}
+
+/// Swaps the staged files into an existing folder whose previous manifest is `old`.
+fn swap_in(target: &Path, staging: &Path, old: &Manifest, new: &Manifest) -> Result<()> {
+    let old_files: BTreeSet<&str> = old.files.iter().map(String::as_str).collect();
+    // A file of ours would land on a file springfit did not write: refuse rather than lose it.
+    for f in &new.files {
+        let t = target.join(f);
+        if t.symlink_metadata().is_ok() && (!old_files.contains(f.as_str()) || t.is_dir()) {
+            return Err(refusal(
+                target,
+                &format!(
+                    "it holds `{f}`, which springfit did not write but would now write; move that file away first"
+                ),
+            ));
+        }
+    }
+    // First a manifest covering old and new files, so an interruption leaves nothing unlisted.
+    let mut union = old.clone();
+    union.files = old_files.iter().map(|s| s.to_string()).chain(new.files.iter().cloned()).collect();
+    union.files.sort();
+    union.files.dedup();
+    union.folders.extend(new.folders.iter().cloned());
+    union.folders.sort();
+    union.folders.dedup();
+    write_manifest(target, &union)?;
+
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let backup = parent_of(target).join(format!(".{name}.springfit-old-{}", std::process::id()));
+    if backup.exists() {
+        std::fs::remove_dir_all(&backup).map_err(|e| Error::io(&backup, e))?;
+    }
+    std::fs::create_dir(&backup).map_err(|e| Error::io(&backup, e))?;
+
+    let mut moved_out: Vec<&str> = Vec::new();
+    let mut moved_in: Vec<&str> = Vec::new();
+    let result = (|| -> Result<()> {
+        for f in &union.files {
+            let t = target.join(f);
+            if t.symlink_metadata().is_ok_and(|m| !m.is_dir()) {
+                let b = backup.join(f);
+                if let Some(p) = b.parent() {
+                    std::fs::create_dir_all(p).map_err(|e| Error::io(&b, e))?;
+                }
+                std::fs::rename(&t, &b).map_err(|e| Error::io(&t, e))?;
+                moved_out.push(f);
+            }
+        }
+        for f in &new.files {
+            let t = target.join(f);
+            if let Some(p) = t.parent() {
+                std::fs::create_dir_all(p).map_err(|e| Error::io(&t, e))?;
+            }
+            std::fs::rename(staging.join(f), &t).map_err(|e| Error::io(&t, e))?;
+            moved_in.push(f);
+        }
+        Ok(())
+    })();
+    if let Err(e) = result {
+        for f in moved_in {
+            let _ = std::fs::remove_file(target.join(f));
+        }
+        for f in moved_out {
+            let _ = std::fs::rename(backup.join(f), target.join(f));
+        }
+        let _ = write_manifest(target, old);
+        let _ = std::fs::remove_dir_all(&backup);
+        return Err(e);
+    }
+    write_manifest(target, new)?;
+    // The new files are in place; the previous ones (in the backup) and the subfolders springfit
+    // created that are now empty and no longer used can go.
+    let _ = std::fs::remove_dir_all(&backup);
+    let keep: BTreeSet<&str> = new.folders.iter().map(String::as_str).collect();
+    for d in old.folders.iter().rev() {
+        if !keep.contains(d.as_str()) {
+            let _ = std::fs::remove_dir(target.join(d)); // fails, as wanted, unless empty
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -131,20 +391,102 @@ mod tests {
         d
     }
 
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> =
+            std::fs::read_dir(dir).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+        v.sort();
+        v
+    }
+
     #[test]
-    fn commit_replaces_the_old_folder() {
-        let root = scratch("commit");
+    fn a_new_folder_is_created_whole_with_its_manifest() {
+        let root = scratch("new");
         let target = root.join("out");
-        std::fs::create_dir_all(&target).unwrap();
-        std::fs::write(target.join("old.txt"), "old").unwrap();
-        let out = OutputDir::create(&target).unwrap();
+        let out = OutputDir::create(&target, "fit").unwrap();
         out.write("new.txt", "new").unwrap();
-        assert!(!target.join("new.txt").exists(), "nothing visible before commit");
+        assert!(!target.exists(), "nothing visible before commit");
         out.commit().unwrap();
         assert_eq!(std::fs::read_to_string(target.join("new.txt")).unwrap(), "new");
-        assert!(!target.join("old.txt").exists());
-        let leftovers: Vec<_> = std::fs::read_dir(&root).unwrap().flatten().map(|e| e.file_name()).collect();
-        assert_eq!(leftovers.len(), 1, "{leftovers:?}");
+        let m = Manifest::read(&target).unwrap().unwrap();
+        assert_eq!((m.command.as_str(), m.files.clone()), ("fit", vec!["new.txt".to_string()]));
+        assert_eq!(listing(&root), vec!["out"], "no staging or backup folder left");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_rerun_replaces_only_its_own_files() {
+        let root = scratch("rerun");
+        let target = root.join("out");
+        let out = OutputDir::create(&target, "fit").unwrap();
+        out.write("a.txt", "1").unwrap();
+        out.write("stale.txt", "1").unwrap();
+        out.commit().unwrap();
+        std::fs::write(target.join("mine.txt"), "user").unwrap();
+        std::fs::create_dir(target.join("notes")).unwrap();
+        std::fs::write(target.join("notes/n.txt"), "user").unwrap();
+        let out = OutputDir::create(&target, "fit").unwrap();
+        out.write("a.txt", "2").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(target.join("a.txt")).unwrap(), "2");
+        assert!(!target.join("stale.txt").exists(), "listed in the old manifest, no longer written");
+        assert_eq!(std::fs::read_to_string(target.join("mine.txt")).unwrap(), "user");
+        assert_eq!(std::fs::read_to_string(target.join("notes/n.txt")).unwrap(), "user");
+        assert_eq!(Manifest::read(&target).unwrap().unwrap().files, vec!["a.txt"]);
+        assert_eq!(listing(&root), vec!["out"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn foreign_folders_are_refused_before_anything_is_written() {
+        let root = scratch("foreign");
+        let user = root.join("documents");
+        std::fs::create_dir(&user).unwrap();
+        std::fs::write(user.join("thesis.tex"), "precious").unwrap();
+        let err = OutputDir::create(&user, "fit").unwrap_err().to_string();
+        assert!(err.contains("not empty") && err.contains("choose another --out"), "{err}");
+        let sim = root.join("sim");
+        OutputDir::create(&sim, "simulate").unwrap().commit().unwrap();
+        let err = check(&sim, "fit").unwrap_err().to_string();
+        assert!(err.contains("`springfit simulate`"), "{err}");
+        std::fs::write(sim.join(MANIFEST), r#"{"springfit":"0","command":"simulate","files":["../x"]}"#).unwrap();
+        let err = check(&sim, "simulate").unwrap_err().to_string();
+        assert!(err.contains("not a path inside"), "{err}");
+        assert_eq!(listing(&root), vec!["documents", "sim"]);
+        assert_eq!(listing(&user), vec!["thesis.tex"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn an_empty_folder_may_be_used_and_keeps_its_other_contents_later() {
+        let root = scratch("empty");
+        let target = root.join("out");
+        std::fs::create_dir(&target).unwrap();
+        let out = OutputDir::create(&target, "sweep").unwrap();
+        out.write("sub/x.txt", "x").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(target.join("sub/x.txt")).unwrap(), "x");
+        let m = Manifest::read(&target).unwrap().unwrap();
+        assert_eq!((m.files, m.folders), (vec!["sub/x.txt".to_string()], vec!["sub".to_string()]));
+        // A rerun that no longer writes the subfolder removes it (it is springfit's and empty).
+        let out = OutputDir::create(&target, "sweep").unwrap();
+        out.write("y.txt", "y").unwrap();
+        out.commit().unwrap();
+        assert_eq!(listing(&target), vec![MANIFEST, "y.txt"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_file_the_user_put_where_springfit_writes_is_not_overwritten() {
+        let root = scratch("clash");
+        let target = root.join("out");
+        OutputDir::create(&target, "fit").unwrap().commit().unwrap();
+        std::fs::write(target.join("bom.csv"), "user's").unwrap();
+        let out = OutputDir::create(&target, "fit").unwrap();
+        out.write("bom.csv", "ours").unwrap();
+        let err = out.commit().unwrap_err().to_string();
+        assert!(err.contains("bom.csv") && err.contains("did not write"), "{err}");
+        assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "user's");
+        assert_eq!(listing(&root), vec!["out"]);
         let _ = std::fs::remove_dir_all(&root);
     }
 
@@ -152,15 +494,36 @@ mod tests {
     fn a_failed_run_leaves_the_previous_results() {
         let root = scratch("fail");
         let target = root.join("out");
-        std::fs::create_dir_all(&target).unwrap();
-        std::fs::write(target.join("bom.csv"), "previous").unwrap();
+        let out = OutputDir::create(&target, "fit").unwrap();
+        out.write("bom.csv", "previous").unwrap();
+        out.commit().unwrap();
         {
-            let out = OutputDir::create(&target).unwrap();
+            let out = OutputDir::create(&target, "fit").unwrap();
             out.write("bom.csv", "half").unwrap();
             // Dropped without commit: the run failed.
         }
         assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "previous");
-        assert_eq!(std::fs::read_dir(&root).unwrap().count(), 1);
+        assert_eq!(listing(&root), vec!["out"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn keep_previous_copies_only_listed_files() {
+        let root = scratch("keep");
+        let target = root.join("out");
+        let out = OutputDir::create(&target, "simulate").unwrap();
+        out.write("sim_a.csv", "a1").unwrap();
+        out.write("sim_b.csv", "b1").unwrap();
+        out.commit().unwrap();
+        std::fs::write(target.join("sim_user.csv"), "user").unwrap();
+        let out = OutputDir::create(&target, "simulate").unwrap();
+        out.keep_previous(|n| n != "sim_a.csv").unwrap();
+        out.write("sim_a.csv", "a2").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(target.join("sim_a.csv")).unwrap(), "a2");
+        assert_eq!(std::fs::read_to_string(target.join("sim_b.csv")).unwrap(), "b1");
+        assert_eq!(std::fs::read_to_string(target.join("sim_user.csv")).unwrap(), "user");
+        assert_eq!(Manifest::read(&target).unwrap().unwrap().files, vec!["sim_a.csv", "sim_b.csv"]);
         let _ = std::fs::remove_dir_all(&root);
     }
 
@@ -169,9 +532,9 @@ mod tests {
         let root = scratch("unwritable");
         let file = root.join("plain-file");
         std::fs::write(&file, "x").unwrap();
-        let err = OutputDir::create(&file.join("out")).unwrap_err().to_string();
+        let err = OutputDir::create(&file.join("out"), "fit").unwrap_err().to_string();
         assert!(err.contains("plain-file"), "{err}");
-        let err = OutputDir::create(&file).unwrap_err().to_string();
+        let err = OutputDir::create(&file, "fit").unwrap_err().to_string();
         assert!(err.contains("not a folder"), "{err}");
         let _ = std::fs::remove_dir_all(&root);
     }

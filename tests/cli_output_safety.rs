@@ -1,0 +1,151 @@
+//! Output folders through the binary: springfit never deletes or overwrites a file it did not
+//! write. A command writes into a new or empty folder, or into its own earlier output folder
+//! (recognised by its manifest), and then replaces only the files that manifest lists.
+
+mod util;
+
+use std::path::{Path, PathBuf};
+
+use util::{repo, springfit, temp_dir, walk, write};
+
+const MANIFEST: &str = ".springfit-manifest.json";
+
+/// Every file under `dir` with its bytes.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    walk(dir).into_iter().map(|p| (p.clone(), std::fs::read(&p).unwrap())).collect()
+}
+
+fn manifest_files(dir: &Path) -> Vec<String> {
+    let m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join(MANIFEST)).unwrap()).unwrap();
+    m["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().to_string()).collect()
+}
+
+/// No staging or backup folder left next to the outputs.
+fn no_leftovers(dir: &Path) {
+    let hidden: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".springfit-"))
+        .collect();
+    assert!(hidden.is_empty(), "staging or backup folders left behind: {hidden:?}");
+}
+
+#[test]
+fn a_folder_of_user_files_is_refused_by_every_command_and_left_untouched() {
+    let dir = temp_dir("safety-user");
+    write(&dir, "documents/thesis.tex", "\\documentclass{article} precious");
+    write(&dir, "documents/figures/plot.png", "nested user file");
+    write(&dir, "documents/figures/deeper/data.csv", "1,2,3");
+    let before = snapshot(&dir.join("documents"));
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    let runs: Vec<Vec<&str>> = vec![
+        vec!["fit", d, "--out", "documents"],
+        vec!["fit", d, "--exact", "--out", "documents"],
+        vec!["geodesics", d, "--out", "documents"],
+        vec!["simulate", d, "--exact", "--scenario", "sensitivity", "--out", "documents"],
+        vec!["sweep", d, "--builds", "1", "--out", "documents"],
+        vec!["sweep", d, "--shard", "1/2", "--out", "documents"],
+        vec!["compare", d, "--out", "documents"],
+        vec!["pareto", d, "--k-max", "3", "--radii", "1", "--out", "documents"],
+    ];
+    for args in runs {
+        let run = springfit(&dir, &args)
+            .fails(2, &["documents", "not empty", "no springfit manifest", "choose another --out"]);
+        assert_eq!(snapshot(&dir.join("documents")), before, "user files changed\n{}", run.report());
+        // Refused before any work: nothing was fitted or simulated.
+        assert!(!run.stdout().contains("wrote"), "{}", run.report());
+        no_leftovers(&dir);
+    }
+}
+
+#[test]
+fn a_rerun_replaces_only_its_own_files_and_removes_its_stale_ones() {
+    let dir = temp_dir("safety-rerun");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["fit", d, "--out", "run"]).ok();
+    let first = manifest_files(&dir.join("run"));
+    assert!(first.contains(&"bom.csv".to_string()) && first.contains(&"summary.json".to_string()), "{first:?}");
+    for f in &first {
+        assert!(dir.join("run").join(f).is_file(), "{f} listed but not written");
+    }
+    // The user keeps notes and a subfolder of their own in the output folder.
+    write(&dir, "run/notes.txt", "my notes");
+    write(&dir, "run/mine/measurements.csv", "k,0.5");
+    write(&dir, "run/mine/deeper/photo.jpg", "jpeg");
+    let summary_before = std::fs::read_to_string(dir.join("run/summary.json")).unwrap();
+    // The same command again, now writing fewer files: its stale bill of materials goes.
+    let run = springfit(&dir, &["fit", d, "--exact", "--out", "run"]).ok();
+    assert!(!dir.join("run/bom.csv").exists() && !dir.join("run/bom.md").exists(), "{}", run.report());
+    assert_ne!(std::fs::read_to_string(dir.join("run/summary.json")).unwrap(), summary_before);
+    assert_eq!(std::fs::read_to_string(dir.join("run/notes.txt")).unwrap(), "my notes");
+    assert_eq!(std::fs::read_to_string(dir.join("run/mine/measurements.csv")).unwrap(), "k,0.5");
+    assert_eq!(std::fs::read_to_string(dir.join("run/mine/deeper/photo.jpg")).unwrap(), "jpeg");
+    let second = manifest_files(&dir.join("run"));
+    assert!(!second.iter().any(|f| f.starts_with("bom") || f.contains("notes") || f.contains("mine")), "{second:?}");
+    no_leftovers(&dir);
+    // Another command does not write into a fit folder.
+    let before = snapshot(&dir.join("run"));
+    springfit(&dir, &["geodesics", d, "--out", "run"]).fails(2, &["run", "`springfit fit`", "choose another --out"]);
+    assert_eq!(snapshot(&dir.join("run")), before);
+    // An empty folder may be used.
+    std::fs::create_dir(dir.join("empty")).unwrap();
+    springfit(&dir, &["geodesics", d, "--out", "empty"]).ok();
+    assert!(dir.join("empty/geodesics.csv").is_file());
+}
+
+#[test]
+fn a_stale_file_is_removed_only_when_the_old_manifest_lists_it() {
+    let dir = temp_dir("safety-stale");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["fit", d, "--out", "run"]).ok();
+    // Take bom.md off the manifest: to springfit it is now a file someone else put there.
+    let path = dir.join("run").join(MANIFEST);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let edited = text.replace("\"bom.md\",", "");
+    assert_ne!(edited, text);
+    std::fs::write(&path, edited).unwrap();
+    let bom_md = std::fs::read_to_string(dir.join("run/bom.md")).unwrap();
+    springfit(&dir, &["fit", d, "--exact", "--out", "run"]).ok();
+    assert!(!dir.join("run/bom.csv").exists(), "listed and no longer written: removed");
+    assert_eq!(std::fs::read_to_string(dir.join("run/bom.md")).unwrap(), bom_md, "unlisted: kept");
+    // A run that would now write over that file refuses, and leaves the previous results.
+    let before = snapshot(&dir.join("run"));
+    springfit(&dir, &["fit", d, "--out", "run"]).fails(2, &["run", "bom.md", "did not write"]);
+    assert_eq!(snapshot(&dir.join("run")), before);
+    no_leftovers(&dir);
+}
+
+#[test]
+fn a_partial_simulate_rerun_keeps_the_other_scenarios_files() {
+    let dir = temp_dir("safety-partial");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["simulate", d, "--exact", "--scenario", "sensitivity", "--out", "sim"]).ok();
+    springfit(&dir, &["simulate", d, "--exact", "--scenario", "swingup", "--out", "sim"]).ok();
+    write(&dir, "sim/sim_mine.csv", "a user file named like ours");
+    let files = manifest_files(&dir.join("sim"));
+    for f in ["sim_sensitivity.json", "sim_sensitivity.csv", "sim_swingup.json", "sim_swingup_q.png"] {
+        assert!(files.contains(&f.to_string()), "{f} missing from {files:?}");
+        assert!(dir.join("sim").join(f).is_file());
+    }
+    let swingup = std::fs::read(dir.join("sim/sim_swingup.json")).unwrap();
+    springfit(&dir, &["simulate", d, "--exact", "--scenario", "sensitivity", "--out", "sim"]).ok();
+    assert_eq!(std::fs::read(dir.join("sim/sim_swingup.json")).unwrap(), swingup);
+    assert_eq!(manifest_files(&dir.join("sim")), files);
+    assert_eq!(std::fs::read_to_string(dir.join("sim/sim_mine.csv")).unwrap(), "a user file named like ours");
+    no_leftovers(&dir);
+}
+
+#[test]
+fn compare_names_the_command_that_wrote_a_folder_and_suggests_no_overwrite() {
+    let dir = temp_dir("safety-compare");
+    write(&dir, "sw/sweep.csv", "x");
+    write(&dir, &format!("sw/{MANIFEST}"), r#"{"springfit": "0.1.0", "command": "sweep", "files": ["sweep.csv"]}"#);
+    let run = springfit(&dir, &["compare", "sw", "--out", "cmp"])
+        .fails(2, &["sw", "not an output folder of `springfit fit`", "`springfit sweep`"]);
+    assert!(!run.stderr().contains("--out sw"), "must not suggest fitting into the sweep folder\n{}", run.report());
+}
