@@ -19,6 +19,7 @@ the printed text.
     python3 scripts/readme_figures.py                 # rewrite README.md in place
     python3 scripts/readme_figures.py --check         # exit 1 and list the figures that differ
     python3 scripts/readme_figures.py --threads 2     # passed to springfit (results do not depend on it)
+    python3 scripts/readme_figures.py --reuse         # reread the last run's files, run nothing
 
 Python 3.8+ standard library only. Every figure NAME in the README must be known here and every
 figure known here must appear in the README, so that neither can drift silently.
@@ -105,11 +106,12 @@ def radius(x):
 
 
 class Runner:
-    def __init__(self, binary, out, threads, verbose):
+    def __init__(self, binary, out, threads, verbose, reuse=False):
         self.binary = binary
         self.out = out
         self.threads = threads
         self.verbose = verbose
+        self.reuse = reuse
         self.done = {}
         self.timings = {}
 
@@ -143,6 +145,10 @@ class Runner:
             m = re.fullmatch(r"\{probe:(\w+)\}", a)
             args.append(self.probe_copy(m.group(1)) if m else a)
         folder = self.out / job.replace(".", "_")
+        saved = self.out / (job.replace(".", "_") + ".stdout")
+        if self.reuse and folder.is_dir() and saved.is_file():
+            self.done[job] = (folder, saved.read_text(encoding="utf-8"))
+            return self.done[job]
         cmd = [str(self.binary)]
         if self.threads:
             cmd += ["--threads", str(self.threads)]
@@ -156,6 +162,7 @@ class Runner:
         if proc.returncode != 0:
             sys.stderr.write(proc.stdout + proc.stderr)
             sys.exit(f"readme_figures: `{shown}` failed with exit code {proc.returncode}")
+        saved.write_text(proc.stdout, encoding="utf-8")
         self.done[job] = (folder, proc.stdout)
         return self.done[job]
 
@@ -353,6 +360,9 @@ def main():
     ap.add_argument("--bin", default=None, help="springfit binary (default: build target/release/springfit)")
     ap.add_argument("--no-build", action="store_true", help="use the existing target/release/springfit")
     ap.add_argument("--quiet", action="store_true", help="print only differences and errors")
+    ap.add_argument("--reuse", action="store_true",
+                    help="read the outputs of an earlier run under --out instead of running the commands again "
+                         "(for editing the README; the figures are only as fresh as that run)")
     args = ap.parse_args()
 
     readme = (ROOT / args.readme) if not Path(args.readme).is_absolute() else Path(args.readme)
@@ -372,12 +382,12 @@ def main():
         binary = Path(args.bin).resolve()
     else:
         binary = ROOT / "target" / "release" / "springfit"
-        if not args.no_build:
+        if not (args.no_build or args.reuse):
             if not args.quiet:
                 print("$ cargo build --release", file=sys.stderr, flush=True)
             subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
     out = (ROOT / args.out) if not Path(args.out).is_absolute() else Path(args.out)
-    runner = Runner(binary, out, args.threads, verbose=not args.quiet)
+    runner = Runner(binary, out, args.threads, verbose=not args.quiet, reuse=args.reuse)
 
     values = {name: FIGURES[name](runner) for name in sorted(set(names))}
 
