@@ -8,7 +8,7 @@
 //! ℓ = θ = 2·atan2(v₂, v₁) and Δ = Δθ wrapped to (−π, π]. For three or more joints the mode is the
 //! line ±u of the metric-frame direction u of v = log(q), and Δ = 2·∠(±u, u_d) ∈ [0, π] is the
 //! distance to the desired line with g = ∂Δ/∂q: the same law descends ½k_θΔ², a potential on the
-//! space of modes (generalising the doubled angle of the two-joint label). `DESIGN.md` names
+//! space of modes (generalising the doubled angle of the two-joint label). `docs/theory.md` names
 //! two points the paper leaves loose; both are options here:
 //!
 //! * [`LabelGradient::Exact`] (default) uses the gradient of θ; [`LabelGradient::Paper`] uses the

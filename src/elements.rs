@@ -2,7 +2,7 @@
 //!
 //! Every element acts on a transmission coordinate x = a·q (a = eᵢ for a spring on joint i, a
 //! = (…, 1, …, ±r, …) for a coupled bevel-gear spring) with an offset x₀ and a stiffness k ≥ 0
-//! chosen by the fit. Its potential is k·u(x − x₀) with the profile u of `DESIGN.md`:
+//! chosen by the fit. Its potential is k·u(x − x₀) with the profile u of `docs/theory.md`:
 //!
 //! | profile | u(d) | u′(d) (torque on x per unit k) | unit of k |
 //! | --- | --- | --- | --- |

@@ -2,7 +2,7 @@
 //!
 //! Designs spring layouts for planar robot arms so that *strict normal modes are everywhere*:
 //! released from rest anywhere in a region, the arm swings through its equilibrium on a fixed
-//! geodesic of the inertia metric. See `DESIGN.md` for the maths and the words used here.
+//! geodesic of the inertia metric. See `docs/theory.md` for the maths and the words used here.
 
 // Index loops mirror the formulas (Σᵢ Mᵢⱼ q̇ⱼ …) and stay the clearest way to write them.
 #![allow(clippy::needless_range_loop)]

@@ -1,6 +1,6 @@
 //! The robot model: a planar serial chain of revolute links.
 //!
-//! Coordinates follow `DESIGN.md`: q₁ is the absolute angle of link 1 (from the x axis), qᵢ for
+//! Coordinates follow `docs/theory.md`: q₁ is the absolute angle of link 1 (from the x axis), qᵢ for
 //! i > 1 the angle of link i relative to link i−1. The absolute angle of link i is therefore
 //! φᵢ = q₁ + … + qᵢ.
 //!

@@ -182,7 +182,7 @@ pub struct RunMetrics {
     pub energy_drift_rel: Option<f64>,
     /// ∫|P| per source, J.
     pub flux: FluxSummary,
-    /// (∫|P_θ| + ∫|P_E|) / ∫|P_U| over the whole run (`DESIGN.md`'s definition).
+    /// (∫|P_θ| + ∫|P_E|) / ∫|P_U| over the whole run (the definition in `docs/theory.md`).
     pub actuator_share: f64,
     /// The same over the last 5 s (the steady state after a swing-up or a mode switch).
     pub actuator_share_last5s: f64,

@@ -1,0 +1,430 @@
+#!/usr/bin/env python3
+"""Regenerate every figure README.md quotes from springfit's own output files.
+
+The README marks each figure it quotes:
+
+    inline:  <!-- fig:NAME -->0.329°<!-- /fig -->
+    block:   <!-- block:NAME -->            (a whole fenced block, e.g. what a command prints)
+             ```text
+             ...
+             ```
+             <!-- /block -->
+
+This script builds target/release/springfit (unless --no-build), runs the commands behind the
+figures (see JOBS below: every command writes into a folder under --out, default out/readme),
+reads the JSON and CSV files those commands write and rewrites the text between the markers.
+Only the quote of what `springfit fit` prints is taken from stdout, because that quote *is*
+the printed text.
+
+    python3 scripts/readme_figures.py                 # rewrite README.md in place
+    python3 scripts/readme_figures.py --check         # exit 1 and list the figures that differ
+    python3 scripts/readme_figures.py --threads 2     # passed to springfit (results do not depend on it)
+    python3 scripts/readme_figures.py --reuse         # reread the last run's files, run nothing
+
+Python 3.8+ standard library only. Every figure NAME in the README must be known here and every
+figure known here must appear in the README, so that neither can drift silently.
+"""
+
+import argparse
+import csv
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# --------------------------------------------------------------------------------------------
+# Commands behind the figures. Each job is `springfit <args…> --out <out>/<folder>`; `{design}`
+# names a design file under designs/, `{probe:NAME}` a copy of designs/NAME.toml with a longer
+# region-check probe (see LONG_PROBE_FACTOR).
+# --------------------------------------------------------------------------------------------
+
+LONG_PROBE_FACTOR = 5.0
+
+JOBS = {
+    "fit.dp": ["fit", "designs/double_pendulum.toml"],
+    "fit.dense": ["fit", "designs/double_pendulum_dense.toml"],
+    "fit.workshop": ["fit", "designs/double_pendulum_workshop.toml"],
+    "fit.window": ["fit", "designs/double_pendulum_paper_window.toml"],
+    "fit.triple": ["fit", "designs/triple_pendulum.toml"],
+    "sim.dp": ["simulate", "designs/double_pendulum.toml"],
+    "sim.dp_exact": ["simulate", "designs/double_pendulum.toml", "--exact", "--scenario", "free"],
+    "sim.dense": ["simulate", "designs/double_pendulum_dense.toml", "--scenario", "free"],
+    "sweep.dp": ["sweep", "designs/double_pendulum.toml"],
+    "pareto.dp": ["pareto", "designs/double_pendulum.toml", "--radii", "0.5,2,3.5"],
+    "geo.dp": ["geodesics", "designs/double_pendulum.toml"],
+    "geo.triple": ["geodesics", "designs/triple_pendulum.toml"],
+    "geo.dp_long": ["geodesics", "{probe:double_pendulum}"],
+    "geo.straight_long": ["geodesics", "{probe:double_pendulum_straight}"],
+    "geo.folded_long": ["geodesics", "{probe:double_pendulum_folded}"],
+}
+
+
+# --------------------------------------------------------------------------------------------
+# Formatting: three significant figures unless a figure says otherwise; a real minus sign.
+# --------------------------------------------------------------------------------------------
+
+
+def sig(x, n=3):
+    """x with n significant figures, in fixed notation."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    if x == 0:
+        return "0"
+    digits = max(n - 1 - math.floor(math.log10(abs(x))), 0)
+    text = f"{round(x, digits):.{digits}f}"
+    return text.replace("-", "−")
+
+
+def deg(x, n=3):
+    return sig(x, n) + "°"
+
+
+def pct(fraction, n=3):
+    return sig(100.0 * fraction, n) + " %"
+
+
+def signed_pct(fraction, n=2):
+    """A signed percentage with n significant figures: +0.03 %, −2.7 %."""
+    x = 100.0 * fraction
+    text = sig(abs(x), n)
+    return ("+" if x >= 0 else "−") + text + " %"
+
+
+def radius(x):
+    return f"{x:.4g}"
+
+
+# --------------------------------------------------------------------------------------------
+# Running springfit.
+# --------------------------------------------------------------------------------------------
+
+
+class Runner:
+    def __init__(self, binary, out, threads, verbose, reuse=False):
+        self.binary = binary
+        self.out = out
+        self.threads = threads
+        self.verbose = verbose
+        self.reuse = reuse
+        self.done = {}
+        self.timings = {}
+
+    def probe_copy(self, name):
+        """designs/NAME.toml with `[geodesics] probe_factor = LONG_PROBE_FACTOR`, written under
+        the scratch folder; a relative catalogue path is made absolute."""
+        src = ROOT / "designs" / f"{name}.toml"
+        text = src.read_text(encoding="utf-8")
+        if re.search(r"^\s*\[geodesics\]", text, re.M):
+            sys.exit(f"readme_figures: {src} already has [geodesics]; teach probe_copy to edit it")
+
+        def absolute(m):
+            path = (src.parent / m.group(2)).resolve()
+            return f'{m.group(1)}"{path.as_posix()}"'
+
+        text = re.sub(r'^(\s*catalog\s*=\s*)"([^"]*)"', absolute, text, flags=re.M)
+        # A top-level table must come before the first [[scenario]]/[sweep] etc. only by TOML
+        # rules for dotted keys; a new [geodesics] table may go anywhere, so append it.
+        text += f"\n[geodesics]\nprobe_factor = {LONG_PROBE_FACTOR}\n"
+        dst = self.out / "designs" / f"{name}_long_probe.toml"
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_text(text, encoding="utf-8")
+        return str(dst)
+
+    def run(self, job):
+        """Runs a job once; returns (output folder, stdout)."""
+        if job in self.done:
+            return self.done[job]
+        args = []
+        for a in JOBS[job]:
+            m = re.fullmatch(r"\{probe:(\w+)\}", a)
+            args.append(self.probe_copy(m.group(1)) if m else a)
+        folder = self.out / job.replace(".", "_")
+        saved = self.out / (job.replace(".", "_") + ".stdout")
+        if self.reuse and folder.is_dir() and saved.is_file():
+            self.done[job] = (folder, saved.read_text(encoding="utf-8"))
+            return self.done[job]
+        cmd = [str(self.binary)]
+        if self.threads:
+            cmd += ["--threads", str(self.threads)]
+        cmd += args + ["--out", str(folder)]
+        shown = " ".join(["springfit"] + cmd[1:])
+        if self.verbose:
+            print(f"$ {shown}", file=sys.stderr, flush=True)
+        t0 = time.monotonic()
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+        self.timings[job] = time.monotonic() - t0
+        if proc.returncode != 0:
+            sys.stderr.write(proc.stdout + proc.stderr)
+            sys.exit(f"readme_figures: `{shown}` failed with exit code {proc.returncode}")
+        saved.write_text(proc.stdout, encoding="utf-8")
+        self.done[job] = (folder, proc.stdout)
+        return self.done[job]
+
+    def folder(self, job):
+        return self.run(job)[0]
+
+    def json(self, job, name):
+        with open(self.folder(job) / name, encoding="utf-8") as f:
+            return json.load(f)
+
+    def csv(self, job, name):
+        with open(self.folder(job) / name, encoding="utf-8", newline="") as f:
+            return list(csv.DictReader(f))
+
+
+# --------------------------------------------------------------------------------------------
+# The figures. Each takes the runner and returns the text that goes between its markers.
+# --------------------------------------------------------------------------------------------
+
+
+def fit_stdout(r):
+    """The two result lines `springfit fit` prints for the paper's design."""
+    _, stdout = r.run("fit.dp")
+    lines = [l for l in stdout.splitlines() if l.strip()]
+    return "```text\n" + "\n".join(lines[:2]) + "\n```"
+
+
+def fit_summary(job):
+    return lambda r: r.json(job, "summary.json")
+
+
+def fit_figures():
+    figs = {}
+    for key, job in [
+        ("dp", "fit.dp"),
+        ("dense", "fit.dense"),
+        ("workshop", "fit.workshop"),
+        ("window", "fit.window"),
+        ("triple", "fit.triple"),
+    ]:
+        s = fit_summary(job)
+        figs[f"fit.{key}.springs"] = lambda r, s=s: str(s(r)["used"])
+        figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
+        figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
+    return figs
+
+
+def sim(r, job, scenario):
+    return r.json(job, f"sim_{scenario}.json")
+
+
+def drifts(r, job):
+    return [m["mode_drift_deg"] for m in sim(r, job, "free")["runs"].values()]
+
+
+def drift_range(r, job):
+    d = drifts(r, job)
+    return f"{sig(min(d), 2)}–{deg(max(d), 2)}"
+
+
+def free_periods(r):
+    """Small-oscillation periods in the free runs of the paper's design: duration · ω / 2π."""
+    rows = r.csv("sim.dp", "sim_free.csv")
+    t_end = max(float(row["t"]) for row in rows)
+    omega = r.json("fit.dp", "summary.json")["frequency_rad_s"]
+    return f"{t_end * omega / (2 * math.pi):.1f} periods ({t_end:g} s at ω = {omega:g} rad/s)"
+
+
+def settling(r):
+    runs = sim(r, "sim.dp", "switch")["runs"]
+    steps = [s for m in runs.values() for s in m["settling_s"]]
+    never = sum(1 for s in steps if s is None)
+    if never:
+        return f"{never} of {len(steps)} steps never settle"
+    return f"every step settles within {sig(max(steps), 2)} s"
+
+
+def swingup(variant, key, fmt):
+    return lambda r: fmt(sim(r, "sim.dp", "swingup")["runs"][variant][key])
+
+
+def label_error(r):
+    e = sim(r, "sim.dp", "free")["label_error_deg"]
+    mantissa, exponent = f"{e:.1e}".split("e")
+    sup = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+    return f"{mantissa}·10{str(int(exponent)).translate(sup)}°"
+
+
+def sweep_tables(r):
+    return r.json("sweep.dp", "sweep.json")
+
+
+def parasitic_share(eps):
+    def f(r):
+        rows = [p for p in sweep_tables(r)["parasitic"] if p["eps"] == eps]
+        return pct(rows[0]["actuator_share"])
+
+    return f
+
+
+def tolerance_cell(level):
+    def f(r):
+        rows = [t for t in sweep_tables(r)["tolerance_levels"] if t["tolerance"] == level]
+        t = rows[0]
+        return (
+            f"{pct(t['actuator_share_p50'])} / {pct(t['actuator_share_p95'])}, "
+            f"{deg(t['residual_p99_deg_p50'])}"
+        )
+
+    return f
+
+
+def pareto_rows(r):
+    return r.csv("pareto.dp", "pareto.csv")
+
+
+def pareto_budget(k):
+    def f(r):
+        row = [x for x in pareto_rows(r) if x["curve"] == "budget" and int(x["budget"]) == k][0]
+        return f"{deg(float(row['p99_abs_deg']))} / {deg(float(row['max_abs_deg']))}"
+
+    return f
+
+
+def pareto_radius(rad):
+    def f(r):
+        row = [x for x in pareto_rows(r) if x["curve"] == "radius" and abs(float(x["radius"]) - rad) < 1e-9][0]
+        return deg(float(row["p99_abs_deg"]))
+
+    return f
+
+
+def region_cell(job, probe_word):
+    def f(r):
+        rep = r.json(job, "region.json")
+        if rep["largest_radius_is_lower_bound"]:
+            return f"≥ {radius(rep['largest_radius'])} ({probe_word})"
+        kind = {"conjugate": "conjugate point", "crossing": "crossing geodesics"}[rep["limit"]["kind"]]
+        return f"{radius(rep['largest_radius'])} ({kind})"
+
+    return f
+
+
+FIGURES = {
+    "fit.stdout": fit_stdout,
+    **fit_figures(),
+    "sim.dense.free.drift": lambda r: "≤ " + deg(max(drifts(r, "sim.dense")), 2),
+    "sim.dp.free.drift": lambda r: drift_range(r, "sim.dp"),
+    "sim.dp.free.periods": free_periods,
+    "sim.exact.free.drift": lambda r: "≤ " + deg(max(drifts(r, "sim.dp_exact")), 1),
+    "sim.dp.switch.settling": settling,
+    "sim.dp.switch.share": lambda r: pct(sim(r, "sim.dp", "switch")["runs"]["switch"]["actuator_share"], 2),
+    "sim.dp.swingup.energy": swingup("energy", "energy_signed_error_last5s", signed_pct),
+    "sim.dp.swingup.negative_damping": swingup("negative_damping", "energy_signed_error_last5s", signed_pct),
+    "sim.dp.swingup.compensated": swingup("energy_compensated", "energy_signed_error_last5s", signed_pct),
+    "sim.dp.swingup.compensated.share5": swingup(
+        "energy_compensated", "actuator_share_last5s", lambda x: pct(x, 2)
+    ),
+    "sim.dp.label_error": label_error,
+    "sweep.dp.eps0.share": parasitic_share(0.0),
+    "sweep.dp.eps1.share": parasitic_share(1.0),
+    "sweep.dp.tol5": tolerance_cell(0.05),
+    "sweep.dp.tol10": tolerance_cell(0.1),
+    **{f"pareto.dp.k{k}": pareto_budget(k) for k in (4, 6, 8, 10, 12, 16)},
+    "pareto.dp.r0.5": pareto_radius(0.5),
+    "pareto.dp.r2": pareto_radius(2.0),
+    "pareto.dp.r3.5": pareto_radius(3.5),
+    "region.dp": region_cell("geo.dp", "probe"),
+    "region.dp.long": region_cell("geo.dp_long", "no failure found"),
+    "region.straight.long": region_cell("geo.straight_long", "no failure found"),
+    "region.folded.long": region_cell("geo.folded_long", "no failure found"),
+    "region.triple": region_cell("geo.triple", "no failure found"),
+}
+
+# --------------------------------------------------------------------------------------------
+# README rewriting.
+# --------------------------------------------------------------------------------------------
+
+INLINE = re.compile(r"<!-- fig:(?P<name>[\w.\-]+) -->(?P<body>.*?)<!-- /fig -->")
+BLOCK = re.compile(r"<!-- block:(?P<name>[\w.\-]+) -->\n(?P<body>.*?)\n<!-- /block -->", re.S)
+
+
+def markers(text):
+    return [(m.group("name"), m) for m in INLINE.finditer(text)] + [
+        (m.group("name"), m) for m in BLOCK.finditer(text)
+    ]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--check", action="store_true", help="do not write; exit 1 if a figure differs")
+    ap.add_argument("--threads", type=int, default=None, help="springfit --threads (default: all cores)")
+    ap.add_argument("--out", default="out/readme", help="scratch folder for the commands' outputs")
+    ap.add_argument("--readme", default="README.md", help="the file to rewrite or check")
+    ap.add_argument("--bin", default=None, help="springfit binary (default: build target/release/springfit)")
+    ap.add_argument("--no-build", action="store_true", help="use the existing target/release/springfit")
+    ap.add_argument("--quiet", action="store_true", help="print only differences and errors")
+    ap.add_argument("--reuse", action="store_true",
+                    help="read the outputs of an earlier run under --out instead of running the commands again "
+                         "(for editing the README; the figures are only as fresh as that run)")
+    args = ap.parse_args()
+
+    readme = (ROOT / args.readme) if not Path(args.readme).is_absolute() else Path(args.readme)
+    text = readme.read_text(encoding="utf-8")
+    found = markers(text)
+    names = [n for n, _ in found]
+    unknown = sorted(set(names) - set(FIGURES))
+    unused = sorted(set(FIGURES) - set(names))
+    if unknown:
+        sys.exit(f"readme_figures: {readme.name} marks figures this script does not know: {', '.join(unknown)}")
+    if unused:
+        sys.exit(f"readme_figures: figures missing from {readme.name} (remove them here or mark them there): "
+                 f"{', '.join(unused)}")
+
+    t0 = time.monotonic()
+    if args.bin:
+        binary = Path(args.bin).resolve()
+    else:
+        binary = ROOT / "target" / "release" / "springfit"
+        if not (args.no_build or args.reuse):
+            if not args.quiet:
+                print("$ cargo build --release", file=sys.stderr, flush=True)
+            subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
+    out = (ROOT / args.out) if not Path(args.out).is_absolute() else Path(args.out)
+    runner = Runner(binary, out, args.threads, verbose=not args.quiet, reuse=args.reuse)
+
+    values = {name: FIGURES[name](runner) for name in sorted(set(names))}
+
+    differ = []
+
+    def replace_inline(m):
+        new = values[m.group("name")]
+        if m.group("body") != new:
+            differ.append((m.group("name"), m.group("body"), new))
+        return f"<!-- fig:{m.group('name')} -->{new}<!-- /fig -->"
+
+    def replace_block(m):
+        new = values[m.group("name")]
+        if m.group("body") != new:
+            differ.append((m.group("name"), m.group("body"), new))
+        return f"<!-- block:{m.group('name')} -->\n{new}\n<!-- /block -->"
+
+    new_text = BLOCK.sub(replace_block, INLINE.sub(replace_inline, text))
+    elapsed = time.monotonic() - t0
+    if not args.quiet:
+        for job, secs in runner.timings.items():
+            print(f"  {job}: {secs:.1f} s", file=sys.stderr)
+        print(f"{len(values)} figures from {len(runner.done)} commands in {elapsed:.0f} s", file=sys.stderr)
+    for name, old, new in differ:
+        print(f"{name}: {old!r} -> {new!r}")
+    if args.check:
+        if differ:
+            print(f"readme_figures: {len(differ)} figure(s) in {readme.name} differ from what springfit prints now; "
+                  f"run `python3 scripts/readme_figures.py` to update them", file=sys.stderr)
+            return 1
+        return 0
+    if new_text != text:
+        readme.write_text(new_text, encoding="utf-8")
+        if not args.quiet:
+            print(f"rewrote {len(differ)} figure(s) in {readme.name}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

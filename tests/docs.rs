@@ -1,0 +1,118 @@
+//! The documentation stands alone and keeps up with the code: every key a design file or a
+//! catalogue accepts is documented in its section of `docs/design-file.md` or
+//! `docs/catalogue.md`, and nothing points outside the repository.
+//!
+//! The keys are read from the settings types themselves (serialising their defaults, or a
+//! minimal parsed example), so a field added to a settings struct without a line in the docs
+//! fails here.
+
+use std::path::{Path, PathBuf};
+
+use springfit::catalog::CatalogFile;
+use springfit::control::ControllerSettings;
+use springfit::design::DesignFile;
+use springfit::fit::settings::FitSettings;
+use springfit::geodesic::GeodesicSettings;
+use springfit::ode::OdeSettings;
+use springfit::scenario::ScenarioSpec;
+use springfit::simulate::SimSettings;
+use springfit::sweep::SweepSettings;
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn read(path: &str) -> String {
+    std::fs::read_to_string(repo().join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// The keys of a value that serialises to a JSON object.
+fn keys<T: serde::Serialize>(value: &T) -> Vec<String> {
+    match serde_json::to_value(value).expect("settings serialise") {
+        serde_json::Value::Object(map) => map.keys().cloned().collect(),
+        other => panic!("expected an object, got {other}"),
+    }
+}
+
+/// The text of the level-2 section whose heading contains `heading`, up to the next level-2
+/// heading (its `###` subsections included).
+fn section<'a>(doc: &'a str, heading: &str) -> &'a str {
+    let start = doc
+        .match_indices("\n## ")
+        .map(|(i, _)| i + 1)
+        .find(|&i| doc[i..].lines().next().is_some_and(|l| l.contains(heading)))
+        .unwrap_or_else(|| panic!("no `## …{heading}…` section"));
+    let end = doc[start + 3..].find("\n## ").map_or(doc.len(), |i| start + 3 + i);
+    &doc[start..end]
+}
+
+/// Asserts each key has a table row (`| \`key\` |`) in the section.
+fn documented(file: &str, doc: &str, heading: &str, keys: &[String]) {
+    let text = section(doc, heading);
+    let missing: Vec<&String> = keys.iter().filter(|k| !text.contains(&format!("| `{k}` |"))).collect();
+    assert!(missing.is_empty(), "{file}, section {heading}: no table row for {missing:?}");
+}
+
+#[test]
+fn every_design_key_is_documented_in_its_section() {
+    let file = "docs/design-file.md";
+    let doc = read(file);
+    documented(file, &doc, "Top level", &["name".into(), "description".into(), "catalog".into()]);
+    let top = keys(&DesignFile::default());
+    for section in
+        ["robot", "equilibrium", "region", "geodesics", "fit", "simulate", "controllers", "scenario", "sweep"]
+    {
+        assert!(top.contains(&section.to_string()), "DesignFile has no `{section}`: update this test");
+        assert!(doc.contains(&format!("`[{section}]`")) || doc.contains(&format!("`[[{section}]]`")), "{section}");
+    }
+    documented(file, &doc, "`[robot]`", &["gravity".into(), "links".into()]);
+    let link = serde_json::json!({ "mass": 1.0, "length": 1.0, "com": 0.5, "inertia": 0.1 });
+    let link: springfit::design::LinkSpec = serde_json::from_value(link).expect("a link");
+    documented(file, &doc, "`[robot]`", &keys(&link));
+    documented(file, &doc, "`[equilibrium]`", &keys(&springfit::design::EquilibriumSpec::default()));
+    documented(file, &doc, "`[region]`", &["kind".into(), "radius".into(), "lower".into(), "upper".into()]);
+    documented(file, &doc, "`[geodesics]`", &keys(&GeodesicSettings::default()));
+    documented(file, &doc, "`[geodesics]`", &keys(&OdeSettings::default()));
+    documented(file, &doc, "`[fit]`", &keys(&FitSettings::default()));
+    documented(file, &doc, "`[simulate]`", &keys(&SimSettings::default()));
+    documented(file, &doc, "`[controllers]`", &keys(&ControllerSettings::default()));
+    documented(file, &doc, "`[sweep]`", &keys(&SweepSettings::default()));
+    let scenario: ScenarioSpec = toml::from_str("name = \"s\"\nkind = \"free\"").expect("a minimal scenario");
+    documented(file, &doc, "`[[scenario]]`", &keys(&scenario));
+}
+
+#[test]
+fn every_catalogue_key_is_documented_in_its_section() {
+    let file = "docs/catalogue.md";
+    let doc = read(file);
+    documented(file, &doc, "Top level", &keys(&CatalogFile::default()));
+    let catalog: CatalogFile = toml::from_str(
+        "[[family]]\nname = \"f\"\nprofile = \"linear\"\ncouplings = \"joints\"\noffsets = \"equilibrium\"",
+    )
+    .expect("a minimal catalogue");
+    documented(file, &doc, "`[[family]]`", &keys(&catalog.family[0]));
+    for written in
+        ["\"joints\"", "pairs =", "all_pairs =", "\"equilibrium\"", "grid = N", "equilibrium = true", "phases = N"]
+    {
+        assert!(doc.contains(written), "{file} does not show `{written}`");
+    }
+}
+
+#[test]
+fn documentation_stands_alone() {
+    for file in ["README.md", "docs/theory.md", "docs/design-file.md", "docs/catalogue.md", "docs/outputs.md"] {
+        let text = read(file);
+        assert!(!text.contains("../shared") && !text.contains("DESIGN.md"), "{file} points outside the repository");
+        // Relative Markdown links resolve inside the repository.
+        let base = repo().join(file).parent().map(Path::to_path_buf).unwrap_or_else(repo);
+        for (i, _) in text.match_indices("](") {
+            let target = &text[i + 2..];
+            let Some(end) = target.find(')') else { continue };
+            let link = target[..end].split('#').next().unwrap_or("");
+            if link.is_empty() || link.contains("://") {
+                continue;
+            }
+            assert!(base.join(link).exists(), "{file}: link `{link}` does not resolve");
+        }
+    }
+}
