@@ -4,7 +4,8 @@
 //!
 //! τ_θ = M g (−k_θ Δ − d_θ gᵀq̇),  d_θ = 2ζ√(k_θ m_θ),  m_θ = 1 / (gᵀ M⁻¹ g),
 //!
-//! switched off inside the ε-ball ‖q − q_eq‖ ≤ ε where the label is undefined. For two joints
+//! switched off inside the ε-ball ‖q − q_eq‖ ≤ ε where the label is undefined and faded in across
+//! the shell ε < ‖q − q_eq‖ < 2ε by the weight w of [`blend_weight`] (see [`Blend`]). For two joints
 //! ℓ = θ = 2·atan2(v₂, v₁) and Δ = Δθ wrapped to (−π, π]. For three or more joints the mode is the
 //! line ±u of the metric-frame direction u of v = log(q), and Δ = 2·∠(±u, u_d) ∈ [0, π] is the
 //! distance to the desired line with g = ∂Δ/∂q: the same law descends ½k_θΔ², a potential on the
@@ -49,6 +50,40 @@ pub enum ModeInertia {
     Consistent,
 }
 
+/// How the mode controller is switched on at the ε-ball.
+///
+/// The label's gradient grows like 1/‖q − q_eq‖ towards q_eq, so at the ball's edge the full law
+/// is at its stiffest; switching it on there in one step (the paper's rule) kicks the arm each time
+/// it leaves the ball with a mode error, which shows as torque spikes after every mode step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Blend {
+    /// τ_θ scaled by the C¹ smoothstep w(r) = 3x² − 2x³, x = (r − ε)/ε clamped to [0, 1], with
+    /// r = ‖q − q_eq‖: off inside the ball, full from 2ε on, no step in the torque (default).
+    #[default]
+    Smooth,
+    /// The paper's hard switch: off for r ≤ ε, full for r > ε.
+    Hard,
+}
+
+/// The weight of the mode controller at distance `r` = ‖q − q_eq‖ from the equilibrium (joint
+/// angles, rad): 0 inside the ε-ball, 1 from 2ε on (smooth) or right outside ε (hard).
+pub fn blend_weight(blend: Blend, epsilon: f64, r: f64) -> f64 {
+    if r <= epsilon {
+        return 0.0;
+    }
+    match blend {
+        Blend::Hard => 1.0,
+        Blend::Smooth => {
+            if epsilon <= 0.0 {
+                return 1.0;
+            }
+            let x = ((r - epsilon) / epsilon).clamp(0.0, 1.0);
+            x * x * (3.0 - 2.0 * x)
+        }
+    }
+}
+
 /// The energy regulation law.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -73,6 +108,9 @@ pub struct ControllerSettings {
     pub gradient: LabelGradient,
     /// M in front of the mode torque: `paper` or `consistent`.
     pub inertia: ModeInertia,
+    /// `smooth` (default): the mode torque fades in between ε and 2ε; `hard`: the paper's switch
+    /// at ε.
+    pub blend: Blend,
     /// Gain β_E of τ_E (1/(J·s)).
     pub beta_e: f64,
     /// Gain β_nD of τ_nD (N·m·s/(rad·J)).
@@ -87,6 +125,7 @@ impl Default for ControllerSettings {
             epsilon: 0.1,
             gradient: LabelGradient::Exact,
             inertia: ModeInertia::Paper,
+            blend: Blend::Smooth,
             beta_e: 0.13,
             beta_nd: 0.4,
         }
@@ -199,6 +238,31 @@ mod tests {
         assert!((a[0] - 0.65 * qd[0]).abs() < 1e-12 && (a[1] - 0.65 * qd[1]).abs() < 1e-12);
         energy_torque(EnergyLaw::NegativeDamping, &s, -2.0, &qd, &m, &mut tau);
         assert!((tau[0] + 0.8 * 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_smooth_blend_is_c1_and_spans_epsilon_to_two_epsilon() {
+        let eps = 0.1;
+        let w = |r: f64| blend_weight(Blend::Smooth, eps, r);
+        assert_eq!(w(0.05), 0.0);
+        assert_eq!(w(eps), 0.0);
+        assert_eq!(w(2.0 * eps), 1.0);
+        assert_eq!(w(1.0), 1.0);
+        assert!((w(1.5 * eps) - 0.5).abs() < 1e-12);
+        // Slopes by central differences: zero at both ends of the shell (C¹), ≤ 1.5/ε between.
+        let h = 1e-7;
+        let slope = |r: f64| (w(r + h) - w(r - h)) / (2.0 * h);
+        assert!(slope(eps + 2.0 * h).abs() < 1e-3 && slope(2.0 * eps - 2.0 * h).abs() < 1e-3);
+        assert!((slope(1.5 * eps) - 1.5 / eps).abs() < 1e-5);
+        let mut prev = 0.0;
+        for k in 0..=100 {
+            let v = w(eps + eps * k as f64 / 100.0);
+            assert!(v >= prev);
+            prev = v;
+        }
+        // The hard switch steps from 0 to 1 at ε.
+        assert_eq!(blend_weight(Blend::Hard, eps, eps), 0.0);
+        assert_eq!(blend_weight(Blend::Hard, eps, eps + 1e-12), 1.0);
     }
 
     #[test]

@@ -12,6 +12,7 @@
 //! kind = "switch"
 //! mode = 0.0
 //! energy = 10.0
+//! energy_target = "hold"   # τ_E holds the start energy (default); "none": no energy control
 //!
 //! [[scenario]]
 //! name = "swingup"         # from E0 to E_d against joint damping (Fig. 7)
@@ -101,6 +102,18 @@ impl<'de> Deserialize<'de> for EnergySpec {
     }
 }
 
+/// Energy handling of a switch scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum EnergyTarget {
+    /// τ_E holds the start energy (E_d = the scenario's `energy`): the mode controller's damping
+    /// term takes energy out at every step, and without a target the swing would fade.
+    #[default]
+    Hold,
+    /// No energy regulation (the mode controller alone).
+    None,
+}
+
 /// A release: at rest on a mode where the potential has risen by `energy`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -143,6 +156,9 @@ pub struct ScenarioSpec {
     /// switch: seconds between increments (default 15).
     #[serde(default)]
     pub every: Option<f64>,
+    /// switch: `hold` (τ_E holds the start energy, default) or `none`.
+    #[serde(default)]
+    pub energy_target: Option<EnergyTarget>,
     /// swingup: start energy E0, J (default 5).
     #[serde(default)]
     pub e0: Option<f64>,
@@ -165,13 +181,18 @@ pub struct Scenario {
     pub kind: ScenarioKind,
     /// Its runs.
     pub runs: Vec<RunSpec>,
+    /// How the scenario handles energy, in words (stated in the outputs).
+    pub energy_handling: String,
 }
 
 /// The metrics of one run (`sim_<name>.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunMetrics {
-    /// Largest |label − label at start| outside the ε-ball, degrees of the label (free runs).
+    /// Largest |label − label at start| outside the ε-ball, degrees (free runs). For two joints
+    /// the label θ is unwrapped over the run first, so a drift past ±180° shows as such.
     pub mode_drift_deg: Option<f64>,
+    /// How far q(t) leaves the geodesic of its start's mode (free runs): the headline figure.
+    pub geodesic_deviation: Option<GeodesicDeviation>,
     /// Seconds from each mode step until |Δθ| < 3° for the rest of the step (None: never).
     pub settling_s: Vec<Option<f64>>,
     /// |mean E over the last 5 s − E_d| / E_d (runs with energy regulation).
@@ -191,6 +212,29 @@ pub struct RunMetrics {
     pub actuator_share_with_compensation: f64,
     /// Largest |τᵢ| per source, N·m.
     pub peak_torque_nm: PeakTorques,
+    /// Largest |τ_θ,ᵢ + τ_E,ᵢ + τ_comp,ᵢ| over joints and time: what an actuator delivers, N·m.
+    pub peak_actuator_torque_nm: f64,
+}
+
+/// The deviation of a free motion from the geodesic of its start's mode.
+///
+/// The mode through the start q₀ is the geodesic γ(s) = exp(s·u), u = log(q₀)/r₀, r₀ the metric
+/// distance of q₀ from q_eq; a perfect potential keeps q(t) on it for ever. γ is traced both ways
+/// to 1.5 r₀ every r₀/1000; the distance of a sample q to γ is the smallest √(ΔqᵀM(γ_k)Δq) over
+/// the chords of the traced polyline (the local metric distance, exact to O(|Δq|² + spacing²)).
+/// Units: √(kg·m²)·rad, the metric arc length of the region's radius.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GeodesicDeviation {
+    /// r₀: metric distance of the start from q_eq, √(kg·m²)·rad.
+    pub start_radius: f64,
+    /// Largest distance from q(t) to the geodesic over the run, √(kg·m²)·rad.
+    pub max: f64,
+    /// `max` / r₀ (dimensionless: about the angle in rad between the motion and the mode at the
+    /// swing's amplitude).
+    pub max_rel: f64,
+    /// Largest distance per swing, √(kg·m²)·rad; a swing runs from one passage of q_eq's side to
+    /// the next (a sign change of the position along γ), so two swings make a period.
+    pub per_swing: Vec<f64>,
 }
 
 /// Fluxes in the JSON.
@@ -261,6 +305,7 @@ impl ScenarioSpec {
                 unused("energy", self.energy.is_some())?;
                 unused("step", self.step.is_some())?;
                 unused("every", self.every.is_some())?;
+                unused("energy_target", self.energy_target.is_some())?;
                 unused("e0", self.e0.is_some())?;
                 unused("ed", self.ed.is_some())?;
                 unused("variants", !self.variants.is_empty())?;
@@ -323,6 +368,13 @@ impl ScenarioSpec {
                     .collect();
                 let mut run = base("switch".into(), q0);
                 run.mode = Some(ModeControl { schedule });
+                if self.energy_target.unwrap_or_default() == EnergyTarget::Hold {
+                    run.energy = Some(EnergyControl {
+                        law: EnergyLaw::Energy,
+                        schedule: vec![(0.0, energy)],
+                        compensate_damping: false,
+                    });
+                }
                 vec![run]
             }
             ScenarioKind::Swingup => {
@@ -331,6 +383,7 @@ impl ScenarioSpec {
                 unused("energy", self.energy.is_some())?;
                 unused("step", self.step.is_some())?;
                 unused("every", self.every.is_some())?;
+                unused("energy_target", self.energy_target.is_some())?;
                 let e0 = self.e0.unwrap_or(5.0);
                 let schedule: Vec<(f64, f64)> = match self.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
                     EnergySpec::Value(v) => vec![(0.0, v)],
@@ -383,7 +436,18 @@ impl ScenarioSpec {
                 runs
             }
         };
-        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs })
+        let energy_handling = match self.kind {
+            ScenarioKind::Free => "none: released without control".to_string(),
+            ScenarioKind::Switch => match self.energy_target.unwrap_or_default() {
+                EnergyTarget::Hold => format!(
+                    "energy_target = \"hold\": τ_E holds the start energy E_d = {} J",
+                    self.energy.unwrap_or(10.0)
+                ),
+                EnergyTarget::None => "energy_target = \"none\": no energy regulation".to_string(),
+            },
+            ScenarioKind::Swingup => "τ_E, τ_nD or τ_E + compensation towards E_d (per variant)".to_string(),
+        };
+        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs, energy_handling })
     }
 }
 
@@ -478,8 +542,13 @@ pub fn metrics(
     };
     let outside: Vec<usize> = (0..tr.t.len()).filter(|&i| !tr.in_ball[i] && tr.label[i].is_finite()).collect();
     let mode_drift_deg = (kind == ScenarioKind::Free).then(|| {
-        let start = outside.first().map(|&i| if two { tr.label[i] } else { 0.0 }).unwrap_or(f64::NAN);
-        outside.iter().map(|&i| deg(label_dev(i, start))).fold(0.0, f64::max)
+        if two {
+            let unwrapped = unwrap_angles(&tr.label);
+            let start = outside.first().map(|&i| unwrapped[i]).unwrap_or(f64::NAN);
+            outside.iter().map(|&i| deg((unwrapped[i] - start).abs())).fold(0.0, f64::max)
+        } else {
+            outside.iter().map(|&i| deg(label_dev(i, 0.0))).fold(0.0, f64::max)
+        }
     });
     let mut settling_s = Vec::new();
     if let Some(mode) = &spec.mode {
@@ -550,7 +619,162 @@ pub fn metrics(
             energy: p[4],
             compensation: p[5],
         },
+        peak_actuator_torque_nm: result.peak_actuator_torque,
+        geodesic_deviation: None,
     }
+}
+
+/// Angles unwrapped into a continuous series: each finite value is moved by a multiple of 2π to
+/// within π of the previous finite one (gaps of NaN, the ε-ball passages, are bridged); NaN stays.
+pub fn unwrap_angles(angles: &[f64]) -> Vec<f64> {
+    let mut prev: Option<f64> = None;
+    angles
+        .iter()
+        .map(|&a| {
+            if !a.is_finite() {
+                return a;
+            }
+            let v = match prev {
+                Some(p) => p + wrap_angle(a - p),
+                None => a,
+            };
+            prev = Some(v);
+            v
+        })
+        .collect()
+}
+
+/// The geodesic through q_eq and a start point sampled both ways (see [`GeodesicDeviation`]):
+/// signed arc positions, points and mass matrices (row-major).
+struct ModeGeodesic {
+    s: Vec<f64>,
+    q: Vec<Vec<f64>>,
+    m: Vec<Vec<f64>>,
+}
+
+impl ModeGeodesic {
+    fn trace(design: &Design, q0: &[f64]) -> Result<(ModeGeodesic, f64)> {
+        use crate::label::{ExactLog, LogField, LogValue};
+        let n = design.dof();
+        let mut log = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
+        let mut lv = LogValue::zeros(n);
+        log.eval(q0, &mut lv)?;
+        let v = DVector::from_column_slice(&lv.v);
+        let r0 = v.dot(&(design.chain.mass_matrix(&design.q_eq) * &v)).sqrt();
+        if !(r0.is_finite() && r0 > 0.0) {
+            return Err(Error::numerical("geodesic deviation", "the start is the equilibrium: no mode to follow"));
+        }
+        let u = &v / r0;
+        let mut shooter = Shooter::new(&design.chain, &design.q_eq, design.geodesics.ode);
+        let spacing = r0 / 1000.0;
+        let forward = shooter.trace(&u, Stop::Arc(1.5 * r0), spacing)?;
+        let backward = shooter.trace(&(-&u), Stop::Arc(1.5 * r0), spacing)?;
+        let mut g = ModeGeodesic { s: Vec::new(), q: Vec::new(), m: Vec::new() };
+        let mut push = |s: f64, q: &[f64]| {
+            let m = design.chain.mass_matrix(&DVector::from_column_slice(q));
+            g.s.push(s);
+            g.q.push(q.to_vec());
+            g.m.push((0..n * n).map(|k| m[(k / n, k % n)]).collect());
+        };
+        for i in (1..backward.len()).rev() {
+            push(-backward.s(i), backward.q(i));
+        }
+        for i in 0..forward.len() {
+            push(forward.s(i), forward.q(i));
+        }
+        Ok((g, r0))
+    }
+
+    /// (metric distance, signed arc position) of the point of the polyline nearest to `q`.
+    fn nearest(&self, q: &[f64]) -> (f64, f64) {
+        let n = q.len();
+        let norm2 = |m: &[f64], d: &[f64]| -> f64 {
+            let mut r = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    r += d[i] * m[i * n + j] * d[j];
+                }
+            }
+            r
+        };
+        let mut d = vec![0.0; n];
+        let (mut best, mut kbest) = (f64::INFINITY, 0);
+        for (k, p) in self.q.iter().enumerate() {
+            for i in 0..n {
+                d[i] = q[i] - p[i];
+            }
+            let v = norm2(&self.m[k], &d);
+            if v < best {
+                best = v;
+                kbest = k;
+            }
+        }
+        let mut out = (best.max(0.0).sqrt(), self.s[kbest]);
+        // The chords on either side: minimise |a − λb|²_M over λ ∈ [0, 1], a = q − γ_k,
+        // b = γ_j − γ_k, with M at γ_k.
+        let mut b = vec![0.0; n];
+        for j in [kbest.wrapping_sub(1), kbest + 1] {
+            if j >= self.q.len() {
+                continue;
+            }
+            for i in 0..n {
+                d[i] = q[i] - self.q[kbest][i];
+                b[i] = self.q[j][i] - self.q[kbest][i];
+            }
+            let m = &self.m[kbest];
+            let bb = norm2(m, &b);
+            if bb <= 0.0 {
+                continue;
+            }
+            let mut ab = 0.0;
+            for i in 0..n {
+                for k in 0..n {
+                    ab += d[i] * m[i * n + k] * b[k];
+                }
+            }
+            let lambda = (ab / bb).clamp(0.0, 1.0);
+            let dist2 = norm2(m, &d) - 2.0 * lambda * ab + lambda * lambda * bb;
+            let dist = dist2.max(0.0).sqrt();
+            if dist < out.0 {
+                out = (dist, self.s[kbest] + lambda * (self.s[j] - self.s[kbest]));
+            }
+        }
+        out
+    }
+}
+
+/// The deviation of a run from the geodesic of its start's mode (see [`GeodesicDeviation`]) and
+/// the distance per sample.
+pub fn geodesic_deviation(design: &Design, trace: &crate::simulate::Trace) -> Result<(GeodesicDeviation, Vec<f64>)> {
+    let n = trace.n;
+    let samples = trace.t.len();
+    if samples == 0 {
+        return Err(Error::numerical("geodesic deviation", "the run has no samples"));
+    }
+    let (geo, r0) = ModeGeodesic::trace(design, &trace.q[..n])?;
+    let mut series = Vec::with_capacity(samples);
+    let mut per_swing = Vec::new();
+    let (mut swing_max, mut side) = (0.0f64, 0.0f64);
+    for k in 0..samples {
+        let (dist, s) = geo.nearest(&trace.q[k * n..(k + 1) * n]);
+        let sign = if s > 0.0 {
+            1.0
+        } else if s < 0.0 {
+            -1.0
+        } else {
+            side
+        };
+        if side != 0.0 && sign != side {
+            per_swing.push(swing_max);
+            swing_max = 0.0;
+        }
+        side = sign;
+        swing_max = swing_max.max(dist);
+        series.push(dist);
+    }
+    per_swing.push(swing_max);
+    let max = series.iter().copied().fold(0.0, f64::max);
+    Ok((GeodesicDeviation { start_radius: r0, max, max_rel: max / r0, per_swing }, series))
 }
 
 /// Where the mode label comes from during simulations.
@@ -658,10 +882,35 @@ pub fn run_scenario<'a>(
                 }
                 other => other,
             })?;
-            let m = metrics(&result, run, controllers, scenario.kind);
+            let mut result = result;
+            let mut m = metrics(&result, run, controllers, scenario.kind);
+            if scenario.kind == ScenarioKind::Free {
+                let (dev, series) = geodesic_deviation(design, &result.trace)?;
+                m.geodesic_deviation = Some(dev);
+                result.trace.geodesic_deviation = series;
+            }
             Ok((result, m))
         })
         .collect();
     let runs = results.into_iter().collect::<Result<Vec<_>>>()?;
     Ok(ScenarioOutcome { scenario, runs })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unwrapping_carries_the_label_across_plus_minus_pi() {
+        let pi = std::f64::consts::PI;
+        let u = unwrap_angles(&[3.0, 3.1, -3.1, f64::NAN, -3.0, 3.1, -pi + 0.05]);
+        let want = [3.0, 3.1, 2.0 * pi - 3.1, f64::NAN, 2.0 * pi - 3.0, 3.1, pi + 0.05];
+        for (a, b) in u.iter().zip(want) {
+            assert!(a.is_nan() && b.is_nan() || (a - b).abs() < 1e-12, "{u:?}");
+        }
+        // A steady turn keeps growing past ±π.
+        let turning: Vec<f64> = (0..40).map(|k| wrap_angle(0.3 * k as f64)).collect();
+        let u = unwrap_angles(&turning);
+        assert!((u[39] - 0.3 * 39.0).abs() < 1e-9, "{}", u[39]);
+    }
 }

@@ -12,7 +12,7 @@
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
-use crate::control::{ControllerSettings, EnergyLaw, LabelGradient, dot, energy_torque, mode_torque};
+use crate::control::{ControllerSettings, EnergyLaw, LabelGradient, blend_weight, dot, energy_torque, mode_torque};
 use crate::error::{Error, Result};
 use crate::geodesic::MetricFrame;
 use crate::geodesic::logmap::wrap_angle;
@@ -214,6 +214,9 @@ pub struct Trace {
     pub label_target: Vec<f64>,
     /// Whether the sample is inside the ε-ball.
     pub in_ball: Vec<bool>,
+    /// Metric distance from q to the geodesic of the start's mode per sample, √(kg·m²)·rad
+    /// (free runs, filled in by [`crate::scenario::run_scenario`]; empty otherwise).
+    pub geodesic_deviation: Vec<f64>,
 }
 
 impl Trace {
@@ -264,6 +267,8 @@ pub struct RunResult {
     pub fluxes: Fluxes,
     /// Largest |τᵢ| per source over the run, N·m.
     pub peak_torque: [f64; NSRC],
+    /// Largest |τ_θ,ᵢ + τ_E,ᵢ + τ_comp,ᵢ| over the run: what the joint's actuator delivers, N·m.
+    pub peak_actuator_torque: f64,
 }
 
 /// Everything a run's right-hand side needs, with its scratch space.
@@ -285,6 +290,7 @@ pub struct Dynamics<'a> {
     buf2: Vec<f64>,
     gbuf: Vec<f64>,
     peak: [f64; NSRC],
+    peak_actuator: f64,
     error: Option<Error>,
     reference: Option<DVector<f64>>,
 }
@@ -324,6 +330,7 @@ impl<'a> Dynamics<'a> {
             buf2: vec![0.0; n],
             gbuf: Vec::with_capacity(n),
             peak: [0.0; NSRC],
+            peak_actuator: 0.0,
             error: None,
             reference: None,
         };
@@ -471,7 +478,8 @@ impl<'a> Dynamics<'a> {
         // Mode selection.
         if let Some(mode) = &self.spec.mode {
             let dist2: f64 = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum();
-            if dist2.sqrt() > self.controllers.epsilon {
+            let weight = blend_weight(self.controllers.blend, self.controllers.epsilon, dist2.sqrt());
+            if weight > 0.0 {
                 let field = self.field.as_mut().ok_or_else(|| Error::Setting {
                     field: "label".into(),
                     reason: "mode control needs a label".into(),
@@ -505,6 +513,9 @@ impl<'a> Dynamics<'a> {
                 self.buf.copy_from_slice(&g);
                 self.ws.solve(&mut self.buf);
                 mode_torque(&self.controllers, delta, &g, &self.buf, qd, self.ws.mass(), &mut self.tau[MODE]);
+                for t in self.tau[MODE].iter_mut() {
+                    *t *= weight;
+                }
                 self.gbuf = g;
             }
         }
@@ -543,12 +554,39 @@ impl<'a> Dynamics<'a> {
                 self.peak[k] = self.peak[k].max(v.abs());
             }
         }
+        for i in 0..n {
+            let a = self.tau[MODE][i] + self.tau[ENERGY][i] + self.tau[COMPENSATION][i];
+            self.peak_actuator = self.peak_actuator.max(a.abs());
+        }
         Ok(())
     }
 
     fn take_error(&mut self, fallback: String) -> Error {
         self.error.take().unwrap_or_else(|| Error::numerical("simulation", fallback))
     }
+}
+
+/// The RK4 steps at which output samples are taken: sample j is due at t = j·`every`, taken at the
+/// first step k with k/`rate` ≥ that time (less a round-off allowance). Each is computed from j
+/// and k by one multiplication, never by adding intervals, so a 100 s run at 1 kHz sampled every
+/// 10 ms has its 10 001 samples exactly on the grid, the last at 100 s. Samples are never denser
+/// than the steps.
+pub fn output_steps(steps: usize, rate: f64, every: f64) -> Vec<usize> {
+    let per_sample = (every * rate).max(1.0);
+    let mut out = Vec::new();
+    let mut last = None;
+    for j in 0.. {
+        let k = (j as f64 * per_sample - 1e-9 * per_sample.max(1.0)).ceil().max(0.0);
+        if k > steps as f64 {
+            break;
+        }
+        let k = k as usize;
+        if last != Some(k) {
+            out.push(k);
+            last = Some(k);
+        }
+    }
+    out
 }
 
 /// Runs one simulation.
@@ -577,6 +615,7 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         label: Vec::new(),
         label_target: Vec::new(),
         in_ball: Vec::new(),
+        geodesic_deviation: Vec::new(),
     };
     let record = |d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace| -> Result<()> {
         // Torques at this state (a right-hand-side evaluation) and the outputs.
@@ -598,7 +637,6 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         trace.in_ball.push(in_ball);
         Ok(())
     };
-    let mut next_out = 0.0;
     match settings.integrator {
         Integrator::Rk4 => {
             let steps = (spec.duration * settings.rate).round();
@@ -609,13 +647,16 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
                 });
             }
             let steps = steps as usize;
+            let due = output_steps(steps, settings.rate, out_every);
+            let mut next_sample = 0;
             let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
             let mut tmp = vec![0.0; dim];
             for step in 0..=steps {
-                let t = step as f64 * h;
-                if t + 1e-9 * h >= next_out {
+                // Times from the step count (k/rate), never from repeated additions of h.
+                let t = step as f64 / settings.rate;
+                if due.get(next_sample) == Some(&step) {
                     record(dynamics, t, &y, &mut trace)?;
-                    next_out += out_every;
+                    next_sample += 1;
                 }
                 if step == steps {
                     break;
@@ -659,15 +700,23 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
             let mut rhs = |t: f64, yy: &[f64], d: &mut [f64]| dynamics.rhs(t, yy, d);
             ode.start(&mut rhs, 0.0, &y, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
             let mut samples: Vec<(f64, Vec<f64>)> = vec![(0.0, y.clone())];
-            next_out = out_every;
+            // Sample j at j·every (one multiplication, no accumulated round-off); a time within
+            // round-off of the end is the end.
+            let slack = 1e-9 * out_every;
+            let sample_time = |j: usize| {
+                let t = j as f64 * out_every;
+                if (t - spec.duration).abs() <= slack { spec.duration } else { t }
+            };
+            let mut next_j = 1;
             loop {
                 let done =
                     ode.step(&mut rhs, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
-                while next_out <= ode.t() + 1e-12 {
+                while sample_time(next_j) <= spec.duration && sample_time(next_j) <= ode.t() + slack {
+                    let tj = sample_time(next_j).min(ode.t());
                     let mut s = vec![0.0; dim];
-                    ode.dense(next_out, &mut s);
-                    samples.push((next_out, s));
-                    next_out += out_every;
+                    ode.dense(tj, &mut s);
+                    samples.push((sample_time(next_j), s));
+                    next_j += 1;
                 }
                 if done {
                     break;
@@ -685,5 +734,26 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         trace,
         fluxes: Fluxes { potential: f[0], gravity: f[1], damping: f[2], mode: f[3], energy: f[4], compensation: f[5] },
         peak_torque: dynamics.peak,
+        peak_actuator_torque: dynamics.peak_actuator,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_samples_are_scheduled_on_the_step_grid() {
+        // 100 s at 1 kHz every 10 ms: 10 001 samples, every 10th step, the last one the last step.
+        let due = output_steps(100_000, 1000.0, 0.01);
+        assert_eq!(due.len(), 10_001);
+        assert!(due.iter().enumerate().all(|(j, &k)| k == 10 * j));
+        // Their times k/rate are exactly j/100, ending at 100 s.
+        assert!(due.iter().enumerate().all(|(j, &k)| k as f64 / 1000.0 == j as f64 / 100.0));
+        assert_eq!(*due.last().unwrap() as f64 / 1000.0, 100.0);
+        // An interval that is not a multiple of the step: the first step at or after each time.
+        assert_eq!(output_steps(10, 1.0, 2.5), vec![0, 3, 5, 8, 10]);
+        // Intervals shorter than a step never repeat a step.
+        assert_eq!(output_steps(3, 1.0, 0.4), vec![0, 1, 2, 3]);
+    }
 }

@@ -19,7 +19,7 @@ fn swingup_writes_metrics_per_variant_and_plots() {
     for f in ["sim_swingup.csv", "sim_swingup.json"] {
         assert!(out.join(f).is_file(), "missing {f}\n{}", run.report());
     }
-    for plot in ["phase", "q", "torques", "label", "power"] {
+    for plot in ["configuration", "q", "torques", "label", "power", "energy"] {
         for ext in ["svg", "png"] {
             assert!(out.join(format!("sim_swingup_{plot}.{ext}")).is_file(), "missing {plot}.{ext}");
         }
@@ -39,7 +39,7 @@ fn swingup_writes_metrics_per_variant_and_plots() {
     let csv = std::fs::read_to_string(out.join("sim_swingup.csv")).unwrap();
     let header = csv.lines().next().unwrap();
     assert!(header.starts_with("run,t,q1,q2,qd1,qd2,tau_spring1"), "{header}");
-    assert!(header.ends_with("E,label,label_target"), "{header}");
+    assert!(header.ends_with("E,label,label_target,geodesic_deviation"), "{header}");
     assert!(json["potential"].as_str().unwrap().contains("bom.csv"));
 }
 

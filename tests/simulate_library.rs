@@ -5,12 +5,12 @@ use std::path::Path;
 
 use nalgebra::DVector;
 use springfit::catalog::Catalog;
-use springfit::control::ControllerSettings;
+use springfit::control::{Blend, ControllerSettings};
 use springfit::design::Design;
 use springfit::fit::run::fit;
 use springfit::geodesic::MetricFrame;
 use springfit::label::ExactLog;
-use springfit::scenario::{ScenarioKind, label_source, metrics, run_scenario, start_on_mode};
+use springfit::scenario::{EnergyTarget, ScenarioKind, label_source, metrics, run_scenario, start_on_mode};
 use springfit::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, SimSettings, run};
 
 fn design(name: &str) -> Design {
@@ -51,7 +51,32 @@ fn the_exact_potential_keeps_every_release_on_its_mode() {
     for (r, m) in &out.runs {
         let drift = m.mode_drift_deg.unwrap();
         assert!(drift < 0.01, "{}: mode drift {drift}°", r.name);
+        // The headline figure: q(t) stays on the geodesic through q_eq and the start.
+        let dev = m.geodesic_deviation.as_ref().unwrap();
+        assert!(dev.max <= 1e-4, "{}: geodesic deviation {:e}", r.name, dev.max);
+        assert!((dev.start_radius - 1.118).abs() < 0.01, "{}: r₀ = {}", r.name, dev.start_radius);
+        // 20 s at ω = 4 rad/s: 2·20/(2π/4) ≈ 25.5 swings from one side of q_eq to the other.
+        assert!((25..=27).contains(&dev.per_swing.len()), "{}: {} swings", r.name, dev.per_swing.len());
+        assert_eq!(r.trace.geodesic_deviation.len(), r.trace.t.len());
     }
+}
+
+#[test]
+fn twelve_springs_leave_the_geodesic_by_a_bounded_amount() {
+    let d = design("double_pendulum.toml");
+    let pot = fitted(&d);
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let out = run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, scenario_index(&d, "free")).unwrap();
+    let mut worst: f64 = 0.0;
+    for (r, m) in &out.runs {
+        let dev = m.geodesic_deviation.as_ref().unwrap();
+        // 0.33° p99 residual: visibly off the mode, but by a few per cent of the amplitude.
+        assert!(dev.max > 1e-3 && dev.max_rel < 0.2, "{}: {dev:?}", r.name);
+        // Deviation grows swing by swing from nothing at the release.
+        assert!(dev.per_swing[0] < dev.max, "{}: {:?}", r.name, dev.per_swing);
+        worst = worst.max(dev.max);
+    }
+    println!("12 springs: largest geodesic deviation {worst:.4e} √(kg·m²)·rad");
 }
 
 #[test]
@@ -65,12 +90,37 @@ fn controllers_reach_their_targets_with_fitted_springs() {
     assert!(compensated.energy_rel_error_last5s.unwrap() < 0.02, "{compensated:?}");
     // τ_E alone leaves a deficit against joint damping.
     assert!(by("energy").energy_signed_error_last5s.unwrap() < -0.005);
-    let switch = run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, scenario_index(&d, "switch")).unwrap();
-    let m = &switch.runs[0].1;
+    // The mode controller blended in smoothly (the default) reaches every target of the switch
+    // scenario, and τ_E holds the start energy (energy_target = "hold", the default).
+    assert_eq!(d.controllers.blend, Blend::Smooth);
+    let index = scenario_index(&d, "switch");
+    let switch = run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, index).unwrap();
+    let (r, m) = &switch.runs[0];
     assert_eq!(m.settling_s.len(), 7);
     for (k, s) in m.settling_s.iter().enumerate() {
         assert!(s.is_some_and(|s| s < 10.0), "mode step {k} settles in {s:?}");
     }
+    assert!(m.energy_rel_error_last5s.unwrap() < 0.02, "{m:?}");
+    // 100 s at 1 kHz sampled every 10 ms: 10 001 samples on the grid, the last at 100 s.
+    assert_eq!(r.trace.t.len(), 10_001);
+    assert_eq!(*r.trace.t.last().unwrap(), 100.0);
+    assert!(r.trace.t.iter().enumerate().all(|(j, &t)| t == j as f64 / 100.0));
+    // The paper's hard switch kicks harder after each mode step.
+    let hard = ControllerSettings { blend: Blend::Hard, ..d.controllers };
+    let hard_run = run_scenario(&d, &pot, &label, &d.simulate, &hard, index).unwrap();
+    let (smooth_peak, hard_peak) = (m.peak_torque_nm.mode, hard_run.runs[0].1.peak_torque_nm.mode);
+    println!("peak mode torque: smooth blend {smooth_peak:.2} N·m, hard switch {hard_peak:.2} N·m");
+    assert!(smooth_peak < 0.8 * hard_peak, "smooth {smooth_peak} N·m, hard {hard_peak} N·m");
+    // Without an energy target the mode controller's damping drains the swing.
+    let mut none = d.clone();
+    none.file.scenario[index].energy_target = Some(EnergyTarget::None);
+    let faded = run_scenario(&none, &pot, &label, &d.simulate, &d.controllers, index).unwrap();
+    let (rf, mf) = &faded.runs[0];
+    assert!(mf.energy_rel_error_last5s.is_none() && mf.flux.energy == 0.0);
+    let (e0, e1) = (rf.trace.energy[0], *rf.trace.energy.last().unwrap());
+    println!("energy_target = none: E from {e0:.2} J to {e1:.2} J; hold: to {:.2} J", r.trace.energy.last().unwrap());
+    assert!(e1 < 0.8 * e0, "E from {e0} to {e1} J");
+    assert!(faded.scenario.energy_handling.contains("none") && switch.scenario.energy_handling.contains("hold"));
 }
 
 #[test]

@@ -77,6 +77,15 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
     if args.exact_label {
         settings.label = LabelKind::Exact;
     }
+    let c = &design.controllers;
+    progress.say(match c.blend {
+        springfit::control::Blend::Smooth => format!(
+            "mode controller: blended in smoothly between ε = {} and 2ε = {} rad from q_eq",
+            c.epsilon,
+            2.0 * c.epsilon
+        ),
+        springfit::control::Blend::Hard => format!("mode controller: hard switch at ε = {} rad from q_eq", c.epsilon),
+    });
     let step = progress.step("preparing the mode label");
     let label = label_source(&design, &settings);
     step.finish();
@@ -124,17 +133,33 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
             &fan,
         )?;
         progress.say(format!("scenario {name} ({} run(s), {secs:.2} s):", outcome.runs.len()));
+        if outcome.scenario.kind == springfit::scenario::ScenarioKind::Switch {
+            progress.say(format!("  energy: {}", outcome.scenario.energy_handling));
+        }
         for (r, m) in &outcome.runs {
-            let mut parts = vec![format!(
+            let mut parts = Vec::new();
+            if let Some(d) = &m.geodesic_deviation {
+                parts.push(format!(
+                    "geodesic deviation max {:.3e} √(kg·m²)·rad ({:.2} % of the start's {:.3})",
+                    d.max,
+                    100.0 * d.max_rel,
+                    d.start_radius
+                ));
+            }
+            let mut share = format!(
                 "actuator share {:.3} % (last 5 s {:.3} %)",
                 100.0 * m.actuator_share,
                 100.0 * m.actuator_share_last5s
-            )];
+            );
+            if m.flux.mode + m.flux.energy + m.flux.compensation > 0.0 {
+                share.push_str(&format!(", peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm));
+            }
+            parts.push(share);
             if m.flux.compensation > 0.0 {
                 parts.push(format!("with damping compensation {:.3} %", 100.0 * m.actuator_share_with_compensation));
             }
             if let Some(d) = m.mode_drift_deg {
-                parts.push(format!("mode drift {d:.3}°"));
+                parts.push(format!("label drift {d:.3}°"));
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 parts.push(format!("E − E_d over the last 5 s {:+.2} %", 100.0 * e));

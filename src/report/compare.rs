@@ -1,23 +1,43 @@
 //! Figures and files of `springfit compare` and `springfit pareto`.
 
-use super::figures::symmetric_edges;
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
 use crate::compare::{BudgetPoint, FitRecord, RadiusPoint, table_csv, table_md};
 use crate::error::Result;
 
-/// Writes `compare.csv`, `compare.md` and `compare.svg/.png`: the residual-angle histograms of
-/// every record on shared bins and axes, and a box plot of |angle| per record.
+/// Edges of `bins` bins even in log₁₀ from a decade at or under the smallest record's 1st
+/// percentile of |angle| to a round value over the largest |angle| (at most 8 decades): fits whose
+/// residuals differ by orders of magnitude (a dense fit, the exact potential) each get bins of
+/// their own instead of sharing the first bin of a linear axis.
+pub fn log_edges(records: &[FitRecord], bins: usize) -> Vec<f64> {
+    let mut hi = 0.0f64;
+    let mut lo = f64::INFINITY;
+    for r in records {
+        let mut a: Vec<f64> = r.angles.iter().map(|v| v.abs()).filter(|v| v.is_finite() && *v > 0.0).collect();
+        a.sort_by(f64::total_cmp);
+        if let Some(&m) = a.last() {
+            hi = hi.max(m);
+            lo = lo.min(crate::residual::percentile(&a, 1.0));
+        }
+    }
+    if hi <= 0.0 {
+        hi = 1.0;
+    }
+    let top = super::figures::nice_ceil(hi * 1.02).log10();
+    let bottom = if lo.is_finite() && lo > 0.0 { lo.log10().floor() } else { top - 3.0 }.max(top - 8.0).min(top - 1.0);
+    (0..=bins).map(|k| 10f64.powf(bottom + (top - bottom) * k as f64 / bins as f64)).collect()
+}
+
+/// Writes `compare.csv`, `compare.md` and `compare.svg/.png`: the histograms of |residual angle|
+/// of every record on shared logarithmic bins, and a box plot of |angle| per record on a log axis.
+/// Two-joint angles are signed and three-joint ones are not, so the figure compares magnitudes;
+/// `signed` only names the table's convention. |angle| under the first edge is counted in the
+/// first bin.
 pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Result<()> {
+    let _ = signed;
     out.write("compare.csv", table_csv(records))?;
     out.write("compare.md", table_md(records))?;
-    let all: Vec<f64> = records.iter().flat_map(|r| r.angles.iter().copied()).collect();
-    let edges = if signed {
-        symmetric_edges(&all, 80)
-    } else {
-        let m = super::figures::nice_ceil(all.iter().fold(0.0f64, |a, v| a.max(*v)).max(1e-12) * 1.02);
-        (0..=80).map(|k| m * k as f64 / 80.0).collect()
-    };
+    let edges = log_edges(records, 80);
     let hist: Vec<Layer> = records
         .iter()
         .enumerate()
@@ -25,7 +45,9 @@ pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Re
             edges: edges.clone(),
             counts: {
                 // Fractions of each record's samples, so records of different sizes compare.
-                let c = histogram(&r.angles, &edges);
+                let lowest = edges[0];
+                let mags: Vec<f64> = r.angles.iter().map(|a| a.abs().max(lowest)).collect();
+                let c = histogram(&mags, &edges);
                 let n = r.angles.len().max(1) as f64;
                 c.iter().map(|v| v / n).collect()
             },
@@ -37,21 +59,28 @@ pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Re
         .iter()
         .enumerate()
         .map(|(i, r)| {
-            BoxItem::from_samples(&r.label, &r.angles.iter().map(|a| a.abs()).collect::<Vec<_>>(), palette(i))
+            BoxItem::from_samples(
+                &r.label,
+                &r.angles.iter().map(|a| a.abs().max(edges[0])).collect::<Vec<_>>(),
+                palette(i),
+            )
         })
         .collect();
     let panels = vec![
         Panel {
-            title: "Residual angles on held-out geodesics (shared bins)".into(),
-            x_label: if signed { "signed residual angle (°)".into() } else { "residual angle (°)".into() },
+            title: "|residual angle| on held-out geodesics (shared log bins)".into(),
+            x_label: "|residual angle| (°, log scale)".into(),
             y_label: "fraction of samples".into(),
             legend: true,
+            log_x: true,
+            notes: vec![format!("|angle| < {} counted in the first bin", super::plot::format_tick(edges[0]))],
             layers: hist,
             ..Panel::default()
         },
         Panel {
             title: "|angle| per design (min, quartiles, max)".into(),
-            y_label: "|residual angle| (°)".into(),
+            y_label: "|residual angle| (°, log scale)".into(),
+            log_y: true,
             layers: vec![Layer::Boxes { items: boxes }],
             ..Panel::default()
         },
@@ -117,16 +146,18 @@ pub fn write_pareto(
         Panel {
             title: "Best residual per spring budget".into(),
             x_label: "springs allowed K".into(),
-            y_label: "|residual angle| (°)".into(),
+            y_label: "|residual angle| (°, log scale)".into(),
             legend: true,
+            log_y: true,
             layers: vec![line(b99.clone(), 0, "p99"), dots(b99, 0), line(bmax.clone(), 1, "max"), dots(bmax, 1)],
             ..Panel::default()
         },
         Panel {
             title: "Residual per region size".into(),
-            x_label: "geodesic-ball radius".into(),
-            y_label: "|residual angle| (°)".into(),
+            x_label: "geodesic-ball radius (√(kg·m²)·rad)".into(),
+            y_label: "|residual angle| (°, log scale)".into(),
             legend: true,
+            log_y: true,
             layers: vec![line(r99.clone(), 0, "p99"), dots(r99, 0), line(rmax.clone(), 1, "max"), dots(rmax, 1)],
             ..Panel::default()
         },

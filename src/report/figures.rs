@@ -5,26 +5,65 @@ use nalgebra::DVector;
 use super::plot::{Figure, Layer, Panel, Style, cyclic, histogram, palette};
 use crate::design::Design;
 use crate::error::Result;
-use crate::geodesic::Fan;
+use crate::geodesic::{Fan, Region};
 use crate::potential::Potential;
 use crate::residual::{AngleSample, AngleStats};
 
-/// Every `step`-th geodesic of a fan as joint-space polylines (first two joints).
+/// A pair of joints (i, j) a configuration-space panel shows as (x, y).
+pub type Projection = (usize, usize);
+
+/// The configuration-space views of an arm with `n` joints: (q₁, q₂) for two joints (q₁ twice for
+/// one), and the three projections q₁–q₂, q₁–q₃, q₂–q₃ for three or more, so q₃ is seen too.
+pub fn projections(n: usize) -> Vec<Projection> {
+    match n {
+        0 | 1 => vec![(0, 0)],
+        2 => vec![(0, 1)],
+        _ => vec![(0, 1), (0, 2), (1, 2)],
+    }
+}
+
+/// Name of joint i (from 0), e.g. "q₃".
+pub fn joint_name(i: usize) -> String {
+    const SUB: [&str; 10] = ["₀", "₁", "₂", "₃", "₄", "₅", "₆", "₇", "₈", "₉"];
+    let sub: String = (i + 1).to_string().chars().map(|c| SUB[c.to_digit(10).unwrap_or(0) as usize]).collect();
+    format!("q{sub}")
+}
+
+/// Axis name of joint i (from 0), e.g. "q₃ (rad)".
+pub fn joint_axis(i: usize) -> String {
+    format!("{} (rad)", joint_name(i))
+}
+
+/// Every `step`-th geodesic of a fan as polylines in the (q₁, q₂) plane.
 pub fn fan_lines(fan: &Fan, step: usize) -> Vec<Vec<(f64, f64)>> {
-    fan.geodesics.iter().step_by(step.max(1)).map(|g| (0..g.len()).map(|i| (g.q(i)[0], g.q(i)[1])).collect()).collect()
+    fan_lines_in(fan, step, (0, 1))
+}
+
+/// Every `step`-th geodesic of a fan projected on the joints `p`.
+pub fn fan_lines_in(fan: &Fan, step: usize, p: Projection) -> Vec<Vec<(f64, f64)>> {
+    fan.geodesics
+        .iter()
+        .step_by(step.max(1))
+        .map(|g| (0..g.len()).map(|i| (g.q(i)[p.0], g.q(i)[p.1])).collect())
+        .collect()
 }
 
 /// The equilibrium as a black dot in the (q₁, q₂) plane (q₁ twice for a one-joint arm).
 pub fn equilibrium_layer(design: &Design) -> Layer {
+    equilibrium_layer_in(design, projections(design.dof())[0])
+}
+
+/// The equilibrium as a black dot in the projection `p`.
+pub fn equilibrium_layer_in(design: &Design, p: Projection) -> Layer {
     Layer::Points {
-        points: vec![(design.q_eq[0], design.q_eq[1.min(design.dof() - 1)])],
+        points: vec![(design.q_eq[p.0], design.q_eq[p.1])],
         style: Style::fill((0, 0, 0), 1.0),
         size: 4,
         label: Some("equilibrium".into()),
     }
 }
 
-/// The region's boundary as traced by a fan: the end points of its geodesics, closed.
+/// The region's boundary as traced by a fan in the (q₁, q₂) plane (see [`boundary_lines`]).
 pub fn boundary_line(fan: &Fan) -> Vec<(f64, f64)> {
     let mut b: Vec<(f64, f64)> = fan
         .geodesics
@@ -39,6 +78,62 @@ pub fn boundary_line(fan: &Fan) -> Vec<(f64, f64)> {
         b.push(first);
     }
     b
+}
+
+/// The region's outline in the projection `p`, closed: a box is its rectangle (all four corners,
+/// not the fan's chords across them); a two-joint ball is the fan's end points in order; for
+/// three or more joints the end points of directions spread over a sphere have no order, so the
+/// outline is their convex hull (the silhouette of the nearly convex ball), not a zig-zag.
+pub fn boundary_lines(design: &Design, fan: &Fan, p: Projection) -> Vec<(f64, f64)> {
+    if let Region::Box { lower, upper } = &design.region {
+        let (x0, x1, y0, y1) = (lower[p.0], upper[p.0], lower[p.1], upper[p.1]);
+        return vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
+    }
+    let ends: Vec<(f64, f64)> = fan
+        .geodesics
+        .iter()
+        .filter(|g| !g.is_empty())
+        .map(|g| {
+            let q = g.q(g.len() - 1);
+            (q[p.0], q[p.1])
+        })
+        .collect();
+    if design.dof() == 2 {
+        let mut b = ends;
+        if let Some(&first) = b.first() {
+            b.push(first);
+        }
+        return b;
+    }
+    convex_hull(ends)
+}
+
+/// The convex hull of points (Andrew's monotone chain), closed (first point repeated).
+pub fn convex_hull(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    pts.retain(|p| p.0.is_finite() && p.1.is_finite());
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::with_capacity(2 * pts.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> =
+            if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    if let Some(&first) = hull.first() {
+        hull.push(first);
+    }
+    hull
 }
 
 /// Geodesics in joint space (coloured by direction, the region's boundary in black) and the same
@@ -68,9 +163,13 @@ pub fn geodesics_figure(design: &Design, fan: &Fan, title: &str) -> Figure {
     }
     if design.dof() >= 2 {
         joint_layers.push(Layer::Lines {
-            lines: vec![boundary_line(fan)],
+            lines: vec![boundary_lines(design, fan, (0, 1))],
             style: Style::line((0, 0, 0), 2),
-            label: Some("region boundary".into()),
+            label: Some(if design.dof() > 2 {
+                "region outline (q₁–q₂)".into()
+            } else {
+                "region boundary".into()
+            }),
         });
     }
     joint_layers.push(equilibrium_layer(design));
@@ -151,26 +250,46 @@ pub fn histogram_figure(residuals: &[AngleSample], st: &AngleStats, title: &str,
         (0..=60).map(|k| m * k as f64 / 60.0).collect()
     };
     let counts = histogram(&angles, &edges);
-    Figure::single(
-        Panel {
-            title: title.into(),
-            x_label: if signed { "signed residual angle (°)".into() } else { "residual angle (°)".into() },
-            y_label: "samples".into(),
-            notes: stats_notes(st),
-            layers: vec![
-                Layer::Histogram { edges, counts, style: Style::fill(palette(0), 0.55), label: None },
-                Layer::VLine { x: 0.0, style: Style::line((0, 0, 0), 1).dashed() },
-            ],
-            ..Panel::default()
-        },
-        900,
-        560,
-    )
+    let x_label: String = if signed { "signed residual angle (°)".into() } else { "residual angle (°)".into() };
+    let layers = vec![
+        Layer::Histogram { edges, counts, style: Style::fill(palette(0), 0.55), label: None },
+        Layer::VLine { x: 0.0, style: Style::line((0, 0, 0), 1).dashed() },
+    ];
+    // The same counts on a log axis below, so the tails (the few samples that set p99 and max)
+    // show as well as the bulk.
+    Figure {
+        title: Some(title.into()),
+        width: 1000,
+        height: 900,
+        rows: 2,
+        cols: 1,
+        panels: vec![
+            Panel {
+                title: "samples per bin".into(),
+                x_label: x_label.clone(),
+                y_label: "samples".into(),
+                notes: stats_notes(st),
+                layers: layers.clone(),
+                ..Panel::default()
+            },
+            Panel {
+                title: "the same, log scale (tails)".into(),
+                x_label,
+                y_label: "samples (log scale)".into(),
+                log_y: true,
+                notes: stats_notes(st),
+                layers,
+                ..Panel::default()
+            },
+        ],
+    }
 }
 
 /// Isolines of the total potential over the region's bounding box, with geodesics and the region
 /// boundary on top (the paper's Fig. 5b). For a perfect potential the isolines are the geodesic
-/// circles, crossed at right angles (in the metric) by the geodesics.
+/// circles, crossed at right angles (in the metric) by the geodesics. For three or more joints one
+/// panel per projection of [`projections`]: the potential on the plane through q_eq spanned by
+/// the two joints shown (the other joints at q_eq), the fan's geodesics projected.
 pub fn potential_figure(
     design: &Design,
     potential: &dyn Potential,
@@ -178,12 +297,53 @@ pub fn potential_figure(
     omega: f64,
     title: &str,
 ) -> Result<Figure> {
+    let views = projections(design.dof());
+    let mut panels = Vec::new();
+    for &p in &views {
+        let sliced = views.len() > 1;
+        let (contours, mut layers) = potential_layers(design, potential, fan, omega, p)?;
+        layers.insert(1, contours);
+        panels.push(Panel {
+            title: if sliced {
+                format!("{}–{} (other joints at q_eq)", joint_name(p.0), joint_name(p.1))
+            } else {
+                title.into()
+            },
+            x_label: joint_axis(p.0),
+            y_label: joint_axis(p.1),
+            equal_aspect: true,
+            legend: true,
+            notes: vec!["isolines at U(q_eq) + ½ω²(kR/8)²,".into(), "k = 1…8".into()],
+            layers,
+            ..Panel::default()
+        });
+    }
+    let cols = panels.len();
+    Ok(Figure {
+        title: if cols > 1 { Some(title.into()) } else { None },
+        width: if cols > 1 { 760 * cols as u32 } else { 1000 },
+        height: if cols > 1 { 700 } else { 800 },
+        rows: 1,
+        cols,
+        panels,
+    })
+}
+
+/// The isolines of U in projection `p` (the plane through q_eq) and the geodesics, boundary and
+/// equilibrium layers that go with them.
+pub fn potential_layers(
+    design: &Design,
+    potential: &dyn Potential,
+    fan: &Fan,
+    omega: f64,
+    p: Projection,
+) -> Result<(Layer, Vec<Layer>)> {
     let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
     for g in &fan.geodesics {
         for i in 0..g.len() {
             let q = g.q(i);
-            lo = (lo.0.min(q[0]), lo.1.min(q[1]));
-            hi = (hi.0.max(q[0]), hi.1.max(q[1]));
+            lo = (lo.0.min(q[p.0]), lo.1.min(q[p.1]));
+            hi = (hi.0.max(q[p.0]), hi.1.max(q[p.1]));
         }
     }
     let pad = (0.08 * (hi.0 - lo.0), 0.08 * (hi.1 - lo.1));
@@ -196,8 +356,8 @@ pub fn potential_figure(
     let mut q = design.q_eq.clone();
     for &yy in &y {
         for &xx in &x {
-            q[0] = xx;
-            q[1] = yy;
+            q[p.0] = xx;
+            q[p.1] = yy;
             z.push(potential.value(q.as_slice())? + design.chain.gravity_potential(q.as_slice()));
         }
     }
@@ -206,34 +366,28 @@ pub fn potential_figure(
     let u0 = potential.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
     let levels: Vec<f64> = (1..=8).map(|k| u0 + 0.5 * omega * omega * (extent * k as f64 / 8.0).powi(2)).collect();
     let step = (fan.geodesics.len() / 24).max(1);
+    let contours = Layer::Contours {
+        x,
+        y,
+        z,
+        levels,
+        style: Style::line(palette(1), 2),
+        label: Some(if design.dof() > 2 { "isolines of U (slice)".into() } else { "isolines of U".into() }),
+    };
     let layers = vec![
         Layer::Lines {
-            lines: fan_lines(fan, step),
+            lines: fan_lines_in(fan, step, p),
             style: Style::line((150, 150, 150), 1),
-            label: Some("geodesics".into()),
+            label: Some(if design.dof() > 2 { "geodesics (projected)".into() } else { "geodesics".into() }),
         },
-        Layer::Contours { x, y, z, levels, style: Style::line(palette(1), 2), label: Some("isolines of U".into()) },
         Layer::Lines {
-            lines: vec![boundary_line(fan)],
+            lines: vec![boundary_lines(design, fan, p)],
             style: Style::line((0, 0, 0), 2).dashed(),
-            label: Some("region boundary".into()),
+            label: Some(if design.dof() > 2 { "region outline".into() } else { "region boundary".into() }),
         },
-        equilibrium_layer(design),
+        equilibrium_layer_in(design, p),
     ];
-    Ok(Figure::single(
-        Panel {
-            title: title.into(),
-            x_label: "q₁ (rad)".into(),
-            y_label: "q₂ (rad)".into(),
-            equal_aspect: true,
-            legend: true,
-            notes: vec!["isolines at U(q_eq) + ½ω²(kR/8)², k = 1…8".into()],
-            layers,
-            ..Panel::default()
-        },
-        900,
-        800,
-    ))
+    Ok((contours, layers))
 }
 
 /// A joint-space vector as text.
@@ -253,5 +407,23 @@ mod tests {
         assert_eq!(nice_ceil(0.031), 0.05);
         let e = symmetric_edges(&[-0.3, 0.1], 4);
         assert_eq!(e, vec![-0.5, -0.25, 0.0, 0.25, 0.5]);
+    }
+
+    #[test]
+    fn convex_hull_outlines_a_point_cloud() {
+        // A square's corners plus interior points: the hull is the square, closed.
+        let mut pts = vec![(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.5, 0.5), (0.2, 0.7), (0.9, 0.1)];
+        pts.reverse();
+        let h = convex_hull(pts);
+        assert_eq!(h.len(), 5);
+        assert_eq!(h.first(), h.last());
+        for corner in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+            assert!(h.contains(&corner), "{h:?}");
+        }
+        // Counter-clockwise: positive signed area.
+        let area: f64 = h.windows(2).map(|w| w[0].0 * w[1].1 - w[1].0 * w[0].1).sum::<f64>() / 2.0;
+        assert!((area - 1.0).abs() < 1e-12);
+        assert_eq!(projections(3), vec![(0, 1), (0, 2), (1, 2)]);
+        assert_eq!(joint_axis(2), "q₃ (rad)");
     }
 }

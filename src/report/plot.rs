@@ -5,15 +5,28 @@
 //! ab_glyph with the DejaVu Sans file shipped in `assets/fonts`, so nothing depends on the
 //! system's font libraries). Nothing here knows about robots.
 //!
+//! Layout rules that keep data readable: a panel's legend and notes go in a column to the right
+//! of its chart, never over the data; lines are clipped to the chart and dashed here (the same
+//! pattern in the chart and the legend); either axis can be logarithmic (`log_x`, `log_y`; the
+//! values ≤ 0 are left out, histogram bars start at the bottom of the axis).
+//!
+//! PNG text: plotters 0.3.7 places each ab_glyph glyph at the truncated pen position and drops
+//! the glyph's left side bearing, so letters are unevenly spaced. [`TextFix`] wraps the bitmap
+//! backend and draws text itself with the bearings and a fractional pen.
+//!
 //! Degenerate data never panics: non-finite values are skipped, a zero range is padded, empty
 //! panels get a unit frame.
 
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
+use ab_glyph::{Font, FontRef, ScaleFont, point};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
+use plotters_backend::{
+    BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingErrorKind, text_anchor::HPos, text_anchor::VPos,
+};
 
 use super::contour::isolines;
 use crate::error::{Error, Result};
@@ -120,10 +133,14 @@ pub struct Panel {
     pub y_range: Option<(f64, f64)>,
     /// Same scale on both axes.
     pub equal_aspect: bool,
-    /// Draw a legend for labelled layers.
+    /// Draw a legend for labelled layers (in a column right of the chart).
     pub legend: bool,
-    /// Lines of text in a box in the upper left corner.
+    /// Lines of text in a box in the column right of the chart, under the legend.
     pub notes: Vec<String>,
+    /// Logarithmic x axis (values ≤ 0 are not drawn).
+    pub log_x: bool,
+    /// Logarithmic y axis (values ≤ 0 are not drawn; histogram bars start at the axis' bottom).
+    pub log_y: bool,
     /// The layers, drawn in order.
     pub layers: Vec<Layer>,
 }
@@ -203,14 +220,14 @@ pub fn histogram(samples: &[f64], edges: &[f64]) -> Vec<f64> {
 }
 
 const FONT: &str = "sans-serif";
+static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
 fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        static BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
         // The shipped font is valid; if registration failed, PNG text would be missing, which the
         // tests would catch.
-        let _ = plotters::style::register_font(FONT, FontStyle::Normal, BYTES);
+        let _ = plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES);
     });
 }
 
@@ -226,7 +243,8 @@ pub fn render(fig: &Figure, stem: &Path) -> Result<[PathBuf; 2]> {
         root.present().map_err(|e| perr(&svg, format!("{e:?}")))?;
     }
     {
-        let root = BitMapBackend::new(&png, (fig.width, fig.height)).into_drawing_area();
+        let font = FontRef::try_from_slice(FONT_BYTES).map_err(|e| perr(&png, format!("font: {e}")))?;
+        let root = TextFix { inner: BitMapBackend::new(&png, (fig.width, fig.height)), font }.into_drawing_area();
         draw(&root, fig).map_err(|e| perr(&png, e))?;
         root.present().map_err(|e| perr(&png, format!("{e:?}")))?;
     }
@@ -266,7 +284,13 @@ fn data_range(panel: &Panel) -> ((f64, f64), (f64, f64)) {
             Layer::Histogram { edges, counts, .. } => {
                 edges.iter().for_each(|&x| add(x, f64::NAN));
                 counts.iter().for_each(|&c| add(f64::NAN, c));
-                add(f64::NAN, 0.0);
+                if panel.log_y {
+                    // Counts are log₁₀ here: leave a third of a decade under the smallest bar.
+                    let low = counts.iter().copied().filter(|c| c.is_finite()).fold(f64::INFINITY, f64::min);
+                    add(f64::NAN, low - 0.35);
+                } else {
+                    add(f64::NAN, 0.0);
+                }
             }
             Layer::Contours { x, y, .. } => {
                 x.iter().for_each(|&v| add(v, f64::NAN));
@@ -299,13 +323,251 @@ fn data_range(panel: &Panel) -> ((f64, f64), (f64, f64)) {
     (fix(xs, true), fix(ys, true))
 }
 
-fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel) -> std::result::Result<(), String> {
+/// The bitmap backend with correct glyph placement (see the module docs): every call but
+/// `draw_text` goes to plotters' `BitMapBackend`.
+struct TextFix<'a> {
+    inner: BitMapBackend<'a>,
+    font: FontRef<'static>,
+}
+
+impl DrawingBackend for TextFix<'_> {
+    type ErrorType = <BitMapBackend<'static> as DrawingBackend>::ErrorType;
+
+    fn get_size(&self) -> (u32, u32) {
+        self.inner.get_size()
+    }
+    fn ensure_prepared(&mut self) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.ensure_prepared()
+    }
+    fn present(&mut self) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.present()
+    }
+    fn draw_pixel(
+        &mut self,
+        point: BackendCoord,
+        color: BackendColor,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.draw_pixel(point, color)
+    }
+    fn draw_line<S: BackendStyle>(
+        &mut self,
+        from: BackendCoord,
+        to: BackendCoord,
+        style: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.draw_line(from, to, style)
+    }
+    fn draw_rect<S: BackendStyle>(
+        &mut self,
+        upper_left: BackendCoord,
+        bottom_right: BackendCoord,
+        style: &S,
+        fill: bool,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.draw_rect(upper_left, bottom_right, style, fill)
+    }
+    fn draw_path<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        path: I,
+        style: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.draw_path(path, style)
+    }
+    fn draw_circle<S: BackendStyle>(
+        &mut self,
+        center: BackendCoord,
+        radius: u32,
+        style: &S,
+        fill: bool,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.draw_circle(center, radius, style, fill)
+    }
+    fn fill_polygon<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+        &mut self,
+        vert: I,
+        style: &S,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.fill_polygon(vert, style)
+    }
+    fn blit_bitmap(
+        &mut self,
+        pos: BackendCoord,
+        (iw, ih): (u32, u32),
+        src: &[u8],
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        self.inner.blit_bitmap(pos, (iw, ih), src)
+    }
+
+    /// Lays the glyphs out on a fractional pen with kerning and draws each at its own pixel
+    /// bounds (which include the left side bearing). The box and the anchor are those of
+    /// plotters' layout (advance widths and kerning, height size/1.24), so text sits where the
+    /// chart expects it.
+    fn draw_text<TStyle: BackendTextStyle>(
+        &mut self,
+        text: &str,
+        style: &TStyle,
+        pos: BackendCoord,
+    ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
+        let color = style.color();
+        if color.alpha == 0.0 {
+            return Ok(());
+        }
+        let size = style.size() as f32;
+        let scaled = self.font.as_scaled(size);
+        let mut glyphs = Vec::with_capacity(text.len());
+        let mut pen = 0.0f32;
+        let mut prev = None;
+        for c in text.chars() {
+            let id = scaled.glyph_id(c);
+            if let Some(p) = prev {
+                pen += scaled.kern(p, id);
+            }
+            glyphs.push(id.with_scale_and_position(size, point(pen, 0.0)));
+            pen += scaled.h_advance(id);
+            prev = Some(id);
+        }
+        let width = pen as i32;
+        let height = (f64::from(size) / 1.24) as i32;
+        let dx = match style.anchor().h_pos {
+            HPos::Left => 0,
+            HPos::Right => -width,
+            HPos::Center => -width / 2,
+        };
+        let dy = match style.anchor().v_pos {
+            VPos::Top => 0,
+            VPos::Center => -height / 2,
+            VPos::Bottom => -height,
+        };
+        // plotters puts the baseline half the font size below the layout's top.
+        let baseline = size / 2.0;
+        let trans = style.transform();
+        let (w, h) = self.inner.get_size();
+        for g in glyphs {
+            let Some(outline) = self.font.outline_glyph(g) else { continue };
+            let b = outline.px_bounds();
+            let mut pixels = Vec::new();
+            outline.draw(|x, y, c| pixels.push((x as i32 + b.min.x as i32, y as i32 + (b.min.y + baseline) as i32, c)));
+            for (x, y, c) in pixels {
+                let (x, y) = trans.transform(x + dx, y + dy);
+                let (x, y) = (pos.0 + x, pos.1 + y);
+                if x >= 0 && x < w as i32 && y >= 0 && y < h as i32 && c > 0.0 {
+                    let alpha = color.alpha * f64::from(c.min(1.0));
+                    self.inner.draw_pixel((x, y), BackendColor { alpha, rgb: color.rgb })?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One legend entry: how its sample is drawn and its text.
+enum Key {
+    Line(Style),
+    Marker(Style, u32),
+    Fill(Style),
+}
+
+fn legend_entries(panel: &Panel) -> Vec<(Key, String)> {
+    let mut out = Vec::new();
+    for l in &panel.layers {
+        match l {
+            Layer::Lines { style, label: Some(t), .. } | Layer::Contours { style, label: Some(t), .. } => {
+                out.push((Key::Line(*style), t.clone()))
+            }
+            Layer::Points { style, size, label: Some(t), .. } => out.push((Key::Marker(*style, *size), t.clone())),
+            Layer::Histogram { style, label: Some(t), .. } | Layer::Spans { style, label: Some(t), .. } => {
+                out.push((Key::Fill(Style { filled: true, ..*style }), t.clone()))
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+/// The panel with its logarithmic axes mapped to log₁₀ (values ≤ 0 become NaN, so are skipped).
+fn to_log(panel: &Panel) -> Panel {
+    let lx = |v: f64| if panel.log_x { if v > 0.0 { v.log10() } else { f64::NAN } } else { v };
+    let ly = |v: f64| if panel.log_y { if v > 0.0 { v.log10() } else { f64::NAN } } else { v };
+    let pt = |&(x, y): &(f64, f64)| (lx(x), ly(y));
+    let layers = panel
+        .layers
+        .iter()
+        .map(|l| match l {
+            Layer::Lines { lines, style, label } => Layer::Lines {
+                lines: lines.iter().map(|line| line.iter().map(pt).collect()).collect(),
+                style: *style,
+                label: label.clone(),
+            },
+            Layer::Points { points, style, size, label } => Layer::Points {
+                points: points.iter().map(pt).collect(),
+                style: *style,
+                size: *size,
+                label: label.clone(),
+            },
+            Layer::Histogram { edges, counts, style, label } => Layer::Histogram {
+                edges: edges.iter().map(|&e| lx(e)).collect(),
+                counts: counts.iter().map(|&c| ly(c)).collect(),
+                style: *style,
+                label: label.clone(),
+            },
+            Layer::Contours { x, y, z, levels, style, label } => Layer::Contours {
+                x: x.iter().map(|&v| lx(v)).collect(),
+                y: y.iter().map(|&v| ly(v)).collect(),
+                z: z.clone(),
+                levels: levels.clone(),
+                style: *style,
+                label: label.clone(),
+            },
+            Layer::Spans { spans, style, label } => Layer::Spans {
+                spans: spans.iter().map(|&(a, b)| (lx(a), lx(b))).collect(),
+                style: *style,
+                label: label.clone(),
+            },
+            Layer::HLine { y, style } => Layer::HLine { y: ly(*y), style: *style },
+            Layer::VLine { x, style } => Layer::VLine { x: lx(*x), style: *style },
+            Layer::Boxes { items } => Layer::Boxes {
+                items: items
+                    .iter()
+                    .map(|b| BoxItem { label: b.label.clone(), five: b.five.map(ly), color: b.color })
+                    .collect(),
+            },
+        })
+        .collect();
+    let range = |r: Option<(f64, f64)>, f: &dyn Fn(f64) -> f64| r.map(|(a, b)| (f(a), f(b)));
+    Panel {
+        layers,
+        x_range: range(panel.x_range, &lx),
+        y_range: range(panel.y_range, &ly),
+        notes: panel.notes.clone(),
+        title: panel.title.clone(),
+        x_label: panel.x_label.clone(),
+        y_label: panel.y_label.clone(),
+        ..*panel
+    }
+}
+
+fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Panel) -> std::result::Result<(), String> {
     let e = |x: DrawingAreaErrorKind<DB::ErrorType>| format!("{x:?}");
+    let panel = &to_log(original);
+    let entries = if panel.legend { legend_entries(panel) } else { Vec::new() };
+    // The side column for the legend and the notes: as wide as its longest text, at most 45 % of
+    // the cell.
+    let (w, _) = cell.dim_in_pixel();
+    let label_font = TextStyle::from((FONT, 13).into_font());
+    let text_width = |t: &str| cell.estimate_text_size(t, &label_font).map(|s| s.0).unwrap_or(8 * t.len() as u32);
+    let widest = entries
+        .iter()
+        .map(|(_, t)| text_width(t) + 40)
+        .chain(panel.notes.iter().map(|t| text_width(t) + 20))
+        .max()
+        .unwrap_or(0);
+    let side = if widest > 0 { (widest + 16).min(w * 45 / 100) } else { 0 };
+    let (area, column) = cell.split_horizontally(w.saturating_sub(side).max(1));
     let (dx, dy) = data_range(panel);
     let mut xr = panel.x_range.unwrap_or(dx);
     let mut yr = panel.y_range.unwrap_or(dy);
-    let (w, h) = area.dim_in_pixel();
-    let (plot_w, plot_h) = ((w as f64 - 80.0).max(10.0), (h as f64 - 80.0).max(10.0));
+    let (aw, ah) = area.dim_in_pixel();
+    let (plot_w, plot_h) = ((aw as f64 - 86.0).max(10.0), (ah as f64 - 84.0).max(10.0));
     if panel.equal_aspect {
         // Widen the range that is too narrow for the pixel aspect.
         let sx = (xr.1 - xr.0) / plot_w;
@@ -324,13 +586,18 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel) 
         Layer::Boxes { items } => Some(items.iter().map(|b| b.label.clone()).collect()),
         _ => None,
     });
-    let mut chart = ChartBuilder::on(area)
+    let mut chart = ChartBuilder::on(&area)
         .caption(&panel.title, (FONT, 17))
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(62)
         .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
         .map_err(e)?;
+    let log_tick = |v: f64| {
+        let r = v.round();
+        let x = if (v - r).abs() < 1e-6 { 10f64.powf(r) } else { 10f64.powf(v) };
+        if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+    };
     let formatter = |v: &f64| -> String {
         match &categories {
             Some(c) => {
@@ -341,9 +608,12 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel) 
                     String::new()
                 }
             }
+            None if panel.log_x => log_tick(*v),
             None => format_tick(*v),
         }
     };
+    let y_formatter = |v: &f64| if panel.log_y { log_tick(*v) } else { format_tick(*v) };
+    let decades = |r: (f64, f64)| ((r.1 - r.0).ceil() as usize + 1).clamp(3, 12);
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
@@ -353,98 +623,89 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel) 
         .bold_line_style(RGBColor(215, 215, 215))
         .max_light_lines(2)
         .x_label_formatter(&formatter)
-        .y_label_formatter(&|v| format_tick(*v));
+        .y_label_formatter(&y_formatter);
     if let Some(c) = &categories {
         mesh.x_labels(c.len() * 2 + 1);
+    } else if panel.log_x {
+        mesh.x_labels(decades(xr));
+    }
+    if panel.log_y {
+        mesh.y_labels(decades(yr));
     }
     mesh.draw().map_err(e)?;
 
+    // Pixels per data unit, for dashes of a fixed length on screen.
+    let (pw, ph) = chart.plotting_area().dim_in_pixel();
+    let scale = (pw as f64 / (xr.1 - xr.0), ph as f64 / (yr.1 - yr.0));
+    let clip = |line: &[(f64, f64)]| clip_polyline(line, xr, yr);
     for layer in &panel.layers {
         match layer {
-            Layer::Lines { lines, style, label } => {
-                let mut first = true;
+            Layer::Lines { lines, style, .. } => {
                 for line in lines {
                     for run in finite_runs(line) {
-                        let s = style.shape();
-                        let drawn = if style.dashed {
-                            chart.draw_series(DashedLineSeries::new(run, 6, 4, s)).map_err(e)?
-                        } else {
-                            chart.draw_series(LineSeries::new(run, s)).map_err(e)?
-                        };
-                        if first {
-                            if let Some(l) = label {
-                                let s2 = style.shape();
-                                drawn.label(l).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], s2));
-                            }
-                            first = false;
+                        for piece in clip(&run) {
+                            draw_line(&mut chart, piece, style, scale).map_err(e)?;
                         }
                     }
                 }
             }
-            Layer::Points { points, style, size, label } => {
+            Layer::Points { points, style, size, .. } => {
                 let s = style.shape();
-                let pts: Vec<(f64, f64)> =
-                    points.iter().copied().filter(|(x, y)| x.is_finite() && y.is_finite()).collect();
+                let inside = |&(x, y): &(f64, f64)| {
+                    x.is_finite() && y.is_finite() && x >= xr.0 && x <= xr.1 && y >= yr.0 && y <= yr.1
+                };
+                let pts: Vec<(f64, f64)> = points.iter().copied().filter(inside).collect();
                 let size = *size;
-                let drawn = chart.draw_series(pts.into_iter().map(|p| Circle::new(p, size, s))).map_err(e)?;
-                if let Some(l) = label {
-                    drawn.label(l).legend(move |(x, y)| Circle::new((x + 9, y), size, s));
-                }
+                chart.draw_series(pts.into_iter().map(|p| Circle::new(p, size, s))).map_err(e)?;
             }
-            Layer::Histogram { edges, counts, style, label } => {
+            Layer::Histogram { edges, counts, style, .. } => {
                 let fill = Style { filled: true, ..*style }.shape();
                 let outline = Style { filled: false, alpha: 1.0, ..*style }.shape();
+                let base = if panel.log_y { yr.0 } else { 0.0f64.max(yr.0) };
                 let bars: Vec<(f64, f64, f64)> = edges
                     .windows(2)
                     .zip(counts)
-                    .filter(|(w, c)| w[0].is_finite() && w[1].is_finite() && c.is_finite())
-                    .map(|(w, c)| (w[0], w[1], *c))
+                    .filter(|(w, c)| w[0].is_finite() && w[1].is_finite() && c.is_finite() && **c > base)
+                    .map(|(w, c)| (w[0].max(xr.0), w[1].min(xr.1), c.min(yr.1)))
+                    .filter(|(a, b, _)| a < b)
                     .collect();
-                chart.draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, 0.0), (b, c)], fill))).map_err(e)?;
-                let drawn = chart
-                    .draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, 0.0), (b, c)], outline)))
+                chart
+                    .draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], fill)))
                     .map_err(e)?;
-                if let Some(l) = label {
-                    drawn.label(l).legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], fill));
-                }
+                chart
+                    .draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], outline)))
+                    .map_err(e)?;
             }
-            Layer::Contours { x, y, z, levels, style, label } => {
-                let s = style.shape();
-                let mut first = true;
+            Layer::Contours { x, y, z, levels, style, .. } => {
                 for &lv in levels {
                     for line in isolines(x, y, z, lv) {
-                        let drawn = chart.draw_series(LineSeries::new(line, s)).map_err(e)?;
-                        if first {
-                            if let Some(l) = label {
-                                drawn.label(l).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], s));
-                            }
-                            first = false;
+                        for piece in clip(&line) {
+                            draw_line(&mut chart, piece, style, scale).map_err(e)?;
                         }
                     }
                 }
             }
-            Layer::Spans { spans, style, label } => {
+            Layer::Spans { spans, style, .. } => {
                 let s = Style { filled: true, ..*style }.shape();
-                let drawn = chart
+                chart
                     .draw_series(
                         spans
                             .iter()
                             .filter(|(a, b)| a.is_finite() && b.is_finite())
-                            .map(|&(a, b)| Rectangle::new([(a, yr.0), (b, yr.1)], s)),
+                            .map(|&(a, b)| (a.max(xr.0), b.min(xr.1)))
+                            .filter(|(a, b)| a < b)
+                            .map(|(a, b)| Rectangle::new([(a, yr.0), (b, yr.1)], s)),
                     )
                     .map_err(e)?;
-                if let Some(l) = label {
-                    drawn.label(l).legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], s));
-                }
             }
             Layer::HLine { y, style } => {
-                if y.is_finite() {
-                    chart.draw_series(LineSeries::new(vec![(xr.0, *y), (xr.1, *y)], style.shape())).map_err(e)?;
+                if y.is_finite() && *y >= yr.0 && *y <= yr.1 {
+                    draw_line(&mut chart, vec![(xr.0, *y), (xr.1, *y)], style, scale).map_err(e)?;
                 }
             }
             Layer::VLine { x, style } => {
-                if x.is_finite() {
-                    chart.draw_series(LineSeries::new(vec![(*x, yr.0), (*x, yr.1)], style.shape())).map_err(e)?;
+                if x.is_finite() && *x >= xr.0 && *x <= xr.1 {
+                    draw_line(&mut chart, vec![(*x, yr.0), (*x, yr.1)], style, scale).map_err(e)?;
                 }
             }
             Layer::Boxes { items } => {
@@ -475,50 +736,167 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel) 
             }
         }
     }
-    if !panel.notes.is_empty() {
-        let corner = (xr.0, yr.1);
-        let lines = panel.notes.len() as i32;
-        let width = panel.notes.iter().map(|s| s.chars().count()).max().unwrap_or(0) as i32 * 7 + 12;
-        chart
-            .draw_series(std::iter::once(
-                EmptyElement::at(corner)
-                    + Rectangle::new(
-                        [(6, 6), (6 + width, 10 + 16 * lines)],
-                        ShapeStyle::from(WHITE.mix(0.85)).filled(),
-                    )
-                    + Rectangle::new([(6, 6), (6 + width, 10 + 16 * lines)], ShapeStyle::from(RGBColor(160, 160, 160))),
-            ))
-            .map_err(e)?;
-        for (k, note) in panel.notes.iter().enumerate() {
-            chart
-                .draw_series(std::iter::once(
-                    EmptyElement::at(corner) + Text::new(note.clone(), (12, 10 + 16 * k as i32), (FONT, 13)),
-                ))
-                .map_err(e)?;
-        }
-    }
-    if panel.legend && panel.layers.iter().any(has_label) {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, 13))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(160, 160, 160))
-            .draw()
-            .map_err(e)?;
+    if side > 0 {
+        draw_side_column(&column, &entries, &panel.notes).map_err(e)?;
     }
     Ok(())
 }
 
-fn has_label(l: &Layer) -> bool {
-    matches!(
-        l,
-        Layer::Lines { label: Some(_), .. }
-            | Layer::Points { label: Some(_), .. }
-            | Layer::Histogram { label: Some(_), .. }
-            | Layer::Contours { label: Some(_), .. }
-            | Layer::Spans { label: Some(_), .. }
-    )
+/// Draws a polyline (already clipped), solid or dashed (7 px on, 4 px off on screen).
+fn draw_line<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    line: Vec<(f64, f64)>,
+    style: &Style,
+    scale: (f64, f64),
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let s = style.shape();
+    if !style.dashed {
+        chart.draw_series(std::iter::once(PathElement::new(line, s)))?;
+        return Ok(());
+    }
+    chart.draw_series(dashes(&line, scale, 7.0, 4.0).into_iter().map(|d| PathElement::new(d, s)))?;
+    Ok(())
+}
+
+/// The dashes of a polyline: pieces `on` pixels long separated by `off` pixels, measured on
+/// screen (`scale` = pixels per data unit on each axis).
+fn dashes(line: &[(f64, f64)], scale: (f64, f64), on: f64, off: f64) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let (mut drawing, mut left) = (true, on);
+    if let Some(&p) = line.first() {
+        cur.push(p);
+    }
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = (((b.0 - a.0) * scale.0).powi(2) + ((b.1 - a.1) * scale.1).powi(2)).sqrt();
+        let mut pos = 0.0;
+        while len - pos > left {
+            pos += left;
+            let t = pos / len;
+            let p = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            if drawing {
+                cur.push(p);
+                out.push(std::mem::take(&mut cur));
+            } else {
+                cur = vec![p];
+            }
+            drawing = !drawing;
+            left = if drawing { on } else { off };
+        }
+        left -= len - pos;
+        if drawing {
+            cur.push(b);
+        }
+    }
+    if drawing && cur.len() > 1 {
+        out.push(cur);
+    }
+    out
+}
+
+/// Clips a polyline to the rectangle [x0, x1] × [y0, y1] (Liang–Barsky per segment): the pieces
+/// inside, so nothing is drawn outside its panel.
+fn clip_polyline(line: &[(f64, f64)], xr: (f64, f64), yr: (f64, f64)) -> Vec<Vec<(f64, f64)>> {
+    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let inside = |p: (f64, f64)| p.0 >= xr.0 && p.0 <= xr.1 && p.1 >= yr.0 && p.1 <= yr.1;
+    if line.len() == 1 && inside(line[0]) {
+        return vec![line.to_vec()];
+    }
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let mut visible = true;
+        for (p, q) in [(-dx, a.0 - xr.0), (dx, xr.1 - a.0), (-dy, a.1 - yr.0), (dy, yr.1 - a.1)] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    visible = false;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+        if !visible || t0 > t1 {
+            if cur.len() > 1 {
+                out.push(std::mem::take(&mut cur));
+            }
+            cur.clear();
+            continue;
+        }
+        let pa = (a.0 + t0 * dx, a.1 + t0 * dy);
+        let pb = (a.0 + t1 * dx, a.1 + t1 * dy);
+        if cur.is_empty() || t0 > 0.0 {
+            if cur.len() > 1 {
+                out.push(std::mem::take(&mut cur));
+            }
+            cur = vec![pa];
+        }
+        cur.push(pb);
+        if t1 < 1.0 {
+            out.push(std::mem::take(&mut cur));
+        }
+    }
+    if cur.len() > 1 {
+        out.push(cur);
+    }
+    out
+}
+
+/// The legend (samples drawn as the layers are) and the notes, in the column right of a chart.
+fn draw_side_column<DB: DrawingBackend>(
+    column: &DrawingArea<DB, Shift>,
+    entries: &[(Key, String)],
+    notes: &[String],
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let font = (FONT, 13);
+    let mut y = 44;
+    for (key, text) in entries {
+        let c = y + 8;
+        match key {
+            Key::Line(st) => {
+                let s = st.shape();
+                if st.dashed {
+                    column.draw(&PathElement::new(vec![(6, c), (13, c)], s))?;
+                    column.draw(&PathElement::new(vec![(17, c), (24, c)], s))?;
+                    column.draw(&PathElement::new(vec![(28, c), (30, c)], s))?;
+                } else {
+                    column.draw(&PathElement::new(vec![(6, c), (30, c)], s))?;
+                }
+            }
+            Key::Marker(st, size) => column.draw(&Circle::new((18, c), *size, st.shape()))?,
+            Key::Fill(st) => {
+                column.draw(&Rectangle::new([(8, c - 6), (28, c + 6)], st.shape()))?;
+                column.draw(&Rectangle::new(
+                    [(8, c - 6), (28, c + 6)],
+                    Style { filled: false, alpha: 1.0, ..*st }.shape(),
+                ))?;
+            }
+        }
+        column.draw(&Text::new(text.clone(), (36, y), font))?;
+        y += 20;
+    }
+    if !notes.is_empty() {
+        y += if entries.is_empty() { 0 } else { 10 };
+        let (cw, _) = column.dim_in_pixel();
+        let box_h = 10 + 18 * notes.len() as i32;
+        column
+            .draw(&Rectangle::new([(4, y), (cw as i32 - 6, y + box_h)], ShapeStyle::from(RGBColor(160, 160, 160))))?;
+        for (k, note) in notes.iter().enumerate() {
+            column.draw(&Text::new(note.clone(), (10, y + 6 + 18 * k as i32), font))?;
+        }
+    }
+    Ok(())
 }
 
 /// Splits a polyline at non-finite points.
@@ -539,7 +917,7 @@ fn finite_runs(line: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
 }
 
 /// Short tick labels: no trailing zeros, scientific only for very large or small values.
-fn format_tick(v: f64) -> String {
+pub fn format_tick(v: f64) -> String {
     // Round-off at a tick that should read 0 (e.g. 2.2e-16).
     if v.abs() < 1e-9 {
         return "0".into();
@@ -659,6 +1037,48 @@ mod tests {
         };
         render(&Figure::single(panel, 300, 200), &dir.join("deg")).unwrap();
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn lines_are_clipped_to_the_panel_and_dashed_on_screen() {
+        // A segment crossing the box [0, 1]² enters at x = 0 and leaves at x = 1.
+        let near = |a: &[(f64, f64)], b: &[(f64, f64)]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(p, q)| (p.0 - q.0).abs() < 1e-12 && (p.1 - q.1).abs() < 1e-12)
+        };
+        let pieces = clip_polyline(&[(-1.0, 0.5), (2.0, 0.5)], (0.0, 1.0), (0.0, 1.0));
+        assert_eq!(pieces.len(), 1);
+        assert!(near(&pieces[0], &[(0.0, 0.5), (1.0, 0.5)]), "{pieces:?}");
+        // Leaving and re-entering gives two pieces; a line wholly outside gives none.
+        let pieces = clip_polyline(&[(0.5, 0.5), (0.5, 3.0), (0.7, 3.0), (0.7, 0.2)], (0.0, 1.0), (0.0, 1.0));
+        assert_eq!(pieces.len(), 2);
+        assert!(near(&pieces[0], &[(0.5, 0.5), (0.5, 1.0)]), "{pieces:?}");
+        assert!(near(&pieces[1], &[(0.7, 1.0), (0.7, 0.2)]), "{pieces:?}");
+        assert!(clip_polyline(&[(2.0, 2.0), (3.0, 3.0)], (0.0, 1.0), (0.0, 1.0)).is_empty());
+        // 22 px at 1 px per unit: dashes of 7 on, 4 off → [0, 7], [11, 18], [22, 22] dropped.
+        let d = dashes(&[(0.0, 0.0), (10.0, 0.0), (22.0, 0.0)], (1.0, 1.0), 7.0, 4.0);
+        assert_eq!(d[0], vec![(0.0, 0.0), (7.0, 0.0)]);
+        assert_eq!(d[1], vec![(11.0, 0.0), (18.0, 0.0)]);
+        let on: f64 = d.iter().map(|p| p.last().unwrap().0 - p[0].0).sum();
+        assert!((on - 14.0).abs() < 1e-9, "{d:?}");
+    }
+
+    #[test]
+    fn log_axes_map_to_decades_and_drop_non_positive_values() {
+        let panel = Panel {
+            log_y: true,
+            layers: vec![Layer::Histogram {
+                edges: vec![0.0, 1.0, 2.0],
+                counts: vec![0.0, 100.0],
+                style: Style::fill(palette(0), 0.5),
+                label: None,
+            }],
+            ..Panel::default()
+        };
+        let logged = to_log(&panel);
+        let Layer::Histogram { counts, .. } = &logged.layers[0] else { unreachable!() };
+        assert!(counts[0].is_nan() && counts[1] == 2.0);
+        let (_, y) = data_range(&logged);
+        assert!(y.0 < 2.0 - 0.3 && y.1 > 2.0, "{y:?}");
     }
 
     #[test]

@@ -1,15 +1,21 @@
 //! The files `springfit simulate` writes: per scenario a CSV of the samples, a JSON of the
-//! metrics and five figures (phase plane, q(t), torques, label, power).
+//! metrics and the figures: the paths in configuration space (q₁–q₂; for three joints also q₁–q₃
+//! and q₂–q₃), q(t), torques, the mode label (unwrapped), power, energy E(t) and, for free
+//! releases, the distance to the mode's geodesic.
 
 use serde::Serialize;
 
-use super::figures::{boundary_line, equilibrium_layer, fan_lines};
+use super::figures::{
+    Projection, boundary_lines, equilibrium_layer_in, fan_lines_in, joint_axis, joint_name, potential_layers,
+    projections,
+};
 use super::output::OutputDir;
 use super::plot::{Figure, Layer, Panel, Style, palette, render};
+use crate::control::Blend;
 use crate::design::Design;
 use crate::error::Result;
 use crate::geodesic::Fan;
-use crate::scenario::{RunMetrics, ScenarioKind, ScenarioOutcome};
+use crate::scenario::{RunMetrics, ScenarioKind, ScenarioOutcome, unwrap_angles};
 use crate::simulate::{ElasticPotential, SOURCES};
 
 /// `sim_<name>.json`.
@@ -23,8 +29,16 @@ pub struct ScenarioSummary {
     pub label: String,
     /// Largest error of the tabulated label against the exact one on held-out geodesics, degrees.
     pub label_error_deg: Option<f64>,
-    /// Worst mode drift over the runs (free scenarios).
+    /// How the mode controller is switched on at the ε-ball: `smooth` or `hard`.
+    pub blend: Blend,
+    /// How the scenario handles energy (for a switch scenario: its `energy_target`).
+    pub energy_handling: String,
+    /// Worst distance to the mode's geodesic over the runs, √(kg·m²)·rad (free scenarios).
+    pub geodesic_deviation_max: Option<f64>,
+    /// Worst label drift over the runs, degrees (free scenarios).
     pub mode_drift_deg: Option<f64>,
+    /// Largest actuator torque over the runs, N·m.
+    pub peak_actuator_torque_nm: f64,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
 }
@@ -42,7 +56,7 @@ fn columns(n: usize) -> String {
             s.push_str(&format!(",tau_{src}{i}"));
         }
     }
-    s.push_str(",E,label,label_target\n");
+    s.push_str(",E,label,label_target,geodesic_deviation\n");
     s
 }
 
@@ -58,14 +72,16 @@ pub fn scenario_csv(outcome: &ScenarioOutcome) -> String {
             for v in t.q[k * n..(k + 1) * n].iter().chain(&t.qd[k * n..(k + 1) * n]).chain(&t.tau[k * w..(k + 1) * w]) {
                 s.push_str(&format!(",{v}"));
             }
-            s.push_str(&format!(",{},{},{}\n", t.energy[k], t.label[k], t.label_target[k]));
+            let dev = t.geodesic_deviation.get(k).copied().unwrap_or(f64::NAN);
+            s.push_str(&format!(",{},{},{},{dev}\n", t.energy[k], t.label[k], t.label_target[k]));
         }
     }
     s
 }
 
+/// Run colours: the palette without its orange, which draws the isolines of U.
 fn run_colour(i: usize) -> (u8, u8, u8) {
-    palette(i)
+    palette([0, 1, 2, 3, 5, 6][i % 6])
 }
 
 /// Writes a scenario's outputs.
@@ -84,25 +100,27 @@ pub fn write(
     out.write(&format!("sim_{name}.csv"), scenario_csv(outcome))?;
     let runs: std::collections::BTreeMap<String, RunMetrics> =
         outcome.runs.iter().map(|(r, m)| (r.name.clone(), m.clone())).collect();
-    let drift = outcome
-        .runs
-        .iter()
-        .filter_map(|(_, m)| m.mode_drift_deg)
-        .fold(None, |a: Option<f64>, d| Some(a.map_or(d, |a| a.max(d))));
+    let worst = |f: &dyn Fn(&RunMetrics) -> Option<f64>| {
+        outcome.runs.iter().filter_map(|(_, m)| f(m)).fold(None, |a: Option<f64>, d| Some(a.map_or(d, |a| a.max(d))))
+    };
     let summary = ScenarioSummary {
         scenario: name.clone(),
         kind: outcome.scenario.kind,
         potential: potential_name.into(),
         label: label_name.into(),
         label_error_deg,
-        mode_drift_deg: drift,
+        blend: design.controllers.blend,
+        energy_handling: outcome.scenario.energy_handling.clone(),
+        geodesic_deviation_max: worst(&|m| m.geodesic_deviation.as_ref().map(|d| d.max)),
+        mode_drift_deg: worst(&|m| m.mode_drift_deg),
+        peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
         runs,
     };
     out.write(&format!("sim_{name}.json"), serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
     let title = |what: &str| format!("{} — scenario {name}: {what}", design.name);
     render(
-        &phase_figure(design, outcome, potential, fan, &title("phase plane"))?,
-        &out.path(&format!("sim_{name}_phase")),
+        &configuration_figure(design, outcome, potential, fan, &title("paths in configuration space"))?,
+        &out.path(&format!("sim_{name}_configuration")),
     )?;
     render(&time_figure(outcome, &title("joint angles"), TimePlot::Angles), &out.path(&format!("sim_{name}_q")))?;
     render(
@@ -114,75 +132,175 @@ pub fn write(
         &out.path(&format!("sim_{name}_label")),
     )?;
     render(&time_figure(outcome, &title("power by source"), TimePlot::Power), &out.path(&format!("sim_{name}_power")))?;
+    render(&energy_figure(outcome, &title("energy E(t)")), &out.path(&format!("sim_{name}_energy")))?;
+    if outcome.runs.iter().any(|(r, _)| !r.trace.geodesic_deviation.is_empty()) {
+        render(
+            &deviation_figure(outcome, &title("distance to the mode's geodesic")),
+            &out.path(&format!("sim_{name}_deviation")),
+        )?;
+    }
     Ok(())
 }
 
-fn phase_figure(
+/// E(t) of every run with its target E_d(t) where there is one.
+fn energy_figure(outcome: &ScenarioOutcome, title: &str) -> Figure {
+    let mut layers = Vec::new();
+    for (i, ((r, _), spec)) in outcome.runs.iter().zip(&outcome.scenario.runs).enumerate() {
+        let t = &r.trace;
+        layers.push(Layer::Lines {
+            lines: vec![(0..t.t.len()).map(|k| (t.t[k], t.energy[k])).collect()],
+            style: Style::line(run_colour(i), 2),
+            label: Some(r.name.clone()),
+        });
+        if let Some(ec) = &spec.energy {
+            layers.push(Layer::Lines {
+                lines: vec![t.t.iter().map(|&tt| (tt, ec.target(tt))).collect()],
+                style: Style::line(run_colour(i), 1).dashed(),
+                label: Some(format!("{}: E_d", r.name)),
+            });
+        }
+    }
+    Figure::single(
+        Panel {
+            title: title.into(),
+            x_label: "t (s)".into(),
+            y_label: "E = ½q̇ᵀMq̇ + U − U(q_eq) (J)".into(),
+            legend: true,
+            layers,
+            ..Panel::default()
+        },
+        1200,
+        520,
+    )
+}
+
+/// The metric distance from q(t) to the geodesic of the start's mode, per run, on a log axis.
+fn deviation_figure(outcome: &ScenarioOutcome, title: &str) -> Figure {
+    let mut layers = Vec::new();
+    let mut notes = Vec::new();
+    // Four decades under the smallest run's maximum: the start (distance 0) would stretch a log
+    // axis without end.
+    let floor = outcome
+        .runs
+        .iter()
+        .filter_map(|(_, m)| m.geodesic_deviation.as_ref().map(|d| d.max))
+        .filter(|m| *m > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let ceiling =
+        outcome.runs.iter().filter_map(|(_, m)| m.geodesic_deviation.as_ref().map(|d| d.max)).fold(0.0, f64::max);
+    let y_range = (floor.is_finite() && ceiling > 0.0).then_some((floor * 1e-4, ceiling * 1.5));
+    for (i, (r, m)) in outcome.runs.iter().enumerate() {
+        let t = &r.trace;
+        if t.geodesic_deviation.is_empty() {
+            continue;
+        }
+        layers.push(Layer::Lines {
+            lines: vec![(0..t.t.len()).map(|k| (t.t[k], t.geodesic_deviation[k])).collect()],
+            style: Style::line(run_colour(i), 1),
+            label: Some(r.name.clone()),
+        });
+        if let Some(d) = &m.geodesic_deviation {
+            notes.push(format!("{}: max {:.3e} ({:.2} % of r₀)", r.name, d.max, 100.0 * d.max_rel));
+        }
+    }
+    Figure::single(
+        Panel {
+            title: title.into(),
+            x_label: "t (s)".into(),
+            y_label: "distance to the geodesic (√(kg·m²)·rad, log)".into(),
+            legend: true,
+            log_y: true,
+            y_range,
+            notes,
+            layers,
+            ..Panel::default()
+        },
+        1300,
+        560,
+    )
+}
+
+fn configuration_figure(
     design: &Design,
     outcome: &ScenarioOutcome,
     potential: &ElasticPotential,
     fan: &Fan,
     title: &str,
 ) -> Result<Figure> {
+    let views = projections(design.dof());
+    let mut panels = Vec::new();
+    for (k, &p) in views.iter().enumerate() {
+        let mut panel = configuration_panel(design, outcome, potential, fan, p, views.len() > 1)?;
+        // One legend for the row of projections, on the last one.
+        panel.legend = k + 1 == views.len();
+        panels.push(panel);
+    }
+    let cols = panels.len();
+    Ok(Figure {
+        title: Some(title.into()),
+        width: if cols > 1 { 760 * cols as u32 } else { 1050 },
+        height: if cols > 1 { 700 } else { 850 },
+        rows: 1,
+        cols,
+        panels,
+    })
+}
+
+fn configuration_panel(
+    design: &Design,
+    outcome: &ScenarioOutcome,
+    potential: &ElasticPotential,
+    fan: &Fan,
+    p: Projection,
+    several: bool,
+) -> Result<Panel> {
+    let step = (fan.geodesics.len() / 24).max(1);
     let mut layers = vec![
         Layer::Lines {
-            lines: fan_lines(fan, (fan.geodesics.len() / 24).max(1)),
-            style: Style::line((170, 170, 170), 1),
-            label: Some("geodesics".into()),
+            lines: fan_lines_in(fan, step, p),
+            style: Style::line((190, 190, 190), 1),
+            label: Some(if several { "geodesics (projected)".into() } else { "geodesics".into() }),
         },
         Layer::Lines {
-            lines: vec![boundary_line(fan)],
+            lines: vec![boundary_lines(design, fan, p)],
             style: Style::line((0, 0, 0), 1).dashed(),
-            label: Some("region boundary".into()),
+            label: Some(if several { "region outline".into() } else { "region boundary".into() }),
         },
     ];
     if let ElasticPotential::Springs(s) = potential {
-        let pot = crate::report::figures::potential_figure(design, s, fan, design.fit.frequency, "")?;
-        if let Some(Layer::Contours { x, y, z, levels, .. }) =
-            pot.panels[0].layers.iter().find(|l| matches!(l, Layer::Contours { .. }))
-        {
-            layers.push(Layer::Contours {
-                x: x.clone(),
-                y: y.clone(),
-                z: z.clone(),
-                levels: levels.clone(),
-                style: Style::line((230, 159, 0), 1),
-                label: Some("isolines of U".into()),
-            });
+        let (contours, _) = potential_layers(design, s, fan, design.fit.frequency, p)?;
+        if let Layer::Contours { x, y, z, levels, label, .. } = contours {
+            layers.push(Layer::Contours { x, y, z, levels, style: Style::line((230, 159, 0), 1), label });
         }
     }
     for (i, (r, _)) in outcome.runs.iter().enumerate() {
         let t = &r.trace;
-        let line: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.q[k * t.n], t.q[k * t.n + 1.min(t.n - 1)])).collect();
+        let line: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.q[k * t.n + p.0], t.q[k * t.n + p.1])).collect();
         let start = line.first().copied();
         layers.push(Layer::Lines {
             lines: vec![line],
             style: Style::line(run_colour(i), 2),
             label: Some(r.name.clone()),
         });
-        if let Some(p) = start {
+        if let Some(pt) = start {
             layers.push(Layer::Points {
-                points: vec![p],
+                points: vec![pt],
                 style: Style::fill(run_colour(i), 1.0),
                 size: 4,
                 label: None,
             });
         }
     }
-    layers.push(equilibrium_layer(design));
-    Ok(Figure::single(
-        Panel {
-            title: title.into(),
-            x_label: "q₁ (rad)".into(),
-            y_label: if design.dof() >= 2 { "q₂ (rad)".into() } else { "q₁ (rad)".into() },
-            equal_aspect: true,
-            legend: true,
-            layers,
-            ..Panel::default()
-        },
-        1000,
-        850,
-    ))
+    layers.push(equilibrium_layer_in(design, p));
+    Ok(Panel {
+        title: format!("{}–{} (start points as dots)", joint_name(p.0), joint_name(p.1)),
+        x_label: joint_axis(p.0),
+        y_label: joint_axis(p.1),
+        equal_aspect: true,
+        legend: true,
+        layers,
+        ..Panel::default()
+    })
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -228,8 +346,12 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
                             continue;
                         }
                         for i in 0..n {
-                            let style =
-                                if i == 0 { Style::line(palette(s), 1) } else { Style::line(palette(s), 1).dashed() };
+                            // Joint 1 solid, joint 2 dashed, joint 3 dashed and thicker.
+                            let style = match i {
+                                0 => Style::line(palette(s), 1),
+                                1 => Style::line(palette(s), 1).dashed(),
+                                _ => Style::line(palette(s), 2).dashed(),
+                            };
                             layers.push(Layer::Lines {
                                 lines: vec![series(&|k| t.tau[k * w + s * n + i])],
                                 style,
@@ -239,7 +361,11 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
                     }
                 }
                 TimePlot::Label => {
-                    y_label = if n == 2 { "label θ (rad)".into() } else { "distance to the mode Δ (rad)".into() };
+                    y_label = if n == 2 {
+                        "mode label θ (°, unwrapped)".into()
+                    } else {
+                        "distance to the mode Δ (°)".into()
+                    };
                     let mut spans = Vec::new();
                     let mut open: Option<f64> = None;
                     for k in 0..t.t.len() {
@@ -260,15 +386,31 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
                         style: Style::fill((150, 150, 150), 0.3),
                         label: Some("ε-ball".into()),
                     });
-                    let lab: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.t[k], t.label[k])).collect();
+                    // θ lives on a circle: unwrapped, a label crossing ±180° goes on instead of
+                    // jumping by a full turn; the target is unwrapped alike and starts on the
+                    // label's branch.
+                    let (label, target) = if n == 2 {
+                        let target = unwrap_angles(&t.label_target);
+                        let mut label = unwrap_angles(&t.label);
+                        let first = (0..t.t.len()).find(|&k| label[k].is_finite() && target[k].is_finite());
+                        if let Some(k) = first {
+                            let shift = target[k] - label[k];
+                            let turns = (shift / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+                            label.iter_mut().for_each(|v| *v += turns);
+                        }
+                        (label, target)
+                    } else {
+                        (t.label.clone(), t.label_target.clone())
+                    };
+                    let lab: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.t[k], label[k].to_degrees())).collect();
                     layers.push(Layer::Lines {
                         lines: vec![lab],
                         style: Style::line(palette(0), 2),
                         label: Some("label".into()),
                     });
-                    if t.label_target.iter().any(|v| v.is_finite()) {
+                    if target.iter().any(|v| v.is_finite()) {
                         layers.push(Layer::Lines {
-                            lines: vec![series(&|k| t.label_target[k])],
+                            lines: vec![series(&|k| target[k].to_degrees())],
                             style: Style::line((0, 0, 0), 1).dashed(),
                             label: Some("desired".into()),
                         });
@@ -289,9 +431,16 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
                     }
                 }
             }
-            let mut notes = vec![format!("actuator share {:.3} %", 100.0 * m.actuator_share)];
+            let mut notes = vec![
+                format!("actuator share {:.3} %", 100.0 * m.actuator_share),
+                format!("peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm),
+            ];
+            if let Some(d) = &m.geodesic_deviation {
+                notes.push(format!("geodesic deviation ≤ {:.2e}", d.max));
+                notes.push(format!("  √(kg·m²)·rad ({:.2} % of r₀)", 100.0 * d.max_rel));
+            }
             if let Some(d) = m.mode_drift_deg {
-                notes.push(format!("mode drift {d:.3}°"));
+                notes.push(format!("label drift {d:.3}°"));
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 notes.push(format!("E − E_d (last 5 s) {:+.2} %", 100.0 * e));
