@@ -16,6 +16,7 @@ pub mod compare;
 pub mod control;
 pub mod design;
 pub mod elements;
+pub mod export;
 pub mod fit;
 pub mod geodesic;
 pub mod label;

@@ -3,6 +3,7 @@
 
 mod check;
 mod compare;
+mod export;
 mod fit;
 mod geodesics;
 mod progress;
@@ -154,6 +155,27 @@ from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.s
         #[arg(long, value_name = "R,R,…", value_delimiter = ',')]
         radii: Option<Vec<f64>>,
     },
+    /// Export the arm and its springs to MuJoCo (MJCF) to check the design there.
+    #[command(
+        after_help = "Examples:\n  springfit export --mujoco\n  springfit export designs/double_pendulum.toml --bom out/double_pendulum/bom.csv --mujoco --out out/mj\n\n\
+Writes <design name>.xml (bodies, hinge joints, springs as joint stiffness, fixed and spatial\n\
+tendons, RK4 at springfit's step), elements.md (exact or callback, per element) and bom.csv (the\n\
+springs exported). scripts/verify_mujoco.py runs it in MuJoCo against `springfit simulate`."
+    )]
+    Export {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Use the springs of this bill of materials instead of fitting.
+        #[arg(long, value_name = "FILE")]
+        bom: Option<PathBuf>,
+        /// Write a MuJoCo model (MJCF); the only format so far, so required.
+        #[arg(long, required = true)]
+        mujoco: bool,
+        /// Output folder (default: out/<design name>_mujoco).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -202,6 +224,9 @@ pub fn run() -> Result<()> {
         }
         Command::Simulate { design, scenario, out, exact, bom, exact_label } => {
             simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &progress)
+        }
+        Command::Export { design, bom, mujoco: _, out } => {
+            export::run(export::ExportArgs { design, bom, out }, &progress)
         }
         Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
         Command::Fit { design, out, exact, solver, max_elements } => {

@@ -1,0 +1,521 @@
+//! MJCF export: the planar chain and its springs as a MuJoCo model.
+//!
+//! The chain becomes nested bodies in the x–y plane with hinge joints about z (parallel axes), so
+//! MuJoCo's `qpos` is springfit's q: qᵢ relative to the previous link, q₁ from the x axis. Each
+//! body carries its link's mass, centre of mass and inertia; the joints have no damping,
+//! armature or friction loss, contacts are off and the integrator is RK4 with springfit's step,
+//! so the two simulators integrate the same equations with the same scheme.
+//!
+//! Springs map onto MuJoCo's passive forces where MuJoCo has an exact equivalent:
+//!
+//! | element | MJCF | exact |
+//! | --- | --- | --- |
+//! | linear on one joint (a = eᵢ) | joint `stiffness` + `springref` | yes |
+//! | cubic on one joint | joint `stiffness="0 0 k"` (polynomial, MuJoCo ≥ 3.7) | yes |
+//! | linear or cubic on a coupling | fixed tendon, `coef` = a, `stiffness`, `springlength` = x₀ | yes |
+//! | compression, side ± | fixed tendon with a dead band `springlength="lo hi"` | yes |
+//! | crank on one joint (a = ±eᵢ) | zero-length spatial tendon between two sites | yes |
+//! | crank on a coupling | passive-force callback (`mjcb_passive`) | no |
+//!
+//! The crank identity: a zero-rest-length spring of rate κ between a site at radius d on the
+//! parent (at angle x₀) and one at radius r on the child has L² = r² + d² − 2 r d cos(q − x₀), so
+//! ½ κ L² = const + κ r d (1 − cos(q − x₀)): a crank with k = κ r d, exactly.
+//!
+//! Elements without an exact equivalent are written as `<custom><numeric>` entries named
+//! `springfit_callback_<name>` with data `[profile code, k, x₀, a₁ … aₙ]` (codes in
+//! [`callback_code`]), so the model file alone says everything a passive-force callback needs.
+
+use std::fmt::Write as _;
+
+use crate::bom::BomRow;
+use crate::design::Design;
+use crate::elements::{Profile, Side};
+use crate::error::{Error, Result};
+
+/// Prefix of the `<numeric>` entries that describe callback elements.
+pub const CALLBACK_PREFIX: &str = "springfit_callback_";
+
+/// The far end of a one-sided dead band, rad: far beyond any reachable a·q, so the band is open
+/// on that side in practice (MuJoCo's band needs two finite numbers).
+pub const DEAD_BAND_FAR: f64 = 1e9;
+
+/// Radius of a crank's site on the child link, m (only r·d matters: κ = k / (r d)).
+pub const CRANK_CHILD_RADIUS: f64 = 0.1;
+
+/// Radius of a crank's site on the parent link, m. It differs from [`CRANK_CHILD_RADIUS`] so the
+/// tendon never reaches zero length (where its direction, and so its moment arm, is undefined).
+pub const CRANK_PARENT_RADIUS: f64 = 0.05;
+
+/// The ratio of a link's inertia about its long axis (x) to the in-plane one (z). It has no
+/// effect on a planar motion (ω stays along z, a principal axis) but MuJoCo needs a valid,
+/// positive inertia: a slender link has I_x ≪ I_y = I_z, and this choice meets the triangle
+/// inequality I_x + I_y ≥ I_z.
+pub const AXIAL_INERTIA_RATIO: f64 = 0.01;
+
+/// How one element is represented in MuJoCo.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Representation {
+    /// Joint `stiffness`/`springref` (linear) or polynomial stiffness (cubic) on joint `joint`
+    /// (0-based).
+    Joint { joint: usize },
+    /// A fixed tendon with `coef` = a (or −a with the length negated, so that x₀ = −1 is not
+    /// read as MuJoCo's "length at qpos_spring").
+    FixedTendon { negated: bool },
+    /// A fixed tendon with a two-value `springlength` dead band.
+    DeadBand,
+    /// A zero-rest-length spatial tendon between two sites (a crank on one joint).
+    SpatialCrank { joint: usize },
+    /// A passive-force callback; the reason why no built-in element fits.
+    Callback { reason: String },
+}
+
+impl Representation {
+    /// Whether MuJoCo's own elements reproduce the element exactly (up to rounding).
+    pub fn is_exact(&self) -> bool {
+        !matches!(self, Representation::Callback { .. })
+    }
+
+    /// One line for `elements.md`.
+    pub fn describe(&self) -> String {
+        match self {
+            Representation::Joint { joint } => format!("joint `q{}` stiffness and springref", joint + 1),
+            Representation::FixedTendon { negated: false } => "fixed tendon, coef = a, stiffness, springlength".into(),
+            Representation::FixedTendon { negated: true } => {
+                "fixed tendon, coef = −a, springlength = −x₀ (x₀ = −1 would read as MuJoCo's default)".into()
+            }
+            Representation::DeadBand => "fixed tendon, dead band springlength=\"lo hi\"".into(),
+            Representation::SpatialCrank { joint } => {
+                format!("zero-length spatial tendon between two sites across joint `q{}`", joint + 1)
+            }
+            Representation::Callback { reason } => format!("passive-force callback: {reason}"),
+        }
+    }
+}
+
+/// One exported element.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportedElement {
+    /// The bill of materials' id.
+    pub id: String,
+    /// The MJCF name of its tendon, site pair or callback entry.
+    pub name: String,
+    /// `profile (coupling) @ offset`.
+    pub label: String,
+    /// Stiffness and unit.
+    pub stiffness: String,
+    /// How MuJoCo represents it.
+    pub representation: Representation,
+}
+
+/// The exported model.
+#[derive(Debug, Clone)]
+pub struct MujocoModel {
+    /// The MJCF text.
+    pub xml: String,
+    /// Every element of the bill of materials, in its order.
+    pub elements: Vec<ExportedElement>,
+    /// The simulation step written into `<option timestep>`, s.
+    pub timestep: f64,
+}
+
+impl MujocoModel {
+    /// Elements MuJoCo reproduces exactly.
+    pub fn exact_count(&self) -> usize {
+        self.elements.iter().filter(|e| e.representation.is_exact()).count()
+    }
+
+    /// Elements that need the passive-force callback.
+    pub fn callback_count(&self) -> usize {
+        self.elements.len() - self.exact_count()
+    }
+}
+
+/// The profile code of a callback entry: 1 linear, 2 cubic, 3 crank, 4 compression +,
+/// 5 compression −.
+pub fn callback_code(p: Profile) -> u8 {
+    match p {
+        Profile::Linear => 1,
+        Profile::Cubic => 2,
+        Profile::Crank => 3,
+        Profile::Compression(Side::Plus) => 4,
+        Profile::Compression(Side::Minus) => 5,
+    }
+}
+
+/// A number as MJCF text: Rust's shortest round-trip form, so MuJoCo reads the same f64.
+fn num(x: f64) -> String {
+    format!("{x:?}")
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// An MJCF name made of letters, digits, `_` and `-`.
+fn sanitize(id: &str) -> String {
+    id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect()
+}
+
+/// Builds the MJCF model of `design` with the springs of `rows`, integrated by RK4 with step
+/// `timestep` seconds.
+pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoModel> {
+    let n = design.dof();
+    if !(timestep.is_finite() && timestep > 0.0) {
+        return Err(Error::Setting { field: "timestep".into(), reason: format!("must be positive, got {timestep}") });
+    }
+    if let Some(r) = rows.iter().find(|r| r.element.coupling.len() != n) {
+        return Err(Error::Setting {
+            field: "bom".into(),
+            reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
+        });
+    }
+    let links = design.chain.links();
+    // Joint attributes, sites per body (index 0 is the world), tendons, callbacks.
+    let mut joint_attrs: Vec<Option<String>> = vec![None; n];
+    let mut sites: Vec<Vec<String>> = vec![Vec::new(); n + 1];
+    let mut tendons = String::new();
+    let mut customs = String::new();
+    let mut elements = Vec::with_capacity(rows.len());
+    let mut used_names = std::collections::BTreeSet::new();
+    for (i, row) in rows.iter().enumerate() {
+        let e = &row.element;
+        let k = row.stiffness;
+        let mut name = sanitize(&row.id);
+        if name.is_empty() || !used_names.insert(name.clone()) {
+            name = format!("spring_{}", i + 1);
+            used_names.insert(name.clone());
+        }
+        let nonzero: Vec<usize> = (0..n).filter(|&j| e.coupling[j] != 0.0).collect();
+        let single = if nonzero.len() == 1 { Some(nonzero[0]) } else { None };
+        let coefs = |sign: f64| -> String {
+            let mut s = String::new();
+            for &j in &nonzero {
+                let _ = writeln!(s, "      <joint joint=\"q{}\" coef=\"{}\"/>", j + 1, num(sign * e.coupling[j]));
+            }
+            s
+        };
+        let representation = match e.profile {
+            Profile::Linear | Profile::Cubic => {
+                let stiffness = if e.profile == Profile::Linear { num(k) } else { format!("0 0 {}", num(k)) };
+                match single {
+                    Some(j) if e.coupling[j] == 1.0 && joint_attrs[j].is_none() => {
+                        joint_attrs[j] = Some(format!(" stiffness=\"{stiffness}\" springref=\"{}\"", num(e.offset)));
+                        Representation::Joint { joint: j }
+                    }
+                    _ if nonzero.is_empty() => Representation::Callback { reason: "the coupling is zero".into() },
+                    _ => {
+                        // A single springlength of exactly −1 means "the length at qpos_spring" to
+                        // MuJoCo: negate the tendon (L' = −L, L₀' = 1), which leaves the odd
+                        // force laws of linear and cubic springs unchanged.
+                        let negated = e.offset == -1.0;
+                        let sign = if negated { -1.0 } else { 1.0 };
+                        let _ = write!(
+                            tendons,
+                            "    <fixed name=\"{name}\" stiffness=\"{stiffness}\" springlength=\"{}\">\n{}    </fixed>\n",
+                            num(sign * e.offset),
+                            coefs(sign)
+                        );
+                        Representation::FixedTendon { negated }
+                    }
+                }
+            }
+            Profile::Compression(side) if !nonzero.is_empty() => {
+                // No force inside [lo, hi]: side + engages above x₀, side − below.
+                let (lo, hi) = match side {
+                    Side::Plus => (-DEAD_BAND_FAR, e.offset),
+                    Side::Minus => (e.offset, DEAD_BAND_FAR),
+                };
+                let _ = write!(
+                    tendons,
+                    "    <fixed name=\"{name}\" stiffness=\"{}\" springlength=\"{} {}\">\n{}    </fixed>\n",
+                    num(k),
+                    num(lo),
+                    num(hi),
+                    coefs(1.0)
+                );
+                Representation::DeadBand
+            }
+            Profile::Crank if single.is_some_and(|j| e.coupling[j].abs() == 1.0) => {
+                let j = single.expect("checked");
+                // 1 − cos(a q − x₀) = 1 − cos(q − a x₀) for a = ±1.
+                let phase = e.coupling[j] * e.offset;
+                let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
+                let base = if j == 0 { 0.0 } else { links[j - 1].length };
+                let (s, c) = phase.sin_cos();
+                sites[j].push(format!(
+                    "<site name=\"{name}_parent\" pos=\"{} {} 0\" size=\"0.01\"/>",
+                    num(base + CRANK_PARENT_RADIUS * c),
+                    num(CRANK_PARENT_RADIUS * s)
+                ));
+                sites[j + 1].push(format!(
+                    "<site name=\"{name}_child\" pos=\"{} 0 0\" size=\"0.01\"/>",
+                    num(CRANK_CHILD_RADIUS)
+                ));
+                let _ = write!(
+                    tendons,
+                    "    <spatial name=\"{name}\" stiffness=\"{}\" springlength=\"0\" width=\"0.003\">\n      <site site=\"{name}_parent\"/>\n      <site site=\"{name}_child\"/>\n    </spatial>\n",
+                    num(kappa)
+                );
+                Representation::SpatialCrank { joint: j }
+            }
+            _ => {
+                let mut data = vec![f64::from(callback_code(e.profile)), k, e.offset];
+                data.extend_from_slice(&e.coupling);
+                let data: Vec<String> = data.into_iter().map(num).collect();
+                let _ =
+                    writeln!(customs, "    <numeric name=\"{CALLBACK_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
+                Representation::Callback {
+                    reason: if nonzero.is_empty() {
+                        "the coupling is zero".into()
+                    } else {
+                        "a crank on a coupling (or with a gear ratio) has no built-in MuJoCo equivalent".into()
+                    },
+                }
+            }
+        };
+        elements.push(ExportedElement {
+            id: row.id.clone(),
+            name,
+            label: e.label(),
+            stiffness: format!("{} {}", k, e.profile.unit()),
+            representation,
+        });
+    }
+
+    let [gx, gy] = design.chain.gravity();
+    let mut x = String::new();
+    let _ = writeln!(
+        x,
+        "<mujoco model=\"{}\">\n  <!-- Exported by springfit from {}: {} links, {} springs ({} exact, {} by passive-force callback).\n       Angles in radians; q = qpos (q1 from the x axis, qi relative to link i-1). See elements.md. -->",
+        escape(&design.name),
+        escape(&design.path.display().to_string().replace("--", "-")),
+        n,
+        elements.len(),
+        elements.iter().filter(|e| e.representation.is_exact()).count(),
+        elements.iter().filter(|e| !e.representation.is_exact()).count()
+    );
+    x.push_str("  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\"/>\n");
+    let _ = writeln!(
+        x,
+        "  <option timestep=\"{}\" integrator=\"RK4\" gravity=\"{} {} 0\">\n    <flag contact=\"disable\" energy=\"enable\"/>\n  </option>",
+        num(timestep),
+        num(gx),
+        num(gy)
+    );
+    x.push_str(
+        "  <default>\n    <joint type=\"hinge\" axis=\"0 0 1\" damping=\"0\" armature=\"0\" frictionloss=\"0\" limited=\"false\"/>\n    <geom type=\"capsule\" size=\"0.02\" contype=\"0\" conaffinity=\"0\" rgba=\"0.4 0.5 0.7 1\"/>\n  </default>\n",
+    );
+    x.push_str("  <worldbody>\n");
+    for s in &sites[0] {
+        let _ = writeln!(x, "    {s}");
+    }
+    let mut indent = String::from("    ");
+    for (i, link) in links.iter().enumerate() {
+        let pos = if i == 0 { 0.0 } else { links[i - 1].length };
+        let _ = writeln!(x, "{indent}<body name=\"link{}\" pos=\"{} 0 0\">", i + 1, num(pos));
+        indent.push_str("  ");
+        let _ = writeln!(x, "{indent}<joint name=\"q{}\"{}/>", i + 1, joint_attrs[i].as_deref().unwrap_or(""));
+        let _ = writeln!(
+            x,
+            "{indent}<inertial pos=\"{} 0 0\" mass=\"{}\" diaginertia=\"{} {} {}\"/>",
+            num(link.com),
+            num(link.mass),
+            num(AXIAL_INERTIA_RATIO * link.inertia),
+            num(link.inertia),
+            num(link.inertia)
+        );
+        let _ = writeln!(x, "{indent}<geom fromto=\"0 0 0 {} 0 0\"/>", num(link.length));
+        for s in &sites[i + 1] {
+            let _ = writeln!(x, "{indent}{s}");
+        }
+    }
+    for _ in 0..n {
+        indent.truncate(indent.len() - 2);
+        let _ = writeln!(x, "{indent}</body>");
+    }
+    x.push_str("  </worldbody>\n");
+    if !tendons.is_empty() {
+        let _ = write!(x, "  <tendon>\n{tendons}  </tendon>\n");
+    }
+    if !customs.is_empty() {
+        let _ = write!(x, "  <custom>\n{customs}  </custom>\n");
+    }
+    x.push_str("</mujoco>\n");
+    Ok(MujocoModel { xml: x, elements, timestep })
+}
+
+/// `elements.md`: how each element is represented, and what the export chose where the design
+/// says nothing (inertias about the other axes, the plane, the step).
+pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml_name: &str) -> String {
+    let mut s = format!("# MuJoCo export: {}\n\n", design.name);
+    let _ = writeln!(
+        s,
+        "Model: [{xml_name}]({xml_name}); springs from {springs_from} ([bom.csv](bom.csv)). {} elements: **{} exact**, **{} by passive-force callback**.\n",
+        model.elements.len(),
+        model.exact_count(),
+        model.callback_count()
+    );
+    s.push_str("| id | element | stiffness | MuJoCo | exact |\n| --- | --- | --- | --- | --- |\n");
+    for e in &model.elements {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} (`{}`) | {} |",
+            e.id,
+            e.label,
+            e.stiffness,
+            e.representation.describe(),
+            e.name,
+            if e.representation.is_exact() { "exact" } else { "callback" }
+        );
+    }
+    let _ = write!(
+        s,
+        "
+## What the model contains
+
+- Bodies `link1` … `link{n}` in the x–y plane, hinge joints `q1` … `q{n}` about z (parallel axes);
+  `qpos` is springfit's q (q1 from the x axis, qi relative to the previous link), angles in radians
+  (`<compiler angle=\"radian\"/>`).
+- Each body: the link's mass, its centre of mass on the link's x axis, and `diaginertia` =
+  ({r} I, I, I) with I the link's inertia about its centre of mass. Only I (about z, the joint
+  axis) acts in a planar motion; the others are a slender link's (small about its long axis x,
+  equal to I about y) so that MuJoCo gets a valid inertia.
+- Gravity ({gx}, {gy}, 0) m/s² as in the design; no damping, armature or friction loss; contacts
+  off (the capsules are for viewing only); `integrator=\"RK4\"`, `timestep` = {dt} s (springfit's step,
+  1 / `simulate.rate`).
+- Cranks on one joint: a zero-rest-length spatial tendon from a site at {d} m on the parent (at
+  the crank's phase) to a site at {r2} m on the child, stiffness κ = k / ({r2} · {d}): ½κL² =
+  const + k (1 − cos(q − x₀)), exactly.
+- Dead bands: compression side + is `springlength=\"-{far} x₀\"` (force only for x > x₀), side − is
+  `\"x₀ {far}\"`.
+- Callback elements are listed as `<custom><numeric name=\"{prefix}<name>\">` with data
+  [code, k, x₀, a₁ … aₙ] (code 1 linear, 2 cubic, 3 crank, 4 compression +, 5 compression −). Add
+  −a · k u′(a·q − x₀) to `qfrc_passive` in `mjcb_passive`, which MuJoCo calls at every RK4 stage;
+  `scripts/verify_mujoco.py` in the springfit repository does this.
+",
+        n = design.dof(),
+        r = AXIAL_INERTIA_RATIO,
+        gx = design.chain.gravity()[0],
+        gy = design.chain.gravity()[1],
+        dt = model.timestep,
+        d = CRANK_PARENT_RADIUS,
+        r2 = CRANK_CHILD_RADIUS,
+        far = DEAD_BAND_FAR,
+        prefix = CALLBACK_PREFIX,
+    );
+    if design.simulate.integrator != crate::simulate::Integrator::Rk4 {
+        s.push_str("\nNote: this design simulates with the adaptive integrator; MuJoCo uses RK4 at the step above, so trajectories agree only to that step's accuracy.\n");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::elements::Element;
+
+    fn design() -> Design {
+        Design::load(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml"))
+            .unwrap()
+    }
+
+    fn row(id: &str, profile: Profile, coupling: &[f64], offset: f64, k: f64) -> BomRow {
+        BomRow {
+            id: id.into(),
+            family: "f".into(),
+            element: Element { profile, coupling: coupling.to_vec(), offset },
+            stiffness: k,
+            max_torque_nm: 0.0,
+            max_deflection_rad: 0.0,
+            stock_rate: None,
+            tolerance: 0.0,
+        }
+    }
+
+    #[test]
+    fn each_profile_gets_its_representation() {
+        let rows = vec![
+            row("S01", Profile::Linear, &[1.0, 0.0], 0.25, 3.0),
+            row("S02", Profile::Linear, &[1.0, 0.0], 0.5, 2.0),
+            row("S03", Profile::Cubic, &[0.0, 1.0], 1.5, 0.7),
+            row("S04", Profile::Linear, &[1.0, -2.0], -1.0, 1.0),
+            row("S05", Profile::Compression(Side::Plus), &[1.0, 1.0], 0.3, 4.0),
+            row("S06", Profile::Compression(Side::Minus), &[0.0, 1.0], -0.2, 5.0),
+            row("S07", Profile::Crank, &[0.0, -1.0], 0.4, 6.0),
+            row("S08", Profile::Crank, &[1.0, 2.0], 0.1, 7.0),
+        ];
+        let m = export(&design(), &rows, 0.001).unwrap();
+        let reps: Vec<_> = m.elements.iter().map(|e| e.representation.clone()).collect();
+        assert_eq!(reps[0], Representation::Joint { joint: 0 });
+        // The joint already holds S01: the second linear spring on q1 becomes a tendon.
+        assert_eq!(reps[1], Representation::FixedTendon { negated: false });
+        assert_eq!(reps[2], Representation::Joint { joint: 1 });
+        assert_eq!(reps[3], Representation::FixedTendon { negated: true });
+        assert_eq!(reps[4], Representation::DeadBand);
+        assert_eq!(reps[5], Representation::DeadBand);
+        assert_eq!(reps[6], Representation::SpatialCrank { joint: 1 });
+        assert!(matches!(reps[7], Representation::Callback { .. }));
+        assert_eq!((m.exact_count(), m.callback_count()), (7, 1));
+        let x = &m.xml;
+        assert!(x.contains("<compiler angle=\"radian\""), "angles must be radians");
+        assert!(x.contains("integrator=\"RK4\"") && x.contains("timestep=\"0.001\""));
+        assert!(x.contains("<joint name=\"q1\" stiffness=\"3.0\" springref=\"0.25\"/>"), "{x}");
+        assert!(x.contains("<joint name=\"q2\" stiffness=\"0 0 0.7\" springref=\"1.5\"/>"), "{x}");
+        // x₀ = −1 is written negated: springlength 1 with coefficients −a.
+        assert!(x.contains("<fixed name=\"S04\" stiffness=\"1.0\" springlength=\"1.0\">"), "{x}");
+        assert!(x.contains("<joint joint=\"q1\" coef=\"-1.0\"/>") && x.contains("coef=\"2.0\""), "{x}");
+        assert!(!x.contains("springlength=\"-1.0\""), "{x}");
+        assert!(x.contains("springlength=\"-1000000000.0 0.3\""), "side + engages above x₀: {x}");
+        assert!(x.contains("springlength=\"-0.2 1000000000.0\""), "side − engages below x₀: {x}");
+        // Crank on −q₂ at 0.4: the parent site sits at phase −0.4 around joint 2 (at x = l₁ = 2).
+        let (s, c) = (-0.4f64).sin_cos();
+        assert!(
+            x.contains(&format!("pos=\"{:?} {:?} 0\"", 2.0 + CRANK_PARENT_RADIUS * c, CRANK_PARENT_RADIUS * s)),
+            "{x}"
+        );
+        assert!(x.contains(&format!(
+            "stiffness=\"{:?}\" springlength=\"0\"",
+            6.0 / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS)
+        )));
+        assert!(x.contains("<numeric name=\"springfit_callback_S08\" data=\"3.0 7.0 0.1 1.0 2.0\"/>"), "{x}");
+        let md = elements_md(&design(), &m, "a test", "t.xml");
+        assert!(md.contains("| S08 |") && md.contains("callback |") && md.contains("7 exact"), "{md}");
+    }
+
+    #[test]
+    fn the_crank_sites_reproduce_k_sin() {
+        // The geometry behind the spatial-tendon crank: ½κL² − const = k (1 − cos(q − x₀)).
+        let (k, x0): (f64, f64) = (2.5, 0.7);
+        let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
+        let half_l2 = |q: f64| {
+            let p = [CRANK_PARENT_RADIUS * x0.cos(), CRANK_PARENT_RADIUS * x0.sin()];
+            let c = [CRANK_CHILD_RADIUS * q.cos(), CRANK_CHILD_RADIUS * q.sin()];
+            0.5 * kappa * ((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2))
+        };
+        let offset = half_l2(x0);
+        for q in [-2.0, -0.3, 0.7, 1.9, 3.0] {
+            let want = k * (1.0 - (q - x0).cos());
+            assert!((half_l2(q) - offset - want).abs() < 1e-12, "q = {q}");
+        }
+    }
+
+    #[test]
+    fn bodies_nest_with_masses_and_inertias() {
+        let m = export(&design(), &[], 0.002).unwrap();
+        let x = &m.xml;
+        assert!(x.contains("<body name=\"link1\" pos=\"0.0 0 0\">"));
+        assert!(x.contains("<body name=\"link2\" pos=\"2.0 0 0\">"));
+        assert!(x.contains("<inertial pos=\"1.0 0 0\" mass=\"1.0\" diaginertia=\"0.01 1.0 1.0\"/>"), "{x}");
+        assert_eq!(x.matches("<body ").count(), 2);
+        assert_eq!(x.matches("</body>").count(), 2);
+        assert!(x.contains("damping=\"0\" armature=\"0\" frictionloss=\"0\""));
+        assert!(!x.contains("<tendon>") && !x.contains("<custom>"));
+    }
+
+    #[test]
+    fn a_bill_for_another_arm_is_refused() {
+        let rows = vec![row("S01", Profile::Linear, &[1.0, 0.0, 0.0], 0.0, 1.0)];
+        let err = export(&design(), &rows, 0.001).unwrap_err().to_string();
+        assert!(err.contains("S01") && err.contains("3 joints"), "{err}");
+    }
+}
