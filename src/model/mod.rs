@@ -7,15 +7,20 @@
 //!
 //! - [`PlanarChain`] (`planar.rs`): links typed into the design file, all joint axes parallel;
 //!   exact closed forms in cosines of joint-angle sums, the fastest evaluation.
+//! - [`SpatialChain`] (`spatial.rs`): joint axes in any direction and gravity in 3-D, usually
+//!   read from a URDF (`urdf.rs`); M by the composite-rigid-body algorithm, the rest by recursive
+//!   Newton–Euler, derivatives exact.
 //!
 //! Both answer with the same units and conventions, so one enum with the same methods is all the
 //! rest of the crate needs to know.
 
 mod planar;
+mod spatial;
 
 use nalgebra::{DMatrix, DVector};
 
 pub use planar::{Link, PlanarChain};
+pub use spatial::{Body, MAX_BODIES, SpatialChain};
 
 use crate::linalg;
 
@@ -24,6 +29,8 @@ use crate::linalg;
 pub enum Chain {
     /// All joint axes parallel, links typed into the design file (closed forms).
     Planar(PlanarChain),
+    /// Joint axes in any direction (CRBA and RNEA).
+    Spatial(SpatialChain),
 }
 
 /// Scratch space for the allocation-free evaluations ([`Chain::geodesic_rhs`] and friends).
@@ -80,6 +87,7 @@ macro_rules! each {
     ($self:ident, $c:ident => $e:expr) => {
         match $self {
             Chain::Planar($c) => $e,
+            Chain::Spatial($c) => $e,
         }
     };
 }
@@ -99,6 +107,23 @@ impl Chain {
     pub fn planar(&self) -> Option<&PlanarChain> {
         match self {
             Chain::Planar(c) => Some(c),
+            Chain::Spatial(_) => None,
+        }
+    }
+
+    /// The spatial chain, if this is one.
+    pub fn spatial(&self) -> Option<&SpatialChain> {
+        match self {
+            Chain::Spatial(c) => Some(c),
+            Chain::Planar(_) => None,
+        }
+    }
+
+    /// Joint names: the URDF's for a spatial chain, `q1` … `qn` for a planar one.
+    pub fn joint_names(&self) -> Vec<String> {
+        match self {
+            Chain::Planar(c) => (1..=c.dof()).map(|i| format!("q{i}")).collect(),
+            Chain::Spatial(c) => c.bodies().iter().map(|b| b.joint.clone()).collect(),
         }
     }
 
@@ -118,7 +143,8 @@ impl Chain {
     }
 
     /// Points to draw the arm in a plane: the base, each further joint and the tip, in m. A
-    /// planar chain draws in its own plane.
+    /// planar chain draws in its own plane, a spatial one in a plane it chooses
+    /// ([`SpatialChain::joint_positions`]).
     pub fn joint_positions(&self, q: &[f64]) -> Vec<[f64; 2]> {
         each!(self, c => c.joint_positions(q))
     }
