@@ -41,7 +41,7 @@ use crate::error::{Error, Result};
 use crate::fit::settings::FitSettings;
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
-use crate::model::{Chain, Link};
+use crate::model::{Chain, Link, PlanarChain};
 use crate::scenario::ScenarioSpec;
 use crate::simulate::SimSettings;
 use crate::sweep::SweepSettings;
@@ -276,7 +276,7 @@ impl Design {
             }
         }
         let n = links.len();
-        let chain = Chain::new(
+        let chain = PlanarChain::new(
             links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
             file.robot.gravity,
         );
@@ -432,7 +432,7 @@ impl Design {
             name,
             description: file.description.clone().unwrap_or_default(),
             catalog,
-            chain,
+            chain: Chain::Planar(chain),
             q_eq,
             region,
             geodesics: file.geodesics,

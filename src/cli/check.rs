@@ -11,21 +11,23 @@ use super::progress::Progress;
 pub fn run(path: &Path, progress: &Progress) -> Result<()> {
     let design = Design::load(path)?;
     let n = design.dof();
-    progress.say(format!(
-        "design {} ({}): {n} links, gravity {:?} m/s²",
-        design.name,
-        design.path.display(),
-        design.chain.gravity()
-    ));
-    for (i, l) in design.chain.links().iter().enumerate() {
+    if let Some(chain) = design.chain.planar() {
         progress.say(format!(
-            "  link {}: mass {} kg, length {} m, com {} m, inertia {} kg·m²",
-            i + 1,
-            l.mass,
-            l.length,
-            l.com,
-            l.inertia
+            "design {} ({}): {n} links, gravity {:?} m/s²",
+            design.name,
+            design.path.display(),
+            chain.gravity()
         ));
+        for (i, l) in chain.links().iter().enumerate() {
+            progress.say(format!(
+                "  link {}: mass {} kg, length {} m, com {} m, inertia {} kg·m²",
+                i + 1,
+                l.mass,
+                l.length,
+                l.com,
+                l.inertia
+            ));
+        }
     }
     progress.say(format!("equilibrium q = {}", fmt_vec(design.q_eq.as_slice())));
     let m = design.chain.mass_matrix(&design.q_eq);

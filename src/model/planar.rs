@@ -1,4 +1,4 @@
-//! The robot model: a planar serial chain of revolute links.
+//! The planar serial chain of revolute links and its closed forms.
 //!
 //! Coordinates follow `docs/theory.md`: q₁ is the absolute angle of link 1 (from the x axis), qᵢ for
 //! i > 1 the angle of link i relative to link i−1. The absolute angle of link i is therefore
@@ -9,13 +9,14 @@
 //! The centre of mass of link i moves with ∂cᵢ/∂qⱼ = Σ_{t=j..i} r_{it} e⊥(φ_t), where r_{it} is
 //! the length of link t (t < i) or the centre-of-mass distance of link i (t = i). Every entry of
 //! M(q) = Σ mᵢ Jᵢᵀ Jᵢ + Iᵢ J_ωᵢᵀ J_ωᵢ is then a constant plus a sum of cos(φ_b − φ_a) over link
-//! pairs a < b, and φ_b − φ_a = q_{a+1} + … + q_b is a sum of joint angles. [`Chain::new`]
+//! pairs a < b, and φ_b − φ_a = q_{a+1} + … + q_b is a sum of joint angles. [`PlanarChain::new`]
 //! precomputes one coefficient matrix per pair, so M, ∂M/∂q, the Coriolis term and everything the
 //! variational equations need are exact closed forms evaluated with one `sin_cos` per link pair and
 //! no allocation: the geodesic integrator calls them millions of times.
 
 use nalgebra::{DMatrix, DVector};
 
+use super::Workspace;
 use crate::linalg;
 
 /// One rigid link of the chain.
@@ -56,7 +57,7 @@ impl PairTerm {
 
 /// A planar serial chain of n ≥ 1 revolute links with optional gravity.
 #[derive(Debug, Clone)]
-pub struct Chain {
+pub struct PlanarChain {
     links: Vec<Link>,
     gravity: [f64; 2],
     /// Constant part of M (column-major n × n).
@@ -66,55 +67,7 @@ pub struct Chain {
     gravity_lever: Vec<f64>,
 }
 
-/// Scratch space for the allocation-free evaluations ([`Chain::geodesic_rhs`] and friends).
-#[derive(Debug, Clone)]
-pub struct Workspace {
-    /// Mass matrix, then its Cholesky factor (column-major).
-    m: Vec<f64>,
-    /// The mass matrix itself after [`Chain::prepare`].
-    m_full: Vec<f64>,
-    sin: Vec<f64>,
-    cos: Vec<f64>,
-    h: Vec<f64>,
-    a: Vec<f64>,
-    tmp: Vec<f64>,
-    /// n × n scratch matrices.
-    da_dq: Vec<f64>,
-    da_dqd: Vec<f64>,
-}
-
-impl Workspace {
-    /// M(q) from the last [`Chain::prepare`] (symmetric, so row- and column-major agree).
-    pub fn mass(&self) -> &[f64] {
-        &self.m_full
-    }
-
-    /// h(q, q̇) = C(q, q̇) q̇ from the last [`Chain::prepare`].
-    pub fn coriolis(&self) -> &[f64] {
-        &self.h
-    }
-
-    /// Solves M x = b in place with the factor from the last [`Chain::prepare`].
-    pub fn solve(&self, b: &mut [f64]) {
-        linalg::cholesky_solve(&self.m, self.h.len(), b);
-    }
-
-    fn new(n: usize, pairs: usize) -> Self {
-        Workspace {
-            m: vec![0.0; n * n],
-            m_full: vec![0.0; n * n],
-            sin: vec![0.0; pairs],
-            cos: vec![0.0; pairs],
-            h: vec![0.0; n],
-            a: vec![0.0; n],
-            tmp: vec![0.0; n],
-            da_dq: vec![0.0; n * n],
-            da_dqd: vec![0.0; n * n],
-        }
-    }
-}
-
-impl Chain {
+impl PlanarChain {
     /// Builds the chain. `gravity` is the gravity vector in the plane of the arm in m/s²
     /// (e.g. `[0.0, -9.81]`); the caller validates that masses and lengths are positive.
     pub fn new(links: Vec<Link>, gravity: [f64; 2]) -> Self {
@@ -152,14 +105,14 @@ impl Chain {
             }
         }
         let gravity_lever = (0..n).map(|t| (t..n).map(|i| links[i].mass * r(i, t)).sum()).collect();
-        Chain { links, gravity, m_const, pairs, gravity_lever }
+        PlanarChain { links, gravity, m_const, pairs, gravity_lever }
     }
 
     /// The paper's double pendulum (appendix, no gravity): m = 1 kg, l = 2 m, centre of mass at
     /// 1 m, I = 1 kg·m² for both links. M₁₁ = 8 + 4 cos q₂, M₁₂ = 2 + 2 cos q₂, M₂₂ = 2.
     pub fn paper_double_pendulum() -> Self {
         let link = Link { mass: 1.0, length: 2.0, com: 1.0, inertia: 1.0 };
-        Chain::new(vec![link, link], [0.0, 0.0])
+        PlanarChain::new(vec![link, link], [0.0, 0.0])
     }
 
     /// Number of joints n.
@@ -501,8 +454,8 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    fn three_link() -> Chain {
-        Chain::new(
+    fn three_link() -> PlanarChain {
+        PlanarChain::new(
             vec![
                 Link { mass: 1.3, length: 1.1, com: 0.4, inertia: 0.2 },
                 Link { mass: 0.7, length: 0.9, com: 0.5, inertia: 0.05 },
@@ -529,7 +482,7 @@ mod tests {
 
     /// M from its definition Σ mᵢ JᵢᵀJᵢ + Iᵢ J_ωᵢᵀJ_ωᵢ with finite-difference Jacobians of the
     /// centre-of-mass positions: an independent check of the cosine-term construction.
-    fn mass_matrix_by_definition(chain: &Chain, q: &DVector<f64>) -> DMatrix<f64> {
+    fn mass_matrix_by_definition(chain: &PlanarChain, q: &DVector<f64>) -> DMatrix<f64> {
         let n = chain.dof();
         let h = 1e-6;
         let mut m = DMatrix::zeros(n, n);
@@ -553,7 +506,7 @@ mod tests {
 
     #[test]
     fn paper_mass_matrix_closed_form() {
-        let chain = Chain::paper_double_pendulum();
+        let chain = PlanarChain::paper_double_pendulum();
         for q in points(2, 20) {
             let q = q * PI;
             let m = chain.mass_matrix(&q);
@@ -567,7 +520,7 @@ mod tests {
 
     #[test]
     fn mass_matrix_matches_definition_and_is_spd() {
-        for chain in [Chain::paper_double_pendulum(), three_link()] {
+        for chain in [PlanarChain::paper_double_pendulum(), three_link()] {
             let n = chain.dof();
             for q in points(n, 30) {
                 let q = q * 3.0;
@@ -717,7 +670,7 @@ mod tests {
 
     #[test]
     fn forward_kinematics_of_the_paper_arm() {
-        let chain = Chain::paper_double_pendulum();
+        let chain = PlanarChain::paper_double_pendulum();
         let p = chain.joint_positions(&[0.0, PI / 2.0]);
         assert!((p[1][0] - 2.0).abs() < 1e-12 && p[1][1].abs() < 1e-12);
         assert!((p[2][0] - 2.0).abs() < 1e-12 && (p[2][1] - 2.0).abs() < 1e-12);
