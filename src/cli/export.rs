@@ -21,6 +21,9 @@ pub struct ExportArgs {
 
 pub fn run(args: ExportArgs, progress: &Progress) -> Result<()> {
     let design = Design::load(&args.design)?;
+    let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_mujoco", design.name)));
+    // Refuse a folder springfit may not write into before fitting anything.
+    springfit::report::output::check(&target, "export")?;
     let (rows, from) = match &args.bom {
         Some(path) => {
             let rows = bom::read(path)?;
@@ -57,9 +60,8 @@ pub fn run(args: ExportArgs, progress: &Progress) -> Result<()> {
         }
     };
     let model = mujoco::export(&design, &rows, 1.0 / design.simulate.rate)?;
-    let target = args.out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_mujoco", design.name)));
     let xml_name = format!("{}.xml", design.name);
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "export")?;
     dir.write(&xml_name, &model.xml)?;
     dir.write("elements.md", mujoco::elements_md(&design, &model, &from, &xml_name))?;
     dir.write("bom.csv", bom::to_csv(&rows))?;

@@ -156,6 +156,16 @@ fn sanitize(id: &str) -> String {
     id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect()
 }
 
+/// The planar chain of a design; spatial chains (URDF designs) are not exported yet.
+fn planar_chain(design: &Design) -> Result<&crate::model::PlanarChain> {
+    design.chain.planar().ok_or_else(|| Error::Setting {
+        field: "robot.urdf".into(),
+        reason:
+            "MuJoCo export handles planar chains typed into the design file; exporting a URDF arm is not supported yet"
+                .into(),
+    })
+}
+
 /// Builds the MJCF model of `design` with the springs of `rows`, integrated by RK4 with step
 /// `timestep` seconds.
 pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoModel> {
@@ -169,7 +179,8 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
         });
     }
-    let links = design.chain.links();
+    let planar = planar_chain(design)?;
+    let links = planar.links();
     // Joint attributes, sites per body (index 0 is the world), tendons, callbacks.
     let mut joint_attrs: Vec<Option<String>> = vec![None; n];
     let mut sites: Vec<Vec<String>> = vec![Vec::new(); n + 1];
@@ -282,7 +293,7 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
         });
     }
 
-    let [gx, gy] = design.chain.gravity();
+    let [gx, gy] = planar.gravity();
     let mut x = String::new();
     let _ = writeln!(
         x,
@@ -395,8 +406,8 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
 ",
         n = design.dof(),
         r = AXIAL_INERTIA_RATIO,
-        gx = design.chain.gravity()[0],
-        gy = design.chain.gravity()[1],
+        gx = design.chain.planar().map_or(0.0, |c| c.gravity()[0]),
+        gy = design.chain.planar().map_or(0.0, |c| c.gravity()[1]),
         dt = model.timestep,
         d = CRANK_PARENT_RADIUS,
         r2 = CRANK_CHILD_RADIUS,
