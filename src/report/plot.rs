@@ -595,8 +595,15 @@ fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Pane
         .map_err(e)?;
     let log_tick = |v: f64| {
         let r = v.round();
-        let x = if (v - r).abs() < 1e-6 { 10f64.powf(r) } else { 10f64.powf(v) };
-        if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+        if (v - r).abs() < 1e-6 {
+            let x = 10f64.powf(r);
+            if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+        } else {
+            // Between decades: two significant digits (3.2, 0.32), not 3.162.
+            let x = 10f64.powf(v);
+            let digits = (1.0 - v.floor()).max(0.0) as usize;
+            if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.1e}") }
+        }
     };
     let formatter = |v: &f64| -> String {
         match &categories {
