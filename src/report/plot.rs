@@ -1089,6 +1089,28 @@ mod tests {
     }
 
     #[test]
+    fn png_glyphs_keep_their_side_bearings() {
+        // plotters 0.3.7 starts every glyph's ink at the pen; TextFix starts it at pen + left side
+        // bearing, as the font says. 'l' in DejaVu Sans has a bearing of about 0.09 em.
+        register_font();
+        let (w, h) = (200u32, 80u32);
+        let mut buf = vec![255u8; (w * h * 3) as usize];
+        let font = FontRef::try_from_slice(FONT_BYTES).unwrap();
+        let scaled = font.as_scaled(40.0);
+        let bearing = scaled.h_side_bearing(scaled.glyph_id('l'));
+        assert!(bearing > 2.0, "bearing {bearing} px");
+        {
+            let root =
+                TextFix { inner: BitMapBackend::with_buffer(&mut buf, (w, h)), font: font.clone() }.into_drawing_area();
+            root.draw(&Text::new("l", (20, 10), (FONT, 40))).unwrap();
+            root.present().unwrap();
+        }
+        let inked = |x: u32| (0..h).any(|y| buf[((y * w + x) * 3) as usize] < 128);
+        let first = (0..w).find(|&x| inked(x)).expect("the glyph is drawn");
+        assert!((first as f32 - (20.0 + bearing)).abs() <= 1.0, "ink starts at {first}, bearing {bearing}");
+    }
+
+    #[test]
     fn histogram_bins() {
         let counts = histogram(&[-1.0, -0.5, 0.0, 0.2, 1.0, 2.0, f64::NAN], &[-1.0, 0.0, 1.0]);
         // [-1, 0) holds -1 and -0.5; the last bin [0, 1] is closed and holds 0, 0.2 and 1.
