@@ -70,9 +70,10 @@ report.md into the output folder, all at once (nothing is left half-written on a
     /// Simulate the design's scenarios in closed loop: free releases, mode switching, swing-up.
     #[command(
         after_help = "Examples:\n  springfit simulate\n  springfit simulate --scenario swingup\n  springfit simulate --bom out/double_pendulum/bom.csv\n  springfit simulate --exact\n\n\
-Writes, per scenario, sim_<name>.csv (t, q, q̇, torque per source, E, label), sim_<name>.json\n\
-(mode drift, settling times, energy error, fluxes, actuator share, peak torques) and plots\n\
-(phase plane, q(t), torques, label, power) as SVG and PNG."
+Writes, per scenario, sim_<name>.csv (t, q, q̇, torque per source, E, label, geodesic deviation),\n\
+sim_<name>.json (geodesic deviation, label drift, settling times, energy error, fluxes, actuator\n\
+share, peak torques) and plots (configuration space, q(t), torques, label, power, E(t), deviation)\n\
+as SVG and PNG."
     )]
     Simulate {
         /// Design file (TOML).

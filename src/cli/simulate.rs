@@ -139,11 +139,11 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         for (r, m) in &outcome.runs {
             let mut parts = Vec::new();
             if let Some(d) = &m.geodesic_deviation {
+                let pct = 100.0 * d.max_rel;
+                let pct = if pct >= 0.01 { format!("{pct:.2} %") } else { format!("{pct:.1e} %") };
                 parts.push(format!(
-                    "geodesic deviation max {:.3e} √(kg·m²)·rad ({:.2} % of the start's {:.3})",
-                    d.max,
-                    100.0 * d.max_rel,
-                    d.start_radius
+                    "geodesic deviation max {:.3e} √(kg·m²)·rad ({pct} of the start's r₀ = {:.3})",
+                    d.max, d.start_radius
                 ));
             }
             let mut share = format!(

@@ -30,8 +30,8 @@ pub fn log_edges(records: &[FitRecord], bins: usize) -> Vec<f64> {
 
 /// Writes `compare.csv`, `compare.md` and `compare.svg/.png`: the histograms of |residual angle|
 /// of every record on shared logarithmic bins, and a box plot of |angle| per record on a log axis.
-/// Two-joint angles are signed and three-joint ones are not, so the figure compares magnitudes;
-/// `signed` only names the table's convention. |angle| under the first edge is counted in the
+/// Two-joint angles are signed and three-joint ones are not, so the figure compares magnitudes
+/// whatever `signed` says (kept for the callers). |angle| under the first edge is counted in the
 /// first bin.
 pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Result<()> {
     let _ = signed;

@@ -299,7 +299,7 @@ pub fn potential_figure(
 ) -> Result<Figure> {
     let views = projections(design.dof());
     let mut panels = Vec::new();
-    for &p in &views {
+    for (k, &p) in views.iter().enumerate() {
         let sliced = views.len() > 1;
         let (contours, mut layers) = potential_layers(design, potential, fan, omega, p)?;
         layers.insert(1, contours);
@@ -312,8 +312,13 @@ pub fn potential_figure(
             x_label: joint_axis(p.0),
             y_label: joint_axis(p.1),
             equal_aspect: true,
-            legend: true,
-            notes: vec!["isolines at U(q_eq) + ½ω²(kR/8)²,".into(), "k = 1…8".into()],
+            // One legend for a row of projections, on the last one.
+            legend: k + 1 == views.len(),
+            notes: if k + 1 == views.len() {
+                vec!["isolines at U(q_eq) + ½ω²(kR/8)²,".into(), "k = 1…8".into()]
+            } else {
+                Vec::new()
+            },
             layers,
             ..Panel::default()
         });
@@ -371,7 +376,7 @@ pub fn potential_layers(
         y,
         z,
         levels,
-        style: Style::line(palette(1), 2),
+        style: Style::line(palette(1), if design.dof() > 2 { 1 } else { 2 }),
         label: Some(if design.dof() > 2 { "isolines of U (slice)".into() } else { "isolines of U".into() }),
     };
     let layers = vec![

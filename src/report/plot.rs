@@ -595,8 +595,15 @@ fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Pane
         .map_err(e)?;
     let log_tick = |v: f64| {
         let r = v.round();
-        let x = if (v - r).abs() < 1e-6 { 10f64.powf(r) } else { 10f64.powf(v) };
-        if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+        if (v - r).abs() < 1e-6 {
+            let x = 10f64.powf(r);
+            if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+        } else {
+            // Between decades: two significant digits (3.2, 0.32), not 3.162.
+            let x = 10f64.powf(v);
+            let digits = (1.0 - v.floor()).max(0.0) as usize;
+            if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.1e}") }
+        }
     };
     let formatter = |v: &f64| -> String {
         match &categories {
@@ -1079,6 +1086,28 @@ mod tests {
         assert!(counts[0].is_nan() && counts[1] == 2.0);
         let (_, y) = data_range(&logged);
         assert!(y.0 < 2.0 - 0.3 && y.1 > 2.0, "{y:?}");
+    }
+
+    #[test]
+    fn png_glyphs_keep_their_side_bearings() {
+        // plotters 0.3.7 starts every glyph's ink at the pen; TextFix starts it at pen + left side
+        // bearing, as the font says. 'l' in DejaVu Sans has a bearing of about 0.09 em.
+        register_font();
+        let (w, h) = (200u32, 80u32);
+        let mut buf = vec![255u8; (w * h * 3) as usize];
+        let font = FontRef::try_from_slice(FONT_BYTES).unwrap();
+        let scaled = font.as_scaled(40.0);
+        let bearing = scaled.h_side_bearing(scaled.glyph_id('l'));
+        assert!(bearing > 2.0, "bearing {bearing} px");
+        {
+            let root =
+                TextFix { inner: BitMapBackend::with_buffer(&mut buf, (w, h)), font: font.clone() }.into_drawing_area();
+            root.draw(&Text::new("l", (20, 10), (FONT, 40))).unwrap();
+            root.present().unwrap();
+        }
+        let inked = |x: u32| (0..h).any(|y| buf[((y * w + x) * 3) as usize] < 128);
+        let first = (0..w).find(|&x| inked(x)).expect("the glyph is drawn");
+        assert!((first as f32 - (20.0 + bearing)).abs() <= 1.0, "ink starts at {first}, bearing {bearing}");
     }
 
     #[test]

@@ -145,6 +145,10 @@ pub fn write(
 /// E(t) of every run with its target E_d(t) where there is one.
 fn energy_figure(outcome: &ScenarioOutcome, title: &str) -> Figure {
     let mut layers = Vec::new();
+    let schedules: Vec<Option<&Vec<(f64, f64)>>> =
+        outcome.scenario.runs.iter().map(|s| s.energy.as_ref().map(|e| &e.schedule)).collect();
+    // One black E_d line when every run has the same target, else one per run in its colour.
+    let shared = schedules.iter().all(|s| s.is_some() && *s == schedules[0]);
     for (i, ((r, _), spec)) in outcome.runs.iter().zip(&outcome.scenario.runs).enumerate() {
         let t = &r.trace;
         layers.push(Layer::Lines {
@@ -153,10 +157,15 @@ fn energy_figure(outcome: &ScenarioOutcome, title: &str) -> Figure {
             label: Some(r.name.clone()),
         });
         if let Some(ec) = &spec.energy {
+            if shared && i > 0 {
+                continue;
+            }
+            let (colour, label) =
+                if shared { ((0, 0, 0), "E_d".to_string()) } else { (run_colour(i), format!("{}: E_d", r.name)) };
             layers.push(Layer::Lines {
                 lines: vec![t.t.iter().map(|&tt| (tt, ec.target(tt))).collect()],
-                style: Style::line(run_colour(i), 1).dashed(),
-                label: Some(format!("{}: E_d", r.name)),
+                style: Style::line(colour, 1).dashed(),
+                label: Some(label),
             });
         }
     }
@@ -200,7 +209,7 @@ fn deviation_figure(outcome: &ScenarioOutcome, title: &str) -> Figure {
             label: Some(r.name.clone()),
         });
         if let Some(d) = &m.geodesic_deviation {
-            notes.push(format!("{}: max {:.3e} ({:.2} % of r₀)", r.name, d.max, 100.0 * d.max_rel));
+            notes.push(format!("{}: max {:.3e} ({:.2e} of r₀)", r.name, d.max, d.max_rel));
         }
     }
     Figure::single(
@@ -437,7 +446,7 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
             ];
             if let Some(d) = &m.geodesic_deviation {
                 notes.push(format!("geodesic deviation ≤ {:.2e}", d.max));
-                notes.push(format!("  √(kg·m²)·rad ({:.2} % of r₀)", 100.0 * d.max_rel));
+                notes.push(format!("  √(kg·m²)·rad ({:.2e} of r₀)", d.max_rel));
             }
             if let Some(d) = m.mode_drift_deg {
                 notes.push(format!("label drift {d:.3}°"));
