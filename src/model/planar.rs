@@ -258,9 +258,15 @@ impl PlanarChain {
         gx.hypot(gy) * self.gravity_lever.iter().map(|g| g.abs()).sum::<f64>()
     }
 
-    /// Gravity potential U_g(q) = Σ mᵢ g·cᵢ(q) in J.
+    /// −g: the potential energy of a mass m at p is m (−g)·p (its weight times its height), so an
+    /// arm in gravity g = (0, −9.81) hangs down.
+    fn lift(&self) -> [f64; 2] {
+        [-self.gravity[0], -self.gravity[1]]
+    }
+
+    /// Gravity potential U_g(q) = −Σ mᵢ g·cᵢ(q) in J.
     pub fn gravity_potential(&self, q: &[f64]) -> f64 {
-        let [gx, gy] = self.gravity;
+        let [gx, gy] = self.lift();
         if gx == 0.0 && gy == 0.0 {
             return 0.0;
         }
@@ -276,7 +282,7 @@ impl PlanarChain {
     /// ∂U_g/∂q in N·m.
     pub fn gravity_gradient(&self, q: &[f64]) -> DVector<f64> {
         let n = self.dof();
-        let [gx, gy] = self.gravity;
+        let [gx, gy] = self.lift();
         let phi = self.link_angles(q);
         // ∂U_g/∂q_p = Σ_{t ≥ p} G_t g·(−sin φ_t, cos φ_t): a suffix sum.
         let mut out = DVector::zeros(n);
@@ -291,7 +297,7 @@ impl PlanarChain {
     /// ∂²U_g/∂q² in N·m/rad.
     pub fn gravity_hessian(&self, q: &[f64]) -> DMatrix<f64> {
         let n = self.dof();
-        let [gx, gy] = self.gravity;
+        let [gx, gy] = self.lift();
         let phi = self.link_angles(q);
         let mut suffix = vec![0.0; n + 1];
         for t in (0..n).rev() {
@@ -414,7 +420,7 @@ impl PlanarChain {
 
     /// ∂U_g/∂q into `out` without allocating.
     pub fn gravity_gradient_into(&self, q: &[f64], out: &mut [f64]) {
-        let [gx, gy] = self.gravity;
+        let [gx, gy] = self.lift();
         if gx == 0.0 && gy == 0.0 {
             out.fill(0.0);
             return;
@@ -597,6 +603,22 @@ mod tests {
         }
     }
 
+    /// A single link in gravity (0, −9.81) rests hanging straight down, q = −π/2: there the
+    /// gravity torque vanishes and the potential is at its minimum; pointing up is a maximum.
+    #[test]
+    fn a_link_in_gravity_hangs_down() {
+        let link = Link { mass: 2.0, length: 1.0, com: 0.5, inertia: 0.1 };
+        let chain = PlanarChain::new(vec![link], [0.0, -9.81]);
+        let down = [-std::f64::consts::FRAC_PI_2];
+        let up = [std::f64::consts::FRAC_PI_2];
+        assert!(chain.gravity_gradient(&down)[0].abs() < 1e-12);
+        assert!(chain.gravity_hessian(&down)[(0, 0)] > 0.0);
+        assert!(chain.gravity_hessian(&up)[(0, 0)] < 0.0);
+        assert!((chain.gravity_potential(&down) + 2.0 * 9.81 * 0.5).abs() < 1e-12);
+        // Horizontal (q = 0): gravity pulls the link down, a negative torque −∂U/∂q.
+        assert!(-chain.gravity_gradient(&[0.0])[0] < 0.0);
+    }
+
     #[test]
     fn gravity_gradient_and_hessian_match_finite_differences() {
         let chain = three_link();
@@ -620,10 +642,10 @@ mod tests {
                 }
             }
         }
-        // Potential against the definition Σ mᵢ g·cᵢ.
+        // Potential against the definition −Σ mᵢ g·cᵢ (weight times height).
         let q = [0.3, -0.7, 1.1];
         let direct: f64 =
-            chain.links().iter().zip(chain.com_positions(&q)).map(|(l, c)| l.mass * (0.3 * c[0] - 9.81 * c[1])).sum();
+            chain.links().iter().zip(chain.com_positions(&q)).map(|(l, c)| -l.mass * (0.3 * c[0] - 9.81 * c[1])).sum();
         assert!((chain.gravity_potential(&q) - direct).abs() < 1e-12);
     }
 
