@@ -204,6 +204,7 @@ fn finish(
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_sweep", design.name)));
     let dir = OutputDir::create(&target)?;
     springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
+    springfit::report::html::write_sweep(&dir, design)?;
     let written = dir.commit()?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");
     for r in &t.parasitic {
