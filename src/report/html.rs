@@ -15,6 +15,7 @@
 
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use pulldown_cmark::{Event, Options, Parser, Tag, TagEnd, html};
 use serde_json::Value;
@@ -34,23 +35,26 @@ th{background:#eef}tr:nth-child(even) td{background:#f8f8fc}code{background:#f2f
 figure.sf-figure{margin:1.5em 0}figure.sf-figure svg{max-width:100%;height:auto;display:block}
 figcaption{font-size:.8em;color:#666}nav ul{columns:3;font-size:.9em}.note{color:#555;font-size:.9em}";
 
-/// A page under construction.
-struct Page<'a> {
-    out: &'a OutputDir,
+/// A page under construction, over the files in `dir`.
+struct Page {
+    /// The folder holding the command's files (the output folder's staging folder).
+    dir: PathBuf,
+    /// The output folder, for error messages.
+    target: PathBuf,
     title: String,
     body: String,
     /// SVG files already inlined.
     inlined: BTreeSet<String>,
 }
 
-/// Names of the files staged so far, sorted.
-fn staged(out: &OutputDir) -> Result<Vec<String>> {
-    let dir = out.path(".");
-    let entries = std::fs::read_dir(&dir).map_err(|e| Error::io(out.target(), e))?;
+/// Names of the visible files in `dir`, sorted.
+fn staged(dir: &Path, target: &Path) -> Result<Vec<String>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(target, e))?;
     let mut names: Vec<String> = entries
         .flatten()
         .filter(|e| e.path().is_file())
         .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with('.'))
         .collect();
     names.sort();
     Ok(names)
@@ -60,25 +64,39 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-impl<'a> Page<'a> {
-    fn new(out: &'a OutputDir, title: String) -> Self {
-        Page { out, title, body: String::new(), inlined: BTreeSet::new() }
+impl Page {
+    fn new(out: &OutputDir, title: String) -> Self {
+        Page::in_folder(&out.path("."), out.target(), title)
+    }
+
+    fn in_folder(dir: &Path, target: &Path, title: String) -> Self {
+        Page {
+            dir: dir.to_path_buf(),
+            target: target.to_path_buf(),
+            title,
+            body: String::new(),
+            inlined: BTreeSet::new(),
+        }
+    }
+
+    /// Reads a text file of the folder.
+    fn read(&self, name: &str) -> Result<String> {
+        std::fs::read_to_string(self.dir.join(name)).map_err(|e| Error::io(self.target.join(name), e))
     }
 
     /// The `<figure>` of a staged SVG file, or None when there is no such file.
     fn figure(&mut self, name: &str) -> Result<Option<String>> {
-        let path = self.out.path(name);
-        if !path.is_file() {
+        if !self.dir.join(name).is_file() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(self.out.target().join(name), e))?;
+        let text = self.read(name)?;
         // Drop an XML declaration or doctype: inline SVG starts at its element.
         let svg = match text.find("<svg") {
             Some(i) => &text[i..],
             None => return Ok(None),
         };
         self.inlined.insert(name.to_string());
-        let png = name.strip_suffix(".svg").map(|s| format!("{s}.png")).filter(|p| self.out.path(p).is_file());
+        let png = name.strip_suffix(".svg").map(|s| format!("{s}.png")).filter(|p| self.dir.join(p).is_file());
         let caption = match png {
             Some(p) => format!("{} (also <a href=\"{}\">{}</a>)", escape(name), escape(&p), escape(&p)),
             None => escape(name),
@@ -124,11 +142,10 @@ impl<'a> Page<'a> {
 
     /// Renders a staged markdown file if it exists; its first heading is demoted to a section.
     fn markdown_file(&mut self, name: &str) -> Result<bool> {
-        let path = self.out.path(name);
-        if !path.is_file() {
+        if !self.dir.join(name).is_file() {
             return Ok(false);
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(self.out.target().join(name), e))?;
+        let text = self.read(name)?;
         // The page has one h1; every file's headings move one level down.
         let demoted: String =
             text.lines().map(|l| if l.starts_with('#') { format!("#{l}\n") } else { format!("{l}\n") }).collect();
@@ -140,7 +157,7 @@ impl<'a> Page<'a> {
 
     /// Every staged SVG not shown yet, whose name `filter` accepts, under `heading`.
     fn remaining_figures(&mut self, heading: &str, filter: impl Fn(&str) -> bool) -> Result<()> {
-        let rest: Vec<String> = staged(self.out)?
+        let rest: Vec<String> = staged(&self.dir, &self.target)?
             .into_iter()
             .filter(|n| n.ends_with(".svg") && !self.inlined.contains(n) && filter(n))
             .collect();
@@ -221,7 +238,7 @@ impl<'a> Page<'a> {
 
     /// Writes `report.html` into the staging folder.
     fn finish(self) -> Result<()> {
-        let files = staged(self.out)?;
+        let files = staged(&self.dir, &self.target)?;
         let mut nav = String::from("<nav><h2>Files in this folder</h2><ul>\n");
         for f in files.iter().filter(|f| f.as_str() != FILE) {
             let _ = writeln!(nav, "<li><a href=\"{0}\">{0}</a></li>", escape(f));
@@ -235,7 +252,7 @@ impl<'a> Page<'a> {
             escape(&self.title),
             self.body
         );
-        self.out.write(FILE, page)
+        std::fs::write(self.dir.join(FILE), page).map_err(|e| Error::io(self.target.join(FILE), e))
     }
 }
 
@@ -295,11 +312,11 @@ fn scenario_md(json: &Value) -> String {
 /// `report.html` of `springfit simulate`: per scenario its metrics and its five figures.
 pub fn write_simulate(out: &OutputDir, design: &Design) -> Result<()> {
     let mut p = Page::new(out, format!("springfit simulate: {}", design.name));
-    for name in staged(out)? {
+    for name in staged(&p.dir, &p.target)? {
         let Some(scenario) = name.strip_prefix("sim_").and_then(|n| n.strip_suffix(".json")) else { continue };
-        let text = std::fs::read_to_string(out.path(&name)).map_err(|e| Error::io(out.target().join(&name), e))?;
+        let text = p.read(&name)?;
         let json: Value =
-            serde_json::from_str(&text).map_err(|e| Error::invalid(out.target().join(&name), "json", e.to_string()))?;
+            serde_json::from_str(&text).map_err(|e| Error::invalid(p.target.join(&name), "json", e.to_string()))?;
         p.markdown(&scenario_md(&json))?;
         let _ = writeln!(
             p.body,
@@ -359,20 +376,20 @@ mod tests {
     #[test]
     fn markdown_tables_render_and_figures_are_inlined_once() {
         let root = scratch("inline");
-        let out = OutputDir::create(&root.join("run")).unwrap();
-        out.write("a.svg", format!("<?xml version=\"1.0\"?>\n{SVG}")).unwrap();
-        out.write("a.png", "png").unwrap();
-        out.write("b.svg", SVG).unwrap();
-        out.write(
+        let w = |name: &str, text: &str| std::fs::write(root.join(name), text).unwrap();
+        w("a.svg", &format!("<?xml version=\"1.0\"?>\n{SVG}"));
+        w("a.png", "png");
+        w("b.svg", SVG);
+        w(".hidden", "not listed");
+        w(
             "report.md",
             "# Title <x>\n\n| k | v |\n| --- | ---: |\n| 1 | a & b |\n\n![a](a.svg)\n\n![gone](missing.svg)\n",
-        )
-        .unwrap();
-        let mut p = Page::new(&out, "t".into());
+        );
+        let mut p = Page::in_folder(&root, &root, "t".into());
         p.markdown_file("report.md").unwrap();
         p.remaining_figures("Figures", |_| true).unwrap();
         p.finish().unwrap();
-        let html = std::fs::read_to_string(out.path(FILE)).unwrap();
+        let html = std::fs::read_to_string(root.join(FILE)).unwrap();
         assert!(html.contains("<h2>Title &lt;x&gt;</h2>"), "headings demoted and escaped: {html}");
         assert!(html.contains("<table>") && html.contains("<td style=\"text-align: right\">a &amp; b</td>"), "{html}");
         // a.svg where the markdown put it (without its XML declaration), b.svg at the end.
@@ -386,7 +403,7 @@ mod tests {
         assert!(html.contains("href=\"a.png\""));
         // Self-contained: nothing loaded from elsewhere.
         assert!(!html.contains("<script") && !html.contains("<link") && !html.contains("src=\"http"));
-        drop(out);
+        assert!(!html.contains(".hidden"));
         let _ = std::fs::remove_dir_all(&root);
     }
 
