@@ -66,6 +66,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
     // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
     let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
     springfit::report::compare::write_compare(&dir, &records, signed)?;
+    springfit::report::html::write_compare(&dir)?;
     let written = dir.commit()?;
     for r in &records {
         progress.say(format!(
@@ -128,6 +129,7 @@ pub fn pareto(
     let rcurve = rcurve?;
     let dir = OutputDir::create(&target, "pareto")?;
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
+    springfit::report::html::write_pareto(&dir, &design)?;
     let written = dir.commit()?;
     progress.say("budget K: springs used, p99, max");
     for b in &curve {

@@ -69,6 +69,7 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
     let step = progress.step("writing outputs");
     let dir = OutputDir::create(&target, "fit")?;
     springfit::report::fit::write(&dir, &design, &outcome)?;
+    springfit::report::html::write_fit(&dir, &design)?;
     let written = dir.commit();
     step.finish();
     let written = written?;

@@ -171,6 +171,7 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
             progress.say(format!("  {}: {}", r.name, parts.join(", ")));
         }
     }
+    springfit::report::html::write_simulate(&dir, &design)?;
     let written = dir.commit()?;
     progress.say(format!("wrote {}", written.display()));
     Ok(())

@@ -209,6 +209,7 @@ fn finish(
     let t = tables(settings, results);
     let dir = OutputDir::create(target, "sweep")?;
     springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
+    springfit::report::html::write_sweep(&dir, design)?;
     let written = dir.commit()?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");
     for r in &t.parasitic {

@@ -5,6 +5,7 @@ pub mod contour;
 pub mod figures;
 pub mod fit;
 pub mod geodesics;
+pub mod html;
 pub mod output;
 pub mod plot;
 pub mod simulate;
