@@ -23,8 +23,8 @@ use serde_json::Value;
 use super::output::OutputDir;
 use crate::catalog::{Catalog, OffsetSpec};
 use crate::design::Design;
-use crate::model::Chain;
 use crate::error::{Error, Result};
+use crate::model::Chain;
 
 /// The file name.
 pub const FILE: &str = "report.html";
