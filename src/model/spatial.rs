@@ -616,8 +616,7 @@ mod tests {
     }
 
     /// A planar chain as a spatial one: z axes, each joint at the previous link's end on its
-    /// x axis, centres of mass on the x axes. The planar convention U_g = Σ m g_planar·c is the
-    /// physical one with g = −g_planar.
+    /// x axis, centres of mass on the x axes, the same gravity vector.
     pub(crate) fn planar_as_spatial(links: &[Link], gravity: [f64; 2]) -> SpatialChain {
         let bodies = links
             .iter()
@@ -635,7 +634,7 @@ mod tests {
             })
             .collect();
         let last = links[links.len() - 1].length;
-        SpatialChain::new(bodies, [-gravity[0], -gravity[1], 0.0], [last, 0.0, 0.0])
+        SpatialChain::new(bodies, [gravity[0], gravity[1], 0.0], [last, 0.0, 0.0])
     }
 
     fn three_links() -> Vec<Link> {
