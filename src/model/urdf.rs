@@ -297,7 +297,7 @@ pub fn parse(
         first[k] += c * m;
         about_origin[k] +=
             frame.rot * local * frame.rot.transpose() + (Matrix3::identity() * c.dot(&c) - c * c.transpose()) * m;
-        if depth > tip[k].0 {
+        if depth > tip[k].0 || (depth == tip[k].0 && pose.pos.norm() > tip[k].1.norm()) {
             tip[k] = (depth, pose.pos);
         }
     }
@@ -318,8 +318,8 @@ pub fn parse(
         })
         .collect();
     let last = &chain_bodies[n - 1];
-    // The tip: the origin of the deepest link riding on the last body (its centre of mass when
-    // nothing hangs below it).
+    // The tip: the origin of the deepest link riding on the last body, the farthest of equally
+    // deep ones (its centre of mass when nothing hangs below it).
     let tip_point = if tip[n - 1].1 == Vector3::zeros() { last.com } else { tip[n - 1].1 };
     Ok(SpatialChain::new(chain_bodies, gravity, tip_point.into()))
 }
