@@ -206,7 +206,15 @@ fn bad_urdfs_and_joint_lists_give_one_clear_error_each() {
             "<joint name=\"tool_joint\" type=\"fixed\">",
             "<joint name=\"tool_joint\" type=\"continuous\"><axis xyz=\"0 0 1\"/>",
         );
+    let cycle = dp.replace(
+        "</robot>",
+        "<link name=\"c1\"/><link name=\"c2\"/>\
+         <joint name=\"jc1\" type=\"continuous\"><parent link=\"c1\"/><child link=\"c2\"/><axis xyz=\"0 0 1\"/></joint>\
+         <joint name=\"jc2\" type=\"continuous\"><parent link=\"c2\"/><child link=\"c1\"/><axis xyz=\"0 0 1\"/></joint>\
+         </robot>",
+    );
     let cases: Vec<(&str, String, String, &str, &str)> = vec![
+        ("loop", cycle, "joints = [\"jc1\"]".into(), "<joint name=\"jc1\">", "cannot be reached"),
         ("missing", dp.into(), "joints = [\"joint1\", \"elbow\"]".into(), "<joint name=\"elbow\">", "no such joint"),
         ("prismatic", prismatic, two.into(), "<joint name=\"joint2\">", "is prismatic"),
         ("fixed", dp.into(), "joints = [\"joint1\", \"split\"]".into(), "<joint name=\"split\">", "only revolute"),

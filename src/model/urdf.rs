@@ -301,9 +301,16 @@ pub fn parse(
             tip[k] = (depth, pose.pos);
         }
     }
+    // A chosen joint the walk never reached sits in a loop of links cut off from the base.
+    if let Some(k) = bodies.iter().position(Option::is_none) {
+        return Err(bad(
+            joint_el(&joints[k]),
+            format!("cannot be reached from the base link `{}`: its links form a loop", robot.links[roots[0]].name),
+        ));
+    }
     let chain_bodies: Vec<Body> = (0..n)
         .map(|k| {
-            let (placement, axis) = bodies[k].expect("every chosen joint is reached from the base");
+            let (placement, axis) = bodies[k].expect("checked above");
             let com = if mass[k] > 0.0 { first[k] / mass[k] } else { Vector3::zeros() };
             let inertia = about_origin[k] - (Matrix3::identity() * com.dot(&com) - com * com.transpose()) * mass[k];
             Body {
