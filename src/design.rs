@@ -41,7 +41,7 @@ use crate::error::{Error, Result};
 use crate::fit::settings::FitSettings;
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
-use crate::model::{Chain, Link, PlanarChain};
+use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::scenario::ScenarioSpec;
 use crate::simulate::SimSettings;
 use crate::sweep::SweepSettings;
@@ -80,14 +80,21 @@ pub struct DesignFile {
     pub sweep: SweepSettings,
 }
 
-/// `[robot]`: links from the base outwards and gravity.
+/// `[robot]`: links from the base outwards and gravity, or a URDF and the joints that move.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RobotSpec {
-    /// Gravity in the plane of the arm, m/s² (default: none, an arm moving in a horizontal plane).
-    pub gravity: [f64; 2],
-    /// The links, base first.
+    /// Gravity, m/s² (default: none): 2 numbers in the plane of a planar arm, or with `urdf` 3
+    /// numbers in the URDF's base frame (the physical acceleration, e.g. `[0, 0, -9.81]`).
+    pub gravity: Vec<f64>,
+    /// The links, base first (planar arm).
     pub links: Vec<LinkSpec>,
+    /// A URDF file, relative to the design file (spatial arm; instead of `links`).
+    pub urdf: Option<String>,
+    /// The URDF joints that move and get springs, from the base outwards.
+    pub joints: Vec<String>,
+    /// The other URDF joints, held at these values (rad, or m for a prismatic joint; default 0).
+    pub locked: std::collections::BTreeMap<String, Angle>,
 }
 
 /// `[[robot.links]]`.
@@ -237,7 +244,25 @@ impl Design {
 
     /// Validates a parsed design file. `path` is used for messages and to resolve the catalogue.
     pub fn from_file(path: &Path, file: DesignFile) -> Result<Design> {
+        if file.robot.urdf.is_some() {
+            let (chain, q_eq) = urdf_robot(path, &file)?;
+            return Design::with_robot(path, file, Chain::Spatial(chain), q_eq);
+        }
         let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+        if !file.robot.joints.is_empty() || !file.robot.locked.is_empty() {
+            let field = if file.robot.joints.is_empty() { "robot.locked" } else { "robot.joints" };
+            return Err(invalid(field, "names URDF joints: it needs robot.urdf".into()));
+        }
+        let gravity = match file.robot.gravity[..] {
+            [] => [0.0, 0.0],
+            [x, y] => [x, y],
+            _ => {
+                return Err(invalid(
+                    "robot.gravity",
+                    format!("has {} numbers: a planar arm takes 2 (in its plane)", file.robot.gravity.len()),
+                ));
+            }
+        };
         let links = &file.robot.links;
         if links.is_empty() {
             return Err(invalid(
@@ -278,7 +303,7 @@ impl Design {
         let n = links.len();
         let chain = PlanarChain::new(
             links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
-            file.robot.gravity,
+            gravity,
         );
         // The gravity potential, torque and Hessian are bounded by this (with room for their sums).
         if !(16.0 * chain.gravity_bound()).is_finite() {
@@ -332,7 +357,13 @@ impl Design {
         if m_eq.cholesky().is_none() {
             return Err(singular());
         }
+        Design::with_robot(path, file, Chain::Planar(chain), q_eq)
+    }
 
+    /// The rest of the validation, the same for every kind of robot: region and settings.
+    fn with_robot(path: &Path, file: DesignFile, chain: Chain, q_eq: DVector<f64>) -> Result<Design> {
+        let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+        let n = chain.dof();
         let spec = file.region.as_ref().ok_or_else(|| {
             invalid(
                 "region",
@@ -432,7 +463,7 @@ impl Design {
             name,
             description: file.description.clone().unwrap_or_default(),
             catalog,
-            chain: Chain::Planar(chain),
+            chain,
             q_eq,
             region,
             geodesics: file.geodesics,
@@ -471,6 +502,69 @@ impl Design {
         };
         Err(Error::invalid(&self.path, field, format!("the region is not valid: {}", report.reason)))
     }
+}
+
+/// `[robot] urdf = …`: reads the URDF (relative to the design file) and checks the equilibrium.
+/// Kept apart from the planar links' validation: the two kinds of robot share only what follows.
+fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f64>)> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    let robot = &file.robot;
+    if !robot.links.is_empty() {
+        return Err(invalid("robot.links", "a design takes robot.urdf or [[robot.links]], not both".into()));
+    }
+    if robot.joints.is_empty() {
+        return Err(invalid("robot.joints", "name the URDF joints that move, from the base outwards".into()));
+    }
+    if robot.joints.len() > MAX_LINKS {
+        return Err(invalid(
+            "robot.joints",
+            format!("{} joints: springfit handles chains of up to {MAX_LINKS} joints", robot.joints.len()),
+        ));
+    }
+    let gravity = match robot.gravity[..] {
+        [] => [0.0; 3],
+        [x, y, z] => [x, y, z],
+        _ => {
+            return Err(invalid(
+                "robot.gravity",
+                format!(
+                    "has {} numbers: with robot.urdf gravity is 3 numbers in the URDF's base frame (m/s², e.g. [0, 0, -9.81])",
+                    robot.gravity.len()
+                ),
+            ));
+        }
+    };
+    if let Some(k) = gravity.iter().position(|g| !g.is_finite()) {
+        return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {}", gravity[k])));
+    }
+    let urdf_path = path.parent().unwrap_or(Path::new(".")).join(robot.urdf.as_deref().unwrap_or_default());
+    let locked: Vec<(String, f64)> = robot.locked.iter().map(|(k, v)| (k.clone(), v.0)).collect();
+    let chain = crate::model::urdf::load(&urdf_path, &robot.joints, &locked, gravity)?;
+    if !(16.0 * chain.gravity_bound()).is_finite() {
+        return Err(invalid(
+            "robot.gravity",
+            "the gravity potential overflows: gravity times the masses is too large".into(),
+        ));
+    }
+    let n = chain.dof();
+    let q = &file.equilibrium.q;
+    if q.len() != n {
+        return Err(invalid("equilibrium.q", format!("has {} angles but robot.joints names {n} joints", q.len())));
+    }
+    let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+    for (at, name) in [(DVector::zeros(n), "at q = 0"), (q_eq.clone(), "at the equilibrium")] {
+        let m = chain.mass_matrix(&at);
+        if !m.iter().all(|x| x.is_finite()) || m.clone().cholesky().is_none() {
+            return Err(invalid(
+                "robot.joints",
+                format!(
+                    "the mass matrix {name} is not positive definite: a moving joint carries no mass off its axis and no inertia about it ({})",
+                    urdf_path.display()
+                ),
+            ));
+        }
+    }
+    Ok((chain, q_eq))
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! # springfit
 //!
-//! Designs spring layouts for planar robot arms so that *strict normal modes are everywhere*:
+//! Designs spring layouts for robot arms (planar chains typed into a design file, or spatial
+//! chains read from a URDF, see [`model`]) so that *strict normal modes are everywhere*:
 //! released from rest anywhere in a region, the arm swings through its equilibrium on a fixed
 //! geodesic of the inertia metric. See `docs/theory.md` for the maths and the words used here.
 

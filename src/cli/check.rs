@@ -8,8 +8,11 @@ use springfit::geodesic::Region;
 
 use super::progress::Progress;
 
-pub fn run(path: &Path, progress: &Progress) -> Result<()> {
+pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     let design = Design::load(path)?;
+    if json {
+        return run_json(&design);
+    }
     let n = design.dof();
     if let Some(chain) = design.chain.planar() {
         progress.say(format!(
@@ -26,6 +29,23 @@ pub fn run(path: &Path, progress: &Progress) -> Result<()> {
                 l.length,
                 l.com,
                 l.inertia
+            ));
+        }
+    }
+    if let Some(chain) = design.chain.spatial() {
+        progress.say(format!(
+            "design {} ({}): {n} joints of a spatial chain, gravity {:?} m/s² in the base frame",
+            design.name,
+            design.path.display(),
+            chain.gravity()
+        ));
+        for b in chain.bodies() {
+            progress.say(format!(
+                "  joint {}: axis {} moves {} kg (held joints and fixed links merged), com {} m",
+                b.joint,
+                fmt_vec(b.axis.as_slice()),
+                b.mass,
+                fmt_vec(b.com.as_slice())
             ));
         }
     }
@@ -52,6 +72,26 @@ pub fn run(path: &Path, progress: &Progress) -> Result<()> {
     ));
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));
+    Ok(())
+}
+
+/// `--json`: one object on stdout; an invalid region is reported in it and then as an error.
+fn run_json(design: &Design) -> Result<()> {
+    let q = design.q_eq.as_slice();
+    let m = design.chain.mass_matrix(&design.q_eq);
+    let report = design.region_report()?;
+    let rows: Vec<Vec<f64>> = m.row_iter().map(|r| r.iter().copied().collect()).collect();
+    let object = serde_json::json!({
+        "design": design.name,
+        "dof": design.dof(),
+        "joints": design.chain.joint_names(),
+        "q_eq": q,
+        "mass_matrix": rows,
+        "gravity_torque": design.chain.gravity_gradient(q).as_slice(),
+        "region": report,
+    });
+    println!("{}", serde_json::to_string_pretty(&object)?);
+    design.ensure_valid(&report)?;
     Ok(())
 }
 

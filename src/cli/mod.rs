@@ -178,10 +178,17 @@ springs exported). scripts/verify_mujoco.py runs it in MuJoCo against `springfit
         out: Option<PathBuf>,
     },
     /// Validate a design and report its robot, equilibrium and region.
-    #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
+    #[command(
+        after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit check designs/ur5_lift_elbow.toml --json\n\n\
+With --json, prints one JSON object on stdout: dof, joints, q_eq, mass_matrix (rows, at q_eq),\n\
+gravity_torque (∂U_g/∂q at q_eq, N·m) and region (the region check), for comparing models."
+    )]
     Check {
         /// Design file (TOML).
         design: PathBuf,
+        /// Print one JSON object (robot, equilibrium, mass matrix, gravity torque, region check).
+        #[arg(long)]
+        json: bool,
     },
     /// Trace the fan of geodesics from the equilibrium, check the region and plot them.
     #[command(after_help = "Example:\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\n\
@@ -217,7 +224,7 @@ pub fn run() -> Result<()> {
     }
     let progress = progress::Progress::new(cli.quiet);
     match cli.command {
-        Command::Check { design } => check::run(&design, &progress),
+        Command::Check { design, json } => check::run(&design, json, &progress),
         Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &progress),
         Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &progress),
         Command::Sweep { design, out, shard, merge, builds, seed } => {

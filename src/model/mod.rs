@@ -16,6 +16,7 @@
 
 mod planar;
 mod spatial;
+pub mod urdf;
 
 use nalgebra::{DMatrix, DVector};
 

@@ -1,0 +1,350 @@
+//! URDF input: the joints that move, the rest held, as a [`SpatialChain`].
+//!
+//! A URDF is a tree of links joined by joints. The design names the joints that move and get
+//! springs (in order from the base) and holds every other joint at a given value (`locked`;
+//! unlisted movable joints are held at 0). Everything that then moves rigidly with moving joint
+//! i, through fixed or held joints, is merged into body i: masses add, centres of mass and
+//! inertias are carried into body i's frame (the frame of the moving joint's child link). Links
+//! that never move (before the first moving joint) do not enter the dynamics.
+//!
+//! What cannot be used is refused with the URDF file and element named: a chosen joint that is
+//! missing, prismatic, fixed or floating; chosen joints that are not one chain in the given
+//! order; a moving joint's link without inertial data; mimic joints where they would move (they
+//! would couple joints, which springfit does not model).
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use urdf_rs::JointType;
+
+use super::spatial::{Body, MAX_BODIES, SpatialChain};
+use crate::error::{Error, Result};
+
+/// A rigid placement: rotation then translation.
+#[derive(Debug, Clone, Copy)]
+struct Pose {
+    rot: Matrix3<f64>,
+    pos: Vector3<f64>,
+}
+
+impl Pose {
+    fn identity() -> Self {
+        Pose { rot: Matrix3::identity(), pos: Vector3::zeros() }
+    }
+
+    fn from_urdf(p: &urdf_rs::Pose) -> Self {
+        let [r, pi, y] = p.rpy.0;
+        Pose { rot: *Rotation3::from_euler_angles(r, pi, y).matrix(), pos: Vector3::from(p.xyz.0) }
+    }
+
+    fn then(&self, other: &Pose) -> Pose {
+        Pose { rot: self.rot * other.rot, pos: self.pos + self.rot * other.pos }
+    }
+}
+
+/// Reads `urdf` and builds the chain of `joints` (base first) with the other joints held at
+/// `locked` (name, value in rad or m for a prismatic joint) and gravity in the base frame.
+pub fn load(urdf: &Path, joints: &[String], locked: &[(String, f64)], gravity: [f64; 3]) -> Result<SpatialChain> {
+    let text = std::fs::read_to_string(urdf).map_err(|e| Error::io(urdf, e))?;
+    parse(urdf, &text, joints, locked, gravity)
+}
+
+/// [`load`] on the text of a URDF; `urdf` names it in errors.
+pub fn parse(
+    urdf: &Path,
+    text: &str,
+    joints: &[String],
+    locked: &[(String, f64)],
+    gravity: [f64; 3],
+) -> Result<SpatialChain> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| Error::Parse {
+        path: urdf.to_path_buf(),
+        line: 0,
+        column: 0,
+        message: format!("not a URDF this reader understands: {e}"),
+    })?;
+    let bad = |element: String, reason: String| Error::invalid(urdf, element, reason);
+    let joint_el = |name: &str| format!("<joint name=\"{name}\">");
+    let link_el = |name: &str| format!("<link name=\"{name}\">");
+
+    // The tree: links by name, the joint above each link, the joints below each link.
+    let link_index: HashMap<&str, usize> = robot.links.iter().enumerate().map(|(i, l)| (l.name.as_str(), i)).collect();
+    let joint_index: HashMap<&str, usize> =
+        robot.joints.iter().enumerate().map(|(i, j)| (j.name.as_str(), i)).collect();
+    let mut above: Vec<Option<usize>> = vec![None; robot.links.len()];
+    let mut below: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
+    for (j, joint) in robot.joints.iter().enumerate() {
+        let parent = *link_index.get(joint.parent.link.as_str()).ok_or_else(|| {
+            bad(joint_el(&joint.name), format!("its parent link `{}` is not in the file", joint.parent.link))
+        })?;
+        let child = *link_index.get(joint.child.link.as_str()).ok_or_else(|| {
+            bad(joint_el(&joint.name), format!("its child link `{}` is not in the file", joint.child.link))
+        })?;
+        if let Some(other) = above[child] {
+            return Err(bad(
+                link_el(&joint.child.link),
+                format!(
+                    "is the child of two joints (`{}` and `{}`): a URDF is a tree",
+                    robot.joints[other].name, joint.name
+                ),
+            ));
+        }
+        above[child] = Some(j);
+        below[parent].push(j);
+    }
+    let roots: Vec<usize> = (0..robot.links.len()).filter(|&l| above[l].is_none()).collect();
+    if roots.len() != 1 {
+        let names: Vec<&str> = roots.iter().map(|&l| robot.links[l].name.as_str()).collect();
+        return Err(bad(
+            "<robot>".into(),
+            format!("has {} root links ({}): springfit needs one tree with one base", roots.len(), names.join(", ")),
+        ));
+    }
+    let movable = || {
+        robot
+            .joints
+            .iter()
+            .filter(|j| matches!(j.joint_type, JointType::Revolute | JointType::Continuous))
+            .map(|j| j.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+
+    // The chosen joints.
+    if joints.is_empty() || joints.len() > MAX_BODIES {
+        return Err(bad(
+            "<robot>".into(),
+            format!("{} joints chosen: springfit moves 1 to {MAX_BODIES} revolute joints", joints.len()),
+        ));
+    }
+    let mut chosen: HashMap<usize, usize> = HashMap::new();
+    for (k, name) in joints.iter().enumerate() {
+        let j = *joint_index.get(name.as_str()).ok_or_else(|| {
+            bad(joint_el(name), format!("no such joint in the file; its revolute joints are: {}", movable()))
+        })?;
+        let joint = &robot.joints[j];
+        match joint.joint_type {
+            JointType::Revolute | JointType::Continuous => {}
+            JointType::Prismatic => {
+                return Err(bad(
+                    joint_el(name),
+                    "is prismatic: springfit moves revolute joints only (hold it with `locked`)".into(),
+                ));
+            }
+            ref other => {
+                return Err(bad(
+                    joint_el(name),
+                    format!("is {other:?} (lower-case in the file): only revolute and continuous joints can move"),
+                ));
+            }
+        }
+        if joint.mimic.is_some() {
+            return Err(bad(
+                joint_el(name),
+                "is a mimic joint: it follows another joint, which springfit does not model (refused)".into(),
+            ));
+        }
+        if chosen.insert(j, k).is_some() {
+            return Err(bad(joint_el(name), "is chosen twice".into()));
+        }
+    }
+    let leaders: Vec<&str> = joints.iter().map(String::as_str).collect();
+    for joint in &robot.joints {
+        let Some(m) = &joint.mimic else { continue };
+        if leaders.contains(&m.joint.as_str()) {
+            return Err(bad(
+                joint_el(&joint.name),
+                format!(
+                    "is a mimic joint that follows the moving joint `{}`: coupled joints are not modelled (refused)",
+                    m.joint
+                ),
+            ));
+        }
+    }
+    let mut held: HashMap<usize, f64> = HashMap::new();
+    for (name, value) in locked {
+        let j = *joint_index
+            .get(name.as_str())
+            .ok_or_else(|| bad(joint_el(name), "is locked but there is no such joint in the file".into()))?;
+        if chosen.contains_key(&j) {
+            return Err(bad(joint_el(name), "is both chosen to move and locked".into()));
+        }
+        let joint = &robot.joints[j];
+        if !matches!(joint.joint_type, JointType::Revolute | JointType::Continuous | JointType::Prismatic) {
+            return Err(bad(
+                joint_el(name),
+                format!("is {:?}: only revolute, continuous and prismatic joints can be locked", joint.joint_type),
+            ));
+        }
+        if !value.is_finite() {
+            return Err(bad(joint_el(name), format!("locked at {value}: must be finite")));
+        }
+        held.insert(j, *value);
+    }
+
+    // Walk the tree from the base: which moving body each link rides on, and where.
+    struct Placed {
+        owner: Option<usize>,
+        pose: Pose,
+        depth: usize,
+    }
+    let mut placed: Vec<Option<Placed>> = (0..robot.links.len()).map(|_| None).collect();
+    let mut bodies: Vec<Option<(Pose, Vector3<f64>)>> = vec![None; joints.len()];
+    let mut stack = vec![roots[0]];
+    placed[roots[0]] = Some(Placed { owner: None, pose: Pose::identity(), depth: 0 });
+    while let Some(link) = stack.pop() {
+        let (owner, pose, depth) = {
+            let p = placed[link].as_ref().expect("placed before pushed");
+            (p.owner, p.pose, p.depth)
+        };
+        for &j in &below[link] {
+            let joint = &robot.joints[j];
+            let child = link_index[joint.child.link.as_str()];
+            let origin = Pose::from_urdf(&joint.origin);
+            let axis = Vector3::from(joint.axis.xyz.0);
+            let unit = (axis.norm() > 0.0 && axis.iter().all(|x| x.is_finite())).then(|| axis.normalize());
+            let zero_axis = || bad(joint_el(&joint.name), "has a zero or non-finite axis".into());
+            let (child_owner, child_pose) = if let Some(&k) = chosen.get(&j) {
+                let expected = k.checked_sub(1);
+                if owner != expected {
+                    let reason = match (expected, owner) {
+                        (None, Some(o)) => format!(
+                            "is the first joint in robot.joints but moves with `{}`: list the joints from the base outwards",
+                            joints[o]
+                        ),
+                        (Some(e), None) => format!(
+                            "does not hang below `{}` (its parent link `{}` does not move with it): the chosen joints are not one chain",
+                            joints[e], joint.parent.link
+                        ),
+                        (Some(e), Some(o)) => format!(
+                            "hangs below `{}`, not below `{}` as robot.joints lists it: the chosen joints are not one chain in this order",
+                            joints[o], joints[e]
+                        ),
+                        (None, None) => unreachable!("owner equals expected"),
+                    };
+                    return Err(bad(joint_el(&joint.name), reason));
+                }
+                bodies[k] = Some((pose.then(&origin), unit.ok_or_else(zero_axis)?));
+                (Some(k), Pose::identity())
+            } else {
+                if joint.mimic.is_some() && owner.is_some() {
+                    return Err(bad(
+                        joint_el(&joint.name),
+                        "is a mimic joint on a moving part of the arm: coupled joints are not modelled (refused)"
+                            .into(),
+                    ));
+                }
+                let value = held.get(&j).copied().unwrap_or(0.0);
+                let motion = match joint.joint_type {
+                    JointType::Fixed => Pose::identity(),
+                    JointType::Revolute | JointType::Continuous => {
+                        let u = nalgebra::Unit::new_unchecked(unit.ok_or_else(zero_axis)?);
+                        Pose { rot: *Rotation3::from_axis_angle(&u, value).matrix(), pos: Vector3::zeros() }
+                    }
+                    JointType::Prismatic => Pose { rot: Matrix3::identity(), pos: unit.ok_or_else(zero_axis)? * value },
+                    ref other => {
+                        if owner.is_some() || chosen.keys().any(|&c| descends(&robot, &link_index, &above, c, j)) {
+                            return Err(bad(
+                                joint_el(&joint.name),
+                                format!(
+                                    "is {other:?}: springfit needs a fixed base and rigid links between the moving joints"
+                                ),
+                            ));
+                        }
+                        Pose::identity()
+                    }
+                };
+                (owner, pose.then(&origin).then(&motion))
+            };
+            placed[child] = Some(Placed { owner: child_owner, pose: child_pose, depth: depth + 1 });
+            stack.push(child);
+        }
+    }
+
+    // Merge every link riding on body k into it: mass, first moment, inertia about its origin.
+    let n = joints.len();
+    let mut mass = vec![0.0; n];
+    let mut first = vec![Vector3::zeros(); n];
+    let mut about_origin = vec![Matrix3::zeros(); n];
+    let mut tip: Vec<(usize, Vector3<f64>)> = vec![(0, Vector3::zeros()); n];
+    for (l, link) in robot.links.iter().enumerate() {
+        let Some(Placed { owner: Some(k), pose, depth }) = placed[l] else { continue };
+        let inertial = &link.inertial;
+        let i = &inertial.inertia;
+        let values = [inertial.mass.value, i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz];
+        if !values.iter().all(|v| v.is_finite()) {
+            return Err(bad(link_el(&link.name), "has a non-finite mass or inertia".into()));
+        }
+        if inertial.mass.value < 0.0 {
+            return Err(bad(link_el(&link.name), format!("has a negative mass {}", inertial.mass.value)));
+        }
+        let local = Matrix3::new(i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz);
+        let is_body_link = robot.joints[above[l].expect("a moving link has a joint above")].name == joints[k];
+        if is_body_link && inertial.mass.value == 0.0 && local == Matrix3::zeros() {
+            return Err(bad(
+                link_el(&link.name),
+                format!(
+                    "moves with `{}` but has no inertial data (no <inertial>, or zero mass and inertia): springfit needs the mass, centre of mass and inertia of every link that moves",
+                    joints[k]
+                ),
+            ));
+        }
+        let frame = pose.then(&Pose::from_urdf(&inertial.origin));
+        let m = inertial.mass.value;
+        let c = frame.pos;
+        mass[k] += m;
+        first[k] += c * m;
+        about_origin[k] +=
+            frame.rot * local * frame.rot.transpose() + (Matrix3::identity() * c.dot(&c) - c * c.transpose()) * m;
+        if depth > tip[k].0 || (depth == tip[k].0 && pose.pos.norm() > tip[k].1.norm()) {
+            tip[k] = (depth, pose.pos);
+        }
+    }
+    // A chosen joint the walk never reached sits in a loop of links cut off from the base.
+    if let Some(k) = bodies.iter().position(Option::is_none) {
+        return Err(bad(
+            joint_el(&joints[k]),
+            format!("cannot be reached from the base link `{}`: its links form a loop", robot.links[roots[0]].name),
+        ));
+    }
+    let chain_bodies: Vec<Body> = (0..n)
+        .map(|k| {
+            let (placement, axis) = bodies[k].expect("checked above");
+            let com = if mass[k] > 0.0 { first[k] / mass[k] } else { Vector3::zeros() };
+            let inertia = about_origin[k] - (Matrix3::identity() * com.dot(&com) - com * com.transpose()) * mass[k];
+            Body {
+                joint: joints[k].clone(),
+                rotation: placement.rot,
+                translation: placement.pos,
+                axis,
+                mass: mass[k],
+                com,
+                inertia: (inertia + inertia.transpose()) * 0.5,
+            }
+        })
+        .collect();
+    let last = &chain_bodies[n - 1];
+    // The tip: the origin of the deepest link riding on the last body, the farthest of equally
+    // deep ones (its centre of mass when nothing hangs below it).
+    let tip_point = if tip[n - 1].1 == Vector3::zeros() { last.com } else { tip[n - 1].1 };
+    Ok(SpatialChain::new(chain_bodies, gravity, tip_point.into()))
+}
+
+/// Whether joint `j` lies above joint `c` in the tree (so `c` moves with whatever `j` does).
+fn descends(
+    robot: &urdf_rs::Robot,
+    link_index: &HashMap<&str, usize>,
+    above: &[Option<usize>],
+    c: usize,
+    j: usize,
+) -> bool {
+    let mut link = link_index[robot.joints[c].parent.link.as_str()];
+    while let Some(up) = above[link] {
+        if up == j {
+            return true;
+        }
+        link = link_index[robot.joints[up].parent.link.as_str()];
+    }
+    false
+}
