@@ -198,6 +198,30 @@ pub fn spring_set(rows: &[BomRow]) -> SpringSet {
     }
 }
 
+/// A fingerprint of a spring set: FNV-1a over every element's profile, coupling, offset and
+/// stiffness, bit for bit, in order. A fit's `summary.json` and a simulation's `sim_<name>.json`
+/// both carry it (`spring_set`), so `compare` can tell whether a simulation used the springs of
+/// a fit (reading `bom.csv` back gives the same set bit for bit, hence the same fingerprint).
+pub fn fingerprint(set: &SpringSet) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= *b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    for (e, k) in set.elements.iter().zip(&set.stiffness) {
+        eat(format!("{:?}", e.profile).as_bytes());
+        for a in &e.coupling {
+            eat(&a.to_bits().to_le_bytes());
+        }
+        eat(&e.offset.to_bits().to_le_bytes());
+        eat(&k.to_bits().to_le_bytes());
+        eat(&[0xff]);
+    }
+    format!("{h:016x}")
+}
+
 /// The bill of materials as a Markdown table with totals per unit.
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     let mut s = format!("# Bill of materials: {title}\n\n");

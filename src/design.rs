@@ -85,9 +85,23 @@ pub struct DesignFile {
 #[serde(default, deny_unknown_fields)]
 pub struct RobotSpec {
     /// Gravity in the plane of the arm, m/s² (default: none, an arm moving in a horizontal plane).
+    /// Exactly two components: a third (a spatial vector) is an error, not silently dropped.
+    #[serde(deserialize_with = "planar_vector")]
     pub gravity: [f64; 2],
     /// The links, base first.
     pub links: Vec<LinkSpec>,
+}
+
+/// A vector in the arm's plane: exactly two numbers.
+fn planar_vector<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<[f64; 2], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    match v[..] {
+        [x, y] => Ok([x, y]),
+        _ => Err(serde::de::Error::custom(format!(
+            "gravity acts in the plane of the arm: give exactly two components [g_x, g_y] in m/s², got {}",
+            v.len()
+        ))),
+    }
 }
 
 /// `[[robot.links]]`.
@@ -406,6 +420,21 @@ impl Design {
             }
         };
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        if let Region::Ball { radius } = &region {
+            let radius = *radius;
+            // Geodesics are traced no further than max_arc: a larger ball cannot be checked or
+            // fitted, and tracing towards it would run for minutes before failing.
+            if radius > file.geodesics.max_arc {
+                return Err(invalid(
+                    "region.radius",
+                    format!(
+                        "{radius:e} is beyond geodesics.max_arc = {} (the longest geodesic springfit traces); a region \
+                         is a few units of metric arc length (the paper's is 2)",
+                        file.geodesics.max_arc
+                    ),
+                ));
+            }
+        }
         file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;

@@ -5,7 +5,7 @@ mod util;
 
 use std::path::Path;
 
-use util::{design_text, repo, springfit, temp_dir, write};
+use util::{design_text, design_text_anywhere, repo, springfit, temp_dir, write};
 
 fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
@@ -67,7 +67,7 @@ fn the_exact_reference_has_zero_residual() {
     let design = write(
         &dir,
         "small.toml",
-        &design_text("double_pendulum.toml")
+        &design_text_anywhere("double_pendulum.toml")
             .replace("[fit]", "[fit]\nevaluation_directions = 24\nevaluation_samples = 10"),
     );
     springfit(&dir, &["fit", design.to_str().unwrap(), "--exact", "--out", "exact"]).ok();

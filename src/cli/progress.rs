@@ -32,6 +32,12 @@ impl Progress {
         Step { bar, started: Instant::now() }
     }
 
+    /// Prints a warning on stderr, `springfit: warning: …`, even when quiet (a warning is about
+    /// the input, like an error).
+    pub fn warn(&self, w: impl std::fmt::Display) {
+        eprintln!("springfit: warning: {w}");
+    }
+
     /// Prints a line of results to stdout unless quiet. A closed stdout (`springfit … | head`)
     /// is not an error worth a panic: the line is dropped.
     pub fn say(&self, line: impl AsRef<str>) {

@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
-use springfit::catalog::Catalog;
 use springfit::design::Design;
 use springfit::error::Error;
 use springfit::fit::run::{FitOutcome, fit};
@@ -48,19 +47,35 @@ fn fingerprint(parts: &[&str]) -> String {
 }
 
 pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
-    let design = Design::load(&args.design)?;
+    let (design, validated) = super::load_design(&args.design, progress)?;
     let mut settings = design.file.sweep.clone();
     if let Some(b) = args.builds {
+        if b == 0 {
+            return Err(Error::Setting {
+                field: "--builds".into(),
+                reason: "must be at least 1 (Monte Carlo builds per tolerance level)".into(),
+            }
+            .into());
+        }
         settings.builds = b;
     }
     if let Some(s) = args.seed {
         settings.seed = s;
     }
-    let catalog_path = design
+    let catalog = validated
         .catalog
-        .clone()
+        .as_ref()
         .ok_or_else(|| Error::invalid(&design.path, "catalog", "the design names no spring catalogue to sweep"))?;
-    let catalog = Catalog::load(&catalog_path, design.dof())?;
+    let catalog_path = catalog.path.clone();
+    if design.file.scenario.is_empty() {
+        return Err(Error::invalid(
+            &design.path,
+            "scenario",
+            "the design declares no [[scenario]]: a sweep reruns the [sweep] scenario for every item",
+        )
+        .into());
+    }
+    let index = springfit::validate::sweep_scenario(&design)?;
     let design_text = std::fs::read_to_string(&design.path).map_err(|e| Error::io(&design.path, e))?;
     let catalog_text = std::fs::read_to_string(&catalog_path).map_err(|e| Error::io(&catalog_path, e))?;
     let print =
@@ -77,9 +92,9 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     springfit::report::output::check(&target, "sweep")?;
 
     let step = progress.step("fitting the springs");
-    let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+    let outcome = fit(&design, catalog, &design.fit, &|_| {});
     step.finish();
-    let outcome = outcome?;
+    let outcome = outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(catalog), e))?;
     let has_stock = outcome.bom.iter().any(|r| r.stock_rate.is_some());
     let items = plan(&settings, has_stock);
 
@@ -138,13 +153,6 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     let label = label_source(&design, &design.simulate);
     step.finish();
     let (label, _) = label?;
-    let index = design.file.scenario.iter().position(|s| s.name == settings.scenario).ok_or_else(|| {
-        Error::invalid(
-            &design.path,
-            "sweep.scenario",
-            format!("no [[scenario]] named `{}` in the design", settings.scenario),
-        )
-    })?;
     let nominal = ElasticPotential::Springs(outcome.springs.clone());
     let base = {
         let q_eq = design.q_eq.as_slice().to_vec();
@@ -223,14 +231,14 @@ fn finish(
     }
     for l in &t.tolerance_levels {
         progress.say(format!(
-            "tolerance {}: {} builds; actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {:.3}°, p95 {:.3}°; equilibrium shift p50 {:.4} rad",
+            "tolerance {}: {} builds; actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
             l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "of the catalogue".into()),
             l.builds,
             100.0 * l.actuator_share_p50,
             100.0 * l.actuator_share_p95,
-            l.residual_p99_deg_p50,
-            l.residual_p99_deg_p95,
-            l.equilibrium_shift_rad_p50
+            or_none(l.residual_p99_deg_p50, "°", 3),
+            or_none(l.residual_p99_deg_p95, "°", 3),
+            or_none(l.equilibrium_shift_rad_p50, " rad", 4)
         ));
     }
     if let Some(s) = &t.stock {
@@ -248,4 +256,14 @@ fn finish(
 
 fn show(p: &Path) -> String {
     p.display().to_string()
+}
+
+/// A percentile over builds, or why there is none: a build whose springs hold no equilibrium
+/// near the design's has no residual and no shift (NaN in the tables, null in sweep.json).
+fn or_none(x: f64, unit: &str, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}{unit}")
+    } else {
+        "none (some builds have no equilibrium near q_eq)".into()
+    }
 }

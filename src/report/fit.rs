@@ -39,6 +39,8 @@ pub struct Summary {
     /// Residual statistics by distance band from q_eq.
     pub bands: Vec<BandStats>,
     pub region: RegionSummary,
+    /// Fingerprint of the fitted spring set (`bom::fingerprint`; null for the exact reference).
+    pub spring_set: Option<String>,
 }
 
 /// The region part of the summary.
@@ -82,6 +84,7 @@ impl Summary {
                 largest_radius: o.region.largest_radius,
                 largest_radius_is_lower_bound: o.region.largest_radius_is_lower_bound,
             },
+            spring_set: (o.solve.solver != "exact").then(|| crate::bom::fingerprint(&o.springs)),
         }
     }
 }

@@ -27,6 +27,8 @@ pub struct ScenarioSummary {
     pub mode_drift_deg: Option<f64>,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
+    /// Fingerprint of the spring set simulated (`bom::fingerprint`; null for the exact potential).
+    pub spring_set: Option<String>,
 }
 
 fn columns(n: usize) -> String {
@@ -97,6 +99,10 @@ pub fn write(
         label_error_deg,
         mode_drift_deg: drift,
         runs,
+        spring_set: match potential {
+            ElasticPotential::Springs(s) => Some(crate::bom::fingerprint(s)),
+            ElasticPotential::Exact { .. } => None,
+        },
     };
     out.write(&format!("sim_{name}.json"), serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
     let title = |what: &str| format!("{} — scenario {name}: {what}", design.name);
