@@ -230,7 +230,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     for r in rows {
         let e = &r.element;
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | ±{}% |\n",
+            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} |\n",
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
@@ -242,7 +242,12 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             r.max_torque_nm,
             r.max_deflection_rad,
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
-            fmt_number(r.tolerance * 100.0),
+            // A catalogue that states no tolerance is not one of ±0 %.
+            if r.tolerance == 0.0 {
+                "not stated".to_string()
+            } else {
+                format!("±{} %", fmt_number(r.tolerance * 100.0))
+            },
         ));
     }
     s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));

@@ -69,6 +69,46 @@ pub fn infeasible_hint(
     hints.join("; ")
 }
 
+/// The plain verdict on a fit: `acceptable` when the p99 residual angle is at most
+/// `fit.accept_p99_deg`, else `poor`.
+pub fn verdict(p99_deg: f64, accept_p99_deg: f64) -> &'static str {
+    if p99_deg <= accept_p99_deg { "acceptable" } else { "poor" }
+}
+
+/// Warnings about a fitted bill of materials: a stiffness above the largest stock rate of its
+/// family (snapping to stock will cap it and the residual grows) or above its `max_stiffness`
+/// (the solvers enforce it as a bound, so this only flags a bound met to rounding).
+pub fn bom_warnings(catalog: &Catalog, rows: &[crate::bom::BomRow]) -> Vec<String> {
+    let mut out = Vec::new();
+    for r in rows {
+        let Some(f) = catalog.families.iter().find(|f| f.name == r.family) else { continue };
+        let unit = r.element.profile.unit();
+        if let Some(top) = f.stock_rates.iter().copied().reduce(f64::max) {
+            if r.stiffness > top * (1.0 + 1e-9) {
+                out.push(format!(
+                    "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above the family's largest stock rate {top} {unit}: snapping to stock rates (sweep) caps it at {top} and the residual grows; add larger stock rates or set max_stiffness = {top} so the fit stays within them",
+                    catalog.path.display(),
+                    f.name,
+                    r.id,
+                    r.stiffness
+                ));
+            }
+        }
+        if let Some(max) = f.max_stiffness {
+            if r.stiffness > max * (1.0 + 1e-6) {
+                out.push(format!(
+                    "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above max_stiffness = {max} {unit}",
+                    catalog.path.display(),
+                    f.name,
+                    r.id,
+                    r.stiffness
+                ));
+            }
+        }
+    }
+    out
+}
+
 /// `e` with [`infeasible_hint`] appended to its reason when it is an infeasible fit.
 pub fn explain(design: &Design, settings: &FitSettings, catalog: &Catalog, budget: usize, e: Error) -> Error {
     match e {

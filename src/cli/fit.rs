@@ -72,12 +72,13 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         progress.say(format!("{}: exact potential ½ω²r² (ω = {} rad/s)", outcome.design, settings.frequency));
     } else {
         progress.say(format!(
-            "{}: {} springs from {} candidates of catalogue {} ({} never engage); solver {} ({})",
+            "{}: {} springs from {} candidates of catalogue {} ({} never engage, {} enter the fit); solver {} ({})",
             outcome.design,
             outcome.used(),
-            outcome.candidates - outcome.dropped,
+            outcome.candidates,
             outcome.catalog,
             outcome.dropped,
+            outcome.candidates - outcome.dropped,
             outcome.solve.solver,
             outcome.solve.status
         ));
@@ -93,6 +94,21 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
+    let verdict = springfit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
+    progress.say(if verdict == "acceptable" {
+        format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
+    } else {
+        format!(
+            "verdict: poor (p99 {:.4}° > fit.accept_p99_deg = {}°): released on a geodesic, the arm drifts off it; \
+             allow more springs (fit.max_elements), keep fit.hessian_match = true or widen the catalogue",
+            st.p99_abs, settings.accept_p99_deg
+        )
+    });
+    if let Some(c) = catalog {
+        for w in springfit::hints::bom_warnings(c, &outcome.bom) {
+            progress.warn(w);
+        }
+    }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md"
     } else {

@@ -188,7 +188,10 @@ pub enum SolverArg {
 
 /// Parses the command line and runs the command.
 pub fn run() -> Result<()> {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return Err(usage_error(e)),
+    };
     if let Some(t) = cli.threads {
         if t == 0 {
             return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
@@ -246,6 +249,23 @@ pub fn fit_failed(
         }
         other => other.into(),
     }
+}
+
+/// A command-line error as one line, like every other error (help and version are printed as
+/// clap renders them and exit as clap decides).
+fn usage_error(e: clap::Error) -> anyhow::Error {
+    use clap::error::ErrorKind as K;
+    if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion | K::DisplayHelpOnMissingArgumentOrSubcommand) {
+        e.exit();
+    }
+    let text = e.render().to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("invalid command line").trim_start_matches("error:").trim().to_string();
+    let tip = lines.find(|l| l.starts_with("tip:")).map(|t| format!("; {t}")).unwrap_or_default();
+    let first = first
+        .replace("invalid digit found in string", "expected a whole number")
+        .replace("invalid float literal", "expected a number");
+    anyhow::anyhow!("{first}{tip} (`springfit --help` lists the commands and options)")
 }
 
 /// The error as one line: the library's message with its causes.

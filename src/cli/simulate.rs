@@ -139,6 +139,14 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 parts.push(format!("E − E_d over the last 5 s {:+.2} %", 100.0 * e));
+                if e.abs() > 0.1 {
+                    parts.push(format!(
+                        "hint: the energy misses E_d by more than 10 %: the energy gain controllers.beta_e = {} sets the \
+                         time constant 1/(β_E·E_d); too large overshoots (gravity adds to the swing's energy exchange), too \
+                         small does not reach E_d within the duration",
+                        design.controllers.beta_e
+                    ));
+                }
             }
             if !m.settling_s.is_empty() {
                 let worst = m.settling_s.iter().map(|s| s.unwrap_or(f64::INFINITY)).fold(0.0, f64::max);

@@ -76,6 +76,22 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         .into());
     }
     let index = springfit::validate::sweep_scenario(&design)?;
+    // Say which tolerances the builds use: the design's levels replace the catalogue's own.
+    let stated: Vec<String> = catalog
+        .families
+        .iter()
+        .filter(|f| f.tolerance > 0.0)
+        .map(|f| format!("{} ±{} %", f.name, 100.0 * f.tolerance))
+        .collect();
+    if !settings.tolerances.is_empty() && !stated.is_empty() {
+        progress.say(format!(
+            "note: [sweep] tolerances = [{}] replace the catalogue's per-family tolerances ({}); set tolerances = [] to build each spring with its own",
+            settings.tolerances.iter().map(|t| format!("±{} %", 100.0 * t)).collect::<Vec<_>>().join(", "),
+            stated.join(", ")
+        ));
+    } else if settings.tolerances.is_empty() && stated.is_empty() {
+        progress.say("note: the catalogue states no tolerance and [sweep] tolerances is empty: the builds deviate by ±0 %; set tolerances = [0.05, 0.1] to sweep levels");
+    }
     let design_text = std::fs::read_to_string(&design.path).map_err(|e| Error::io(&design.path, e))?;
     let catalog_text = std::fs::read_to_string(&catalog_path).map_err(|e| Error::io(&catalog_path, e))?;
     let print =
@@ -100,6 +116,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
 
     if !args.merge.is_empty() {
         let mut results: Vec<ItemResult> = Vec::new();
+        let mut source: std::collections::HashMap<usize, &PathBuf> = std::collections::HashMap::new();
         for dir in &args.merge {
             let path = dir.join("sweep_shard.json");
             let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
@@ -120,7 +137,21 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
                 )
                 .into());
             }
-            results.extend(shard.results);
+            for r in shard.results {
+                if let Some(first) = source.insert(r.index, dir) {
+                    return Err(Error::Setting {
+                        field: "--merge".into(),
+                        reason: format!(
+                            "{} and {} both computed item {} (the same shard given twice?): merge each shard once",
+                            first.display(),
+                            dir.display(),
+                            r.index
+                        ),
+                    }
+                    .into());
+                }
+                results.push(r);
+            }
         }
         results.sort_by_key(|r| r.index);
         let before = results.len();
@@ -181,8 +212,13 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         Some(s) => shard_indices(items.len(), s),
         None => (0..items.len()).collect(),
     };
-    let step = progress.step(&format!("running {} of {} items", indices.len(), items.len()));
-    let results = ctx.run(&items, &indices);
+    let what = if indices.len() == items.len() {
+        "sweep items".to_string()
+    } else {
+        format!("sweep items (this shard's share of {})", items.len())
+    };
+    let step = progress.counted(&what, indices.len() as u64);
+    let results = ctx.run_observed(&items, &indices, &|| step.inc());
     let secs = step.finish();
     let results = results?;
     progress.say(format!("{} items in {secs:.1} s", results.len()));
@@ -193,9 +229,12 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         dir.write("sweep_shard.json", serde_json::to_string(&file)?)?;
         let written = dir.commit()?;
         progress.say(format!(
-            "wrote shard {i}/{n} to {}; join the shards with `springfit sweep {} --merge DIR...`",
+            "wrote shard {i}/{n} to {}; join the shards with `springfit sweep {}{} --merge DIR...`",
             written.display(),
-            design.path.display()
+            design.path.display(),
+            // The shards' fingerprint includes these: the merge must repeat them.
+            args.builds.map(|b| format!(" --builds {b}")).unwrap_or_default()
+                + &args.seed.map(|s| format!(" --seed {s}")).unwrap_or_default()
         ));
         return Ok(());
     }
@@ -249,6 +288,9 @@ fn finish(
             100.0 * s.actuator_share_before,
             100.0 * s.actuator_share_after
         ));
+    }
+    if t.stock.is_none() {
+        progress.say("stock rates: the catalogue lists none for the fitted springs, so the stock step is skipped and no bom_stock.csv is written");
     }
     progress.say(format!("wrote {}", show(&written)));
     Ok(())

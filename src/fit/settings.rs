@@ -59,6 +59,9 @@ pub struct FitSettings {
     pub used_threshold: f64,
     /// Distance bands from q_eq for the residual statistics.
     pub bands: usize,
+    /// Verdict threshold, degrees: a fit whose p99 residual angle on the held-out geodesics is at
+    /// most this is "acceptable", above it "poor" (printed and in summary.json).
+    pub accept_p99_deg: f64,
 }
 
 impl Default for FitSettings {
@@ -78,6 +81,7 @@ impl Default for FitSettings {
             swap_passes: 50,
             used_threshold: 1e-6,
             bands: 4,
+            accept_p99_deg: 2.0,
         }
     }
 }
@@ -127,6 +131,9 @@ impl FitSettings {
         }
         if self.bands == 0 || self.bands > 100 {
             return err("bands", "must be 1 to 100");
+        }
+        if !(self.accept_p99_deg.is_finite() && self.accept_p99_deg > 0.0 && self.accept_p99_deg <= 180.0) {
+            return err("accept_p99_deg", "must be a positive angle in degrees, at most 180");
         }
         Ok(())
     }
