@@ -198,6 +198,30 @@ pub fn spring_set(rows: &[BomRow]) -> SpringSet {
     }
 }
 
+/// A fingerprint of a spring set: FNV-1a over every element's profile, coupling, offset and
+/// stiffness, bit for bit, in order. A fit's `summary.json` and a simulation's `sim_<name>.json`
+/// both carry it (`spring_set`), so `compare` can tell whether a simulation used the springs of
+/// a fit (reading `bom.csv` back gives the same set bit for bit, hence the same fingerprint).
+pub fn fingerprint(set: &SpringSet) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= *b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    for (e, k) in set.elements.iter().zip(&set.stiffness) {
+        eat(format!("{:?}", e.profile).as_bytes());
+        for a in &e.coupling {
+            eat(&a.to_bits().to_le_bytes());
+        }
+        eat(&e.offset.to_bits().to_le_bytes());
+        eat(&k.to_bits().to_le_bytes());
+        eat(&[0xff]);
+    }
+    format!("{h:016x}")
+}
+
 /// The bill of materials as a Markdown table with totals per unit.
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     let mut s = format!("# Bill of materials: {title}\n\n");
@@ -206,7 +230,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     for r in rows {
         let e = &r.element;
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | ±{}% |\n",
+            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} |\n",
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
@@ -218,7 +242,12 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             r.max_torque_nm,
             r.max_deflection_rad,
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
-            fmt_number(r.tolerance * 100.0),
+            // A catalogue that states no tolerance is not one of ±0 %.
+            if r.tolerance == 0.0 {
+                "not stated".to_string()
+            } else {
+                format!("±{} %", fmt_number(r.tolerance * 100.0))
+            },
         ));
     }
     s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));

@@ -411,7 +411,13 @@ impl Catalog {
                     OffsetSpec::Equilibrium => vec![at_eq],
                     OffsetSpec::List(l) => l.clone(),
                     OffsetSpec::Phases { count } => {
-                        (0..*count).map(|k| at_eq + std::f64::consts::TAU * k as f64 / *count as f64).collect()
+                        // A crank's torque is 2π-periodic in x − x₀: its offsets are written in
+                        // (−π, π] (6.8068 rad reads as 0.5236). Other profiles keep theirs.
+                        let periodic = f.profiles.iter().all(|p| matches!(p, Profile::Crank));
+                        (0..*count)
+                            .map(|k| at_eq + std::f64::consts::TAU * k as f64 / *count as f64)
+                            .map(|x| if periodic { crate::geodesic::logmap::wrap_angle(x) } else { x })
+                            .collect()
                     }
                     OffsetSpec::Grid { count, equilibrium } => {
                         let (lo, hi) = range(a);
@@ -513,7 +519,12 @@ offsets = { phases = 4 }
         assert_eq!(cands.len(), 2 + 6 + 8 + 4);
         let phased: Vec<f64> = cands[16..].iter().map(|c| c.element.offset).collect();
         let quarter = std::f64::consts::FRAC_PI_2;
-        assert_eq!(phased, vec![1.0, 1.0 + quarter, 1.0 + 2.0 * quarter, 1.0 + 3.0 * quarter]);
+        // Crank offsets are wrapped into (−π, π]: 1 + π and 1 + 3π/2 read as 1 − π and 1 − π/2.
+        let pi = std::f64::consts::PI;
+        let expected = [1.0, 1.0 + quarter, 1.0 + 2.0 * quarter - 2.0 * pi, 1.0 + 3.0 * quarter - 2.0 * pi];
+        for (got, want) in phased.iter().zip(expected) {
+            assert!((got - want).abs() < 1e-12 && -pi < *got && *got <= pi, "{phased:?}");
+        }
         assert_eq!(cands[1].element.offset, 1.0);
         let crank: Vec<_> = cands.iter().filter(|c| c.element.profile == Profile::Crank).collect();
         assert_eq!(crank[0].element.coupling, vec![1.0, 1.0]);

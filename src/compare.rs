@@ -35,8 +35,10 @@ pub struct FitRecord {
     pub angles: Vec<f64>,
     /// Total stiffness per unit.
     pub totals: Vec<(String, f64)>,
-    /// Actuator share from a simulation of the design, if one was found.
+    /// Actuator share from a simulation of the same spring set, if one was found.
     pub actuator_share: Option<f64>,
+    /// Why there is no actuator share (no simulation folder, another spring set simulated).
+    pub share_note: Option<String>,
     /// Where it came from (a folder or a design file).
     pub source: PathBuf,
 }
@@ -54,6 +56,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         angles: outcome.metrics.residuals.iter().map(|r| r.angle_deg).collect(),
         totals: totals(&outcome.bom),
         actuator_share: None,
+        share_note: Some("fitted on the fly: no simulation of these springs".into()),
         source: design_file.to_path_buf(),
     }
 }
@@ -137,6 +140,11 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
         .collect();
     let bom_path = dir.join("bom.csv");
     let rows = if bom_path.is_file() { bom::read(&bom_path)? } else { Vec::new() };
+    let fingerprint = summary.get("spring_set").and_then(|v| v.as_str()).map(str::to_string);
+    let (actuator_share, share_note) = match simulation_share(dir, fingerprint.as_deref()) {
+        Ok(share) => (Some(share), None),
+        Err(note) => (None, Some(note)),
+    };
     Ok(FitRecord {
         label: design.clone(),
         design,
@@ -147,26 +155,42 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
         stats: stats(&samples),
         angles,
         totals: totals(&rows),
-        actuator_share: simulation_share(dir),
+        actuator_share,
+        share_note,
         source: dir.to_path_buf(),
     })
 }
 
 /// The actuator share of the design's `sensitivity` (else `switch`) scenario from the
-/// simulation folder next to a fit folder (`<folder>_simulate`), if there is one.
-fn simulation_share(dir: &Path) -> Option<f64> {
-    let name = dir.file_name()?.to_string_lossy().into_owned();
+/// simulation folder next to a fit folder (`<folder>_simulate`), only when that simulation ran
+/// the fit's own springs (the same `spring_set` fingerprint); else why there is none.
+fn simulation_share(dir: &Path, fingerprint: Option<&str>) -> std::result::Result<f64, String> {
+    let Some(fingerprint) = fingerprint else {
+        return Err(
+            "the fit's summary.json has no spring_set fingerprint (the exact reference, or an older springfit)".into(),
+        );
+    };
+    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let sim = dir.with_file_name(format!("{name}_simulate"));
+    let mut other = None;
     for scenario in ["sensitivity", "switch"] {
-        let Ok(text) = std::fs::read_to_string(sim.join(format!("sim_{scenario}.json"))) else { continue };
+        let path = sim.join(format!("sim_{scenario}.json"));
+        let Ok(text) = std::fs::read_to_string(&path) else { continue };
         let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { continue };
+        if json["spring_set"].as_str() != Some(fingerprint) {
+            other = Some(path);
+            continue;
+        }
         if let Some(share) =
             json["runs"].as_object().and_then(|runs| runs.values().next()).and_then(|r| r["actuator_share"].as_f64())
         {
-            return Some(share);
+            return Ok(share);
         }
     }
-    None
+    Err(match other {
+        Some(p) => format!("{} simulated another spring set (--exact, --bom or another fit)", p.display()),
+        None => format!("no simulation of these springs in {}", sim.display()),
+    })
 }
 
 /// Makes labels unique: records of the same design get their catalogue, solver and spring count.
@@ -218,7 +242,7 @@ pub fn table_csv(records: &[FitRecord]) -> String {
 /// The comparison table as Markdown.
 pub fn table_md(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from the design's simulation (`sensitivity` scenario) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
+        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from a simulation of the same springs (`<fit folder>_simulate`, scenario `sensitivity`, else `switch`) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for r in records {
         let totals = if r.totals.is_empty() {
@@ -240,29 +264,45 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into())
         ));
     }
+    let notes: Vec<String> = records
+        .iter()
+        .filter_map(|r| r.share_note.as_ref().map(|n| format!("- {}: no actuator share: {n}", r.label)))
+        .collect();
+    if !notes.is_empty() {
+        s.push_str(&format!("\nActuator shares are shown only from a simulation of the same spring set (the `spring_set` fingerprint of summary.json and sim_<name>.json):\n\n{}\n", notes.join("\n")));
+    }
     s
 }
 
 /// A point of the accuracy-versus-budget curve.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BudgetPoint {
     /// The budget K.
     pub budget: usize,
-    /// Springs the best set found uses (≤ K).
+    /// Springs the best set found uses (≤ K; 0 when infeasible).
     pub used: usize,
-    /// Residual statistics.
+    /// Residual statistics (NaN when infeasible).
     pub stats: AngleStats,
+    /// Why no set of at most K springs meets the fit's constraints (`None`: a set was found).
+    pub infeasible: Option<String>,
 }
 
 /// A point of the accuracy-versus-region curve.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RadiusPoint {
     /// Geodesic-ball radius.
     pub radius: f64,
-    /// Springs used.
+    /// Springs used (0 when infeasible).
     pub used: usize,
-    /// Residual statistics.
+    /// Residual statistics (NaN when infeasible).
     pub stats: AngleStats,
+    /// Why the fit on this ball cannot meet its constraints (`None`: it can).
+    pub infeasible: Option<String>,
+}
+
+/// Statistics of a point without a fit.
+fn no_stats() -> AngleStats {
+    AngleStats { median_abs: f64::NAN, p95_abs: f64::NAN, p99_abs: f64::NAN, max_abs: f64::NAN, count: 0 }
 }
 
 /// The best residual found for every budget in `budgets`, ascending (one preparation, one solve
@@ -282,13 +322,28 @@ pub fn budget_curve(
     let mut out = Vec::new();
     for k in sorted {
         stage(&format!("budget {k}"));
-        let o = prepared.solve(&FitSettings { max_elements: k, ..*settings }, &|_| {})?;
-        let here = BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats };
-        let point = match best {
-            Some(b) if b.stats.p99_abs < here.stats.p99_abs => BudgetPoint { budget: k, ..b },
+        let here = match prepared.solve(&FitSettings { max_elements: k, ..*settings }, &|_| {}) {
+            Ok(o) => BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats, infeasible: None },
+            // An infeasible budget is a point of the curve, not the end of it.
+            Err(e @ Error::Infeasible { .. }) => {
+                let reason = format!(
+                    "{}: no set of at most {k} springs: {}",
+                    design.path.display(),
+                    crate::hints::explain_infeasible(design, settings, catalog, k, e)
+                );
+                BudgetPoint { budget: k, used: 0, stats: no_stats(), infeasible: Some(reason) }
+            }
+            Err(e) => return Err(e),
+        };
+        let point = match &best {
+            Some(b) if here.infeasible.is_some() || b.stats.p99_abs < here.stats.p99_abs => {
+                BudgetPoint { budget: k, ..b.clone() }
+            }
             _ => here,
         };
-        best = Some(point);
+        if point.infeasible.is_none() {
+            best = Some(point.clone());
+        }
         out.push(point);
     }
     Ok(out)
@@ -308,8 +363,20 @@ pub fn radius_curve(
             stage(&format!("radius {r:.2}"));
             let mut d = design.clone();
             d.region = Region::Ball { radius: r };
-            let o = fit(&d, catalog, settings, &|_| {})?;
-            Ok(RadiusPoint { radius: r, used: o.used(), stats: o.metrics.stats })
+            match fit(&d, catalog, settings, &|_| {}) {
+                Ok(o) => Ok(RadiusPoint { radius: r, used: o.used(), stats: o.metrics.stats, infeasible: None }),
+                Err(e @ Error::Infeasible { .. }) => Ok(RadiusPoint {
+                    radius: r,
+                    used: 0,
+                    stats: no_stats(),
+                    infeasible: Some(format!(
+                        "{}: radius {r}: {}",
+                        design.path.display(),
+                        crate::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
+                    )),
+                }),
+                Err(e) => Err(e),
+            }
         })
         .collect()
 }

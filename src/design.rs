@@ -183,7 +183,16 @@ pub(crate) fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result
     toml::from_str(text).map_err(|e| {
         let start = e.span().map(|span| span.start);
         let (line, column) = start.map(|s| line_column(text, s)).unwrap_or((0, 0));
-        let message = e.message().trim().to_string();
+        // Say what a value must be in words, not in Rust's type names.
+        let message = e
+            .message()
+            .trim()
+            .replace("expected usize", "expected a whole number ≥ 0")
+            .replace("expected u64", "expected a whole number ≥ 0")
+            .replace("expected u32", "expected a whole number ≥ 0")
+            .replace("expected i64", "expected a whole number")
+            .replace("expected f64", "expected a number")
+            .replace("expected a boolean", "expected true or false");
         let message = match start.and_then(|s| key_at(text, s)) {
             Some(key) if !message.contains("unknown field") => format!("field `{key}`: {message}"),
             _ => message,
@@ -437,6 +446,21 @@ impl Design {
             }
         };
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        if let Region::Ball { radius } = &region {
+            let radius = *radius;
+            // Geodesics are traced no further than max_arc: a larger ball cannot be checked or
+            // fitted, and tracing towards it would run for minutes before failing.
+            if radius > file.geodesics.max_arc {
+                return Err(invalid(
+                    "region.radius",
+                    format!(
+                        "{radius:e} is beyond geodesics.max_arc = {} (the longest geodesic springfit traces); a region \
+                         is a few units of metric arc length (the paper's is 2)",
+                        file.geodesics.max_arc
+                    ),
+                ));
+            }
+        }
         file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
@@ -481,7 +505,15 @@ impl Design {
 
     /// Checks the region: where exp is one-to-one and the largest valid geodesic-ball radius.
     pub fn region_report(&self) -> Result<RegionReport> {
-        check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics)
+        // A numerical failure deep in the check (Jacobi fields, the integrator) names the design
+        // and the step, so the message says what it concerns.
+        check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics).map_err(|e| match e {
+            Error::Numerical { context, reason } => Error::Numerical {
+                context: format!("{}: region check ({})", self.path.display(), self.region.describe()),
+                reason: format!("{context}: {reason}"),
+            },
+            other => other,
+        })
     }
 
     /// The region report, or an error naming the region field when the region is not valid.

@@ -205,8 +205,26 @@ pub fn kappa(design: &Design, springs: &SpringSet, fit: &FitOutcome) -> Vec<f64>
 impl<'a> SweepContext<'a> {
     /// Runs the items `indices` of `items` in parallel; results in index order.
     pub fn run(&self, items: &[WorkItem], indices: &[usize]) -> Result<Vec<ItemResult>> {
+        self.run_observed(items, indices, &|| {})
+    }
+
+    /// [`SweepContext::run`], calling `done` after each item (for a progress count; the order of
+    /// the calls depends on the threads, the results do not).
+    pub fn run_observed(
+        &self,
+        items: &[WorkItem],
+        indices: &[usize],
+        done: &(dyn Fn() + Sync),
+    ) -> Result<Vec<ItemResult>> {
         use rayon::prelude::*;
-        let results: Vec<Result<ItemResult>> = indices.par_iter().map(|&i| self.run_item(i, items[i])).collect();
+        let results: Vec<Result<ItemResult>> = indices
+            .par_iter()
+            .map(|&i| {
+                let r = self.run_item(i, items[i]);
+                done();
+                r
+            })
+            .collect();
         results.into_iter().collect()
     }
 

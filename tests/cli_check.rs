@@ -3,7 +3,7 @@
 
 mod util;
 
-use util::{design_text, repo, springfit, temp_dir, write};
+use util::{design_text, design_text_anywhere, repo, springfit, temp_dir, write};
 
 #[test]
 fn shipped_designs_pass_the_check() {
@@ -68,9 +68,73 @@ fn each_bad_design_gets_its_own_clear_error() {
 #[test]
 fn a_region_past_the_largest_valid_radius_is_rejected_with_the_radius_that_works() {
     let dir = temp_dir("check-region");
-    let text = design_text("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
+    let text = design_text_anywhere("double_pendulum_straight.toml").replace("radius = 2.0 ", "radius = 7.0 ");
     let path = write(&dir, "too_big.toml", &text);
     let run = springfit(&dir, &["check", path.to_str().unwrap()])
         .fails(2, &["region.radius", "largest valid geodesic-ball radius is"]);
     assert!(run.stderr().contains("conjugate point") || run.stderr().contains("cross"), "{}", run.report());
+}
+
+#[test]
+fn check_rejects_what_later_commands_would() {
+    let dir = temp_dir("check-upfront");
+    let good = design_text_anywhere("double_pendulum.toml");
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "no_catalogue.toml",
+            design_text("double_pendulum.toml"),
+            vec!["no_catalogue.toml", "field `catalog`", "../catalogs/paper.toml", "names no file"],
+        ),
+        (
+            "every.toml",
+            good.replace("every = 15.0", "every = 0.0"),
+            vec!["every.toml", "scenario[1].every", "positive"],
+        ),
+        (
+            "duration.toml",
+            good.replacen("duration = 20.0", "duration = 0.0", 1),
+            vec!["duration.toml", "scenario[0].duration", "positive"],
+        ),
+        (
+            "sweep.toml",
+            good.replace("scenario = \"sensitivity\"", "scenario = \"sensitivty\""),
+            vec!["sweep.toml", "sweep.scenario", "`sensitivty`", "free, switch, swingup, sensitivity"],
+        ),
+        (
+            "gravity.toml",
+            good.replace("gravity = [0.0, 0.0]", "gravity = [0.0, -9.81, 0.0]"),
+            vec!["gravity.toml", "robot.gravity", "two components", "got 3"],
+        ),
+        (
+            "radius.toml",
+            good.replace("radius = 2.0 ", "radius = 1e300 "),
+            vec!["radius.toml", "region.radius", "1e300", "geodesics.max_arc"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        assert_ne!(text, good, "case {name} did not change the design");
+        let path = write(&dir, name, &text);
+        let p = path.to_str().unwrap();
+        springfit(&dir, &["check", p]).fails(2, &needles);
+        // The same error from a command that would otherwise have done work first, and no output.
+        springfit(&dir, &["fit", p, "--out", "out"]).fails(2, &needles);
+        springfit(&dir, &["simulate", p, "--scenario", "swingup", "--exact", "--out", "out"]).fails(2, &needles);
+        assert!(!dir.join("out").exists());
+    }
+}
+
+#[test]
+fn suspicious_input_is_warned_about() {
+    let dir = temp_dir("check-warn");
+    let text = design_text_anywhere("double_pendulum.toml").replace("q = [0.0, \"pi/2\"]", "q = [0.0, 90.0]").replacen(
+        "com = 1.0 ",
+        "com = 5.0 ",
+        1,
+    );
+    let path = write(&dir, "warn.toml", &text);
+    let run = springfit(&dir, &["check", path.to_str().unwrap()]);
+    let err = run.stderr();
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("springfit: warning: ")).collect();
+    assert!(warnings.iter().any(|w| w.contains("equilibrium.q[1]") && w.contains("turns")), "{}", run.report());
+    assert!(warnings.iter().any(|w| w.contains("robot.links[0].com") && w.contains("beyond")), "{}", run.report());
 }

@@ -58,3 +58,32 @@ fn pareto_tables_budgets_and_radii() {
     assert_eq!(csv.lines().filter(|l| l.starts_with("radius,")).count(), 2);
     assert!(dir.join("p/pareto.png").is_file());
 }
+
+#[test]
+fn compare_shows_an_actuator_share_only_from_a_simulation_of_the_same_springs() {
+    let dir = temp_dir("compare-share");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["fit", d, "--out", "dp"]).ok();
+    // simulate fits the design itself: the same springs, so the same fingerprint.
+    springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--out", "dp_simulate"]).ok();
+    let read = |p: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join(p)).unwrap()).unwrap()
+    };
+    let fit_print = read("dp/summary.json")["spring_set"].as_str().unwrap().to_string();
+    assert_eq!(read("dp_simulate/sim_sensitivity.json")["spring_set"].as_str(), Some(fit_print.as_str()));
+    let run = springfit(&dir, &["compare", "dp", "--out", "c1"]).ok();
+    assert!(run.stdout().contains("actuator share"), "{}", run.report());
+    let csv = std::fs::read_to_string(dir.join("c1/compare.csv")).unwrap();
+    let share: f64 = csv.lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
+    assert!(share > 0.0 && share < 0.05, "{csv}");
+    // The exact potential simulated into the same folder: no share, and the note says why.
+    springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--exact", "--out", "dp_simulate"]).ok();
+    assert!(read("dp_simulate/sim_sensitivity.json")["spring_set"].is_null());
+    let run = springfit(&dir, &["compare", "dp", "--out", "c2"]).ok();
+    assert!(!run.stdout().contains("actuator share"), "{}", run.report());
+    let md = std::fs::read_to_string(dir.join("c2/compare.md")).unwrap();
+    assert!(md.contains("no actuator share") && md.contains("another spring set"), "{md}");
+    let csv = std::fs::read_to_string(dir.join("c2/compare.csv")).unwrap();
+    assert!(csv.lines().nth(1).unwrap().ends_with(','), "{csv}");
+}

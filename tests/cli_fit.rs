@@ -5,7 +5,7 @@ mod util;
 
 use std::path::Path;
 
-use util::{design_text, repo, springfit, temp_dir, write};
+use util::{design_text, design_text_anywhere, repo, springfit, temp_dir, write};
 
 fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
@@ -67,7 +67,7 @@ fn the_exact_reference_has_zero_residual() {
     let design = write(
         &dir,
         "small.toml",
-        &design_text("double_pendulum.toml")
+        &design_text_anywhere("double_pendulum.toml")
             .replace("[fit]", "[fit]\nevaluation_directions = 24\nevaluation_samples = 10"),
     );
     springfit(&dir, &["fit", design.to_str().unwrap(), "--exact", "--out", "exact"]).ok();
@@ -131,4 +131,28 @@ fn an_infeasible_fit_exits_with_1_names_the_constraint_and_keeps_previous_result
             .collect();
         assert!(leftovers.is_empty(), "staging folders left behind: {leftovers:?}");
     }
+}
+
+#[test]
+fn a_fit_gets_a_plain_verdict_against_the_design_threshold() {
+    let dir = temp_dir("fit-verdict");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    let good = springfit(&dir, &["fit", d, "--out", "good"]).ok();
+    assert!(good.stdout().contains("verdict: acceptable"), "{}", good.report());
+    let s = summary(&dir.join("good"));
+    assert_eq!(s["verdict"], "acceptable");
+    assert_eq!(s["accept_p99_deg"].as_f64(), Some(2.0));
+    // Four springs cannot follow the geodesics (p99 ≈ 27°): poor, with what to try.
+    let few = springfit(&dir, &["fit", d, "--max-elements", "4", "--out", "few"]).ok();
+    assert!(few.stdout().contains("verdict: poor") && few.stdout().contains("fit.max_elements"), "{}", few.report());
+    let s = summary(&dir.join("few"));
+    assert_eq!(s["verdict"], "poor");
+    assert!(s["residual_deg"]["p99_abs"].as_f64().unwrap() > 2.0);
+    assert!(std::fs::read_to_string(dir.join("few/report.md")).unwrap().contains("**Verdict: poor**"));
+    // stdout and report.md count candidates the same way.
+    let line = good.stdout().lines().next().unwrap().to_string();
+    let report = std::fs::read_to_string(dir.join("good/report.md")).unwrap();
+    let total = line.split(" candidates").next().unwrap().rsplit(' ').next().unwrap().to_string();
+    assert!(report.contains(&format!("{total} candidates")), "{line}\n{report}");
 }

@@ -112,3 +112,14 @@ fn absurd_settings_are_refused_before_any_work() {
     let dirs = write(&dir, "dirs.toml", &base.replace("[fit]", "[geodesics]\ndirections = 1000000000000\n\n[fit]"));
     springfit(&dir, &["check", dirs.to_str().unwrap()]).fails(2, &["dirs.toml", "geodesics.directions", "8 to 100000"]);
 }
+
+#[test]
+fn usage_errors_are_one_line_too() {
+    let dir = temp_dir("usage");
+    springfit(&dir, &["fit", "--bogus"]).fails(2, &["--bogus"]);
+    let run = springfit(&dir, &["sweep", "--builds", "abc"]).fails(2, &["--builds", "expected a whole number"]);
+    assert!(!run.stderr().contains("usize"), "{}", run.report());
+    let design = repo().join("designs/double_pendulum.toml");
+    springfit(&dir, &["sweep", design.to_str().unwrap(), "--builds", "0"]).fails(2, &["--builds", "at least 1"]);
+    springfit(&dir, &["pareto", "--radii", "1,x"]).fails(2, &["--radii", "expected a number"]);
+}

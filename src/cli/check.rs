@@ -9,7 +9,9 @@ use springfit::geodesic::Region;
 use super::progress::Progress;
 
 pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
-    let design = Design::load(path)?;
+    // The same validation every command runs first: what passes here is not rejected later for
+    // a reason visible in the files.
+    let (design, validated) = super::load_design(path, progress)?;
     if json {
         return run_json(&design);
     }
@@ -57,9 +59,15 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
         Region::Ball { radius } => progress.say(format!("region: geodesic ball of radius {radius}")),
         Region::Box { .. } => progress.say(format!("region: {}", design.region.describe())),
     }
-    if let Some(c) = &design.catalog {
-        let found = if c.is_file() { "found" } else { "NOT FOUND" };
-        progress.say(format!("catalogue: {} ({found})", c.display()));
+    match &validated.catalog {
+        Some(c) => progress.say(format!("catalogue: {} ({}, {} families)", c.path.display(), c.name, c.families.len())),
+        None => progress.say("catalogue: none (fit, sweep and pareto need one; fit --exact and geodesics do not)"),
+    }
+    if design.file.scenario.is_empty() {
+        progress.say("scenarios: none (simulate and sweep need [[scenario]] tables)");
+    } else {
+        let names: Vec<&str> = design.file.scenario.iter().map(|s| s.name.as_str()).collect();
+        progress.say(format!("scenarios: {}; sweep runs `{}`", names.join(", "), design.file.sweep.scenario));
     }
     let step = progress.step("checking the region (fan with Jacobi fields)");
     let report = design.region_report();

@@ -3,8 +3,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::catalog::Catalog;
-use springfit::design::Design;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
 use springfit::fit::settings::SolverKind;
@@ -21,7 +19,7 @@ pub struct FitArgs {
 }
 
 pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
-    let design = Design::load(&args.design)?;
+    let (design, validated) = super::load_design(&args.design, progress)?;
     let mut settings = design.fit;
     if let Some(s) = args.solver {
         settings.solver = s;
@@ -33,6 +31,18 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
     let default_name = if args.exact { format!("{}_exact", design.name) } else { design.name.clone() };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
     springfit::report::output::check(&target, "fit")?;
+    let catalog = match (&validated.catalog, args.exact) {
+        (_, true) => None,
+        (Some(c), false) => Some(c),
+        (None, false) => {
+            return Err(Error::invalid(
+                &design.path,
+                "catalog",
+                "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
+            )
+            .into());
+        }
+    };
     let outcome = {
         let step = std::cell::RefCell::new(None::<super::progress::Step>);
         let stage = |name: &str| {
@@ -41,26 +51,11 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
             }
             *step.borrow_mut() = Some(progress.step(name));
         };
-        let result = if args.exact {
-            exact_reference(&design, &settings, &stage)
-        } else {
-            let path = design.catalog.clone().ok_or_else(|| {
-                Error::invalid(
-                    &design.path,
-                    "catalog",
-                    "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\")",
-                )
-            })?;
-            let catalog = Catalog::load(&path, design.dof())?;
-            fit(&design, &catalog, &settings, &stage)
+        let result = match catalog {
+            None => exact_reference(&design, &settings, &stage),
+            Some(catalog) => fit(&design, catalog, &settings, &stage),
         };
-        // Infeasibility and numerical failures carry no file of their own: name the design.
-        let result = result.map_err(|e| match e {
-            Error::Infeasible { .. } | Error::Numerical { .. } => {
-                anyhow::Error::new(e).context(design.path.display().to_string())
-            }
-            other => other.into(),
-        });
+        let result = result.map_err(|e| super::fit_failed(&design, &settings, catalog, e));
         if let Some(s) = step.borrow_mut().take() {
             s.finish();
         }
@@ -78,12 +73,13 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         progress.say(format!("{}: exact potential ½ω²r² (ω = {} rad/s)", outcome.design, settings.frequency));
     } else {
         progress.say(format!(
-            "{}: {} springs from {} candidates of catalogue {} ({} never engage); solver {} ({})",
+            "{}: {} springs from {} candidates of catalogue {} ({} never engage, {} enter the fit); solver {} ({})",
             outcome.design,
             outcome.used(),
-            outcome.candidates - outcome.dropped,
+            outcome.candidates,
             outcome.catalog,
             outcome.dropped,
+            outcome.candidates - outcome.dropped,
             outcome.solve.solver,
             outcome.solve.status
         ));
@@ -99,6 +95,21 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
+    let verdict = springfit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
+    progress.say(if verdict == "acceptable" {
+        format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
+    } else {
+        format!(
+            "verdict: poor (p99 {:.4}° > fit.accept_p99_deg = {}°): released on a geodesic, the arm drifts off it; \
+             allow more springs (fit.max_elements), keep fit.hessian_match = true or widen the catalogue",
+            st.p99_abs, settings.accept_p99_deg
+        )
+    });
+    if let Some(c) = catalog {
+        for w in springfit::hints::bom_warnings(c, &outcome.bom) {
+            progress.warn(w);
+        }
+    }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md"
     } else {

@@ -3,14 +3,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::design::Design;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::report::output::OutputDir;
 
 use super::progress::Progress;
 
 pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
-    let design = Design::load(path)?;
+    let (design, _) = super::load_design(path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
     springfit::report::output::check(&target, "geodesics")?;
     let step = progress.step("checking the region");

@@ -10,11 +10,13 @@ mod progress;
 mod simulate;
 mod sweep;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+use springfit::design::Design;
 use springfit::fit::settings::SolverKind;
+use springfit::validate::Validated;
 use springfit::{Error, ErrorKind};
 
 /// The design used when none is given: the paper's double pendulum.
@@ -32,7 +34,7 @@ spring catalogue and checks the design before it is built.",
     after_help = "Examples:\n  springfit fit                      # the paper's design, outputs in out/double_pendulum\n  springfit check designs/double_pendulum.toml\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\nExit codes: 0 ok, 1 the design could not be met, 2 bad input or usage."
 )]
 pub struct Cli {
-    /// Print nothing but errors (no progress bars, no summaries).
+    /// Print nothing but errors and warnings (no progress bars, no summaries).
     #[arg(long, short, global = true)]
     pub quiet: bool,
     /// Worker threads for parallel steps (default: all cores). Results do not depend on it.
@@ -152,7 +154,8 @@ from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.s
         /// Largest budget (default: the design's max_elements, at least 16).
         #[arg(long, value_name = "N")]
         k_max: Option<usize>,
-        /// Radii of the region-size curve (default: 8 from 0.5 to the largest valid radius).
+        /// Radii of the region-size curve (default: 8 from 0.5, less for small regions, up to the
+        /// largest valid radius).
         #[arg(long, value_name = "R,R,…", value_delimiter = ',')]
         radii: Option<Vec<f64>>,
     },
@@ -215,7 +218,10 @@ pub enum SolverArg {
 
 /// Parses the command line and runs the command.
 pub fn run() -> Result<()> {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return Err(usage_error(e)),
+    };
     if let Some(t) = cli.threads {
         if t == 0 {
             return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
@@ -245,6 +251,54 @@ pub fn run() -> Result<()> {
             fit::run(fit::FitArgs { design, out, exact, solver, max_elements }, &progress)
         }
     }
+}
+
+/// Loads a design and validates everything the commands read from it (the catalogue, the
+/// scenarios, the sweep settings) before any work; prints the warnings on stderr.
+pub fn load_design(path: &Path, progress: &progress::Progress) -> springfit::Result<(Design, Validated)> {
+    let design = Design::load(path)?;
+    let validated = springfit::validate::validate(&design)?;
+    for w in &validated.warnings {
+        progress.warn(w);
+    }
+    Ok((design, validated))
+}
+
+/// A failed fit of `design`: an infeasible fit gets the key to change, and errors that carry
+/// no file of their own (infeasible, numerical) are prefixed with the design's path.
+pub fn fit_failed(
+    design: &Design,
+    settings: &springfit::fit::settings::FitSettings,
+    catalog: Option<&springfit::catalog::Catalog>,
+    e: Error,
+) -> anyhow::Error {
+    let e = match catalog {
+        Some(c) => springfit::hints::explain(design, settings, c, settings.max_elements, e),
+        None => e,
+    };
+    match e {
+        Error::Infeasible { .. } | Error::Numerical { .. } => {
+            anyhow::Error::new(e).context(design.path.display().to_string())
+        }
+        other => other.into(),
+    }
+}
+
+/// A command-line error as one line, like every other error (help and version are printed as
+/// clap renders them and exit as clap decides).
+fn usage_error(e: clap::Error) -> anyhow::Error {
+    use clap::error::ErrorKind as K;
+    if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion | K::DisplayHelpOnMissingArgumentOrSubcommand) {
+        e.exit();
+    }
+    let text = e.render().to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("invalid command line").trim_start_matches("error:").trim().to_string();
+    let tip = lines.find(|l| l.starts_with("tip:")).map(|t| format!("; {t}")).unwrap_or_default();
+    let first = first
+        .replace("invalid digit found in string", "expected a whole number")
+        .replace("invalid float literal", "expected a number");
+    anyhow::anyhow!("{first}{tip} (`springfit --help` lists the commands and options)")
 }
 
 /// The error as one line: the library's message with its causes.

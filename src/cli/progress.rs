@@ -32,6 +32,28 @@ impl Progress {
         Step { bar, started: Instant::now() }
     }
 
+    /// Starts a step counting `total` units, with the count, the elapsed time and an estimate of
+    /// the time left.
+    pub fn counted(&self, message: &str, total: u64) -> Step {
+        let bar = (!self.quiet).then(|| {
+            let bar = ProgressBar::new(total);
+            bar.set_style(
+                ProgressStyle::with_template("{msg}: {pos} of {len} done, {elapsed} elapsed, about {eta} left")
+                    .expect("static template"),
+            );
+            bar.set_message(message.to_string());
+            bar.enable_steady_tick(Duration::from_millis(500));
+            bar
+        });
+        Step { bar, started: Instant::now() }
+    }
+
+    /// Prints a warning on stderr, `springfit: warning: …`, even when quiet (a warning is about
+    /// the input, like an error).
+    pub fn warn(&self, w: impl std::fmt::Display) {
+        eprintln!("springfit: warning: {w}");
+    }
+
     /// Prints a line of results to stdout unless quiet. A closed stdout (`springfit … | head`)
     /// is not an error worth a panic: the line is dropped.
     pub fn say(&self, line: impl AsRef<str>) {
@@ -43,6 +65,13 @@ impl Progress {
 }
 
 impl Step {
+    /// Counts one unit done (for [`Progress::counted`] steps).
+    pub fn inc(&self) {
+        if let Some(bar) = &self.bar {
+            bar.inc(1);
+        }
+    }
+
     /// Ends the step and returns its duration in seconds.
     pub fn finish(self) -> f64 {
         if let Some(bar) = &self.bar {

@@ -4,8 +4,6 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use springfit::bom;
-use springfit::catalog::Catalog;
-use springfit::design::Design;
 use springfit::error::Error;
 use springfit::fit::run::fit;
 use springfit::geodesic::{Fan, FanSpec, Stop};
@@ -25,7 +23,7 @@ pub struct SimArgs {
 }
 
 pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
-    let design = Design::load(&args.design)?;
+    let (design, validated) = super::load_design(&args.design, progress)?;
     if design.file.scenario.is_empty() {
         return Err(Error::invalid(&design.path, "scenario", "the design declares no [[scenario]] to simulate").into());
     }
@@ -61,17 +59,20 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
             .into());
         }
         (ElasticPotential::Springs(bom::spring_set(&rows)), format!("springs ({})", path.display()))
-    } else {
+    } else if let Some(catalog) = &validated.catalog {
         let step = progress.step("fitting the springs");
-        let catalog_path = design.catalog.clone().ok_or_else(|| {
-            Error::invalid(&design.path, "catalog", "the design names no spring catalogue; give --bom or --exact")
-        })?;
-        let catalog = Catalog::load(&catalog_path, design.dof())?;
-        let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+        let outcome = fit(&design, catalog, &design.fit, &|_| {});
         step.finish();
-        let outcome = outcome?;
+        let outcome = outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(catalog), e))?;
         progress.say(format!("fitted {} springs (p99 residual {:.4}°)", outcome.used(), outcome.metrics.stats.p99_abs));
         (ElasticPotential::Springs(outcome.springs), "springs (fit)".to_string())
+    } else {
+        return Err(Error::invalid(
+            &design.path,
+            "catalog",
+            "the design names no spring catalogue; give --bom or --exact",
+        )
+        .into());
     };
     let mut settings = design.simulate;
     if args.exact_label {
@@ -163,6 +164,14 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 parts.push(format!("E − E_d over the last 5 s {:+.2} %", 100.0 * e));
+                if e.abs() > 0.1 {
+                    parts.push(format!(
+                        "hint: the energy misses E_d by more than 10 %: the energy gain controllers.beta_e = {} sets the \
+                         time constant 1/(β_E·E_d); too large overshoots (gravity adds to the swing's energy exchange), too \
+                         small does not reach E_d within the duration",
+                        design.controllers.beta_e
+                    ));
+                }
             }
             if !m.settling_s.is_empty() {
                 let worst = m.settling_s.iter().map(|s| s.unwrap_or(f64::INFINITY)).fold(0.0, f64::max);

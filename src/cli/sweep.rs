@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
-use springfit::catalog::Catalog;
 use springfit::design::Design;
 use springfit::error::Error;
 use springfit::fit::run::{FitOutcome, fit};
@@ -48,19 +47,51 @@ fn fingerprint(parts: &[&str]) -> String {
 }
 
 pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
-    let design = Design::load(&args.design)?;
+    let (design, validated) = super::load_design(&args.design, progress)?;
     let mut settings = design.file.sweep.clone();
     if let Some(b) = args.builds {
+        if b == 0 {
+            return Err(Error::Setting {
+                field: "--builds".into(),
+                reason: "must be at least 1 (Monte Carlo builds per tolerance level)".into(),
+            }
+            .into());
+        }
         settings.builds = b;
     }
     if let Some(s) = args.seed {
         settings.seed = s;
     }
-    let catalog_path = design
+    let catalog = validated
         .catalog
-        .clone()
+        .as_ref()
         .ok_or_else(|| Error::invalid(&design.path, "catalog", "the design names no spring catalogue to sweep"))?;
-    let catalog = Catalog::load(&catalog_path, design.dof())?;
+    let catalog_path = catalog.path.clone();
+    if design.file.scenario.is_empty() {
+        return Err(Error::invalid(
+            &design.path,
+            "scenario",
+            "the design declares no [[scenario]]: a sweep reruns the [sweep] scenario for every item",
+        )
+        .into());
+    }
+    let index = springfit::validate::sweep_scenario(&design)?;
+    // Say which tolerances the builds use: the design's levels replace the catalogue's own.
+    let stated: Vec<String> = catalog
+        .families
+        .iter()
+        .filter(|f| f.tolerance > 0.0)
+        .map(|f| format!("{} ±{} %", f.name, 100.0 * f.tolerance))
+        .collect();
+    if !settings.tolerances.is_empty() && !stated.is_empty() {
+        progress.say(format!(
+            "note: [sweep] tolerances = [{}] replace the catalogue's per-family tolerances ({}); set tolerances = [] to build each spring with its own",
+            settings.tolerances.iter().map(|t| format!("±{} %", 100.0 * t)).collect::<Vec<_>>().join(", "),
+            stated.join(", ")
+        ));
+    } else if settings.tolerances.is_empty() && stated.is_empty() {
+        progress.say("note: the catalogue states no tolerance and [sweep] tolerances is empty: the builds deviate by ±0 %; set tolerances = [0.05, 0.1] to sweep levels");
+    }
     let design_text = std::fs::read_to_string(&design.path).map_err(|e| Error::io(&design.path, e))?;
     let catalog_text = std::fs::read_to_string(&catalog_path).map_err(|e| Error::io(&catalog_path, e))?;
     let print =
@@ -77,14 +108,15 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     springfit::report::output::check(&target, "sweep")?;
 
     let step = progress.step("fitting the springs");
-    let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+    let outcome = fit(&design, catalog, &design.fit, &|_| {});
     step.finish();
-    let outcome = outcome?;
+    let outcome = outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(catalog), e))?;
     let has_stock = outcome.bom.iter().any(|r| r.stock_rate.is_some());
     let items = plan(&settings, has_stock);
 
     if !args.merge.is_empty() {
         let mut results: Vec<ItemResult> = Vec::new();
+        let mut source: std::collections::HashMap<usize, &PathBuf> = std::collections::HashMap::new();
         for dir in &args.merge {
             let path = dir.join("sweep_shard.json");
             let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
@@ -105,7 +137,21 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
                 )
                 .into());
             }
-            results.extend(shard.results);
+            for r in shard.results {
+                if let Some(first) = source.insert(r.index, dir) {
+                    return Err(Error::Setting {
+                        field: "--merge".into(),
+                        reason: format!(
+                            "{} and {} both computed item {} (the same shard given twice?): merge each shard once",
+                            first.display(),
+                            dir.display(),
+                            r.index
+                        ),
+                    }
+                    .into());
+                }
+                results.push(r);
+            }
         }
         results.sort_by_key(|r| r.index);
         let before = results.len();
@@ -138,13 +184,6 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     let label = label_source(&design, &design.simulate);
     step.finish();
     let (label, _) = label?;
-    let index = design.file.scenario.iter().position(|s| s.name == settings.scenario).ok_or_else(|| {
-        Error::invalid(
-            &design.path,
-            "sweep.scenario",
-            format!("no [[scenario]] named `{}` in the design", settings.scenario),
-        )
-    })?;
     let nominal = ElasticPotential::Springs(outcome.springs.clone());
     let base = {
         let q_eq = design.q_eq.as_slice().to_vec();
@@ -173,8 +212,13 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         Some(s) => shard_indices(items.len(), s),
         None => (0..items.len()).collect(),
     };
-    let step = progress.step(&format!("running {} of {} items", indices.len(), items.len()));
-    let results = ctx.run(&items, &indices);
+    let what = if indices.len() == items.len() {
+        "sweep items".to_string()
+    } else {
+        format!("sweep items (this shard's share of {})", items.len())
+    };
+    let step = progress.counted(&what, indices.len() as u64);
+    let results = ctx.run_observed(&items, &indices, &|| step.inc());
     let secs = step.finish();
     let results = results?;
     progress.say(format!("{} items in {secs:.1} s", results.len()));
@@ -185,9 +229,12 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         dir.write("sweep_shard.json", serde_json::to_string(&file)?)?;
         let written = dir.commit()?;
         progress.say(format!(
-            "wrote shard {i}/{n} to {}; join the shards with `springfit sweep {} --merge DIR...`",
+            "wrote shard {i}/{n} to {}; join the shards with `springfit sweep {}{} --merge DIR...`",
             written.display(),
-            design.path.display()
+            design.path.display(),
+            // The shards' fingerprint includes these: the merge must repeat them.
+            args.builds.map(|b| format!(" --builds {b}")).unwrap_or_default()
+                + &args.seed.map(|s| format!(" --seed {s}")).unwrap_or_default()
         ));
         return Ok(());
     }
@@ -224,14 +271,14 @@ fn finish(
     }
     for l in &t.tolerance_levels {
         progress.say(format!(
-            "tolerance {}: {} builds; actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {:.3}°, p95 {:.3}°; equilibrium shift p50 {:.4} rad",
+            "tolerance {}: {} builds; actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
             l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "of the catalogue".into()),
             l.builds,
             100.0 * l.actuator_share_p50,
             100.0 * l.actuator_share_p95,
-            l.residual_p99_deg_p50,
-            l.residual_p99_deg_p95,
-            l.equilibrium_shift_rad_p50
+            or_none(l.residual_p99_deg_p50, "°", 3),
+            or_none(l.residual_p99_deg_p95, "°", 3),
+            or_none(l.equilibrium_shift_rad_p50, " rad", 4)
         ));
     }
     if let Some(s) = &t.stock {
@@ -243,10 +290,23 @@ fn finish(
             100.0 * s.actuator_share_after
         ));
     }
+    if t.stock.is_none() {
+        progress.say("stock rates: the catalogue lists none for the fitted springs, so the stock step is skipped and no bom_stock.csv is written");
+    }
     progress.say(format!("wrote {}", show(&written)));
     Ok(())
 }
 
 fn show(p: &Path) -> String {
     p.display().to_string()
+}
+
+/// A percentile over builds, or why there is none: a build whose springs hold no equilibrium
+/// near the design's has no residual and no shift (NaN in the tables, null in sweep.json).
+fn or_none(x: f64, unit: &str, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}{unit}")
+    } else {
+        "none (some builds have no equilibrium near q_eq)".into()
+    }
 }

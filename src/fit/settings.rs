@@ -71,6 +71,9 @@ pub struct FitSettings {
     /// Seed of the as-built builds (each build has its own stream, so figures do not depend on
     /// the thread count).
     pub seed: u64,
+    /// Verdict threshold, degrees: a fit whose p99 residual angle on the held-out geodesics is at
+    /// most this is "acceptable", above it "poor" (printed and in summary.json).
+    pub accept_p99_deg: f64,
 }
 
 impl Default for FitSettings {
@@ -94,6 +97,7 @@ impl Default for FitSettings {
             distribution: Distribution::Uniform,
             builds: 200,
             seed: 1,
+            accept_p99_deg: 2.0,
         }
     }
 }
@@ -149,6 +153,9 @@ impl FitSettings {
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");
+        }
+        if !(self.accept_p99_deg.is_finite() && self.accept_p99_deg > 0.0 && self.accept_p99_deg <= 180.0) {
+            return err("accept_p99_deg", "must be a positive angle in degrees, at most 180");
         }
         Ok(())
     }

@@ -100,31 +100,45 @@ pub fn write_pareto(
     radii: &[RadiusPoint],
     budget_for_radii: usize,
 ) -> Result<()> {
-    let mut csv = String::from("curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg\n");
+    let mut csv =
+        String::from("curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,infeasible\n");
+    // An infeasible point keeps its row: empty numbers, the reason in the last column.
+    let nums = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
+        None => format!("{used},{},{},{},{},", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
+        Some(w) => format!(",,,,,{}", crate::bom::csv_field(w)),
+    };
+    let cells = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
+        None => format!("{used} | {:.4}° | {:.4}° | {:.4}° | {:.4}°", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
+        Some(_) => "infeasible | – | – | – | –".to_string(),
+    };
+    let notes = |md: &mut String, why: Vec<String>| {
+        if !why.is_empty() {
+            md.push_str("\nInfeasible:\n\n");
+            for w in why {
+                md.push_str(&format!("- {w}\n"));
+            }
+        }
+    };
     let mut md = format!(
         "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\n| budget K | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
     for b in budgets {
-        csv.push_str(&format!(
-            "budget,{},,{},{},{},{},{}\n",
-            b.budget, b.used, b.stats.median_abs, b.stats.p95_abs, b.stats.p99_abs, b.stats.max_abs
-        ));
-        md.push_str(&format!(
-            "| {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n",
-            b.budget, b.used, b.stats.median_abs, b.stats.p95_abs, b.stats.p99_abs, b.stats.max_abs
-        ));
+        csv.push_str(&format!("budget,{},,{}\n", b.budget, nums(b.used, &b.stats, &b.infeasible)));
+        md.push_str(&format!("| {} | {} |\n", b.budget, cells(b.used, &b.stats, &b.infeasible)));
     }
+    notes(
+        &mut md,
+        budgets.iter().filter_map(|b| b.infeasible.as_ref().map(|w| format!("K = {}: {w}", b.budget))).collect(),
+    );
     md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
     for r in radii {
-        csv.push_str(&format!(
-            "radius,,{},{},{},{},{},{}\n",
-            r.radius, r.used, r.stats.median_abs, r.stats.p95_abs, r.stats.p99_abs, r.stats.max_abs
-        ));
-        md.push_str(&format!(
-            "| {:.2} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n",
-            r.radius, r.used, r.stats.median_abs, r.stats.p95_abs, r.stats.p99_abs, r.stats.max_abs
-        ));
+        csv.push_str(&format!("radius,,{},{}\n", r.radius, nums(r.used, &r.stats, &r.infeasible)));
+        md.push_str(&format!("| {:.2} | {} |\n", r.radius, cells(r.used, &r.stats, &r.infeasible)));
     }
+    notes(
+        &mut md,
+        radii.iter().filter_map(|r| r.infeasible.as_ref().map(|w| format!("r = {}: {w}", r.radius))).collect(),
+    );
     out.write("pareto.csv", csv)?;
     out.write("pareto.md", md)?;
     let line = |pts: Vec<(f64, f64)>, i: usize, label: &str| Layer::Lines {
@@ -138,6 +152,9 @@ pub fn write_pareto(
         size: 3,
         label: None,
     };
+    // Infeasible points have no residual to draw.
+    let budgets: Vec<&BudgetPoint> = budgets.iter().filter(|b| b.infeasible.is_none()).collect();
+    let radii: Vec<&RadiusPoint> = radii.iter().filter(|r| r.infeasible.is_none()).collect();
     let b99: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.p99_abs)).collect();
     let bmax: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.max_abs)).collect();
     let r99: Vec<(f64, f64)> = radii.iter().map(|r| (r.radius, r.stats.p99_abs)).collect();

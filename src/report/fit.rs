@@ -39,6 +39,12 @@ pub struct Summary {
     /// Residual statistics by distance band from q_eq.
     pub bands: Vec<BandStats>,
     pub region: RegionSummary,
+    /// `acceptable` (p99 residual ≤ `accept_p99_deg`) or `poor`.
+    pub verdict: String,
+    /// The verdict's threshold, degrees (`fit.accept_p99_deg`).
+    pub accept_p99_deg: f64,
+    /// Fingerprint of the fitted spring set (`bom::fingerprint`; null for the exact reference).
+    pub spring_set: Option<String>,
 }
 
 /// The region part of the summary.
@@ -82,6 +88,9 @@ impl Summary {
                 largest_radius: o.region.largest_radius,
                 largest_radius_is_lower_bound: o.region.largest_radius_is_lower_bound,
             },
+            verdict: crate::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
+            accept_p99_deg: o.settings.accept_p99_deg,
+            spring_set: (o.solve.solver != "exact").then(|| crate::bom::fingerprint(&o.springs)),
         }
     }
 }
@@ -165,10 +174,11 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
         ));
     } else {
         r.push_str(&format!(
-            "- catalogue: {} ({} candidates, {} dropped as never engaging); solver: {} ({}); element budget: {}\n- used elements: {}\n",
+            "- catalogue: {} ({} candidates, {} never engage, {} enter the fit); solver: {} ({}); element budget: {}\n- used elements: {}\n",
             o.catalog,
             o.candidates,
             o.dropped,
+            o.candidates - o.dropped,
             o.solve.solver,
             o.solve.status,
             if o.settings.max_elements == 0 { "none".to_string() } else { o.settings.max_elements.to_string() },
@@ -192,8 +202,16 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     }
     let st = &s.residual_deg;
     r.push_str(&format!(
-        "| **all** | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n\n![histogram](histogram.svg)\n\n",
-        st.count, st.median_abs, st.p95_abs, st.p99_abs, st.max_abs
+        "| **all** | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n\n**Verdict: {}** (p99 {:.4}° {} `fit.accept_p99_deg` = {}°).\n\n![histogram](histogram.svg)\n\n",
+        st.count,
+        st.median_abs,
+        st.p95_abs,
+        st.p99_abs,
+        st.max_abs,
+        s.verdict,
+        st.p99_abs,
+        if s.verdict == "acceptable" { "≤" } else { ">" },
+        s.accept_p99_deg
     ));
     if potential_plot {
         r.push_str("## Potential\n\n![potential](potential.svg)\n\n");

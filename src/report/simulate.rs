@@ -41,6 +41,8 @@ pub struct ScenarioSummary {
     pub peak_actuator_torque_nm: f64,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
+    /// Fingerprint of the spring set simulated (`bom::fingerprint`; null for the exact potential).
+    pub spring_set: Option<String>,
 }
 
 fn columns(n: usize) -> String {
@@ -115,6 +117,10 @@ pub fn write(
         mode_drift_deg: worst(&|m| m.mode_drift_deg),
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
         runs,
+        spring_set: match potential {
+            ElasticPotential::Springs(s) => Some(crate::bom::fingerprint(s)),
+            ElasticPotential::Exact { .. } => None,
+        },
     };
     out.write(&format!("sim_{name}.json"), serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
     let title = |what: &str| format!("{} — scenario {name}: {what}", design.name);

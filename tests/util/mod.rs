@@ -131,3 +131,10 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 pub fn design_text(name: &str) -> String {
     std::fs::read_to_string(repo().join("designs").join(name)).unwrap()
 }
+
+/// A shipped design's text with its catalogue path made absolute, so the design can be written
+/// into a test's temporary folder and still find its catalogue.
+pub fn design_text_anywhere(name: &str) -> String {
+    let catalogs = repo().join("catalogs");
+    design_text(name).replace("\"../catalogs/", &format!("\"{}/", catalogs.display()))
+}

@@ -1,0 +1,133 @@
+//! Advice attached to results and errors: which design key to change, and why.
+//!
+//! An infeasible fit names the constraint group that fails (see `fit::qp`); this module adds what
+//! a designer can do about it, derived from the design and the catalogue (an off-diagonal of M
+//! that no element can match, a spring budget below the number of conditions).
+
+use crate::catalog::Catalog;
+use crate::design::Design;
+use crate::error::Error;
+use crate::fit::settings::FitSettings;
+
+/// The advice for an infeasible fit, or `None` for other errors.
+///
+/// `budget` is the spring budget the fit ran with (0: none).
+pub fn infeasible_hint(
+    design: &Design,
+    settings: &FitSettings,
+    catalog: &Catalog,
+    budget: usize,
+    constraint: &str,
+) -> String {
+    let n = design.dof();
+    let mut hints = Vec::new();
+    let hessian = constraint.contains("Hessian match") || constraint.contains("constraints together");
+    if settings.hessian_match && hessian {
+        let m = design.chain.mass_matrix(&design.q_eq);
+        let scale = m.amax();
+        let off: Vec<String> = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .filter(|&(i, j)| m[(i, j)].abs() > 1e-9 * scale)
+            .map(|(i, j)| format!("M{}{} = {:.4}", i + 1, j + 1, m[(i, j)]))
+            .collect();
+        let coupled =
+            catalog.families.iter().any(|f| f.couplings.iter().any(|a| a.iter().filter(|x| **x != 0.0).count() > 1));
+        let conditions = n * (n + 1) / 2;
+        if !off.is_empty() && !coupled {
+            hints.push(format!(
+                "the off-diagonal of M(q_eq) ({}) can only be matched by elements that couple joints, and catalogue `{}` \
+                 has none: add a family with couplings = {{ pairs = [[1, 1], [1, -1]] }}, or set `fit.hessian_match = false` \
+                 (then only the trace normalisation is required)",
+                off.join(", "),
+                catalog.name
+            ));
+        } else if budget > 0 && budget < conditions {
+            hints.push(format!(
+                "matching ∇²U(q_eq) = ω² M(q_eq) fixes {conditions} entries for {n} joints, which {budget} springs generally cannot: \
+                 allow more springs (`fit.max_elements`) or set `fit.hessian_match = false`"
+            ));
+        } else {
+            hints.push(
+                "set `fit.hessian_match = false` (then only the trace normalisation is required) or widen the catalogue"
+                    .to_string(),
+            );
+        }
+    }
+    if constraint.contains("monotonicity") {
+        hints.push("set `fit.monotone = false`".into());
+    }
+    if constraint.contains("max_stiffness") {
+        hints.push("raise the families' `max_stiffness` in the catalogue".into());
+    }
+    if constraint.contains("equilibrium gradient") && design.chain.has_gravity() {
+        hints.push(
+            "the springs must also hold the arm against gravity at q_eq: offer families with offsets away from the \
+             equilibrium (offsets = { grid = N }) so they can be preloaded"
+                .into(),
+        );
+    }
+    hints.join("; ")
+}
+
+/// The plain verdict on a fit: `acceptable` when the p99 residual angle is at most
+/// `fit.accept_p99_deg`, else `poor`.
+pub fn verdict(p99_deg: f64, accept_p99_deg: f64) -> &'static str {
+    if p99_deg <= accept_p99_deg { "acceptable" } else { "poor" }
+}
+
+/// Warnings about a fitted bill of materials: a stiffness above the largest stock rate of its
+/// family (snapping to stock will cap it and the residual grows) or above its `max_stiffness`
+/// (the solvers enforce it as a bound, so this only flags a bound met to rounding).
+pub fn bom_warnings(catalog: &Catalog, rows: &[crate::bom::BomRow]) -> Vec<String> {
+    let mut out = Vec::new();
+    for r in rows {
+        let Some(f) = catalog.families.iter().find(|f| f.name == r.family) else { continue };
+        let unit = r.element.profile.unit();
+        if let Some(top) = f.stock_rates.iter().copied().reduce(f64::max) {
+            if r.stiffness > top * (1.0 + 1e-9) {
+                out.push(format!(
+                    "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above the family's largest stock rate {top} {unit}: snapping to stock rates (sweep) caps it at {top} and the residual grows; add larger stock rates or set max_stiffness = {top} so the fit stays within them",
+                    catalog.path.display(),
+                    f.name,
+                    r.id,
+                    r.stiffness
+                ));
+            }
+        }
+        if let Some(max) = f.max_stiffness {
+            if r.stiffness > max * (1.0 + 1e-6) {
+                out.push(format!(
+                    "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above max_stiffness = {max} {unit}",
+                    catalog.path.display(),
+                    f.name,
+                    r.id,
+                    r.stiffness
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// `e` with [`infeasible_hint`] appended to its reason when it is an infeasible fit.
+pub fn explain(design: &Design, settings: &FitSettings, catalog: &Catalog, budget: usize, e: Error) -> Error {
+    match e {
+        Error::Infeasible { constraint, reason } => {
+            let hint = infeasible_hint(design, settings, catalog, budget, &constraint);
+            let reason = if hint.is_empty() { reason } else { format!("{reason}; to fix: {hint}") };
+            Error::Infeasible { constraint, reason }
+        }
+        other => other,
+    }
+}
+
+/// The text of an infeasible fit with its advice (see [`explain`]).
+pub fn explain_infeasible(
+    design: &Design,
+    settings: &FitSettings,
+    catalog: &Catalog,
+    budget: usize,
+    e: Error,
+) -> String {
+    explain(design, settings, catalog, budget, e).to_string()
+}

@@ -1,0 +1,81 @@
+//! Every shipped design passes every command, through the binary, with short settings (one
+//! scenario, one Monte Carlo build per tolerance level, budgets up to 3, one radius).
+
+mod util;
+
+use util::{repo, springfit, temp_dir};
+
+/// Runs check, geodesics, fit, simulate, sweep, compare and pareto on one shipped design.
+fn every_command(name: &str) {
+    let dir = temp_dir(&format!("all-{name}"));
+    let design = repo().join("designs").join(format!("{name}.toml"));
+    let d = design.to_str().unwrap();
+    let check = springfit(&dir, &["check", d]).ok();
+    assert!(check.stdout().contains("ok:"), "{}", check.report());
+    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
+    springfit(&dir, &["geodesics", d, "--out", "geo"]).ok();
+    assert!(dir.join("geo/geodesics.csv").is_file());
+    let fit = springfit(&dir, &["fit", d, "--out", "fit"]).ok();
+    assert!(fit.stdout().contains("held-out samples"), "{}", fit.report());
+    for f in ["bom.csv", "summary.json", "residuals.csv", "report.md"] {
+        assert!(dir.join("fit").join(f).is_file(), "fit wrote no {f}\n{}", fit.report());
+    }
+    // Every shipped design has the sweep's scenario `sensitivity`: simulate it with the fitted springs.
+    let sim =
+        springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
+    assert!(dir.join("sim/sim_sensitivity.json").is_file(), "{}", sim.report());
+    let sweep = springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
+    for f in ["sweep.csv", "sweep.json", "tolerance.md"] {
+        assert!(dir.join("sweep").join(f).is_file(), "sweep wrote no {f}\n{}", sweep.report());
+    }
+    springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
+    assert!(dir.join("cmp/compare.csv").is_file());
+    let pareto = springfit(&dir, &["pareto", d, "--k-max", "3", "--radii", "0.5", "--out", "pareto"]).ok();
+    let csv = std::fs::read_to_string(dir.join("pareto/pareto.csv")).unwrap();
+    // Budgets 2 and 3 and the radius each have a row, feasible or not.
+    assert_eq!(csv.lines().count(), 1 + 2 + 1, "{csv}\n{}", pareto.report());
+}
+
+#[test]
+fn double_pendulum() {
+    every_command("double_pendulum");
+}
+
+#[test]
+fn double_pendulum_dense() {
+    every_command("double_pendulum_dense");
+}
+
+#[test]
+fn double_pendulum_workshop() {
+    every_command("double_pendulum_workshop");
+}
+
+#[test]
+fn double_pendulum_paper_window() {
+    every_command("double_pendulum_paper_window");
+}
+
+#[test]
+fn double_pendulum_straight() {
+    every_command("double_pendulum_straight");
+}
+
+#[test]
+fn double_pendulum_folded() {
+    every_command("double_pendulum_folded");
+}
+
+#[test]
+fn triple_pendulum() {
+    every_command("triple_pendulum");
+}
+
+#[test]
+fn every_shipped_design_is_tested_here() {
+    let src = std::fs::read_to_string(repo().join("tests/cli_all_designs.rs")).unwrap();
+    for e in std::fs::read_dir(repo().join("designs")).unwrap().flatten() {
+        let name = e.path().file_stem().unwrap().to_string_lossy().into_owned();
+        assert!(src.contains(&format!("every_command(\"{name}\")")), "designs/{name}.toml has no test here");
+    }
+}
