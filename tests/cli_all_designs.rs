@@ -79,3 +79,13 @@ fn every_shipped_design_is_tested_here() {
         assert!(src.contains(&format!("every_command(\"{name}\")")), "designs/{name}.toml has no test here");
     }
 }
+
+#[test]
+fn ur5_lift_elbow() {
+    every_command("ur5_lift_elbow");
+}
+
+#[test]
+fn ur5_pan_lift_elbow() {
+    every_command("ur5_pan_lift_elbow");
+}
