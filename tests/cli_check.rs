@@ -103,7 +103,7 @@ fn check_rejects_what_later_commands_would() {
         (
             "gravity.toml",
             good.replace("gravity = [0.0, 0.0]", "gravity = [0.0, -9.81, 0.0]"),
-            vec!["gravity.toml", "robot.gravity", "a planar arm takes 2", "got 3"],
+            vec!["gravity.toml", "robot.gravity", "a planar arm takes 2", "has 3 numbers"],
         ),
         (
             "radius.toml",
