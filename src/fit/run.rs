@@ -57,9 +57,10 @@ pub struct SolveReport {
     pub selection_swaps: usize,
     /// QP: cutting-plane rounds for monotonicity.
     pub cut_rounds: usize,
-    /// With a tolerance: Σᵢ Dᵢᵢ kᵢ², the predicted mean squared change of the training rows of a
-    /// build about its own equilibrium (the term the tolerance-aware fit adds), for the final
-    /// stiffnesses. None without a tolerance.
+    /// With a tolerance: the term the tolerance-aware fit adds for the final stiffnesses,
+    /// λ Σᵢ Dᵢᵢ kᵢ² (+ the shift penalty); with λ = 1 and no shift weight, the predicted mean
+    /// squared change of the training rows of a build about its own equilibrium. None without
+    /// a tolerance.
     pub expected_build_spread: Option<f64>,
 }
 
@@ -291,7 +292,7 @@ impl Prepared<'_> {
             design.geodesics.ode,
         )?;
         let m = self.problem.rows.nrows() as f64;
-        Ok(sp.rows + sp.shift * (settings.shift_weight * m))
+        Ok(sp.rows * settings.tolerance_weight + sp.shift * (settings.shift_weight * m))
     }
 }
 

@@ -80,6 +80,10 @@ pub struct FitSettings {
     /// Seed of the as-built builds and of the selection's restarts (each build and each restart
     /// has its own stream, so results do not depend on the thread count).
     pub seed: u64,
+    /// With a tolerance: weight λ of the expected spread of the builds, ‖A k − b‖² + λ Σ Dᵢᵢ kᵢ²
+    /// (1: the expected residual over builds; less trades as-built accuracy for nominal
+    /// accuracy).
+    pub tolerance_weight: f64,
     /// With a tolerance: weight w of the expected equilibrium shift, w · m · E‖Δq‖²_M(q_eq) added
     /// to the expected residual (m training rows; a metric shift of 1 costs as much as a residual
     /// of 1 ≈ sin(angle) on every row). 0: off (tuning after the build can restore q_eq).
@@ -113,6 +117,7 @@ impl Default for FitSettings {
             distribution: Distribution::Uniform,
             builds: 200,
             seed: 1,
+            tolerance_weight: 1.0,
             shift_weight: 0.0,
             max_preload: 0.0,
         }
@@ -173,6 +178,9 @@ impl FitSettings {
         }
         if self.restarts > 10_000 {
             return err("restarts", "must be at most 10000");
+        }
+        if !(self.tolerance_weight.is_finite() && self.tolerance_weight >= 0.0) {
+            return err("tolerance_weight", "must be ≥ 0");
         }
         if !(self.shift_weight.is_finite() && self.shift_weight >= 0.0) {
             return err("shift_weight", "must be ≥ 0");
