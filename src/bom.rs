@@ -2,8 +2,10 @@
 //! read back to rebuild the potential exactly.
 //!
 //! Columns: `id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,
-//! max_deflection_rad,stock_rate,tolerance`. `coupling` is the vector a with entries joined by
-//! `;` (`1;-2`), `side` is `+`, `-` or empty. Numbers are written with Rust's shortest
+//! max_deflection_rad,stock_rate,tolerance,preload_nm`. `coupling` is the vector a with entries
+//! joined by `;` (`1;-2`), `side` is `+`, `-` or empty, `preload_nm` the element's torque on its
+//! coordinate at the equilibrium (signed; empty when unknown). Files written before the preload
+//! column existed (ending at `tolerance`) are read as well. Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
 use std::path::Path;
@@ -14,7 +16,10 @@ use crate::error::{Error, Result};
 use crate::potential::SpringSet;
 
 /// The CSV header.
-pub const HEADER: &str =
+pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm";
+
+/// The header of files written before the `preload_nm` column (still read).
+pub const HEADER_WITHOUT_PRELOAD: &str =
     "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
 
 /// One row of the bill of materials.
@@ -36,6 +41,9 @@ pub struct BomRow {
     pub stock_rate: Option<f64>,
     /// ± fraction the built element may deviate.
     pub tolerance: f64,
+    /// Torque on the element's coordinate at the equilibrium, k·u′(a·q_eq − x₀), N·m (signed).
+    /// None when read from a file without the column.
+    pub preload_nm: Option<f64>,
 }
 
 /// Quotes a CSV field if it needs it.
@@ -99,6 +107,7 @@ pub fn to_csv(rows: &[BomRow]) -> String {
             format!("{}", r.max_deflection_rad),
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
             format!("{}", r.tolerance),
+            r.preload_nm.map(|x| format!("{x}")).unwrap_or_default(),
         ];
         s.push_str(&fields.join(","));
         s.push('\n');
@@ -116,16 +125,21 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
     let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
-    if header.trim_start_matches('\u{feff}').trim() != HEADER {
-        return Err(bad(1, "header", format!("expected `{HEADER}`")));
-    }
+    let header = header.trim_start_matches('\u{feff}').trim();
+    let columns = if header == HEADER {
+        13
+    } else if header == HEADER_WITHOUT_PRELOAD {
+        12
+    } else {
+        return Err(bad(1, "header", format!("expected `{HEADER}` (or the same without `,preload_nm`)")));
+    };
     let mut rows = Vec::new();
     let mut dof = None;
     for (idx, line) in lines {
         let ln = idx + 1;
         let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
-        if f.len() != 12 {
-            return Err(bad(ln, "row", format!("has {} fields, expected 12", f.len())));
+        if f.len() != columns {
+            return Err(bad(ln, "row", format!("has {} fields, expected {columns}", f.len())));
         }
         let num = |i: usize, name: &str| -> Result<f64> {
             let v: f64 = f[i].trim().parse().map_err(|_| bad(ln, name, format!("`{}` is not a number", f[i])))?;
@@ -173,6 +187,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         if !(0.0..1.0).contains(&tolerance) {
             return Err(bad(ln, "tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
         }
+        let preload_nm = if columns < 13 || f[12].trim().is_empty() { None } else { Some(num(12, "preload_nm")?) };
         rows.push(BomRow {
             id: f[0].clone(),
             family: f[1].clone(),
@@ -182,6 +197,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             max_deflection_rad: num(9, "max_deflection_rad")?,
             stock_rate,
             tolerance,
+            preload_nm,
         });
     }
     if rows.is_empty() {
@@ -225,12 +241,12 @@ pub fn fingerprint(set: &SpringSet) -> String {
 /// The bill of materials as a Markdown table with totals per unit.
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     let mut s = format!("# Bill of materials: {title}\n\n");
-    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance |\n");
-    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: |\n");
+    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance | preload (N·m) |\n");
+    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n");
     for r in rows {
         let e = &r.element;
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} |\n",
+            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} | {} |\n",
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
@@ -248,6 +264,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             } else {
                 format!("±{} %", fmt_number(r.tolerance * 100.0))
             },
+            r.preload_nm.map(|x| format!("{x:.3}")).unwrap_or_else(|| "–".into()),
         ));
     }
     s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));
@@ -258,6 +275,12 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
         let (count, total) =
             rows.iter().filter(|r| r.element.profile.unit() == u).fold((0, 0.0), |(c, t), r| (c + 1, t + r.stiffness));
         s.push_str(&format!("- {u}: {total:.4} over {count} element(s)\n"));
+    }
+    if rows.iter().all(|r| r.preload_nm.is_some()) {
+        let total: f64 = rows.iter().filter_map(|r| r.preload_nm).map(f64::abs).sum();
+        s.push_str(&format!(
+            "\n**Total preload** Σ|τ(q_eq)| = {total:.3} N·m (torques the elements hold against each other at the equilibrium; a rate error un-cancels them)\n"
+        ));
     }
     s
 }
@@ -278,6 +301,7 @@ mod tests {
                 max_deflection_rad: 1.5,
                 stock_rate: None,
                 tolerance: 0.05,
+                preload_nm: Some(-0.125),
             },
             BomRow {
                 id: "S02".into(),
@@ -288,6 +312,7 @@ mod tests {
                 max_deflection_rad: 0.2,
                 stock_rate: Some(12.0),
                 tolerance: 0.1,
+                preload_nm: Some(2.5),
             },
         ]
     }
@@ -297,7 +322,30 @@ mod tests {
         let text = to_csv(&rows());
         let back = parse(Path::new("bom.csv"), &text).unwrap();
         assert_eq!(back, rows());
-        assert!(to_markdown("t", &rows()).contains("N*m/rad: 12.5000 over 1 element(s)"));
+        let md = to_markdown("t", &rows());
+        assert!(md.contains("N*m/rad: 12.5000 over 1 element(s)"));
+        assert!(md.contains("Σ|τ(q_eq)| = 2.625 N·m"), "{md}");
+    }
+
+    /// Files written before the preload column are still read (preload unknown), and a
+    /// preload that is not a number is reported.
+    #[test]
+    fn files_without_the_preload_column_are_read() {
+        let mut old = String::from(HEADER_WITHOUT_PRELOAD);
+        old.push('\n');
+        for line in to_csv(&rows()).lines().skip(1) {
+            old.push_str(line.rsplit_once(',').unwrap().0);
+            old.push('\n');
+        }
+        let back = parse(Path::new("bom.csv"), &old).unwrap();
+        let want: Vec<BomRow> = rows().into_iter().map(|r| BomRow { preload_nm: None, ..r }).collect();
+        assert_eq!(back, want);
+        assert!(!to_markdown("t", &back).contains("Total preload"));
+        let bad = to_csv(&rows()).replace(",-0.125", ",x");
+        assert!(parse(Path::new("bom.csv"), &bad).unwrap_err().to_string().contains("line 2: preload_nm"));
+        // Old rows under the new header have a field too few.
+        let mixed = old.replacen(HEADER_WITHOUT_PRELOAD, HEADER, 1);
+        assert!(parse(Path::new("bom.csv"), &mixed).unwrap_err().to_string().contains("expected 13"));
     }
 
     #[test]
@@ -326,7 +374,7 @@ mod tests {
     /// evaluating it take seconds. No design has more than eight joints.
     #[test]
     fn couplings_longer_than_the_longest_chain_are_errors() {
-        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0\n");
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,\n");
         let wide = vec!["1"; 2000].join(";");
         let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");

@@ -169,6 +169,13 @@ impl Element {
         &a * a.transpose() * curv
     }
 
+    /// Preload at `q_eq` with stiffness `k`: the torque k·u′(a·q_eq − x₀) on the element's
+    /// coordinate x (signed, N·m). Antagonistic elements cancel their preloads at the
+    /// equilibrium; a build with a rate error un-cancels them.
+    pub fn preload(&self, k: f64, q_eq: &[f64]) -> f64 {
+        k * self.profile.slope(self.deflection(q_eq))
+    }
+
     /// The coupling as written in files: entries joined by `;` (e.g. `1;-2`).
     pub fn coupling_text(&self) -> String {
         self.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(";")

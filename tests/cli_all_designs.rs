@@ -89,3 +89,8 @@ fn ur5_lift_elbow() {
 fn ur5_pan_lift_elbow() {
     every_command("ur5_pan_lift_elbow");
 }
+
+#[test]
+fn double_pendulum_dense_robust() {
+    every_command("double_pendulum_dense_robust");
+}

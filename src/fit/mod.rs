@@ -5,6 +5,7 @@ pub mod lsq;
 pub mod nnls;
 pub mod problem;
 pub mod qp;
+pub mod robust;
 pub mod run;
 pub mod selection;
 pub mod settings;

@@ -68,17 +68,23 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
     let mut forbidden = vec![false; p];
     let max_outer = settings.max_iterations_factor.max(1) * p + 10;
     let mut iterations = 0;
-    let mut warm: Vec<usize> = passive_start.iter().copied().filter(|&j| j < p && d[j] > 0.0).collect();
-    loop {
-        let j = if !warm.is_empty() {
-            // Warm start: the whole starting set enters at once.
-            for &j in &warm {
+    let warm: Vec<usize> = passive_start.iter().copied().filter(|&j| j < p && d[j] > 0.0).collect();
+    if !warm.is_empty() {
+        // Warm start: the whole starting set enters at once if its unconstrained solution is
+        // positive (a feasible point to continue from); otherwise start cold. (Stepping from
+        // x = 0 towards a solution with non-positive entries only drops the whole set again,
+        // and an exactly zero entry made that step undefined.)
+        let z = solve_passive(&g, &c, &warm);
+        if z.iter().all(|v| v.is_finite() && *v > 0.0) {
+            for (a, &j) in warm.iter().enumerate() {
                 passive[j] = true;
+                x[j] = z[a];
             }
-            let first = warm[0];
-            warm.clear();
-            first
-        } else {
+        }
+        iterations += 1;
+    }
+    loop {
+        let j = {
             let w = &c - &g * &x;
             let next = (0..p)
                 .filter(|&j| !passive[j] && !forbidden[j] && d[j] > 0.0 && w[j] > tol)

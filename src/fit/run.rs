@@ -16,7 +16,10 @@ use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls};
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble};
 use super::qp::{QpSettings, QpStatus, qp};
-use super::selection::{SelectionSettings, backward_elimination, select_from, subset_nnls};
+use super::robust::spread;
+use super::selection::{
+    SelectionSettings, backward_elimination, gain_scores, search, select_from, subset_nnls, subset_nnls_warm,
+};
 use super::settings::{FitSettings, SolverKind};
 use crate::bom::BomRow;
 use crate::catalog::{Candidate, Catalog};
@@ -54,6 +57,11 @@ pub struct SolveReport {
     pub selection_swaps: usize,
     /// QP: cutting-plane rounds for monotonicity.
     pub cut_rounds: usize,
+    /// With a tolerance: the term the tolerance-aware fit adds for the final stiffnesses,
+    /// λ Σᵢ Dᵢᵢ kᵢ² (+ the shift penalty); with λ = 1 and no shift weight, the predicted mean
+    /// squared change of the training rows of a build about its own equilibrium. None without
+    /// a tolerance.
+    pub expected_build_spread: Option<f64>,
 }
 
 /// How well a potential does on the held-out evaluation fan.
@@ -199,7 +207,28 @@ impl<'a> Prepared<'a> {
         let (design, catalog) = (self.design, self.catalog);
         stage("solving");
         let t2 = Instant::now();
-        let (k, solve) = solve(&self.problem, &self.candidates, settings)?;
+        // With a tolerance the nominal pass only fixes J and H for the second: the single
+        // exchange search is enough there.
+        let first = if settings.tolerance.is_none() {
+            *settings
+        } else {
+            FitSettings { restarts: 0, pair_swaps: false, ..*settings }
+        };
+        let (mut k, mut report) = solve(&self.problem, &self.candidates, self.design.q_eq.as_slice(), &first, None)?;
+        if !settings.tolerance.is_none() {
+            // Design for the build: the nominal fit fixes J and H, then the expected residual
+            // over builds is minimised (see `fit::robust`).
+            stage("fitting for the build tolerance");
+            let d = self.build_diagonal(&k, settings)?;
+            let (k2, mut again) =
+                solve(&self.problem, &self.candidates, self.design.q_eq.as_slice(), settings, Some(&d))?;
+            again.selection_evaluations += report.selection_evaluations;
+            again.selection_swaps += report.selection_swaps;
+            again.cut_rounds += report.cut_rounds;
+            again.expected_build_spread = Some(k2.iter().zip(d.iter()).map(|(k, d)| d * k * k).sum());
+            k = k2;
+            report = again;
+        }
         let t_solve = t2.elapsed().as_secs_f64();
 
         stage("evaluating on held-out geodesics");
@@ -220,7 +249,7 @@ impl<'a> Prepared<'a> {
             stock_rates: catalog.families.iter().map(|f| (f.name.clone(), f.stock_rates.clone())).collect(),
             springs,
             metrics,
-            solve,
+            solve: report,
             timings: Timings {
                 geodesics: self.t_geo,
                 assemble: self.t_asm,
@@ -233,6 +262,44 @@ impl<'a> Prepared<'a> {
             evaluation: self.evaluation.clone(),
         })
     }
+}
+
+impl Prepared<'_> {
+    /// The diagonal the tolerance-aware fit adds to the normal equations, from the nominal
+    /// stiffnesses `k`: Dᵢᵢ plus the optional shift penalty (see `fit::robust`).
+    fn build_diagonal(&self, k: &[f64], settings: &FitSettings) -> Result<DVector<f64>> {
+        let design = self.design;
+        let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+        let nominal = SpringSet {
+            elements: used.iter().map(|&j| self.candidates[j].element.clone()).collect(),
+            stiffness: used.iter().map(|&j| k[j]).collect(),
+        };
+        let sigma2: Vec<f64> = self
+            .candidates
+            .iter()
+            .map(|c| settings.distribution.variance(settings.tolerance.for_element(c.tolerance)))
+            .collect();
+        let spacing = self.region.extent / settings.training_samples as f64;
+        let sp = spread(
+            &design.chain,
+            &self.training,
+            spacing,
+            &self.candidates,
+            &self.problem.rows,
+            &nominal,
+            &sigma2,
+            settings.frequency,
+            design.geodesics.ode,
+        )?;
+        let m = self.problem.rows.nrows() as f64;
+        Ok(sp.rows * settings.tolerance_weight + sp.shift * (settings.shift_weight * m))
+    }
+}
+
+/// Preload per unit stiffness of each candidate: u′(a·q_eq − x₀), the torque on its coordinate
+/// at the equilibrium (signed). The preload of an element is k times this.
+pub fn unit_preloads(candidates: &[Candidate], q_eq: &[f64]) -> Vec<f64> {
+    candidates.iter().map(|c| c.element.profile.slope(c.element.deflection(q_eq))).collect()
 }
 
 /// The exact reference U* = ½ω²r² evaluated like a fit (no springs, no bill of materials).
@@ -274,6 +341,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
             selection_evaluations: 0,
             selection_swaps: 0,
             cut_rounds: 0,
+            expected_build_spread: None,
         },
         timings: Timings {
             geodesics: t_geo,
@@ -340,9 +408,24 @@ const NNLS_EQUALITY_TOLERANCE: f64 = 1e-3;
 
 /// Solves the assembled problem with the chosen solver and, with `max_elements`, the sparse
 /// selection. Returns the stiffness of every candidate.
-fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings) -> Result<(Vec<f64>, SolveReport)> {
+///
+/// `extra` is a diagonal added to the normal equations (the tolerance-aware fit's expected
+/// spread of the builds): every solver and the selection minimise the same objective.
+fn solve(
+    problem: &FitProblem,
+    candidates: &[Candidate],
+    q_eq: &[f64],
+    settings: &FitSettings,
+    extra: Option<&DVector<f64>>,
+) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
-    let gram = Gram::from_rows(&problem.rows, &problem.rhs);
+    let unit = unit_preloads(candidates, q_eq);
+    let mut gram = Gram::from_rows(&problem.rows, &problem.rhs);
+    if let Some(d) = extra {
+        for j in 0..p {
+            gram.g[(j, j)] += d[j];
+        }
+    }
     // Equalities folded in with weight W per row: a violation δ of an equation costs as much as
     // δ / equality_weight of residual on every tangentiality row.
     let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
@@ -357,13 +440,27 @@ fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings)
         selection_evaluations: 0,
         selection_swaps: 0,
         cut_rounds: 0,
+        expected_build_spread: None,
     };
     let support: Vec<usize> = if settings.max_elements > 0 && settings.max_elements < p {
         let dense = nnls(&weighted, 0.0, &NnlsSettings::default())?;
-        let start: Vec<usize> = (0..p).filter(|&j| dense.k[j] > 0.0).collect();
-        let start = backward_elimination(&weighted, start, settings.max_elements)?;
-        let sel_settings = SelectionSettings { max_elements: settings.max_elements, swap_passes: settings.swap_passes };
-        let sel = select_from(p, sel_settings, start, |s| subset_nnls(&weighted, s))?;
+        let pool: Vec<usize> = (0..p).filter(|&j| dense.k[j] > 0.0).collect();
+        let start = backward_elimination(&weighted, pool.clone(), settings.max_elements)?;
+        let sel_settings = SelectionSettings {
+            max_elements: settings.max_elements,
+            swap_passes: settings.swap_passes,
+            restarts: settings.restarts,
+            pair_swaps: settings.pair_swaps,
+            seed: settings.seed,
+            shortlist: settings.shortlist,
+        };
+        let sel = if settings.restarts == 0 && !settings.pair_swaps {
+            // The single exchange search, with cold-started refits as before restarts existed.
+            select_from(p, sel_settings, start, |s| subset_nnls(&weighted, s))?
+        } else {
+            let screen = |s: &[usize], k: &[f64]| gain_scores(&weighted, s, k);
+            search(p, sel_settings, start, &pool, |s| subset_nnls_warm(&weighted, s), Some(&screen))?
+        };
         report.selection_evaluations = sel.evaluations;
         report.selection_swaps = sel.swaps;
         sel.support
@@ -374,6 +471,17 @@ fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings)
     let k_sub = match settings.solver {
         SolverKind::Nnls => {
             let k = nnls_bounded(&weighted.subset(&support), settings.l1, &sub_upper)?;
+            if settings.max_preload > 0.0 {
+                let total: f64 = support.iter().zip(k.iter()).map(|(&j, kj)| (unit[j] * kj).abs()).sum();
+                if total > settings.max_preload * (1.0 + 1e-9) {
+                    return Err(Error::Infeasible {
+                        constraint: format!("max_preload ({} N·m)", settings.max_preload),
+                        reason: format!(
+                            "NNLS cannot bound the preload and its fit needs Σ|preload| = {total:.3} N·m; use solver = \"qp\", which enforces the bound exactly"
+                        ),
+                    });
+                }
+            }
             // Weighted equalities can be missed silently: check them like the QP would.
             for g in &problem.equalities {
                 let sub = DMatrix::from_fn(g.matrix.nrows(), support.len(), |r, a| g.matrix[(r, support[a])]);
@@ -399,10 +507,22 @@ fn solve(problem: &FitProblem, candidates: &[Candidate], settings: &FitSettings)
                     })
                     .collect()
             };
+            let mut inequalities = problem.inequalities.clone();
+            if settings.max_preload > 0.0 {
+                // Σ|pᵢ| kᵢ ≤ P: preload is linear in k with a fixed sign per element. Scaled by
+                // 1/P so the cutting-plane margin is relative.
+                let p_max = settings.max_preload;
+                inequalities.push(LinearGroup {
+                    name: "preload bound".into(),
+                    description: format!("Σ|τᵢ(q_eq)| ≤ {p_max} N·m (max_preload)"),
+                    matrix: DMatrix::from_fn(1, p, |_, j| -unit[j].abs() / p_max),
+                    rhs: DVector::from_element(1, -1.0),
+                });
+            }
             let sol = qp(
                 &gram.subset(&support),
                 &restrict(&problem.equalities),
-                &restrict(&problem.inequalities),
+                &restrict(&inequalities),
                 &sub_upper,
                 settings.l1,
                 &QpSettings::default(),
@@ -498,6 +618,7 @@ fn bill_of_materials(
                 max_deflection_rad: peaks[j].1,
                 stock_rate,
                 tolerance: c.tolerance,
+                preload_nm: Some(c.element.preload(k[j], q_eq)),
             }
         })
         .collect();

@@ -56,6 +56,15 @@ pub struct FitSettings {
     pub equality_weight: f64,
     /// Most passes of exchange moves in the sparse selection.
     pub swap_passes: usize,
+    /// Random restarts of the sparse selection's local search (each from the starting support
+    /// with half its elements replaced at random, seeded by `seed`). 0 with `pair_swaps = false`
+    /// is the single exchange search of springfit before restarts.
+    pub restarts: usize,
+    /// Try 2-for-2 swaps in the sparse selection when no single exchange improves.
+    pub pair_swaps: bool,
+    /// With restarts or pair swaps: per element taken out, refit only this many replacements,
+    /// those whose addition lowers the least-squares objective most to first order (0: all).
+    pub shortlist: usize,
     /// An element counts as used when its peak torque over the region exceeds this fraction of
     /// the largest element's peak torque.
     pub used_threshold: f64,
@@ -68,12 +77,23 @@ pub struct FitSettings {
     pub distribution: Distribution,
     /// Monte Carlo builds behind the as-built figures (0: none).
     pub builds: usize,
-    /// Seed of the as-built builds (each build has its own stream, so figures do not depend on
-    /// the thread count).
+    /// Seed of the as-built builds and of the selection's restarts (each build and each restart
+    /// has its own stream, so results do not depend on the thread count).
     pub seed: u64,
     /// Verdict threshold, degrees: a fit whose p99 residual angle on the held-out geodesics is at
     /// most this is "acceptable", above it "poor" (printed and in summary.json).
     pub accept_p99_deg: f64,
+    /// With a tolerance: weight λ of the expected spread of the builds, ‖A k − b‖² + λ Σ Dᵢᵢ kᵢ²
+    /// (1: the expected residual over builds; less trades as-built accuracy for nominal
+    /// accuracy).
+    pub tolerance_weight: f64,
+    /// With a tolerance: weight w of the expected equilibrium shift, w · m · E‖Δq‖²_M(q_eq) added
+    /// to the expected residual (m training rows; a metric shift of 1 costs as much as a residual
+    /// of 1 ≈ sin(angle) on every row). 0: off (tuning after the build can restore q_eq).
+    pub shift_weight: f64,
+    /// Upper bound on the total preload Σ|τᵢ(q_eq)| in N·m (0: none). Exact with `qp`; with
+    /// `nnls` a fit exceeding it is reported infeasible.
+    pub max_preload: f64,
 }
 
 impl Default for FitSettings {
@@ -91,6 +111,9 @@ impl Default for FitSettings {
             l1: 0.0,
             equality_weight: 30.0,
             swap_passes: 50,
+            restarts: 32,
+            pair_swaps: true,
+            shortlist: 48,
             used_threshold: 1e-6,
             bands: 4,
             tolerance: ToleranceSpec::None,
@@ -98,6 +121,9 @@ impl Default for FitSettings {
             builds: 200,
             seed: 1,
             accept_p99_deg: 2.0,
+            tolerance_weight: 1.0,
+            shift_weight: 0.0,
+            max_preload: 0.0,
         }
     }
 }
@@ -150,6 +176,21 @@ impl FitSettings {
         }
         if let Err(reason) = self.tolerance.validate() {
             return err("tolerance", &reason);
+        }
+        if self.shortlist > 100_000 {
+            return err("shortlist", "must be at most 100000");
+        }
+        if self.restarts > 10_000 {
+            return err("restarts", "must be at most 10000");
+        }
+        if !(self.tolerance_weight.is_finite() && self.tolerance_weight >= 0.0) {
+            return err("tolerance_weight", "must be ≥ 0");
+        }
+        if !(self.shift_weight.is_finite() && self.shift_weight >= 0.0) {
+            return err("shift_weight", "must be ≥ 0");
+        }
+        if !(self.max_preload.is_finite() && self.max_preload >= 0.0) {
+            return err("max_preload", "must be ≥ 0 N·m (0: no bound)");
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");

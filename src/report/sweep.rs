@@ -91,6 +91,7 @@ pub fn write(
                 stiffness: k,
                 max_torque_nm: row.max_torque_nm * if row.stiffness > 0.0 { k / row.stiffness } else { 1.0 },
                 stock_rate: row.stock_rate.map(|_| k),
+                preload_nm: row.preload_nm.map(|p| if row.stiffness > 0.0 { p * k / row.stiffness } else { p }),
                 ..row.clone()
             })
             .collect();

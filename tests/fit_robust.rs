@@ -1,0 +1,168 @@
+//! The tolerance-aware fit, the preload bound and the nominal fit's reproducibility, through the
+//! library on the paper's arm.
+
+use std::path::Path;
+
+use nalgebra::DVector;
+use springfit::bom;
+use springfit::catalog::{Candidate, Catalog};
+use springfit::design::Design;
+use springfit::fit::problem::{Requirements, assemble};
+use springfit::fit::robust::{retrace, rows_of, spread};
+use springfit::fit::run::fit;
+use springfit::fit::settings::{FitSettings, SolverKind};
+use springfit::rng::SplitMix64;
+use springfit::tolerance::{Distribution, ToleranceSpec};
+
+fn repo(p: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+fn load(name: &str) -> (Design, Catalog) {
+    let design = Design::load(&repo(&format!("designs/{name}.toml"))).unwrap();
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    (design, catalog)
+}
+
+fn quick(design: &Design) -> FitSettings {
+    FitSettings {
+        training_directions: 24,
+        training_samples: 12,
+        evaluation_directions: 24,
+        evaluation_samples: 12,
+        ..design.fit
+    }
+}
+
+/// `tolerance = "none"` with the single exchange search (`restarts = 0`, `pair_swaps = false`)
+/// is the fit springfit made before the tolerance-aware fit and the restarts existed: the bill of
+/// materials of the default design matches, byte for byte, the one that version wrote
+/// (`tests/data/double_pendulum_nominal_bom.csv`, written by `springfit fit` at commit 805622f),
+/// apart from the new `preload_nm` column.
+#[test]
+fn tolerance_none_reproduces_the_nominal_fit() {
+    let (design, catalog) = load("double_pendulum");
+    let settings = FitSettings { tolerance: ToleranceSpec::None, restarts: 0, pair_swaps: false, ..design.fit };
+    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let csv = bom::to_csv(&outcome.bom);
+    let without_preload: String = csv.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n").collect();
+    let before = std::fs::read_to_string(repo("tests/data/double_pendulum_nominal_bom.csv")).unwrap();
+    assert_eq!(without_preload, before);
+    assert!(outcome.solve.expected_build_spread.is_none());
+}
+
+/// The model of the tolerance-aware fit: to first order a build with kᵢ → kᵢ(1 + δᵢ), judged
+/// about its own equilibrium, has E‖R‖² = ‖A k − b‖² + Σ Dᵢᵢ kᵢ². Checked against Monte Carlo
+/// builds, each with its own equilibrium found by Newton's method and its training fan retraced
+/// from there, at a small tolerance (the linearisation's domain).
+#[test]
+fn expected_objective_matches_monte_carlo_builds() {
+    let (design, catalog) = load("double_pendulum");
+    let settings = FitSettings {
+        tolerance: ToleranceSpec::None,
+        max_elements: 8,
+        restarts: 0,
+        pair_swaps: false,
+        ..quick(&design)
+    };
+    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let springs = &o.springs;
+    let chain = &design.chain;
+    let ode = design.geodesics.ode;
+    let omega = settings.frequency;
+    let spacing = o.region.extent / settings.training_samples as f64;
+    let candidates: Vec<Candidate> = springs
+        .elements
+        .iter()
+        .map(|e| Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: vec![], tolerance: 0.0 })
+        .collect();
+    let req = Requirements { omega, hessian_match: settings.hessian_match, monotone: false };
+    let problem = assemble(chain, &design.q_eq, &o.training, &candidates, req);
+    let k = DVector::from_column_slice(&springs.stiffness);
+    let r0 = &problem.rows * &k - &problem.rhs;
+    assert!((&r0 - rows_of(chain, &o.training, springs, omega)).amax() < 1e-12);
+
+    let t = 0.01;
+    let dist = Distribution::Uniform;
+    let sigma2 = vec![dist.variance(t); candidates.len()];
+    let sp = spread(chain, &o.training, spacing, &candidates, &problem.rows, springs, &sigma2, omega, ode).unwrap();
+    let predicted: f64 = sp.rows.iter().zip(k.iter()).map(|(d, k)| d * k * k).sum();
+    let expected = r0.norm_squared() + predicted;
+    // The model the design notes warn against: rows about the old equilibrium.
+    let naive: f64 = (0..k.len()).map(|i| sigma2[i] * problem.rows.column(i).norm_squared() * k[i] * k[i]).sum();
+
+    let builds = 300;
+    let (mut total, mut change) = (Vec::new(), Vec::new());
+    for b in 0..builds {
+        let mut rng = SplitMix64::stream(42, b);
+        let scale: Vec<f64> = (0..k.len()).map(|_| 1.0 + t * dist.draw_unit(&mut rng)).collect();
+        let built = springs.scaled(&scale);
+        let q_b = springfit::sweep::equilibrium(&design, &built).expect("a build near the design has an equilibrium");
+        let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
+        let r = rows_of(chain, &fan, &built, omega);
+        total.push(r.norm_squared());
+        change.push((&r - &r0).norm_squared());
+    }
+    let mean_se = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0);
+        (m, (var / n).sqrt())
+    };
+    let (m_change, se_change) = mean_se(&change);
+    let (m_total, se_total) = mean_se(&total);
+    eprintln!(
+        "rows change: predicted {predicted:.4e}, measured {m_change:.4e} ± {se_change:.1e}; naive {naive:.4e}; \
+         objective: expected {expected:.6e}, measured {m_total:.6e} ± {se_total:.1e}, nominal {:.6e}",
+        r0.norm_squared()
+    );
+    assert!(predicted > 0.0);
+    assert!((m_change - predicted).abs() <= 4.0 * se_change, "{m_change} vs {predicted} ± {se_change}");
+    assert!((m_total - expected).abs() <= 4.0 * se_total, "{m_total} vs {expected} ± {se_total}");
+    // Judged about the old equilibrium the spread would be far larger.
+    assert!(naive > 3.0 * predicted, "naive {naive} vs {predicted}");
+}
+
+/// `max_preload` bounds Σ|τᵢ(q_eq)| exactly with the QP while the equilibrium and Hessian still
+/// hold; NNLS reports a fit that exceeds it as infeasible.
+#[test]
+fn the_preload_bound_holds() {
+    let (design, catalog) = load("double_pendulum");
+    let base = FitSettings { tolerance: ToleranceSpec::None, max_elements: 0, ..quick(&design) };
+    let free = fit(&design, &catalog, &base, &|_| {}).unwrap();
+    let total = |o: &springfit::fit::run::FitOutcome| o.bom.iter().map(|r| r.preload_nm.unwrap().abs()).sum::<f64>();
+    let q_eq = design.q_eq.as_slice();
+    for r in &free.bom {
+        assert_eq!(r.preload_nm, Some(r.element.preload(r.stiffness, q_eq)));
+    }
+    let p_free = total(&free);
+    assert!(p_free > 1.0, "{p_free}");
+    let bound = 0.5 * p_free;
+    let bounded = fit(&design, &catalog, &FitSettings { max_preload: bound, ..base }, &|_| {}).unwrap();
+    assert!(total(&bounded) <= bound * (1.0 + 1e-6), "{} > {bound}", total(&bounded));
+    assert!(bounded.metrics.equilibrium_gradient_norm < 1e-8);
+    assert!(bounded.metrics.hessian_rel_error < 1e-8);
+    assert!(bounded.metrics.stats.p99_abs >= free.metrics.stats.p99_abs * (1.0 - 1e-9));
+    let nnls = FitSettings { solver: SolverKind::Nnls, max_preload: 1e-3, ..base };
+    let err = fit(&design, &catalog, &nnls, &|_| {}).unwrap_err().to_string();
+    assert!(err.contains("max_preload"), "{err}");
+}
+
+/// The tolerance-aware fit keeps the nominal equilibrium and Hessian exactly (QP), reports its
+/// predicted spread of the builds, and gives the same springs on one thread and on two.
+#[test]
+fn the_tolerance_aware_fit_keeps_the_equalities_and_is_deterministic() {
+    let (design, catalog) = load("double_pendulum");
+    let settings =
+        FitSettings { tolerance: ToleranceSpec::Fraction(0.05), max_elements: 8, restarts: 3, ..quick(&design) };
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| fit(&design, &catalog, &settings, &|_| {}).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(bom::to_csv(&a.bom), bom::to_csv(&b.bom));
+    assert!(a.metrics.equilibrium_gradient_norm < 1e-8);
+    assert!(a.metrics.hessian_rel_error < 1e-8);
+    let spread = a.solve.expected_build_spread.unwrap();
+    assert!(spread.is_finite() && spread > 0.0);
+}
