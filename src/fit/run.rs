@@ -95,6 +95,8 @@ pub struct FitOutcome {
     pub stock_rates: std::collections::BTreeMap<String, Vec<f64>>,
     /// The fitted spring set (the BOM's elements and stiffnesses).
     pub springs: SpringSet,
+    /// The fitted cams, realised (empty without cams).
+    pub cams: Vec<crate::cam::FittedCam>,
     /// Residuals and checks on the held-out fan.
     pub metrics: Evaluation,
     /// How the solve went.
@@ -223,10 +225,12 @@ impl<'a> Prepared<'a> {
             bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
+        let cams = crate::cam::fitted_cams(catalog, &bom);
         Ok(FitOutcome {
             design: design.name.clone(),
             dof: design.dof(),
             catalog: catalog.name.clone(),
+            cams,
             settings: *settings,
             candidates: self.n_expanded,
             dropped: self.n_expanded - self.candidates.len(),
@@ -281,6 +285,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
         bom: Vec::new(),
         stock_rates: Default::default(),
         springs: SpringSet { elements: Vec::new(), stiffness: Vec::new() },
+        cams: Vec::new(),
         metrics,
         solve: SolveReport {
             solver: "exact".into(),
