@@ -17,8 +17,13 @@ use common::{ms, time};
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     println!("springfit fit benchmarks (median / min over repeats)");
-    for name in ["double_pendulum", "double_pendulum_dense", "double_pendulum_workshop", "double_pendulum_paper_window"]
-    {
+    for name in [
+        "double_pendulum",
+        "double_pendulum_dense",
+        "double_pendulum_workshop",
+        "double_pendulum_paper_window",
+        "double_pendulum_paper_window_cams",
+    ] {
         let design = Design::load(&root.join(format!("designs/{name}.toml"))).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let mut last = None;
