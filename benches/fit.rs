@@ -24,6 +24,7 @@ fn main() {
         "double_pendulum_workshop",
         "double_pendulum_paper_window",
         "ur5_pan_lift_elbow",
+        "double_pendulum_paper_window_cams",
     ] {
         let design = Design::load(&root.join(format!("designs/{name}.toml"))).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();

@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::cam::Knots;
 use crate::design::{parse_toml, read_text};
 use crate::elements::{Element, Profile, Side};
 use crate::error::{Error, Result};
@@ -62,8 +63,9 @@ pub struct FamilySpec {
     pub side: Option<String>,
     /// Where the element can be mounted.
     pub couplings: CouplingSpec,
-    /// Where its offset x₀ can be set.
-    pub offsets: OffsetSpec,
+    /// Where its offset x₀ can be set (not for cams, whose knots follow the region).
+    #[serde(default)]
+    pub offsets: Option<OffsetSpec>,
     /// The stiffness unit, to make the file self-explaining; checked against the profile.
     #[serde(default)]
     pub unit: Option<String>,
@@ -76,7 +78,82 @@ pub struct FamilySpec {
     /// ± fraction by which a built element's stiffness may deviate (0.1 = ±10 %).
     #[serde(default)]
     pub tolerance: f64,
+    /// Cams: number of uniform B-spline knots over the range x takes (default 30).
+    #[serde(default)]
+    pub knots: Option<usize>,
+    /// Cams: weight of the smoothing penalty ∫V‴² dx, a number ≥ 0 or `"auto"` (default).
+    #[serde(default)]
+    pub smoothing: Option<Smoothing>,
+    /// Cams: the knot span reaches this fraction of x's range beyond each end (default 0.05).
+    #[serde(default)]
+    pub margin: Option<f64>,
+    /// Cams: follower spring rate in N/mm (default: chosen so the stroke is `max_stroke`).
+    #[serde(default)]
+    pub follower_rate: Option<f64>,
+    /// Cams: largest follower stroke in mm when the rate is chosen (default 20).
+    #[serde(default)]
+    pub max_stroke: Option<f64>,
+    /// Cams: base-circle radius in mm (default 40).
+    #[serde(default)]
+    pub base_radius: Option<f64>,
+    /// Cams: roller radius in mm (default 8).
+    #[serde(default)]
+    pub roller_radius: Option<f64>,
+    /// Cams: largest pressure angle in degrees (default 30).
+    #[serde(default)]
+    pub max_pressure_angle: Option<f64>,
 }
+
+/// The smoothing weight of a cam family: a number, or chosen on validation geodesics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub enum Smoothing {
+    /// Chosen among a few weights by the residuals on a validation fan (not the held-out one).
+    Auto,
+    /// This weight (relative: 1 weighs ∫(V‴/(ω² m̄))² dx over the span like all the tangentiality
+    /// rows together).
+    Weight(f64),
+}
+
+impl<'de> Deserialize<'de> for Smoothing {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Number(f64),
+        }
+        let msg = "smoothing must be a number ≥ 0 or \"auto\"";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "auto" => Ok(Smoothing::Auto),
+            Raw::Number(x) if x.is_finite() && x >= 0.0 => Ok(Smoothing::Weight(x)),
+            _ => Err(serde::de::Error::custom(msg)),
+        }
+    }
+}
+
+/// A validated cam family's settings (see [`crate::cam`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CamSpec {
+    /// Knots N.
+    pub knots: u16,
+    /// Smoothing weight.
+    pub smoothing: Smoothing,
+    /// Margin as a fraction of x's range.
+    pub margin: f64,
+    /// Follower spring rate in N/mm, if fixed.
+    pub follower_rate: Option<f64>,
+    /// Largest stroke in mm.
+    pub max_stroke: f64,
+    /// Base-circle radius in mm.
+    pub base_radius: f64,
+    /// Roller radius in mm.
+    pub roller_radius: f64,
+    /// Largest pressure angle in degrees.
+    pub max_pressure_angle: f64,
+}
+
+/// Most knots of a cam.
+pub const MAX_KNOTS: usize = 500;
 
 /// Where a family can be mounted.
 #[derive(Debug, Clone, Serialize)]
@@ -190,6 +267,8 @@ pub struct Family {
     pub stock_rates: Vec<f64>,
     /// ± fraction.
     pub tolerance: f64,
+    /// Cam settings (`profile = "cam"`; `profiles` is then empty).
+    pub cam: Option<CamSpec>,
 }
 
 /// A validated catalogue for a robot with a given number of joints.
@@ -246,7 +325,12 @@ impl Catalog {
         for (i, f) in file.family.iter().enumerate() {
             let field = |name: &str| format!("family[{i}].{name}");
             let side = f.side.as_deref();
+            let cam = cam_spec(path, f, &field)?;
+            if cam.is_some() && side.is_some() {
+                return Err(invalid(field("side"), "a cam has no side".into()));
+            }
             let profiles = match (f.profile.as_str(), side) {
+                ("cam", _) => Vec::new(),
                 ("compression", None | Some("both")) => {
                     vec![Profile::Compression(Side::Plus), Profile::Compression(Side::Minus)]
                 }
@@ -263,11 +347,11 @@ impl Catalog {
                 }
             };
             if let Some(u) = &f.unit {
-                let expected = profiles[0].unit();
+                let (expected, name) = profiles.first().map_or(("J", "cam"), |p| (p.unit(), p.name()));
                 if normalise_unit(u) != normalise_unit(expected) {
                     return Err(invalid(
                         field("unit"),
-                        format!("a {} element's stiffness is in {expected}, not {u}", profiles[0].name()),
+                        format!("a {name} element's stiffness is in {expected}, not {u}"),
                     ));
                 }
             }
@@ -323,7 +407,21 @@ impl Catalog {
             if couplings.is_empty() {
                 return Err(invalid(field("couplings"), "lists no coupling".into()));
             }
-            let offsets = match &f.offsets {
+            let offset_spec = match (&f.offsets, &cam) {
+                (Some(_), Some(_)) => {
+                    return Err(invalid(
+                        field("offsets"),
+                        "a cam's knots follow the region: it takes no offsets".into(),
+                    ));
+                }
+                (None, None) => {
+                    return Err(invalid(field("offsets"), "missing: every spring family needs offsets".into()));
+                }
+                (Some(o), None) => o.clone(),
+                (None, Some(_)) => OffsetSpec::Equilibrium,
+            };
+            let offsets = match &offset_spec {
+                _ if cam.is_some() => 1,
                 OffsetSpec::Grid { count, .. } if *count < 1 || *count > MAX_OFFSETS => {
                     return Err(invalid(
                         field("offsets"),
@@ -349,7 +447,7 @@ impl Catalog {
             candidates = couplings
                 .len()
                 .checked_mul(offsets)
-                .and_then(|c| c.checked_mul(profiles.len()))
+                .and_then(|c| c.checked_mul(cam.map_or(profiles.len(), |c| 2 * (usize::from(c.knots) + 2))))
                 .and_then(|c| c.checked_add(candidates))
                 .filter(|c| *c <= MAX_CANDIDATES)
                 .ok_or_else(|| {
@@ -384,10 +482,11 @@ impl Catalog {
                 name: f.name.clone(),
                 profiles,
                 couplings,
-                offsets: f.offsets.clone(),
+                offsets: offset_spec,
                 max_stiffness: f.max_stiffness,
                 stock_rates: rates,
                 tolerance: f.tolerance,
+                cam,
             });
         }
         let name = file.name.clone().unwrap_or_else(|| {
@@ -406,6 +505,24 @@ impl Catalog {
         let mut kept: HashMap<(Profile, Vec<u64>), Vec<f64>> = HashMap::new();
         for (fi, f) in self.families.iter().enumerate() {
             for a in &f.couplings {
+                if let Some(cam) = &f.cam {
+                    // N + 2 basis functions, each as +Bⱼ and −Bⱼ (signed coefficients, k ≥ 0).
+                    let (lo, hi) = range(a);
+                    let knots = Knots::over(lo, hi, cam.knots, cam.margin);
+                    for j in 0..knots.basis_count() {
+                        for negative in [false, true] {
+                            let profile = Profile::Spline(knots.basis(j, negative));
+                            out.push(Candidate {
+                                element: Element { profile, coupling: a.clone(), offset: knots.lo },
+                                family: fi,
+                                max_stiffness: f.max_stiffness,
+                                stock_rates: Vec::new(),
+                                tolerance: f.tolerance,
+                            });
+                        }
+                    }
+                    continue;
+                }
                 let at_eq: f64 = a.iter().zip(q_eq).map(|(a, q)| a * q).sum();
                 let offsets: Vec<f64> = match &f.offsets {
                     OffsetSpec::Equilibrium => vec![at_eq],
@@ -459,6 +576,57 @@ impl Catalog {
 /// Whether a new offset `b` repeats a kept offset `a` (of the same profile and coupling).
 fn same_offset(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-12 * (1.0 + a.abs())
+}
+
+/// The cam keys of a family: validated for `profile = "cam"`, refused for any other profile.
+fn cam_spec(path: &Path, f: &FamilySpec, field: &dyn Fn(&str) -> String) -> Result<Option<CamSpec>> {
+    let invalid = |name: &str, reason: String| Error::invalid(path, field(name), reason);
+    let keys: [(&str, bool); 8] = [
+        ("knots", f.knots.is_some()),
+        ("smoothing", f.smoothing.is_some()),
+        ("margin", f.margin.is_some()),
+        ("follower_rate", f.follower_rate.is_some()),
+        ("max_stroke", f.max_stroke.is_some()),
+        ("base_radius", f.base_radius.is_some()),
+        ("roller_radius", f.roller_radius.is_some()),
+        ("max_pressure_angle", f.max_pressure_angle.is_some()),
+    ];
+    if f.profile != "cam" {
+        if let Some((k, _)) = keys.iter().find(|(_, set)| *set) {
+            return Err(invalid(k, format!("only cams (profile = \"cam\") take `{k}`")));
+        }
+        return Ok(None);
+    }
+    let knots = f.knots.unwrap_or(30);
+    if !(4..=MAX_KNOTS).contains(&knots) {
+        return Err(invalid("knots", format!("must be 4 to {MAX_KNOTS}, got {knots}")));
+    }
+    let positive = |name: &str, v: Option<f64>, default: f64| -> Result<f64> {
+        let x = v.unwrap_or(default);
+        if x.is_finite() && x > 0.0 { Ok(x) } else { Err(invalid(name, format!("must be positive, got {x}"))) }
+    };
+    let margin = f.margin.unwrap_or(0.05);
+    if !(margin.is_finite() && (0.0..=1.0).contains(&margin)) {
+        return Err(invalid("margin", format!("must be a fraction in [0, 1], got {margin}")));
+    }
+    let follower_rate = match f.follower_rate {
+        Some(r) => Some(positive("follower_rate", Some(r), 1.0)?),
+        None => None,
+    };
+    let angle = positive("max_pressure_angle", f.max_pressure_angle, 30.0)?;
+    if angle >= 90.0 {
+        return Err(invalid("max_pressure_angle", format!("must be below 90°, got {angle}")));
+    }
+    Ok(Some(CamSpec {
+        knots: knots as u16,
+        smoothing: f.smoothing.unwrap_or(Smoothing::Auto),
+        margin,
+        follower_rate,
+        max_stroke: positive("max_stroke", f.max_stroke, 20.0)?,
+        base_radius: positive("base_radius", f.base_radius, 40.0)?,
+        roller_radius: positive("roller_radius", f.roller_radius, 8.0)?,
+        max_pressure_angle: angle,
+    }))
 }
 
 fn normalise_unit(u: &str) -> String {

@@ -19,6 +19,8 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
+use crate::cam::SplineBasis;
+
 /// Which side a one-sided compression spring engages on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Side {
@@ -41,6 +43,9 @@ pub enum Profile {
     Crank,
     /// A one-sided compression spring (ReLU-like torque).
     Compression(Side),
+    /// One signed cubic B-spline basis function of a cam (see [`crate::cam`]): a fitted cam is
+    /// the sum of its basis elements, each with its coefficient as the stiffness.
+    Spline(SplineBasis),
 }
 
 impl Profile {
@@ -68,6 +73,7 @@ impl Profile {
                     (0.0, 0.0, 0.0)
                 }
             }
+            Profile::Spline(b) => b.eval(d),
         }
     }
 
@@ -80,25 +86,28 @@ impl Profile {
             Profile::Crank => d.sin(),
             Profile::Compression(Side::Plus) => d.max(0.0),
             Profile::Compression(Side::Minus) => d.min(0.0),
+            Profile::Spline(b) => b.eval(d).1,
         }
     }
 
-    /// The profile's name in files: `linear`, `cubic`, `crank`, `compression`.
+    /// The profile's name in files: `linear`, `cubic`, `crank`, `compression`, `cam`.
     pub fn name(self) -> &'static str {
         match self {
             Profile::Linear => "linear",
             Profile::Cubic => "cubic",
             Profile::Crank => "crank",
             Profile::Compression(_) => "compression",
+            Profile::Spline(_) => "cam",
         }
     }
 
-    /// `+`, `-` or empty.
-    pub fn side(self) -> &'static str {
+    /// `+`, `-` or empty; for a cam basis function `±j/N/h` (sign, index, knots, spacing).
+    pub fn side(self) -> String {
         match self {
-            Profile::Compression(Side::Plus) => "+",
-            Profile::Compression(Side::Minus) => "-",
-            _ => "",
+            Profile::Compression(Side::Plus) => "+".into(),
+            Profile::Compression(Side::Minus) => "-".into(),
+            Profile::Spline(b) => b.side_text(),
+            _ => String::new(),
         }
     }
 
@@ -108,6 +117,7 @@ impl Profile {
             Profile::Linear | Profile::Compression(_) => "N*m/rad",
             Profile::Cubic => "N*m/rad^3",
             Profile::Crank => "N*m",
+            Profile::Spline(_) => "J",
         }
     }
 
@@ -119,6 +129,7 @@ impl Profile {
             ("crank", "") => Profile::Crank,
             ("compression", "+") => Profile::Compression(Side::Plus),
             ("compression", "-") => Profile::Compression(Side::Minus),
+            ("cam", s) => Profile::Spline(SplineBasis::parse_side(s)?),
             ("compression", s) => {
                 return Err(format!("a compression spring needs side \"+\" or \"-\", got \"{s}\""));
             }
@@ -126,7 +137,7 @@ impl Profile {
                 return Err(format!("profile `{name}` has no side, got \"{s}\""));
             }
             (other, _) => {
-                return Err(format!("unknown profile `{other}`: expected linear, cubic, crank or compression"));
+                return Err(format!("unknown profile `{other}`: expected linear, cubic, crank, compression or cam"));
             }
         };
         Ok(p)
@@ -251,7 +262,7 @@ mod tests {
             for d in [-1.3, -0.2, 0.0, 0.4, 2.0] {
                 assert_eq!(p.slope(d), p.eval(d).1);
             }
-            assert_eq!(Profile::parse(p.name(), p.side()).unwrap(), p);
+            assert_eq!(Profile::parse(p.name(), &p.side()).unwrap(), p);
         }
         assert!(Profile::parse("spiral", "").unwrap_err().contains("unknown profile"));
         assert!(Profile::parse("compression", "").is_err());

@@ -12,6 +12,7 @@ pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
 pub mod bom;
+pub mod cam;
 pub mod catalog;
 pub mod compare;
 pub mod control;

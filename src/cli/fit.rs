@@ -110,11 +110,28 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
             progress.warn(w);
         }
     }
+    for cam in &outcome.cams {
+        let r = &cam.realisation;
+        progress.say(format!(
+            "cam {} on ({}): follower {:.3} N/mm preloaded {:.2} mm, gear ratio {:.4}, max pressure angle {:.1}°, smallest convex pitch radius of curvature {:.1} mm",
+            cam.id,
+            cam.coupling.iter().map(|a| springfit::elements::fmt_number(*a)).collect::<Vec<_>>().join(", "),
+            r.build.follower_rate,
+            r.build.preload,
+            r.build.gear_ratio,
+            r.max_pressure_angle,
+            r.min_convex_curvature
+        ));
+        for v in &r.violations {
+            progress.warn(format!("cam {}: {v}", cam.id));
+        }
+    }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md"
     } else {
         "bom.csv, bom.md, summary.json, residuals.csv, histogram, potential, report.md"
     };
+    let files = if outcome.cams.is_empty() { files.to_string() } else { format!("{files}, cams/") };
     progress.say(format!("wrote {} ({files})", display(&written)));
     Ok(())
 }

@@ -139,6 +139,8 @@ pub fn callback_code(p: Profile) -> u8 {
         Profile::Crank => 3,
         Profile::Compression(Side::Plus) => 4,
         Profile::Compression(Side::Minus) => 5,
+        // Refused by `export` before any code is asked for.
+        Profile::Spline(_) => 0,
     }
 }
 
@@ -177,6 +179,15 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
         return Err(Error::Setting {
             field: "bom".into(),
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
+        });
+    }
+    if let Some(r) = rows.iter().find(|r| matches!(r.element.profile, Profile::Spline(_))) {
+        return Err(Error::Setting {
+            field: "bom".into(),
+            reason: format!(
+                "element {} is a cam basis function: cams are not exported to MuJoCo yet (no passive-force callback for them)",
+                r.id
+            ),
         });
     }
     let planar = planar_chain(design)?;

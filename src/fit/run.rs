@@ -24,6 +24,7 @@ use super::settings::{FitSettings, SolverKind};
 use crate::bom::BomRow;
 use crate::catalog::{Candidate, Catalog};
 use crate::design::Design;
+use crate::elements::Profile;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::{ExactPotential, Potential, SpringSet};
@@ -102,6 +103,8 @@ pub struct FitOutcome {
     pub stock_rates: std::collections::BTreeMap<String, Vec<f64>>,
     /// The fitted spring set (the BOM's elements and stiffnesses).
     pub springs: SpringSet,
+    /// The fitted cams, realised (empty without cams).
+    pub cams: Vec<crate::cam::FittedCam>,
     /// Residuals and checks on the held-out fan.
     pub metrics: Evaluation,
     /// How the solve went.
@@ -195,7 +198,20 @@ impl<'a> Prepared<'a> {
             hessian_match: settings.hessian_match,
             monotone: settings.monotone,
         };
-        let problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        if candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_))) {
+            if settings.max_elements > 0 {
+                return Err(Error::invalid(
+                    &design.path,
+                    "fit.max_elements",
+                    "a sparse selection with cams in the catalogue is not supported yet: set max_elements = 0 and list \
+                     only the couplings the cams may use",
+                ));
+            }
+            stage("choosing the cams' smoothing");
+            let penalty = cam_smoothing(design, catalog, settings, &candidates, &problem)?;
+            append_rows(&mut problem, &penalty);
+        }
         let t_asm = t1.elapsed().as_secs_f64();
         Ok(Prepared { design, catalog, region, training, evaluation, candidates, n_expanded, problem, t_geo, t_asm })
     }
@@ -238,10 +254,12 @@ impl<'a> Prepared<'a> {
             bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
+        let cams = crate::cam::fitted_cams(catalog, &bom);
         Ok(FitOutcome {
             design: design.name.clone(),
             dof: design.dof(),
             catalog: catalog.name.clone(),
+            cams,
             settings: *settings,
             candidates: self.n_expanded,
             dropped: self.n_expanded - self.candidates.len(),
@@ -334,6 +352,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
         bom: Vec::new(),
         stock_rates: Default::default(),
         springs: SpringSet { elements: Vec::new(), stiffness: Vec::new() },
+        cams: Vec::new(),
         metrics,
         solve: SolveReport {
             solver: "exact".into(),
@@ -391,6 +410,11 @@ fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fan, F
 /// Whether a candidate's potential changes anywhere in the region (else it is dropped).
 fn engages(c: &Candidate, q_eq: &[f64], training: &Fan, evaluation: &Fan) -> bool {
     let e = &c.element;
+    // A cam's basis functions stand or fall together: the smoothing penalty ties every
+    // coefficient to its neighbours, so none is dropped (the fit's range covers all of them).
+    if matches!(e.profile, Profile::Spline(_)) {
+        return true;
+    }
     let (_, slope, curv) = e.profile.eval(e.deflection(q_eq));
     if slope != 0.0 || curv != 0.0 {
         return true;
@@ -418,14 +442,26 @@ fn solve(
     settings: &FitSettings,
     extra: Option<&DVector<f64>>,
 ) -> Result<(Vec<f64>, SolveReport)> {
-    let p = candidates.len();
-    let unit = unit_preloads(candidates, q_eq);
     let mut gram = Gram::from_rows(&problem.rows, &problem.rhs);
     if let Some(d) = extra {
-        for j in 0..p {
+        for j in 0..candidates.len() {
             gram.g[(j, j)] += d[j];
         }
     }
+    solve_gram(problem, gram, candidates, q_eq, settings)
+}
+
+/// [`solve`] with the Gram matrix of the problem's rows given (the cams' smoothing choice adds
+/// its penalty to one Gram matrix instead of rebuilding it per weight).
+fn solve_gram(
+    problem: &FitProblem,
+    gram: Gram,
+    candidates: &[Candidate],
+    q_eq: &[f64],
+    settings: &FitSettings,
+) -> Result<(Vec<f64>, SolveReport)> {
+    let p = candidates.len();
+    let unit = unit_preloads(candidates, q_eq);
     // Equalities folded in with weight W per row: a violation δ of an equation costs as much as
     // δ / equality_weight of residual on every tangentiality row.
     let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
@@ -602,15 +638,25 @@ fn bill_of_materials(
         })
         .collect();
     let max_peak = peaks.iter().map(|p| p.0).fold(0.0, f64::max);
-    let used: Vec<usize> = (0..candidates.len()).filter(|&j| k[j] > 0.0 && peaks[j].0 > threshold * max_peak).collect();
+    // A cam's basis columns only make sense together: every one with k > 0 is kept.
+    let is_cam = |j: usize| matches!(candidates[j].element.profile, Profile::Spline(_));
+    let used: Vec<usize> =
+        (0..candidates.len()).filter(|&j| k[j] > 0.0 && (is_cam(j) || peaks[j].0 > threshold * max_peak)).collect();
+    let groups = cam_groups(candidates);
     let bom: Vec<BomRow> = used
         .iter()
         .enumerate()
         .map(|(i, &j)| {
             let c = &candidates[j];
             let stock_rate = nearest(&c.stock_rates, k[j]);
+            let id = match (c.element.profile, groups[j]) {
+                (Profile::Spline(b), Some(g)) => {
+                    format!("C{:02}.{:02}{}", g + 1, b.index, if b.negative { "-" } else { "+" })
+                }
+                _ => format!("S{:02}", i + 1),
+            };
             BomRow {
-                id: format!("S{:02}", i + 1),
+                id,
                 family: catalog.families[c.family].name.clone(),
                 element: c.element.clone(),
                 stiffness: k[j],
@@ -702,4 +748,140 @@ pub fn refit_with_fixed(
         }
     }
     Ok(k)
+}
+
+/// The cam each candidate belongs to (its family, coupling and knots), numbered in order of
+/// appearance; `None` for springs. A cam counts as one element.
+pub fn cam_groups(candidates: &[Candidate]) -> Vec<Option<usize>> {
+    let mut keys: Vec<(usize, Vec<u64>, u64)> = Vec::new();
+    candidates
+        .iter()
+        .map(|c| {
+            let Profile::Spline(b) = c.element.profile else { return None };
+            let key = (c.family, c.element.coupling.iter().map(|a| a.to_bits()).collect(), b.width_bits);
+            Some(keys.iter().position(|k| *k == key).unwrap_or_else(|| {
+                keys.push(key);
+                keys.len() - 1
+            }))
+        })
+        .collect()
+}
+
+/// Weight of the ridge Σ (k/(ω² m̄))² on cam columns (relative like the smoothing weight).
+pub const CAM_RIDGE: f64 = 1e-9;
+
+/// Smoothing weights tried by `smoothing = "auto"`, relative to the tangentiality rows.
+pub const AUTO_SMOOTHING: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
+
+/// The cams' smoothing penalty ∫V‴² dx as rows (rhs 0) for the chosen weights. Each cam's
+/// penalty is scaled by 1/(ω² m̄)² (m̄ the mean diagonal of M(q_eq)), by the number of
+/// tangentiality rows and by the family's weight λ, so λ = 1 weighs ∫(V‴/(ω² m̄))² dx like all
+/// the rows together. Families with `smoothing = "auto"` share one weight, the one of
+/// [`AUTO_SMOOTHING`] with the smallest p99 residual on a *validation* fan (directions at a
+/// quarter of the training spacing, apart from both the training and the held-out fans).
+fn cam_smoothing(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    candidates: &[Candidate],
+    problem: &FitProblem,
+) -> Result<(DMatrix<f64>, DVector<f64>)> {
+    let groups = cam_groups(candidates);
+    let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
+    let m_bar = design.chain.mass_matrix(&design.q_eq).diagonal().mean();
+    let base = (problem.rows.nrows().max(1) as f64).sqrt() / (settings.frequency.powi(2) * m_bar);
+    // Per cam: its penalty rows over all candidates, and whether its weight is "auto".
+    let mut blocks: Vec<(DMatrix<f64>, Option<f64>)> = Vec::new();
+    for g in 0..n_groups {
+        let members: Vec<usize> = (0..candidates.len()).filter(|&j| groups[j] == Some(g)).collect();
+        let first = &candidates[members[0]];
+        let Profile::Spline(b) = first.element.profile else { continue };
+        let spec = catalog.families[first.family].cam.expect("cam candidates come from cam families");
+        let knots = crate::cam::Knots { lo: first.element.offset, width: b.width(), count: b.count };
+        let d = knots.third_derivative_rows();
+        let mut block = DMatrix::zeros(d.len(), candidates.len());
+        for &j in &members {
+            let Profile::Spline(bj) = candidates[j].element.profile else { continue };
+            let sign = if bj.negative { -1.0 } else { 1.0 };
+            for (r, row) in d.iter().enumerate() {
+                block[(r, j)] = sign * row[usize::from(bj.index)] * base;
+            }
+        }
+        let weight = match spec.smoothing {
+            crate::catalog::Smoothing::Weight(w) => Some(w),
+            crate::catalog::Smoothing::Auto => None,
+        };
+        blocks.push((block, weight));
+    }
+    // A tiny ridge on every cam column: +Bⱼ and −Bⱼ together, and a constant added to every
+    // coefficient, change no torque, so without it the optimum is a ray along which an interior-
+    // point solver fails. The ridge picks the smallest coefficients and costs nothing measurable.
+    let cam_columns: Vec<usize> = (0..candidates.len()).filter(|&j| groups[j].is_some()).collect();
+    let build = |auto: f64| -> (DMatrix<f64>, DVector<f64>) {
+        let rows: usize = blocks.iter().map(|b| b.0.nrows()).sum::<usize>() + cam_columns.len();
+        let mut m = DMatrix::zeros(rows, candidates.len());
+        let mut r0 = 0;
+        for (block, w) in &blocks {
+            let w = w.unwrap_or(auto).sqrt();
+            m.view_mut((r0, 0), block.shape()).copy_from(&(block * w));
+            r0 += block.nrows();
+        }
+        for (i, &j) in cam_columns.iter().enumerate() {
+            m[(r0 + i, j)] = CAM_RIDGE.sqrt() * base;
+        }
+        (m, DVector::zeros(rows))
+    };
+    if blocks.iter().all(|b| b.1.is_some()) {
+        return Ok(build(0.0));
+    }
+    let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
+    let extent = design.valid_region()?.extent;
+    let validation = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: settings.evaluation_directions,
+            phase: 0.25,
+            stop,
+            spacing: extent / settings.evaluation_samples as f64,
+        },
+        design.geodesics.ode,
+    )?;
+    let mut best: Option<(f64, f64)> = None;
+    let gram = Gram::from_rows(&problem.rows, &problem.rhs);
+    for &w in &AUTO_SMOOTHING {
+        let (rows, rhs) = build(w);
+        let mut trial = gram.clone();
+        trial.add_weighted(&rows, &rhs, 1.0);
+        // A weight whose solve fails (infeasible, numerical trouble) is simply not chosen.
+        let Ok((k, _)) = solve_gram(problem, trial, candidates, design.q_eq.as_slice(), settings) else { continue };
+        let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+        let springs = SpringSet {
+            elements: used.iter().map(|&j| candidates[j].element.clone()).collect(),
+            stiffness: used.iter().map(|&j| k[j]).collect(),
+        };
+        let p99 = stats(&fan_angles(&design.chain, &validation, &springs)?).p99_abs;
+        if best.is_none_or(|(_, b)| p99 < b) {
+            best = Some((w, p99));
+        }
+    }
+    let (w, _) = best.ok_or_else(|| Error::Infeasible {
+        constraint: "cam smoothing".into(),
+        reason: "no smoothing weight of the automatic choice gave a solvable fit".into(),
+    })?;
+    Ok(build(w))
+}
+
+/// Appends rows (and their right-hand side) to the tangentiality rows of a problem.
+fn append_rows(problem: &mut FitProblem, extra: &(DMatrix<f64>, DVector<f64>)) {
+    let (m, p) = problem.rows.shape();
+    let r = extra.0.nrows();
+    let mut rows = DMatrix::zeros(m + r, p);
+    rows.view_mut((0, 0), (m, p)).copy_from(&problem.rows);
+    rows.view_mut((m, 0), (r, p)).copy_from(&extra.0);
+    let mut rhs = DVector::zeros(m + r);
+    rhs.rows_mut(0, m).copy_from(&problem.rhs);
+    rhs.rows_mut(m, r).copy_from(&extra.1);
+    problem.rows = rows;
+    problem.rhs = rhs;
 }

@@ -123,6 +123,16 @@ pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
     if !exact {
         out.write("bom.csv", bom::to_csv(&o.bom))?;
         out.write("bom.md", bom::to_markdown(&o.design, &o.bom))?;
+        for cam in &o.cams {
+            out.write(&format!("cams/{}.csv", cam.id), crate::cam::csv(cam))?;
+            let title = format!(
+                "{} {} on ({})",
+                o.design,
+                cam.id,
+                cam.coupling.iter().map(|a| crate::elements::fmt_number(*a)).collect::<Vec<_>>().join(", ")
+            );
+            out.write(&format!("cams/{}.svg", cam.id), crate::cam::svg(&cam.realisation, &title))?;
+        }
     }
     let summary = Summary::new(o, &design.path);
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
