@@ -451,6 +451,7 @@ mod tests {
             max_deflection_rad: 0.0,
             stock_rate: None,
             tolerance: 0.0,
+            preload_nm: None,
         }
     }
 
