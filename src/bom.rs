@@ -2,7 +2,10 @@
 //! read back to rebuild the potential exactly.
 //!
 //! Columns: `id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,
-//! max_deflection_rad,stock_rate,tolerance`. `coupling` is the vector a with entries joined by
+//! max_deflection_rad,stock_rate,tolerance,adjust_range_rad,trim_min,trim_max`. The last three
+//! say what can be set after assembly (empty when nothing): an adjustable offset's ± range and a
+//! trim spring's rate range (see [`crate::trim`]); files with the first twelve columns only (older
+//! springfit) are read as before. `coupling` is the vector a with entries joined by
 //! `;` (`1;-2`), `side` is `+`, `-` or empty. Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
@@ -14,8 +17,20 @@ use crate::error::{Error, Result};
 use crate::potential::SpringSet;
 
 /// The CSV header.
-pub const HEADER: &str =
+pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,adjust_range_rad,trim_min,trim_max";
+
+/// The header of bills of materials written before the after-assembly columns existed.
+const HEADER_12: &str =
     "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
+
+/// What can be set on an element after assembly.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Adjustment {
+    /// ± rad the offset x₀ can be moved (an adjustable family), None if fixed.
+    pub adjust_range: Option<f64>,
+    /// The rate range [lo, hi] of a trim spring, N·m/rad; None if not a trim.
+    pub trim_range: Option<[f64; 2]>,
+}
 
 /// One row of the bill of materials.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +51,8 @@ pub struct BomRow {
     pub stock_rate: Option<f64>,
     /// ± fraction the built element may deviate.
     pub tolerance: f64,
+    /// What can be set after assembly.
+    pub adjust: Adjustment,
 }
 
 /// Quotes a CSV field if it needs it.
@@ -99,6 +116,9 @@ pub fn to_csv(rows: &[BomRow]) -> String {
             format!("{}", r.max_deflection_rad),
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
             format!("{}", r.tolerance),
+            r.adjust.adjust_range.map(|x| format!("{x}")).unwrap_or_default(),
+            r.adjust.trim_range.map(|x| format!("{}", x[0])).unwrap_or_default(),
+            r.adjust.trim_range.map(|x| format!("{}", x[1])).unwrap_or_default(),
         ];
         s.push_str(&fields.join(","));
         s.push('\n');
@@ -116,16 +136,21 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
     let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
-    if header.trim_start_matches('\u{feff}').trim() != HEADER {
+    let header = header.trim_start_matches('\u{feff}').trim();
+    let width = if header == HEADER {
+        15
+    } else if header == HEADER_12 {
+        12
+    } else {
         return Err(bad(1, "header", format!("expected `{HEADER}`")));
-    }
+    };
     let mut rows = Vec::new();
     let mut dof = None;
     for (idx, line) in lines {
         let ln = idx + 1;
         let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
-        if f.len() != 12 {
-            return Err(bad(ln, "row", format!("has {} fields, expected 12", f.len())));
+        if f.len() != width {
+            return Err(bad(ln, "row", format!("has {} fields, expected {width}", f.len())));
         }
         let num = |i: usize, name: &str| -> Result<f64> {
             let v: f64 = f[i].trim().parse().map_err(|_| bad(ln, name, format!("`{}` is not a number", f[i])))?;
@@ -173,6 +198,34 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         if !(0.0..1.0).contains(&tolerance) {
             return Err(bad(ln, "tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
         }
+        let mut adjust = Adjustment::default();
+        if width == 15 {
+            if !f[12].trim().is_empty() {
+                let r = num(12, "adjust_range_rad")?;
+                if !(r > 0.0 && r <= std::f64::consts::PI) {
+                    return Err(bad(ln, "adjust_range_rad", format!("must be in (0, π] rad, got {r}")));
+                }
+                adjust.adjust_range = Some(r);
+            }
+            match (f[13].trim().is_empty(), f[14].trim().is_empty()) {
+                (true, true) => {}
+                (false, false) => {
+                    let (lo, hi) = (num(13, "trim_min")?, num(14, "trim_max")?);
+                    if !(lo >= 0.0 && hi > lo) {
+                        return Err(bad(
+                            ln,
+                            "trim_max",
+                            format!("a trim range needs 0 ≤ trim_min < trim_max, got [{lo}, {hi}]"),
+                        ));
+                    }
+                    if profile != Profile::Linear {
+                        return Err(bad(ln, "trim_min", "only linear springs can be trims".into()));
+                    }
+                    adjust.trim_range = Some([lo, hi]);
+                }
+                _ => return Err(bad(ln, "trim_max", "trim_min and trim_max are given together or not at all".into())),
+            }
+        }
         rows.push(BomRow {
             id: f[0].clone(),
             family: f[1].clone(),
@@ -182,6 +235,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             max_deflection_rad: num(9, "max_deflection_rad")?,
             stock_rate,
             tolerance,
+            adjust,
         });
     }
     if rows.is_empty() {
@@ -198,15 +252,24 @@ pub fn spring_set(rows: &[BomRow]) -> SpringSet {
     }
 }
 
+/// What a builder sets on an element after assembly, in words.
+fn after_assembly(a: &Adjustment) -> String {
+    match (a.trim_range, a.adjust_range) {
+        (Some([lo, hi]), _) => format!("trim: rate {} to {} N·m/rad", fmt_number(lo), fmt_number(hi)),
+        (None, Some(r)) => format!("offset ± {} rad", fmt_number(r)),
+        (None, None) => "–".into(),
+    }
+}
+
 /// The bill of materials as a Markdown table with totals per unit.
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     let mut s = format!("# Bill of materials: {title}\n\n");
-    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance |\n");
-    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: |\n");
+    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance | after assembly |\n");
+    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | --- |\n");
     for r in rows {
         let e = &r.element;
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | ±{}% |\n",
+            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | ±{}% | {} |\n",
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
@@ -219,6 +282,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             r.max_deflection_rad,
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
             fmt_number(r.tolerance * 100.0),
+            after_assembly(&r.adjust),
         ));
     }
     s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));
@@ -249,6 +313,7 @@ mod tests {
                 max_deflection_rad: 1.5,
                 stock_rate: None,
                 tolerance: 0.05,
+                adjust: Adjustment { adjust_range: Some(0.25), trim_range: None },
             },
             BomRow {
                 id: "S02".into(),
@@ -259,6 +324,18 @@ mod tests {
                 max_deflection_rad: 0.2,
                 stock_rate: Some(12.0),
                 tolerance: 0.1,
+                adjust: Adjustment::default(),
+            },
+            BomRow {
+                id: "S03".into(),
+                family: "trim".into(),
+                element: Element { profile: Profile::Linear, coupling: vec![1.0, 1.0], offset: 1.5 },
+                stiffness: 2.0,
+                max_torque_nm: 1.0,
+                max_deflection_rad: 0.5,
+                stock_rate: None,
+                tolerance: 0.0,
+                adjust: Adjustment { adjust_range: None, trim_range: Some([0.5, 3.5]) },
             },
         ]
     }
@@ -268,7 +345,11 @@ mod tests {
         let text = to_csv(&rows());
         let back = parse(Path::new("bom.csv"), &text).unwrap();
         assert_eq!(back, rows());
-        assert!(to_markdown("t", &rows()).contains("N*m/rad: 12.5000 over 1 element(s)"));
+        assert!(to_markdown("t", &rows()).contains("N*m/rad: 14.5000 over 2 element(s)"));
+        assert!(to_markdown("t", &rows()).contains("trim: rate 0.5 to 3.5 N·m/rad"));
+        // A twelve-column file of an older springfit still reads.
+        let old = format!("{HEADER_12}\nS01,a,linear,,1;0,0,1,N*m/rad,1,1,,0\n");
+        assert_eq!(parse(Path::new("bom.csv"), &old).unwrap()[0].adjust, Adjustment::default());
     }
 
     #[test]
@@ -285,6 +366,9 @@ mod tests {
             (String::new(), "header"),
             (good.replacen("id,", "ident,", 1), "header"),
             (good.replace("S01,", "S01,extra,"), "line 2: row"),
+            (good.replace(",0.5,3.5", ",3.5,0.5"), "line 4: trim_max"),
+            (good.replace(",0.5,3.5", ",0.5,"), "line 4: trim_max"),
+            (good.replace(",0.25,,", ",-1,,"), "line 2: adjust_range_rad"),
         ];
         for (text, expected) in cases {
             let err = parse(Path::new("bom.csv"), &text).unwrap_err().to_string();
@@ -297,7 +381,7 @@ mod tests {
     /// evaluating it take seconds. No design has more than eight joints.
     #[test]
     fn couplings_longer_than_the_longest_chain_are_errors() {
-        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0\n");
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,\n");
         let wide = vec!["1"; 2000].join(";");
         let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");

@@ -10,6 +10,7 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod asbuilt;
 pub mod bom;
 pub mod catalog;
 pub mod compare;
@@ -31,4 +32,5 @@ pub mod scenario;
 pub mod simulate;
 pub mod sweep;
 pub mod tolerance;
+pub mod trim;
 pub mod units;

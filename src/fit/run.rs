@@ -232,6 +232,8 @@ impl<'a> Prepared<'a> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
         })
+        // Trim springs (never candidates) join at mid-range; the rest is refitted around them.
+        .and_then(|o| crate::trim::place(design, catalog, o))
     }
 }
 
@@ -498,6 +500,10 @@ fn bill_of_materials(
                 max_deflection_rad: peaks[j].1,
                 stock_rate,
                 tolerance: c.tolerance,
+                adjust: crate::bom::Adjustment {
+                    adjust_range: catalog.families[c.family].adjust_range,
+                    trim_range: None,
+                },
             }
         })
         .collect();
