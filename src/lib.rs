@@ -33,4 +33,5 @@ pub mod simulate;
 pub mod sweep;
 pub mod tolerance;
 pub mod trim;
+pub mod tune;
 pub mod units;

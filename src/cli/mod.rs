@@ -8,6 +8,7 @@ mod geodesics;
 mod progress;
 mod simulate;
 mod sweep;
+mod tune;
 
 use std::path::PathBuf;
 
@@ -154,6 +155,21 @@ from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.s
         #[arg(long, value_name = "R,R,…", value_delimiter = ',')]
         radii: Option<Vec<f64>>,
     },
+    /// Offsets and trim rates to set on a built arm, from its measured spring rates.
+    #[command(after_help = "Example:\n  springfit tune designs/double_pendulum.toml --measured built.csv\n\n\
+MEASURED is the fit's bom.csv with a measured_stiffness column added (blank = as designed).\n\
+Adjustable offsets put the equilibrium back at q_eq, trim rates restore the Hessian match, then\n\
+the residual is made as small as the freedom left allows. Writes bom_tuned.csv, tune.json, tune.md.")]
+    Tune {
+        /// Design file (TOML).
+        design: PathBuf,
+        /// The bill of materials with a measured_stiffness column.
+        #[arg(long, value_name = "FILE")]
+        measured: PathBuf,
+        /// Output folder (default: out/<design name>_tune).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(after_help = "Example:\n  springfit check designs/double_pendulum.toml")]
     Check {
@@ -204,6 +220,7 @@ pub fn run() -> Result<()> {
             simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &progress)
         }
         Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
+        Command::Tune { design, measured, out } => tune::run(&design, &measured, out, &progress),
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {
                 SolverArg::Nnls => SolverKind::Nnls,
