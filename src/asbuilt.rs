@@ -130,7 +130,7 @@ pub struct Build {
 }
 
 /// p50 and p95 over builds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct Spread {
     pub p50: f64,
     pub p95: f64,
@@ -157,7 +157,7 @@ pub struct Trimmed {
 }
 
 /// `"as_built"` of `summary.json`: p50 and p95 over the builds.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AsBuilt {
     /// `"catalogue"` or the ± fraction the builds were drawn at.
     pub tolerance: ToleranceSpec,
@@ -326,6 +326,33 @@ pub fn summarise(s: &BuildSettings, builds: &[Build]) -> AsBuilt {
         shift_rad: Spread::of(builds.iter().map(|b| b.shift_rad)),
         shift_metric: Spread::of(builds.iter().map(|b| b.shift_metric)),
         trimmed,
+    }
+}
+
+/// The p99 figures compare and pareto list: (untrimmed p50, p95), and trimmed (p50, p95) if any.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Brief {
+    pub p99_deg: Spread,
+    pub trimmed_p99_deg: Option<Spread>,
+}
+
+impl Brief {
+    /// From the summary.
+    pub fn of(ab: &AsBuilt) -> Brief {
+        Brief { p99_deg: ab.p99_deg, trimmed_p99_deg: ab.trimmed.map(|t| t.p99_deg) }
+    }
+
+    /// From the `"as_built"` object of a `summary.json` (None if absent or null).
+    pub fn from_json(v: &serde_json::Value) -> Option<Brief> {
+        let spread = |v: &serde_json::Value| -> Option<Spread> {
+            let num = |k: &str| v.get(k).map(|x| x.as_f64().unwrap_or(f64::INFINITY));
+            Some(Spread { p50: num("p50")?, p95: num("p95")? })
+        };
+        let ab = v.get("as_built").filter(|x| !x.is_null())?;
+        Some(Brief {
+            p99_deg: spread(ab.get("p99_deg")?)?,
+            trimmed_p99_deg: ab.get("trimmed").and_then(|t| t.get("p99_deg")).and_then(spread),
+        })
     }
 }
 

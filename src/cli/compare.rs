@@ -35,9 +35,15 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
         let record = if input.extension().is_some_and(|e| e == "toml") && input.is_file() {
             let step = progress.step(&format!("fitting {}", input.display()));
             let (design, catalog) = load_design_catalog(input)?;
-            let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+            let outcome = fit(&design, &catalog, &design.fit, &|_| {}).and_then(|o| {
+                let ab = springfit::asbuilt::of_fit(&design, &o)?;
+                Ok((o, ab))
+            });
             step.finish();
-            record_of(&outcome?, input)
+            let (outcome, ab) = outcome?;
+            let mut r = record_of(&outcome, input);
+            r.as_built = ab.as_ref().map(springfit::asbuilt::Brief::of);
+            r
         } else {
             load_fit_dir(input)?
         };
@@ -75,6 +81,15 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
             r.stats.max_abs,
             r.actuator_share.map(|a| format!(", actuator share {:.3} %", 100.0 * a)).unwrap_or_default()
         ));
+        if let Some(b) = &r.as_built {
+            progress.say(format!(
+                "  as built p99 (p50 / p95 over builds): {}{}",
+                springfit::compare::spread_md(Some(b.p99_deg)),
+                b.trimmed_p99_deg
+                    .map(|t| format!("; trimmed {}", springfit::compare::spread_md(Some(t))))
+                    .unwrap_or_default()
+            ));
+        }
     }
     progress.say(format!("wrote {} (compare.csv, compare.md, compare.svg, compare.png)", written.display()));
     Ok(())
@@ -127,9 +142,31 @@ pub fn pareto(
     let dir = OutputDir::create(&target)?;
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
     let written = dir.commit()?;
-    progress.say("budget K: springs used, p99, max");
+    progress.say("budget K: springs used, p99, max; as built p99 p50 / p95 over builds (untrimmed; trimmed)");
     for b in &curve {
-        progress.say(format!("  {:>3}: {:>3}  {:.4}°  {:.4}°", b.budget, b.used, b.stats.p99_abs, b.stats.max_abs));
+        progress.say(format!(
+            "  {:>3}: {:>3}  {:.4}°  {:.4}°  {}{}",
+            b.budget,
+            b.used,
+            b.stats.p99_abs,
+            b.stats.max_abs,
+            springfit::compare::spread_md(b.as_built.map(|a| a.p99_deg)),
+            b.as_built
+                .and_then(|a| a.trimmed_p99_deg)
+                .map(|t| format!("; {}", springfit::compare::spread_md(Some(t))))
+                .unwrap_or_default()
+        ));
+    }
+    if let Some(best) = springfit::compare::best_as_built(&curve) {
+        progress.say(format!(
+            "best as built: K = {} (as-built p95 of the p99 {:.3}°{})",
+            best.budget,
+            best.as_built.map(|a| a.trimmed_p99_deg.unwrap_or(a.p99_deg).p95).unwrap_or(f64::NAN),
+            if best.as_built.is_some_and(|a| a.trimmed_p99_deg.is_some()) { ", trimmed" } else { "" }
+        ));
+    } else {
+        progress
+            .say("as built: no tolerance to draw builds at ([fit] tolerance = \"none\" and no catalogue tolerance)");
     }
     progress.say("radius: springs used, p99, max");
     for r in &rcurve {

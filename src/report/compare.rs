@@ -71,24 +71,52 @@ pub fn write_pareto(
     radii: &[RadiusPoint],
     budget_for_radii: usize,
 ) -> Result<()> {
-    let mut csv = String::from("curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg\n");
-    let mut md = format!(
-        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\n| budget K | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n"
+    let mut csv = String::from(
+        "curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg\n",
     );
+    let mut md = format!(
+        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
+    );
+    let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
     for b in budgets {
+        let ab = b.as_built;
+        let tr = ab.and_then(|a| a.trimmed_p99_deg);
         csv.push_str(&format!(
-            "budget,{},,{},{},{},{},{}\n",
-            b.budget, b.used, b.stats.median_abs, b.stats.p95_abs, b.stats.p99_abs, b.stats.max_abs
+            "budget,{},,{},{},{},{},{},{},{},{},{}\n",
+            b.budget,
+            b.used,
+            b.stats.median_abs,
+            b.stats.p95_abs,
+            b.stats.p99_abs,
+            b.stats.max_abs,
+            opt(ab.map(|a| a.p99_deg.p50)),
+            opt(ab.map(|a| a.p99_deg.p95)),
+            opt(tr.map(|t| t.p50)),
+            opt(tr.map(|t| t.p95))
         ));
         md.push_str(&format!(
-            "| {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n",
-            b.budget, b.used, b.stats.median_abs, b.stats.p95_abs, b.stats.p99_abs, b.stats.max_abs
+            "| {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° | {} | {} |\n",
+            b.budget,
+            b.used,
+            b.stats.median_abs,
+            b.stats.p95_abs,
+            b.stats.p99_abs,
+            b.stats.max_abs,
+            crate::compare::spread_md(ab.map(|a| a.p99_deg)),
+            crate::compare::spread_md(tr)
+        ));
+    }
+    if let Some(best) = crate::compare::best_as_built(budgets) {
+        md.push_str(&format!(
+            "\n**Best as built: K = {}** (smallest as-built p95 of the p99{}): the budget to buy.\n",
+            best.budget,
+            if best.as_built.is_some_and(|a| a.trimmed_p99_deg.is_some()) { ", trimmed" } else { "" }
         ));
     }
     md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
     for r in radii {
         csv.push_str(&format!(
-            "radius,,{},{},{},{},{},{}\n",
+            "radius,,{},{},{},{},{},{},,,,\n",
             r.radius, r.used, r.stats.median_abs, r.stats.p95_abs, r.stats.p99_abs, r.stats.max_abs
         ));
         md.push_str(&format!(
@@ -111,6 +139,25 @@ pub fn write_pareto(
     };
     let b99: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.p99_abs)).collect();
     let bmax: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.max_abs)).collect();
+    // As built: p95 over builds of the p99, untrimmed and trimmed.
+    let ab95: Vec<(f64, f64)> =
+        budgets.iter().filter_map(|b| b.as_built.map(|a| (b.budget as f64, a.p99_deg.p95))).collect();
+    let tr95: Vec<(f64, f64)> = budgets
+        .iter()
+        .filter_map(|b| b.as_built.and_then(|a| a.trimmed_p99_deg).map(|t| (b.budget as f64, t.p95)))
+        .collect();
+    let mut budget_layers = vec![
+        line(b99.clone(), 0, "p99 (nominal)"),
+        dots(b99, 0),
+        line(bmax.clone(), 1, "max (nominal)"),
+        dots(bmax, 1),
+    ];
+    if !ab95.is_empty() {
+        budget_layers.extend([line(ab95.clone(), 2, "as built: p95 of p99"), dots(ab95, 2)]);
+    }
+    if !tr95.is_empty() {
+        budget_layers.extend([line(tr95.clone(), 3, "trimmed: p95 of p99"), dots(tr95, 3)]);
+    }
     let r99: Vec<(f64, f64)> = radii.iter().map(|r| (r.radius, r.stats.p99_abs)).collect();
     let rmax: Vec<(f64, f64)> = radii.iter().map(|r| (r.radius, r.stats.max_abs)).collect();
     let panels = vec![
@@ -119,7 +166,7 @@ pub fn write_pareto(
             x_label: "springs allowed K".into(),
             y_label: "|residual angle| (°)".into(),
             legend: true,
-            layers: vec![line(b99.clone(), 0, "p99"), dots(b99, 0), line(bmax.clone(), 1, "max"), dots(bmax, 1)],
+            layers: budget_layers,
             ..Panel::default()
         },
         Panel {
