@@ -184,7 +184,7 @@ pub fn effective_tolerance(spec: ToleranceSpec, bom: &[BomRow]) -> Option<Tolera
     match spec {
         ToleranceSpec::None if bom.iter().any(|r| r.tolerance > 0.0) => Some(ToleranceSpec::Catalogue),
         ToleranceSpec::None => None,
-        ToleranceSpec::Fraction(t) if t == 0.0 => None,
+        ToleranceSpec::Fraction(0.0) => None,
         ToleranceSpec::Catalogue if bom.iter().all(|r| r.tolerance == 0.0) => None,
         s => Some(s),
     }
