@@ -313,7 +313,7 @@ mod tests {
                 max_deflection_rad: 1.5,
                 stock_rate: None,
                 tolerance: 0.05,
-                adjust: Adjustment { adjust_range: Some(0.25), trim_range: None },
+                adjust: Adjustment { adjust_range: Some(0.3), trim_range: None },
             },
             BomRow {
                 id: "S02".into(),
@@ -368,7 +368,7 @@ mod tests {
             (good.replace("S01,", "S01,extra,"), "line 2: row"),
             (good.replace(",0.5,3.5", ",3.5,0.5"), "line 4: trim_max"),
             (good.replace(",0.5,3.5", ",0.5,"), "line 4: trim_max"),
-            (good.replace(",0.25,,", ",-1,,"), "line 2: adjust_range_rad"),
+            (good.replace(",0.3,,", ",-1,,"), "line 2: adjust_range_rad"),
         ];
         for (text, expected) in cases {
             let err = parse(Path::new("bom.csv"), &text).unwrap_err().to_string();

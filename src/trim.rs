@@ -76,7 +76,8 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
     elements.extend(trims.iter().map(|t| t.element.clone()));
     let mut fixed: Vec<Option<f64>> = vec![None; used];
     fixed.extend(trims.iter().map(|t| Some(0.5 * (t.range[0] + t.range[1]))));
-    let k = refit_with_fixed(design, &o.settings, &o.training, &elements, &fixed)?;
+    let mut k = refit_with_fixed(design, &o.settings, &o.training, &elements, &fixed)?;
+    polish_equalities(design, &o.settings, &elements, &mut k, used);
     let mut rows: Vec<BomRow> = Vec::new();
     for (j, row) in o.bom.iter().enumerate() {
         if k[j] > 0.0 {
@@ -129,6 +130,47 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
     o.timings.solve += dt;
     o.timings.total += dt;
     Ok(o)
+}
+
+/// The NNLS refit meets the equalities only by weighting: move the fitted (non-trim) elements by
+/// the smallest change that makes ∇U(q_eq) = 0 and ∇²U(q_eq) = ω² M(q_eq) (or, without the
+/// Hessian match, only the equilibrium) exact again. The change is of the order of the weighted
+/// residual (1e-6 relative); a rate it would make negative is left at zero.
+fn polish_equalities(
+    design: &Design,
+    settings: &crate::fit::settings::FitSettings,
+    elements: &[crate::elements::Element],
+    k: &mut [f64],
+    fitted: usize,
+) {
+    let n = design.dof();
+    let q = design.q_eq.as_slice();
+    let chain = &design.chain;
+    let m = chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
+    let scale = m.norm().max(f64::MIN_POSITIVE);
+    let pairs: Vec<(usize, usize)> =
+        if settings.hessian_match { (0..n).flat_map(|i| (i..n).map(move |j| (i, j))).collect() } else { Vec::new() };
+    let rows = n + pairs.len();
+    let coef = |e: &crate::elements::Element, r: usize| -> f64 {
+        let (_, slope, curv) = e.profile.eval(e.deflection(q));
+        if r < n { slope * e.coupling[r] } else { curv * e.coupling[pairs[r - n].0] * e.coupling[pairs[r - n].1] }
+    };
+    let grav = chain.gravity_gradient(q);
+    let grav_h = chain.gravity_hessian(q);
+    for _ in 0..3 {
+        let mut resid = DVector::zeros(rows);
+        for r in 0..rows {
+            let have: f64 = elements.iter().zip(k.iter()).map(|(e, kj)| kj * coef(e, r)).sum();
+            let want = if r < n { -grav[r] } else { m[pairs[r - n]] - grav_h[pairs[r - n]] };
+            resid[r] = (want - have) / scale;
+        }
+        let free: Vec<usize> = (0..fitted).filter(|&j| k[j] > 0.0).collect();
+        let jac = DMatrix::from_fn(rows, free.len(), |r, c| coef(&elements[free[c]], r) / scale);
+        let Some((dk, _)) = min_residual(&jac, &resid) else { return };
+        for (c, &j) in free.iter().enumerate() {
+            k[j] = (k[j] + dk[c]).max(0.0);
+        }
+    }
 }
 
 /// Upper-triangle entries (i ≤ k) of a symmetric matrix, off-diagonals weighted by √2 so that
