@@ -718,4 +718,37 @@ offsets = { phases = 4 }
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
     }
+
+    /// Trim families are never fit candidates, carry one trim per coupling relaxed at q_eq, and
+    /// every inconsistent after-assembly key is an error naming the field.
+    #[test]
+    fn trim_and_adjustable_families() {
+        let base =
+            "[[family]]\nname = \"s\"\nprofile = \"linear\"\ncouplings = \"joints\"\noffsets = \"equilibrium\"\n";
+        let text = format!(
+            "{base}adjustable = true\nadjust_range = 0.2\n{}",
+            base.replace("\"s\"", "\"t\"") + "trim = true\ntrim_range = [0.0, 6.0]\n"
+        );
+        let c = load(&text, 2).unwrap();
+        assert_eq!(c.families[0].adjust_range, Some(0.2));
+        let cand = c.expand(&[0.0, 1.0], |_| (-1.0, 1.0));
+        assert!(cand.iter().all(|x| x.family == 0) && cand.len() == 2);
+        let trims = c.trims(&[0.0, 1.0]);
+        assert_eq!(trims.len(), 2);
+        assert_eq!(trims[1].element.offset, 1.0);
+        assert_eq!(trims[1].range, [0.0, 6.0]);
+        for (extra, field) in [
+            ("adjustable = true\n", "adjust_range"),
+            ("adjust_range = 0.2\n", "adjust_range"),
+            ("adjustable = true\nadjust_range = 5.0\n", "adjust_range"),
+            ("trim = true\n", "trim_range"),
+            ("trim = true\ntrim_range = [3.0, 1.0]\n", "trim_range"),
+            ("trim = true\ntrim_range = [0.0, 1.0]\nmax_stiffness = 3.0\n", "trim_range"),
+        ] {
+            let err = load(&format!("{base}{extra}"), 2).unwrap_err().to_string();
+            assert!(err.contains(&format!("family[0].{field}")), "{extra}: {err}");
+        }
+        let crank = base.replace("\"linear\"", "\"crank\"") + "trim = true\ntrim_range = [0.0, 1.0]\n";
+        assert!(load(&crank, 2).unwrap_err().to_string().contains("family[0].profile"));
+    }
 }
