@@ -2,10 +2,13 @@
 //! read back to rebuild the potential exactly.
 //!
 //! Columns: `id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,
-//! max_deflection_rad,stock_rate,tolerance,preload_nm`. `coupling` is the vector a with entries
-//! joined by `;` (`1;-2`), `side` is `+`, `-` or empty, `preload_nm` the element's torque on its
-//! coordinate at the equilibrium (signed; empty when unknown). Files written before the preload
-//! column existed (ending at `tolerance`) are read as well. Numbers are written with Rust's shortest
+//! max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max`.
+//! `coupling` is the vector a with entries joined by `;` (`1;-2`), `side` is `+`, `-` or empty,
+//! `preload_nm` the element's torque on its coordinate at the equilibrium (signed; empty when
+//! unknown). The last three say what can be set after assembly (empty when nothing): an adjustable
+//! offset's ± range and a trim spring's rate range (see [`crate::trim`]). Files of older springfit
+//! versions (twelve columns, ending at `tolerance`, or thirteen, ending at `preload_nm`) are read
+//! as well. Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
 use std::path::Path;
@@ -16,11 +19,23 @@ use crate::error::{Error, Result};
 use crate::potential::SpringSet;
 
 /// The CSV header.
-pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm";
+pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max";
+
+/// The header of files with the preload but before the after-assembly columns (still read).
+const HEADER_13: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm";
 
 /// The header of files written before the `preload_nm` column (still read).
 pub const HEADER_WITHOUT_PRELOAD: &str =
     "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
+
+/// What can be set on an element after assembly.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Adjustment {
+    /// ± rad the offset x₀ can be moved (an adjustable family), None if fixed.
+    pub adjust_range: Option<f64>,
+    /// The rate range [lo, hi] of a trim spring, N·m/rad; None if not a trim.
+    pub trim_range: Option<[f64; 2]>,
+}
 
 /// One row of the bill of materials.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,6 +59,8 @@ pub struct BomRow {
     /// Torque on the element's coordinate at the equilibrium, k·u′(a·q_eq − x₀), N·m (signed).
     /// None when read from a file without the column.
     pub preload_nm: Option<f64>,
+    /// What can be set after assembly.
+    pub adjust: Adjustment,
 }
 
 /// Quotes a CSV field if it needs it.
@@ -108,6 +125,9 @@ pub fn to_csv(rows: &[BomRow]) -> String {
             r.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
             format!("{}", r.tolerance),
             r.preload_nm.map(|x| format!("{x}")).unwrap_or_default(),
+            r.adjust.adjust_range.map(|x| format!("{x}")).unwrap_or_default(),
+            r.adjust.trim_range.map(|x| format!("{}", x[0])).unwrap_or_default(),
+            r.adjust.trim_range.map(|x| format!("{}", x[1])).unwrap_or_default(),
         ];
         s.push_str(&fields.join(","));
         s.push('\n');
@@ -127,11 +147,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
     let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
     let header = header.trim_start_matches('\u{feff}').trim();
     let columns = if header == HEADER {
+        16
+    } else if header == HEADER_13 {
         13
     } else if header == HEADER_WITHOUT_PRELOAD {
         12
     } else {
-        return Err(bad(1, "header", format!("expected `{HEADER}` (or the same without `,preload_nm`)")));
+        return Err(bad(1, "header", format!("expected `{HEADER}` (or an older file's first 12 or 13 of those columns)")));
     };
     let mut rows = Vec::new();
     let mut dof = None;
@@ -188,6 +210,34 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             return Err(bad(ln, "tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
         }
         let preload_nm = if columns < 13 || f[12].trim().is_empty() { None } else { Some(num(12, "preload_nm")?) };
+        let mut adjust = Adjustment::default();
+        if columns == 16 {
+            if !f[13].trim().is_empty() {
+                let r = num(13, "adjust_range_rad")?;
+                if !(r > 0.0 && r <= std::f64::consts::PI) {
+                    return Err(bad(ln, "adjust_range_rad", format!("must be in (0, π] rad, got {r}")));
+                }
+                adjust.adjust_range = Some(r);
+            }
+            match (f[14].trim().is_empty(), f[15].trim().is_empty()) {
+                (true, true) => {}
+                (false, false) => {
+                    let (lo, hi) = (num(14, "trim_min")?, num(15, "trim_max")?);
+                    if !(lo >= 0.0 && hi > lo) {
+                        return Err(bad(
+                            ln,
+                            "trim_max",
+                            format!("a trim range needs 0 ≤ trim_min < trim_max, got [{lo}, {hi}]"),
+                        ));
+                    }
+                    if profile != Profile::Linear {
+                        return Err(bad(ln, "trim_min", "only linear springs can be trims".into()));
+                    }
+                    adjust.trim_range = Some([lo, hi]);
+                }
+                _ => return Err(bad(ln, "trim_max", "trim_min and trim_max are given together or not at all".into())),
+            }
+        }
         rows.push(BomRow {
             id: f[0].clone(),
             family: f[1].clone(),
@@ -198,6 +248,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             stock_rate,
             tolerance,
             preload_nm,
+            adjust,
         });
     }
     if rows.is_empty() {
@@ -238,15 +289,24 @@ pub fn fingerprint(set: &SpringSet) -> String {
     format!("{h:016x}")
 }
 
+/// What a builder sets on an element after assembly, in words.
+fn after_assembly(a: &Adjustment) -> String {
+    match (a.trim_range, a.adjust_range) {
+        (Some([lo, hi]), _) => format!("trim: rate {} to {} N·m/rad", fmt_number(lo), fmt_number(hi)),
+        (None, Some(r)) => format!("offset ± {} rad", fmt_number(r)),
+        (None, None) => "–".into(),
+    }
+}
+
 /// The bill of materials as a Markdown table with totals per unit.
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     let mut s = format!("# Bill of materials: {title}\n\n");
-    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance | preload (N·m) |\n");
-    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n");
+    s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance | preload (N·m) | after assembly |\n");
+    s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- |\n");
     for r in rows {
         let e = &r.element;
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} | {} |\n",
+            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} | {} | {} |\n",
             r.id,
             r.family.replace('|', "/"),
             e.profile.name(),
@@ -265,6 +325,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
                 format!("±{} %", fmt_number(r.tolerance * 100.0))
             },
             r.preload_nm.map(|x| format!("{x:.3}")).unwrap_or_else(|| "–".into()),
+            after_assembly(&r.adjust),
         ));
     }
     s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));
@@ -302,6 +363,7 @@ mod tests {
                 stock_rate: None,
                 tolerance: 0.05,
                 preload_nm: Some(-0.125),
+                adjust: Adjustment { adjust_range: Some(0.3), trim_range: None },
             },
             BomRow {
                 id: "S02".into(),
@@ -313,6 +375,19 @@ mod tests {
                 stock_rate: Some(12.0),
                 tolerance: 0.1,
                 preload_nm: Some(2.5),
+                adjust: Adjustment::default(),
+            },
+            BomRow {
+                id: "S03".into(),
+                family: "trim".into(),
+                element: Element { profile: Profile::Linear, coupling: vec![1.0, 1.0], offset: 1.5 },
+                stiffness: 2.0,
+                max_torque_nm: 1.0,
+                max_deflection_rad: 0.5,
+                stock_rate: None,
+                tolerance: 0.0,
+                adjust: Adjustment { adjust_range: None, trim_range: Some([0.5, 3.5]) },
+                preload_nm: Some(0.0),
             },
         ]
     }
@@ -323,7 +398,7 @@ mod tests {
         let back = parse(Path::new("bom.csv"), &text).unwrap();
         assert_eq!(back, rows());
         let md = to_markdown("t", &rows());
-        assert!(md.contains("N*m/rad: 12.5000 over 1 element(s)"));
+        assert!(md.contains("N*m/rad: 14.5000 over 2 element(s)"));
         assert!(md.contains("Σ|τ(q_eq)| = 2.625 N·m"), "{md}");
     }
 
@@ -334,18 +409,20 @@ mod tests {
         let mut old = String::from(HEADER_WITHOUT_PRELOAD);
         old.push('\n');
         for line in to_csv(&rows()).lines().skip(1) {
-            old.push_str(line.rsplit_once(',').unwrap().0);
+            old.push_str(&line.split(',').take(12).collect::<Vec<_>>().join(","));
             old.push('\n');
         }
         let back = parse(Path::new("bom.csv"), &old).unwrap();
-        let want: Vec<BomRow> = rows().into_iter().map(|r| BomRow { preload_nm: None, ..r }).collect();
+        let want: Vec<BomRow> =
+            rows().into_iter().map(|r| BomRow { preload_nm: None, adjust: Adjustment::default(), ..r }).collect();
         assert_eq!(back, want);
         assert!(!to_markdown("t", &back).contains("Total preload"));
         let bad = to_csv(&rows()).replace(",-0.125", ",x");
         assert!(parse(Path::new("bom.csv"), &bad).unwrap_err().to_string().contains("line 2: preload_nm"));
         // Old rows under the new header have a field too few.
         let mixed = old.replacen(HEADER_WITHOUT_PRELOAD, HEADER, 1);
-        assert!(parse(Path::new("bom.csv"), &mixed).unwrap_err().to_string().contains("expected 13"));
+        assert!(parse(Path::new("bom.csv"), &mixed).unwrap_err().to_string().contains("expected 16"));
+        assert!(to_markdown("t", &rows()).contains("trim: rate 0.5 to 3.5 N·m/rad"));
     }
 
     #[test]
@@ -362,6 +439,9 @@ mod tests {
             (String::new(), "header"),
             (good.replacen("id,", "ident,", 1), "header"),
             (good.replace("S01,", "S01,extra,"), "line 2: row"),
+            (good.replace(",0.5,3.5", ",3.5,0.5"), "line 4: trim_max"),
+            (good.replace(",0.5,3.5", ",0.5,"), "line 4: trim_max"),
+            (good.replace(",0.3,,", ",-1,,"), "line 2: adjust_range_rad"),
         ];
         for (text, expected) in cases {
             let err = parse(Path::new("bom.csv"), &text).unwrap_err().to_string();
@@ -374,7 +454,7 @@ mod tests {
     /// evaluating it take seconds. No design has more than eight joints.
     #[test]
     fn couplings_longer_than_the_longest_chain_are_errors() {
-        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,\n");
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,,\n");
         let wide = vec!["1"; 2000].join(";");
         let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");

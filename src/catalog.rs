@@ -17,9 +17,16 @@
 //! max_stiffness = 40.0            # optional, in the profile's unit
 //! stock_rates = [1, 2, 5, 10, 20] # optional: what the supplier sells, same unit
 //! tolerance = 0.1                 # ± fraction of the stiffness a built spring may deviate
+//! adjustable = true               # optional: the offset can be moved after assembly …
+//! adjust_range = 0.2              # … by up to ± this many rad (a preload screw, a crank phase)
 //! ```
 //!
 //! Compression springs also take `side = "+"`, `"-"` or `"both"`.
+//!
+//! A **trim** family (`trim = true`, `trim_range = [lo, hi]` in N·m/rad) lists linear springs
+//! relaxed at the equilibrium whose rate is set after assembly (see [`crate::trim`]). Trims are
+//! not fit candidates: every listed coupling carries one, placed at the mid-range rate, and the
+//! fit fits the other elements around them.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -102,6 +109,19 @@ pub struct FamilySpec {
     /// Cams: largest pressure angle in degrees (default 30).
     #[serde(default)]
     pub max_pressure_angle: Option<f64>,
+    /// Whether the element's offset x₀ can be moved after assembly (needs `adjust_range`).
+    #[serde(default)]
+    pub adjustable: bool,
+    /// ± range in rad by which an adjustable element's offset can be moved.
+    #[serde(default)]
+    pub adjust_range: Option<f64>,
+    /// Whether the family lists trim springs: linear, relaxed at the equilibrium, rate set after
+    /// assembly within `trim_range` (needs `trim_range`).
+    #[serde(default)]
+    pub trim: bool,
+    /// [lo, hi] of a trim spring's rate, N·m/rad.
+    #[serde(default)]
+    pub trim_range: Option<[f64; 2]>,
 }
 
 /// The smoothing weight of a cam family: a number, or chosen on validation geodesics.
@@ -269,6 +289,21 @@ pub struct Family {
     pub tolerance: f64,
     /// Cam settings (`profile = "cam"`; `profiles` is then empty).
     pub cam: Option<CamSpec>,
+    /// ± rad an adjustable element's offset can be moved after assembly (None: fixed).
+    pub adjust_range: Option<f64>,
+    /// A trim family's rate range [lo, hi], N·m/rad (None: not a trim family).
+    pub trim_range: Option<[f64; 2]>,
+}
+
+/// A trim spring the catalogue places on the design (see [`Catalog::trims`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrimSpring {
+    /// Index of its family.
+    pub family: usize,
+    /// The element: linear, relaxed at the equilibrium.
+    pub element: Element,
+    /// Its rate range [lo, hi], N·m/rad.
+    pub range: [f64; 2],
 }
 
 /// A validated catalogue for a robot with a given number of joints.
@@ -322,6 +357,7 @@ impl Catalog {
         }
         let mut families = Vec::new();
         let mut candidates = 0usize;
+        let mut trims = 0usize;
         for (i, f) in file.family.iter().enumerate() {
             let field = |name: &str| format!("family[{i}].{name}");
             let side = f.side.as_deref();
@@ -478,6 +514,73 @@ impl Catalog {
             if f.name.trim().is_empty() {
                 return Err(invalid(field("name"), "must not be empty".into()));
             }
+            let adjust_range = match (f.adjustable, f.adjust_range) {
+                (false, None) => None,
+                (true, Some(r)) if r.is_finite() && r > 0.0 && r <= std::f64::consts::PI => Some(r),
+                (true, Some(r)) => {
+                    return Err(invalid(field("adjust_range"), format!("must be in (0, π] rad, got {r}")));
+                }
+                (true, None) => {
+                    return Err(invalid(
+                        field("adjust_range"),
+                        "an adjustable family needs adjust_range (± rad the offset can be moved)".into(),
+                    ));
+                }
+                (false, Some(_)) => {
+                    return Err(invalid(field("adjust_range"), "is only meaningful with adjustable = true".into()));
+                }
+            };
+            let trim_range = match (f.trim, f.trim_range) {
+                (false, None) => None,
+                (false, Some(_)) => {
+                    return Err(invalid(field("trim_range"), "is only meaningful with trim = true".into()));
+                }
+                (true, None) => {
+                    return Err(invalid(
+                        field("trim_range"),
+                        "a trim family needs trim_range = [lo, hi] (N·m/rad the rate can be set to)".into(),
+                    ));
+                }
+                (true, Some([lo, hi])) => {
+                    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+                        return Err(invalid(
+                            field("trim_range"),
+                            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{lo}, {hi}]"),
+                        ));
+                    }
+                    if profiles != [Profile::Linear] {
+                        return Err(invalid(field("profile"), "trim springs are linear".into()));
+                    }
+                    if !matches!(f.offsets, OffsetSpec::Equilibrium) {
+                        return Err(invalid(
+                            field("offsets"),
+                            "trim springs are relaxed at the equilibrium: offsets = \"equilibrium\"".into(),
+                        ));
+                    }
+                    if adjust_range.is_some() {
+                        return Err(invalid(
+                            field("adjustable"),
+                            "a trim spring is re-relaxed when it is set; it takes no adjust_range".into(),
+                        ));
+                    }
+                    if f.max_stiffness.is_some() || !f.stock_rates.is_empty() {
+                        return Err(invalid(
+                            field("trim_range"),
+                            "a trim family's rates are its trim_range (no max_stiffness or stock_rates)".into(),
+                        ));
+                    }
+                    Some([lo, hi])
+                }
+            };
+            if trim_range.is_some() {
+                trims += couplings.len();
+                if trims > crate::trim::MAX_TRIMS {
+                    return Err(invalid(
+                        field("couplings"),
+                        format!("the catalogue lists more than {} trim springs", crate::trim::MAX_TRIMS),
+                    ));
+                }
+            }
             families.push(Family {
                 name: f.name.clone(),
                 profiles,
@@ -487,6 +590,8 @@ impl Catalog {
                 stock_rates: rates,
                 tolerance: f.tolerance,
                 cam,
+                adjust_range,
+                trim_range,
             });
         }
         let name = file.name.clone().unwrap_or_else(|| {
@@ -503,7 +608,7 @@ impl Catalog {
         // Offsets kept so far per profile and coupling (bit patterns, −0 as 0): duplicates are
         // looked for among these only, not among all candidates.
         let mut kept: HashMap<(Profile, Vec<u64>), Vec<f64>> = HashMap::new();
-        for (fi, f) in self.families.iter().enumerate() {
+        for (fi, f) in self.families.iter().enumerate().filter(|(_, f)| f.trim_range.is_none()) {
             for a in &f.couplings {
                 if let Some(cam) = &f.cam {
                     // N + 2 basis functions, each as +Bⱼ and −Bⱼ (signed coefficients, k ≥ 0).
@@ -570,6 +675,31 @@ impl Catalog {
             }
         }
         out
+    }
+}
+
+impl Catalog {
+    /// The trim springs of the catalogue's trim families: one per listed coupling, linear,
+    /// relaxed at `q_eq`.
+    pub fn trims(&self, q_eq: &[f64]) -> Vec<TrimSpring> {
+        let mut out = Vec::new();
+        for (fi, f) in self.families.iter().enumerate() {
+            let Some(range) = f.trim_range else { continue };
+            for a in &f.couplings {
+                let offset = a.iter().zip(q_eq).map(|(a, q)| a * q).sum();
+                out.push(TrimSpring {
+                    family: fi,
+                    element: Element { profile: Profile::Linear, coupling: a.clone(), offset },
+                    range,
+                });
+            }
+        }
+        out
+    }
+
+    /// The family called `name`, if any.
+    pub fn family(&self, name: &str) -> Option<&Family> {
+        self.families.iter().find(|f| f.name == name)
     }
 }
 
@@ -766,5 +896,38 @@ offsets = { phases = 4 }
             let err = load(&text, 2).unwrap_err().to_string();
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
+    }
+
+    /// Trim families are never fit candidates, carry one trim per coupling relaxed at q_eq, and
+    /// every inconsistent after-assembly key is an error naming the field.
+    #[test]
+    fn trim_and_adjustable_families() {
+        let base =
+            "[[family]]\nname = \"s\"\nprofile = \"linear\"\ncouplings = \"joints\"\noffsets = \"equilibrium\"\n";
+        let text = format!(
+            "{base}adjustable = true\nadjust_range = 0.2\n{}",
+            base.replace("\"s\"", "\"t\"") + "trim = true\ntrim_range = [0.0, 6.0]\n"
+        );
+        let c = load(&text, 2).unwrap();
+        assert_eq!(c.families[0].adjust_range, Some(0.2));
+        let cand = c.expand(&[0.0, 1.0], |_| (-1.0, 1.0));
+        assert!(cand.iter().all(|x| x.family == 0) && cand.len() == 2);
+        let trims = c.trims(&[0.0, 1.0]);
+        assert_eq!(trims.len(), 2);
+        assert_eq!(trims[1].element.offset, 1.0);
+        assert_eq!(trims[1].range, [0.0, 6.0]);
+        for (extra, field) in [
+            ("adjustable = true\n", "adjust_range"),
+            ("adjust_range = 0.2\n", "adjust_range"),
+            ("adjustable = true\nadjust_range = 5.0\n", "adjust_range"),
+            ("trim = true\n", "trim_range"),
+            ("trim = true\ntrim_range = [3.0, 1.0]\n", "trim_range"),
+            ("trim = true\ntrim_range = [0.0, 1.0]\nmax_stiffness = 3.0\n", "trim_range"),
+        ] {
+            let err = load(&format!("{base}{extra}"), 2).unwrap_err().to_string();
+            assert!(err.contains(&format!("family[0].{field}")), "{extra}: {err}");
+        }
+        let crank = base.replace("\"linear\"", "\"crank\"") + "trim = true\ntrim_range = [0.0, 1.0]\n";
+        assert!(load(&crank, 2).unwrap_err().to_string().contains("family[0].profile"));
     }
 }

@@ -41,6 +41,8 @@ pub struct FitRecord {
     pub share_note: Option<String>,
     /// Where it came from (a folder or a design file).
     pub source: PathBuf,
+    /// As-built p99 over builds (untrimmed and trimmed), if the fit has as-built figures.
+    pub as_built: Option<crate::asbuilt::Brief>,
 }
 
 /// The record of a fit just computed.
@@ -58,6 +60,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         actuator_share: None,
         share_note: Some("fitted on the fly: no simulation of these springs".into()),
         source: design_file.to_path_buf(),
+        as_built: None,
     }
 }
 
@@ -158,6 +161,7 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
         actuator_share,
         share_note,
         source: dir.to_path_buf(),
+        as_built: crate::asbuilt::Brief::from_json(&summary),
     })
 }
 
@@ -217,12 +221,12 @@ pub fn disambiguate(records: &mut [FitRecord]) {
 /// The comparison table as CSV.
 pub fn table_csv(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share\n",
+        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg\n",
     );
     for r in records {
         let totals = r.totals.iter().map(|(u, t)| format!("{t} {u}")).collect::<Vec<_>>().join("; ");
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{}\n",
             bom::csv_field(&r.label),
             bom::csv_field(&r.design),
             bom::csv_field(&r.catalog),
@@ -233,16 +237,34 @@ pub fn table_csv(records: &[FitRecord]) -> String {
             r.stats.p95_abs,
             r.stats.p99_abs,
             r.stats.max_abs,
-            r.actuator_share.map(|a| a.to_string()).unwrap_or_default()
+            r.actuator_share.map(|a| a.to_string()).unwrap_or_default(),
+            as_built_csv(r.as_built.as_ref())
         ));
     }
     s
 }
 
+/// The four as-built columns (empty when the fit has none).
+fn as_built_csv(b: Option<&crate::asbuilt::Brief>) -> String {
+    let f = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+    format!(
+        "{},{},{},{}",
+        f(b.map(|b| b.p99_deg.p50)),
+        f(b.map(|b| b.p99_deg.p95)),
+        f(b.and_then(|b| b.trimmed_p99_deg).map(|t| t.p50)),
+        f(b.and_then(|b| b.trimmed_p99_deg).map(|t| t.p95))
+    )
+}
+
+/// "p50 / p95" of a spread in degrees, or "–".
+pub fn spread_md(s: Option<crate::asbuilt::Spread>) -> String {
+    s.map(|s| format!("{:.3}° / {:.3}°", s.p50, s.p95)).unwrap_or_else(|| "–".into())
+}
+
 /// The comparison table as Markdown.
 pub fn table_md(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from a simulation of the same springs (`<fit folder>_simulate`, scenario `sensitivity`, else `switch`) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n",
+        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from a simulation of the same springs (`<fit folder>_simulate`, scenario `sensitivity`, else `switch`) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share | as built p99 (p50 / p95 over builds) | trimmed |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for r in records {
         let totals = if r.totals.is_empty() {
@@ -251,7 +273,7 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.totals.iter().map(|(u, t)| format!("{t:.2} {u}")).collect::<Vec<_>>().join(", ")
         };
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° | {} |\n",
+            "| {} | {} | {} | {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° | {} | {} | {} |\n",
             r.label.replace('|', "/"),
             r.catalog,
             r.solver,
@@ -261,7 +283,9 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.stats.p95_abs,
             r.stats.p99_abs,
             r.stats.max_abs,
-            r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into())
+            r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into()),
+            spread_md(r.as_built.map(|b| b.p99_deg)),
+            spread_md(r.as_built.and_then(|b| b.trimmed_p99_deg))
         ));
     }
     let notes: Vec<String> = records
@@ -285,6 +309,8 @@ pub struct BudgetPoint {
     pub stats: AngleStats,
     /// Why no set of at most K springs meets the fit's constraints (`None`: a set was found).
     pub infeasible: Option<String>,
+    /// As-built p99 over builds at the design's tolerance (None without a tolerance).
+    pub as_built: Option<crate::asbuilt::Brief>,
 }
 
 /// A point of the accuracy-versus-region curve.
@@ -306,7 +332,8 @@ fn no_stats() -> AngleStats {
 }
 
 /// The best residual found for every budget in `budgets`, ascending (one preparation, one solve
-/// per budget). "At most K springs" allows every smaller set, so when the search for K finds a
+/// per budget, and the as-built figures of each at the design's tolerance: see
+/// [`best_as_built`]). "At most K springs" allows every smaller set, so when the search for K finds a
 /// worse set (by p99) than for a smaller budget, that smaller set is reported for K too.
 pub fn budget_curve(
     design: &Design,
@@ -323,7 +350,10 @@ pub fn budget_curve(
     for k in sorted {
         stage(&format!("budget {k}"));
         let here = match prepared.solve(&FitSettings { max_elements: k, ..*settings }, &|_| {}) {
-            Ok(o) => BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats, infeasible: None },
+            Ok(o) => {
+                let as_built = crate::asbuilt::of_fit(design, &o)?.map(|a| crate::asbuilt::Brief::of(&a));
+                BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats, infeasible: None, as_built }
+            }
             // An infeasible budget is a point of the curve, not the end of it.
             Err(e @ Error::Infeasible { .. }) => {
                 let reason = format!(
@@ -331,7 +361,7 @@ pub fn budget_curve(
                     design.path.display(),
                     crate::hints::explain_infeasible(design, settings, catalog, k, e)
                 );
-                BudgetPoint { budget: k, used: 0, stats: no_stats(), infeasible: Some(reason) }
+                BudgetPoint { budget: k, used: 0, stats: no_stats(), infeasible: Some(reason), as_built: None }
             }
             Err(e) => return Err(e),
         };
@@ -347,6 +377,16 @@ pub fn budget_curve(
         out.push(point);
     }
     Ok(out)
+}
+
+/// The budget whose set is best as built (smallest as-built p95 of the p99: the trimmed one when
+/// the design has trims), if the curve has as-built figures.
+pub fn best_as_built(points: &[BudgetPoint]) -> Option<&BudgetPoint> {
+    let key = |b: &BudgetPoint| b.as_built.map(|a| a.trimmed_p99_deg.unwrap_or(a.p99_deg).p95);
+    points
+        .iter()
+        .filter(|b| key(b).is_some())
+        .min_by(|a, b| key(a).unwrap_or(f64::INFINITY).total_cmp(&key(b).unwrap_or(f64::INFINITY)))
 }
 
 /// The residual of the design's fit on geodesic balls of each radius in `radii`.

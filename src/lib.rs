@@ -11,6 +11,7 @@
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+pub mod asbuilt;
 pub mod bom;
 pub mod cam;
 pub mod catalog;
@@ -35,5 +36,7 @@ pub mod scenario;
 pub mod simulate;
 pub mod sweep;
 pub mod tolerance;
+pub mod trim;
+pub mod tune;
 pub mod units;
 pub mod validate;

@@ -23,7 +23,7 @@ use crate::control::ControllerSettings;
 use crate::design::Design;
 use crate::error::{Error, Result};
 use crate::fit::run::{FitOutcome, nearest, refit_with_fixed};
-use crate::potential::SpringSet;
+use crate::potential::{Potential, SpringSet};
 use crate::residual::percentile;
 use crate::rng::SplitMix64;
 use crate::scenario::{LabelSource, ScenarioKind, metrics};
@@ -139,6 +139,10 @@ pub struct ItemResult {
     pub actuator_share_before: Option<f64>,
     /// How far the built springs move the equilibrium, |q_eq′ − q_eq| in rad (builds, stock).
     pub equilibrium_shift_rad: Option<f64>,
+    /// Builds of designs with trim springs: p99 |residual angle| after the trim a builder would
+    /// make (see [`crate::asbuilt::trim_build`]), degrees.
+    #[serde(default)]
+    pub residual_p99_deg_trimmed: Option<f64>,
     /// Stiffnesses after snapping (stock only), in BOM order.
     pub stock_stiffness: Option<Vec<f64>>,
     /// Time series (parasitic only).
@@ -253,34 +257,41 @@ impl<'a> SweepContext<'a> {
         Ok((result, m))
     }
 
-    /// The p99 residual angle of a built spring set on held-out geodesics from the equilibrium
-    /// it actually has, and how far that is from the nominal one. Deviating stiffnesses no
-    /// longer cancel their preloads at q_eq, so the arm rests elsewhere; judging its modes about
-    /// the old q_eq would charge the shift, not the shape of the potential, to every sample near
-    /// it. NaN if the built arm has no stable equilibrium near q_eq.
+    /// The p99 residual angle of a built spring set about its own equilibrium and the shift
+    /// (see [`crate::asbuilt::residual_about_own_equilibrium`]).
     fn residual_about_own_equilibrium(&self, built: &SpringSet) -> Result<(f64, f64)> {
-        use crate::geodesic::{Fan, FanSpec, Stop};
-        let d = self.design;
-        let Some(q_eq) = equilibrium(d, built) else { return Ok((f64::NAN, f64::NAN)) };
-        let shift = (&q_eq - &d.q_eq).norm();
-        let extent = self.fit.region.extent;
-        let stop = match &d.region {
-            crate::geodesic::Region::Ball { radius } => Stop::Arc(*radius),
-            region => Stop::Region { region, max_arc: d.geodesics.max_arc },
+        crate::asbuilt::residual_about_own_equilibrium(
+            self.design,
+            self.fit.region.extent,
+            self.settings.evaluation_directions,
+            self.settings.evaluation_samples,
+            built,
+        )
+    }
+
+    /// The p99 residual angle of a build after the trim a builder would make (designs with trim
+    /// springs; NaN if the trimmed build has no stable equilibrium).
+    fn trimmed_p99(&self, built: &SpringSet) -> Result<Option<f64>> {
+        let bom = &self.fit.bom;
+        if !bom.iter().any(|r| r.adjust.trim_range.is_some()) {
+            return Ok(None);
+        }
+        let Some((trimmed, q, _)) = crate::asbuilt::trim_build(self.design, bom, built) else {
+            return Ok(Some(f64::NAN));
         };
-        let fan = Fan::trace(
-            &d.chain,
-            &q_eq,
-            FanSpec {
-                count: self.settings.evaluation_directions,
-                phase: 0.5,
-                stop,
-                spacing: extent / self.settings.evaluation_samples as f64,
-            },
-            d.geodesics.ode,
+        let h = trimmed.hessian(q.as_slice())? + self.design.chain.gravity_hessian(q.as_slice());
+        if h.cholesky().is_none() {
+            return Ok(Some(f64::NAN));
+        }
+        let (p99, _) = crate::asbuilt::residual_about(
+            self.design,
+            self.fit.region.extent,
+            self.settings.evaluation_directions,
+            self.settings.evaluation_samples,
+            &trimmed,
+            &q,
         )?;
-        let angles = crate::residual::fan_angles(&d.chain, &fan, built)?;
-        Ok((crate::residual::stats(&angles).p99_abs, shift))
+        Ok(Some(p99))
     }
 
     fn run_item(&self, index: usize, item: WorkItem) -> Result<ItemResult> {
@@ -295,6 +306,7 @@ impl<'a> SweepContext<'a> {
             residual_p99_deg_before: None,
             actuator_share_before: None,
             equilibrium_shift_rad: None,
+            residual_p99_deg_trimmed: None,
             stock_stiffness: None,
             series: None,
         };
@@ -337,6 +349,7 @@ impl<'a> SweepContext<'a> {
                     .collect();
                 let built = springs.scaled(&scale);
                 let (p99, shift) = self.residual_about_own_equilibrium(&built)?;
+                let trimmed = self.trimmed_p99(&built)?;
                 let mut spec = self.base.clone();
                 spec.name = format!("build_{build}");
                 spec.stiffness_scale = Some(scale);
@@ -344,13 +357,16 @@ impl<'a> SweepContext<'a> {
                 let mut r = blank(item);
                 fill(&mut r, &m);
                 r.residual_p99_deg = p99;
+                r.residual_p99_deg_trimmed = trimmed;
                 r.equilibrium_shift_rad = Some(shift);
                 Ok(r)
             }
             WorkItem::Stock => {
                 let bom = &self.fit.bom;
                 let elements: Vec<_> = bom.iter().map(|r| r.element.clone()).collect();
-                let mut fixed: Vec<Option<f64>> = vec![None; bom.len()];
+                // Trim springs keep their rate: it is set after assembly, not bought.
+                let mut fixed: Vec<Option<f64>> =
+                    bom.iter().map(|r| r.adjust.trim_range.map(|_| r.stiffness)).collect();
                 let mut k: Vec<f64> = bom.iter().map(|r| r.stiffness).collect();
                 // Snap the element carrying the largest torque first; refit the rest each time.
                 let mut order: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].stock_rate.is_some()).collect();
@@ -383,27 +399,7 @@ impl<'a> SweepContext<'a> {
     }
 }
 
-/// The equilibrium of a spring set (plus gravity) nearest the design's, by Newton's method on
-/// ∇U = 0 from q_eq; None if it does not converge to a minimum within 0.5 rad.
-pub fn equilibrium(design: &Design, springs: &SpringSet) -> Option<nalgebra::DVector<f64>> {
-    use crate::potential::Potential;
-    let chain = &design.chain;
-    let mut q = design.q_eq.clone();
-    for _ in 0..50 {
-        let g = springs.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
-        if g.amax() < 1e-12 * (1.0 + springs.stiffness.iter().fold(0.0f64, |a, k| a.max(*k))) {
-            let h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
-            return h.cholesky().is_some().then_some(q);
-        }
-        let h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
-        let step = h.lu().solve(&g)?;
-        q -= step;
-        if (&q - &design.q_eq).amax() > 0.5 || q.iter().any(|v| !v.is_finite()) {
-            return None;
-        }
-    }
-    None
-}
+pub use crate::asbuilt::equilibrium;
 
 /// One row of the parasitic table.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -430,6 +426,9 @@ pub struct ToleranceSummary {
     /// |q_eq′ − q_eq| percentiles, rad.
     pub equilibrium_shift_rad_p50: f64,
     pub equilibrium_shift_rad_p95: f64,
+    /// After each build's trim (designs with trim springs), p99 residual percentiles.
+    pub trimmed_residual_p99_deg_p50: Option<f64>,
+    pub trimmed_residual_p99_deg_p95: Option<f64>,
 }
 
 /// Stock snapping before and after.
@@ -485,6 +484,13 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
             let mut share: Vec<f64> = builds.iter().map(|r| r.actuator_share).collect();
             let mut resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
             let mut shift: Vec<f64> = builds.iter().map(|r| r.equilibrium_shift_rad.unwrap_or(f64::NAN)).collect();
+            let trimmed = builds
+                .iter()
+                .all(|r| r.residual_p99_deg_trimmed.is_some())
+                .then(|| {
+                    crate::asbuilt::Spread::of(builds.iter().map(|r| r.residual_p99_deg_trimmed.unwrap_or(f64::NAN)))
+                })
+                .filter(|_| !builds.is_empty());
             share.sort_by(f64::total_cmp);
             resid.sort_by(f64::total_cmp);
             shift.sort_by(f64::total_cmp);
@@ -498,6 +504,8 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 residual_p99_deg_p95: percentile(&resid, 95.0),
                 equilibrium_shift_rad_p50: percentile(&shift, 50.0),
                 equilibrium_shift_rad_p95: percentile(&shift, 95.0),
+                trimmed_residual_p99_deg_p50: trimmed.map(|t| t.p50),
+                trimmed_residual_p99_deg_p95: trimmed.map(|t| t.p95),
             }
         })
         .collect();

@@ -52,7 +52,8 @@ fn the_default_design_meets_its_accuracy_targets() {
     let r = &s["residual_deg"];
     assert!(r["p99_abs"].as_f64().unwrap() <= 0.5, "{r}");
     assert!(r["max_abs"].as_f64().unwrap() <= 1.5, "{r}");
-    assert!(s["used"].as_u64().unwrap() <= 12);
+    // At most 12 fitted springs plus the paper catalogue's three trim springs.
+    assert!(s["used"].as_u64().unwrap() <= 12 + 3);
     assert!(s["equilibrium_gradient_norm"].as_f64().unwrap() < 1e-9);
     assert_eq!(s["dof"], 2);
     assert!(run.stdout().contains("p99"), "{}", run.report());

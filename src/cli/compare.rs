@@ -70,9 +70,16 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
             Input::Design(path, dc) => {
                 let (design, catalog) = *dc;
                 let step = progress.step(&format!("fitting {}", path.display()));
-                let outcome = fit(&design, &catalog, &design.fit, &|_| {});
+                let outcome = fit(&design, &catalog, &design.fit, &|_| {})
+                    .map_err(|e| super::fit_failed(&design, &design.fit, Some(&catalog), e));
+                let as_built = match &outcome {
+                    Ok(o) => springfit::asbuilt::of_fit(&design, o)?,
+                    Err(_) => None,
+                };
                 step.finish();
-                record_of(&outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(&catalog), e))?, &path)
+                let mut r = record_of(&outcome?, &path);
+                r.as_built = as_built.as_ref().map(springfit::asbuilt::Brief::of);
+                r
             }
         });
     }
@@ -101,6 +108,15 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
             r.stats.max_abs,
             r.actuator_share.map(|a| format!(", actuator share {:.3} %", 100.0 * a)).unwrap_or_default()
         ));
+        if let Some(b) = &r.as_built {
+            progress.say(format!(
+                "  as built p99 (p50 / p95 over builds): {}{}",
+                springfit::compare::spread_md(Some(b.p99_deg)),
+                b.trimmed_p99_deg
+                    .map(|t| format!("; trimmed {}", springfit::compare::spread_md(Some(t))))
+                    .unwrap_or_default()
+            ));
+        }
     }
     progress.say(format!("wrote {} (compare.csv, compare.md, compare.svg, compare.png)", written.display()));
     Ok(())
@@ -156,13 +172,34 @@ pub fn pareto(
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
     springfit::report::html::write_pareto(&dir, &design)?;
     let written = dir.commit()?;
-    progress.say("budget K: springs used, p99, max");
+    progress.say("budget K: springs used, p99, max; as built p99 p50 / p95 over builds (untrimmed; trimmed)");
     for b in &curve {
         match &b.infeasible {
-            None => progress
-                .say(format!("  {:>3}: {:>3}  {:.4}°  {:.4}°", b.budget, b.used, b.stats.p99_abs, b.stats.max_abs)),
+            None => progress.say(format!(
+                "  {:>3}: {:>3}  {:.4}°  {:.4}°  {}{}",
+                b.budget,
+                b.used,
+                b.stats.p99_abs,
+                b.stats.max_abs,
+                springfit::compare::spread_md(b.as_built.map(|a| a.p99_deg)),
+                b.as_built
+                    .and_then(|a| a.trimmed_p99_deg)
+                    .map(|t| format!("; {}", springfit::compare::spread_md(Some(t))))
+                    .unwrap_or_default()
+            )),
             Some(why) => progress.say(format!("  {:>3}: infeasible ({why})", b.budget)),
         }
+    }
+    if let Some(best) = springfit::compare::best_as_built(&curve) {
+        progress.say(format!(
+            "best as built: K = {} (as-built p95 of the p99 {:.3}°{})",
+            best.budget,
+            best.as_built.map(|a| a.trimmed_p99_deg.unwrap_or(a.p99_deg).p95).unwrap_or(f64::NAN),
+            if best.as_built.is_some_and(|a| a.trimmed_p99_deg.is_some()) { ", trimmed" } else { "" }
+        ));
+    } else {
+        progress
+            .say("as built: no tolerance to draw builds at ([fit] tolerance = \"none\" and no catalogue tolerance)");
     }
     progress.say("radius: springs used, p99, max");
     for r in &rcurve {

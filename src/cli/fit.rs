@@ -61,9 +61,19 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         }
         result?
     };
+    let as_built = if args.exact {
+        None
+    } else {
+        let step = progress.step("as-built Monte Carlo builds");
+        let t = std::time::Instant::now();
+        let ab = springfit::asbuilt::of_fit(&design, &outcome)
+            .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
+        step.finish();
+        Some((ab, t.elapsed().as_secs_f64()))
+    };
     let step = progress.step("writing outputs");
     let dir = OutputDir::create(&target, "fit")?;
-    springfit::report::fit::write(&dir, &design, &outcome)?;
+    springfit::report::fit::write_with_as_built(&dir, &design, &outcome, as_built.as_ref().and_then(|a| a.0.as_ref()))?;
     springfit::report::html::write_fit(&dir, &design)?;
     let written = dir.commit();
     step.finish();
@@ -125,6 +135,47 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         for v in &r.violations {
             progress.warn(format!("cam {}: {v}", cam.id));
         }
+    }
+    match &as_built {
+        Some((Some(ab), secs)) => {
+            progress.say(format!(
+                "as built ({} builds at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {:.3}° / {:.3}°, max {:.3}° / {:.3}°, shift {:.4} / {:.4} rad (Euclidean), {:.4} / {:.4} (metric); {:.2} s",
+                ab.builds,
+                ab.tolerance.label(),
+                ab.distribution.name(),
+                ab.p99_deg.p50,
+                ab.p99_deg.p95,
+                ab.max_deg.p50,
+                ab.max_deg.p95,
+                ab.shift_rad.p50,
+                ab.shift_rad.p95,
+                ab.shift_metric.p50,
+                ab.shift_metric.p95,
+                secs
+            ));
+            if let Some(t) = &ab.trimmed {
+                progress.say(format!(
+                    "as built and trimmed: p99 {:.3}° / {:.3}°, max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} builds not fully restored",
+                    t.p99_deg.p50,
+                    t.p99_deg.p95,
+                    t.max_deg.p50,
+                    t.max_deg.p95,
+                    t.trim_change_nm_per_rad.p50,
+                    t.trim_change_nm_per_rad.p95,
+                    t.builds_not_restored
+                ));
+            }
+            if ab.builds_without_equilibrium > 0 {
+                progress.say(format!(
+                    "{} builds have no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
+                    ab.builds_without_equilibrium
+                ));
+            }
+        }
+        Some((None, _)) => progress.say(
+            "as built: skipped (tolerance \"none\" and no catalogue tolerance, or builds = 0); set [fit] tolerance = 0.05 for ±5 % builds",
+        ),
+        None => {}
     }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md"

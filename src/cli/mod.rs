@@ -9,6 +9,7 @@ mod geodesics;
 mod progress;
 mod simulate;
 mod sweep;
+mod tune;
 
 use std::path::{Path, PathBuf};
 
@@ -180,6 +181,21 @@ springs exported). scripts/verify_mujoco.py runs it in MuJoCo against `springfit
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// Offsets and trim rates to set on a built arm, from its measured spring rates.
+    #[command(after_help = "Example:\n  springfit tune designs/double_pendulum.toml --measured built.csv\n\n\
+MEASURED is the fit's bom.csv with a measured_stiffness column added (blank = as designed).\n\
+Adjustable offsets put the equilibrium back at q_eq, trim rates restore the Hessian match, then\n\
+the residual is made as small as the freedom left allows. Writes bom_tuned.csv, tune.json, tune.md.")]
+    Tune {
+        /// Design file (TOML).
+        design: PathBuf,
+        /// The bill of materials with a measured_stiffness column.
+        #[arg(long, value_name = "FILE")]
+        measured: PathBuf,
+        /// Output folder (default: out/<design name>_tune).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(
         after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit check designs/ur5_lift_elbow.toml --json\n\n\
@@ -243,6 +259,7 @@ pub fn run() -> Result<()> {
             export::run(export::ExportArgs { design, bom, out }, &progress)
         }
         Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
+        Command::Tune { design, measured, out } => tune::run(&design, &measured, out, &progress),
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {
                 SolverArg::Nnls => SolverKind::Nnls,

@@ -280,6 +280,9 @@ fn finish(
             or_none(l.residual_p99_deg_p95, "°", 3),
             or_none(l.equilibrium_shift_rad_p50, " rad", 4)
         ));
+        if let (Some(a), Some(b)) = (l.trimmed_residual_p99_deg_p50, l.trimmed_residual_p99_deg_p95) {
+            progress.say(format!("  trimmed: residual p99 p50 {a:.3}°, p95 {b:.3}°"));
+        }
     }
     if let Some(s) = &t.stock {
         progress.say(format!(

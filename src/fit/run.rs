@@ -279,6 +279,8 @@ impl<'a> Prepared<'a> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
         })
+        // Trim springs (never candidates) join at mid-range; the rest is refitted around them.
+        .and_then(|o| crate::trim::place(design, catalog, o))
     }
 }
 
@@ -665,6 +667,10 @@ fn bill_of_materials(
                 stock_rate,
                 tolerance: c.tolerance,
                 preload_nm: Some(c.element.preload(k[j], q_eq)),
+                adjust: crate::bom::Adjustment {
+                    adjust_range: catalog.families[c.family].adjust_range,
+                    trim_range: None,
+                },
             }
         })
         .collect();

@@ -100,13 +100,15 @@ pub fn write_pareto(
     radii: &[RadiusPoint],
     budget_for_radii: usize,
 ) -> Result<()> {
-    let mut csv =
-        String::from("curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,infeasible\n");
+    let mut csv = String::from(
+        "curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,infeasible\n",
+    );
     // An infeasible point keeps its row: empty numbers, the reason in the last column.
     let nums = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
-        None => format!("{used},{},{},{},{},", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
-        Some(w) => format!(",,,,,{}", crate::bom::csv_field(w)),
+        None => format!("{used},{},{},{},{}", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
+        Some(_) => ",,,,".to_string(),
     };
+    let reason = |why: &Option<String>| why.as_ref().map(|w| crate::bom::csv_field(w)).unwrap_or_default();
     let cells = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
         None => format!("{used} | {:.4}° | {:.4}° | {:.4}° | {:.4}°", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
         Some(_) => "infeasible | – | – | – | –".to_string(),
@@ -120,11 +122,36 @@ pub fn write_pareto(
         }
     };
     let mut md = format!(
-        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\n| budget K | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n"
+        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
+    let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
     for b in budgets {
-        csv.push_str(&format!("budget,{},,{}\n", b.budget, nums(b.used, &b.stats, &b.infeasible)));
-        md.push_str(&format!("| {} | {} |\n", b.budget, cells(b.used, &b.stats, &b.infeasible)));
+        let ab = b.as_built.as_ref();
+        let tr = ab.and_then(|a| a.trimmed_p99_deg);
+        csv.push_str(&format!(
+            "budget,{},,{},{},{},{},{},{}\n",
+            b.budget,
+            nums(b.used, &b.stats, &b.infeasible),
+            opt(ab.map(|a| a.p99_deg.p50)),
+            opt(ab.map(|a| a.p99_deg.p95)),
+            opt(tr.map(|t| t.p50)),
+            opt(tr.map(|t| t.p95)),
+            reason(&b.infeasible)
+        ));
+        md.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            b.budget,
+            cells(b.used, &b.stats, &b.infeasible),
+            crate::compare::spread_md(ab.map(|a| a.p99_deg)),
+            crate::compare::spread_md(tr)
+        ));
+    }
+    if let Some(best) = crate::compare::best_as_built(budgets) {
+        md.push_str(&format!(
+            "\n**Best as built: K = {}** (smallest as-built p95 of the p99{}): the budget to buy.\n",
+            best.budget,
+            if best.as_built.is_some_and(|a| a.trimmed_p99_deg.is_some()) { ", trimmed" } else { "" }
+        ));
     }
     notes(
         &mut md,
@@ -132,7 +159,12 @@ pub fn write_pareto(
     );
     md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
     for r in radii {
-        csv.push_str(&format!("radius,,{},{}\n", r.radius, nums(r.used, &r.stats, &r.infeasible)));
+        csv.push_str(&format!(
+            "radius,,{},{},,,,,{}\n",
+            r.radius,
+            nums(r.used, &r.stats, &r.infeasible),
+            reason(&r.infeasible)
+        ));
         md.push_str(&format!("| {:.2} | {} |\n", r.radius, cells(r.used, &r.stats, &r.infeasible)));
     }
     notes(
@@ -157,6 +189,25 @@ pub fn write_pareto(
     let radii: Vec<&RadiusPoint> = radii.iter().filter(|r| r.infeasible.is_none()).collect();
     let b99: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.p99_abs)).collect();
     let bmax: Vec<(f64, f64)> = budgets.iter().map(|b| (b.budget as f64, b.stats.max_abs)).collect();
+    // As built: p95 over builds of the p99, untrimmed and trimmed.
+    let ab95: Vec<(f64, f64)> =
+        budgets.iter().filter_map(|b| b.as_built.map(|a| (b.budget as f64, a.p99_deg.p95))).collect();
+    let tr95: Vec<(f64, f64)> = budgets
+        .iter()
+        .filter_map(|b| b.as_built.and_then(|a| a.trimmed_p99_deg).map(|t| (b.budget as f64, t.p95)))
+        .collect();
+    let mut budget_layers = vec![
+        line(b99.clone(), 0, "p99 (nominal)"),
+        dots(b99, 0),
+        line(bmax.clone(), 1, "max (nominal)"),
+        dots(bmax, 1),
+    ];
+    if !ab95.is_empty() {
+        budget_layers.extend([line(ab95.clone(), 2, "as built: p95 of p99"), dots(ab95, 2)]);
+    }
+    if !tr95.is_empty() {
+        budget_layers.extend([line(tr95.clone(), 3, "trimmed: p95 of p99"), dots(tr95, 3)]);
+    }
     let r99: Vec<(f64, f64)> = radii.iter().map(|r| (r.radius, r.stats.p99_abs)).collect();
     let rmax: Vec<(f64, f64)> = radii.iter().map(|r| (r.radius, r.stats.max_abs)).collect();
     let panels = vec![
@@ -166,7 +217,7 @@ pub fn write_pareto(
             y_label: "|residual angle| (°, log scale)".into(),
             legend: true,
             log_y: true,
-            layers: vec![line(b99.clone(), 0, "p99"), dots(b99, 0), line(bmax.clone(), 1, "max"), dots(bmax, 1)],
+            layers: budget_layers,
             ..Panel::default()
         },
         Panel {

@@ -285,6 +285,40 @@ pub fn histogram_figure(residuals: &[AngleSample], st: &AngleStats, title: &str,
     }
 }
 
+/// Adds the as-built band to a residual-angle histogram: the p99 |angle| of the Monte Carlo
+/// builds from its p50 to its p95 over builds (mirrored for signed angles), and the trimmed one
+/// when the design has trim springs.
+pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed: bool) {
+    let band = |sp: &crate::asbuilt::Spread| {
+        let (a, b) = (sp.p50, sp.p95.max(sp.p50));
+        if !(a.is_finite() && b.is_finite()) {
+            return Vec::new();
+        }
+        if signed { vec![(a, b), (-b, -a)] } else { vec![(a, b)] }
+    };
+    panel.layers.push(Layer::Spans {
+        spans: band(&ab.p99_deg),
+        style: Style::fill(palette(3), 0.25),
+        label: Some("as built: p99 |angle|, p50–p95 over builds".into()),
+    });
+    panel.notes.push(format!(
+        "as built ({}, {} builds): p99 {:.3}° / {:.3}° (p50 / p95)",
+        ab.tolerance.label(),
+        ab.builds,
+        ab.p99_deg.p50,
+        ab.p99_deg.p95
+    ));
+    if let Some(t) = &ab.trimmed {
+        panel.layers.push(Layer::Spans {
+            spans: band(&t.p99_deg),
+            style: Style::fill(palette(2), 0.25),
+            label: Some("trimmed: p99 |angle|, p50–p95 over builds".into()),
+        });
+        panel.notes.push(format!("trimmed: p99 {:.3}° / {:.3}°", t.p99_deg.p50, t.p99_deg.p95));
+    }
+    panel.legend = true;
+}
+
 /// Isolines of the total potential over the region's bounding box, with geodesics and the region
 /// boundary on top (the paper's Fig. 5b). For a perfect potential the isolines are the geodesic
 /// circles, crossed at right angles (in the metric) by the geodesics. For three or more joints one

@@ -45,6 +45,9 @@ pub struct Summary {
     pub accept_p99_deg: f64,
     /// Fingerprint of the fitted spring set (`bom::fingerprint`; null for the exact reference).
     pub spring_set: Option<String>,
+    /// Monte Carlo builds at the design's tolerance: p50 and p95 over builds (null when the
+    /// fit is for the drawing only and no element states a tolerance, or `builds = 0`).
+    pub as_built: Option<crate::asbuilt::AsBuilt>,
 }
 
 /// The region part of the summary.
@@ -91,6 +94,7 @@ impl Summary {
             verdict: crate::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
             spring_set: (o.solve.solver != "exact").then(|| crate::bom::fingerprint(&o.springs)),
+            as_built: None,
         }
     }
 }
@@ -114,6 +118,17 @@ pub fn residuals_csv(dof: usize, residuals: &[AngleSample]) -> String {
 
 /// Writes every output of a fit (or of the exact reference) into `out`.
 pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
+    write_with_as_built(out, design, o, None)
+}
+
+/// Writes every output of a fit with its as-built figures (see [`crate::asbuilt`]) in
+/// `summary.json`, `report.md` and the histogram (a band over the builds' p99).
+pub fn write_with_as_built(
+    out: &OutputDir,
+    design: &Design,
+    o: &FitOutcome,
+    as_built: Option<&crate::asbuilt::AsBuilt>,
+) -> Result<()> {
     let exact = o.solve.solver == "exact";
     let label = if exact {
         format!("{} — exact ½ω²r²", o.design)
@@ -134,20 +149,22 @@ pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
             out.write(&format!("cams/{}.svg", cam.id), crate::cam::svg(&cam.realisation, &title))?;
         }
     }
-    let summary = Summary::new(o, &design.path);
+    let mut summary = Summary::new(o, &design.path);
+    summary.as_built = as_built.cloned();
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
     out.write("summary.json", json + "\n")?;
     out.write("residuals.csv", residuals_csv(o.dof, &o.metrics.residuals))?;
     let signed = o.dof == 2;
-    render(
-        &histogram_figure(
-            &o.metrics.residuals,
-            &o.metrics.stats,
-            &format!("Residual angles on held-out geodesics: {label}"),
-            signed,
-        ),
-        &out.path("histogram"),
-    )?;
+    let mut histogram = histogram_figure(
+        &o.metrics.residuals,
+        &o.metrics.stats,
+        &format!("Residual angles on held-out geodesics: {label}"),
+        signed,
+    );
+    if let (Some(ab), Some(panel)) = (as_built, histogram.panels.first_mut()) {
+        super::figures::add_as_built_band(panel, ab, signed);
+    }
+    render(&histogram, &out.path("histogram"))?;
     let has_potential_plot = o.dof >= 2;
     if has_potential_plot {
         let title = format!("Potential isolines and geodesics: {label}");
@@ -161,6 +178,48 @@ pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
     }
     out.write("report.md", report_md(design, o, &summary, has_potential_plot))?;
     Ok(())
+}
+
+/// The as-built section of `report.md`.
+fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
+    if exact {
+        return String::new();
+    }
+    let Some(ab) = ab else {
+        return "## As built\n\nNo as-built figures: the fit is for the drawing only (`[fit] tolerance = \"none\"`) and no element states a catalogue tolerance, or `builds = 0`.\n\n".into();
+    };
+    let mut r = format!(
+        "## As built\n\n{} Monte Carlo builds (seed {}), every stiffness scaled by 1 + δ, δ {} within the tolerance ({}); each build judged about its own equilibrium on {} held-out geodesics. p50 / p95 over builds:\n\n| figure | p50 | p95 |\n| --- | ---: | ---: |\n",
+        ab.builds,
+        ab.seed,
+        ab.distribution.name(),
+        ab.tolerance.label(),
+        crate::asbuilt::DIRECTIONS
+    );
+    let row = |name: &str, sp: &crate::asbuilt::Spread, unit: &str, digits: usize| {
+        format!("| {name} | {:.*}{unit} | {:.*}{unit} |\n", digits, sp.p50, digits, sp.p95)
+    };
+    r.push_str(&row("p99 \\|residual angle\\|", &ab.p99_deg, "°", 3));
+    r.push_str(&row("max \\|residual angle\\|", &ab.max_deg, "°", 3));
+    r.push_str(&row("equilibrium shift \\|q′ − q_eq\\|₂ (rad)", &ab.shift_rad, "", 4));
+    r.push_str(&row("equilibrium shift sqrt(Δqᵀ M Δq)", &ab.shift_metric, "", 4));
+    if let Some(t) = &ab.trimmed {
+        r.push_str(&row("trimmed: p99 \\|residual angle\\|", &t.p99_deg, "°", 3));
+        r.push_str(&row("trimmed: max \\|residual angle\\|", &t.max_deg, "°", 3));
+        r.push_str(&row("trimmed: largest \\|trim rate change\\| (N·m/rad)", &t.trim_change_nm_per_rad, "", 3));
+        r.push_str(&format!(
+            "\nTrimmed: after each build the trim springs are re-relaxed at the equilibrium of the other springs and their rates set (within range) so that ∇²U = w² M holds there again; {} of {} builds could not be fully restored within the ranges.\n",
+            t.builds_not_restored, ab.builds
+        ));
+    }
+    if ab.builds_without_equilibrium > 0 {
+        r.push_str(&format!(
+            "\n{} builds have no stable equilibrium within 0.5 rad of q_eq (counted as the worst).\n",
+            ab.builds_without_equilibrium
+        ));
+    }
+    r.push('\n');
+    r
 }
 
 fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool) -> String {
@@ -223,6 +282,7 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
         if s.verdict == "acceptable" { "≤" } else { ">" },
         s.accept_p99_deg
     ));
+    r.push_str(&as_built_md(s.as_built.as_ref(), exact));
     if potential_plot {
         r.push_str("## Potential\n\n![potential](potential.svg)\n\n");
     }

@@ -63,6 +63,17 @@ pub fn tables_md(design: &str, t: &SweepTables) -> String {
             l.equilibrium_shift_rad_p95
         ));
     }
+    if t.tolerance_levels.iter().any(|l| l.trimmed_residual_p99_deg_p50.is_some()) {
+        s.push_str("\nAfter the trim a builder would make (trim springs re-relaxed at the build's equilibrium, rates set so that ∇²U = w² M there):\n\n| tolerance | trimmed residual p99 p50 | p95 |\n| --- | ---: | ---: |\n");
+        for l in &t.tolerance_levels {
+            s.push_str(&format!(
+                "| {} | {:.3}° | {:.3}° |\n",
+                l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
+                l.trimmed_residual_p99_deg_p50.unwrap_or(f64::NAN),
+                l.trimmed_residual_p99_deg_p95.unwrap_or(f64::NAN)
+            ));
+        }
+    }
     if let Some(st) = &t.stock {
         s.push_str(&format!(
             "\n## Stock rates\n\nEach stiffness snapped to the nearest stock rate (largest torque first, the others refitted after each snap); see `bom_stock.csv`.\n\n| | residual p99 | actuator share |\n| --- | ---: | ---: |\n| fitted | {:.3}° | {:.3} % |\n| snapped | {:.3}° | {:.3} % |\n",

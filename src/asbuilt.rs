@@ -1,0 +1,379 @@
+//! As-built figures: how a design does once it is built, not as drawn.
+//!
+//! A build scales each stiffness, k_j → k_j (1 + δ_j), δ_j drawn at the design's tolerance
+//! (`[fit] tolerance`, `distribution`; see [`crate::tolerance`]). The built springs no longer
+//! cancel their preloads at q_eq, so the arm rests at its own equilibrium q′; a build is judged
+//! about q′, as it behaves: residual angles on held-out geodesics traced from q′ (p99 and max),
+//! and how far q′ is from q_eq — Euclidean |q′ − q_eq|₂ in rad, and the metric distance
+//! sqrt(Δqᵀ M(q_eq) Δq) (√(kg·m²)·rad, the arc length a small shift takes in the inertia metric).
+//!
+//! With trim springs in the design (see [`crate::trim`]) each build is also trimmed as a builder
+//! would: the trims are re-relaxed at the equilibrium of the other built springs and their rates
+//! set so that ∇²U = w² M holds there again; the trimmed build is judged the same way.
+//!
+//! Every build draws from its own SplitMix64 stream (seed, build index), and builds run in
+//! parallel with results collected in build order, so the figures do not depend on the thread
+//! count. The sweep judges its tolerance builds with the same functions.
+
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::bom::BomRow;
+use crate::design::Design;
+use crate::error::Result;
+use crate::geodesic::{Fan, FanSpec, Region, Stop};
+use crate::potential::{Potential, SpringSet};
+use crate::residual::percentile;
+use crate::rng::SplitMix64;
+use crate::tolerance::{Distribution, ToleranceSpec};
+
+/// Held-out geodesics per build (traced from the build's own equilibrium).
+pub const DIRECTIONS: usize = 120;
+/// Samples per geodesic per build.
+pub const SAMPLES: usize = 50;
+
+/// The equilibrium of a spring set (plus gravity) nearest the design's, by Newton's method on
+/// ∇U = 0 from q_eq; None if it does not converge to a minimum within 0.5 rad.
+pub fn equilibrium(design: &Design, springs: &SpringSet) -> Option<DVector<f64>> {
+    stationary_point(design, springs, None)
+}
+
+/// A point where ∇U of `springs` (plus gravity) vanishes, by Newton's method from q_eq, that is a
+/// minimum once `stiffening` (a constant Hessian added by elements relaxed at the point itself,
+/// such as trims: no torque there) is added; None if Newton fails or strays beyond 0.5 rad.
+pub fn stationary_point(
+    design: &Design,
+    springs: &SpringSet,
+    stiffening: Option<&DMatrix<f64>>,
+) -> Option<DVector<f64>> {
+    let chain = &design.chain;
+    let mut q = design.q_eq.clone();
+    let scale = 1.0 + springs.stiffness.iter().fold(0.0f64, |a, k| a.max(*k));
+    for _ in 0..50 {
+        let g = springs.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
+        let mut h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
+        if let Some(s) = stiffening {
+            h += s;
+        }
+        if g.amax() < 1e-12 * scale {
+            return h.cholesky().is_some().then_some(q);
+        }
+        let step = h.lu().solve(&g)?;
+        q -= step;
+        if (&q - &design.q_eq).amax() > 0.5 || q.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+    }
+    None
+}
+
+/// Residual angles of `springs` on held-out geodesics traced from `q0` (the equilibrium the
+/// springs actually have): p99 and max of |angle|, degrees.
+pub fn residual_about(
+    design: &Design,
+    extent: f64,
+    directions: usize,
+    samples: usize,
+    springs: &SpringSet,
+    q0: &DVector<f64>,
+) -> Result<(f64, f64)> {
+    let stop = match &design.region {
+        Region::Ball { radius } => Stop::Arc(*radius),
+        region => Stop::Region { region, max_arc: design.geodesics.max_arc },
+    };
+    let fan = Fan::trace(
+        &design.chain,
+        q0,
+        FanSpec { count: directions, phase: 0.5, stop, spacing: extent / samples as f64 },
+        design.geodesics.ode,
+    )?;
+    let angles = crate::residual::fan_angles(&design.chain, &fan, springs)?;
+    let st = crate::residual::stats(&angles);
+    Ok((st.p99_abs, st.max_abs))
+}
+
+/// The p99 residual angle of a built spring set about the equilibrium it actually has, and how
+/// far (Euclidean, rad) that is from the nominal one; NaN if the built arm has no stable
+/// equilibrium near q_eq. Deviating stiffnesses no longer cancel their preloads at q_eq, so
+/// judging the modes about the old q_eq would charge the shift, not the shape of the potential,
+/// to every sample near it.
+pub fn residual_about_own_equilibrium(
+    design: &Design,
+    extent: f64,
+    directions: usize,
+    samples: usize,
+    built: &SpringSet,
+) -> Result<(f64, f64)> {
+    let Some(q) = equilibrium(design, built) else { return Ok((f64::NAN, f64::NAN)) };
+    let (p99, _) = residual_about(design, extent, directions, samples, built, &q)?;
+    Ok((p99, (&q - &design.q_eq).norm()))
+}
+
+/// The figures of one build (NaN where the build has no stable equilibrium near q_eq).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Build {
+    /// p99 |residual angle| about the build's own equilibrium, degrees.
+    pub p99_deg: f64,
+    /// max |residual angle|, degrees.
+    pub max_deg: f64,
+    /// |q′ − q_eq|₂, rad.
+    pub shift_rad: f64,
+    /// sqrt(Δqᵀ M(q_eq) Δq).
+    pub shift_metric: f64,
+    /// After trimming (with trims in the design): p99 and max, degrees.
+    pub trimmed: Option<(f64, f64)>,
+    /// After trimming: largest |trim rate − nominal| over the trims, N·m/rad.
+    pub trim_change: Option<f64>,
+    /// After trimming: whether the trims restored ∇²U = w² M within their ranges.
+    pub trim_restored: bool,
+}
+
+/// p50 and p95 over builds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct Spread {
+    pub p50: f64,
+    pub p95: f64,
+}
+
+impl Spread {
+    /// Percentiles of `values`; NaN (a build without an equilibrium) counts as the worst.
+    pub fn of(values: impl Iterator<Item = f64>) -> Spread {
+        let mut v: Vec<f64> = values.map(|x| if x.is_nan() { f64::INFINITY } else { x }).collect();
+        v.sort_by(f64::total_cmp);
+        Spread { p50: percentile(&v, 50.0), p95: percentile(&v, 95.0) }
+    }
+}
+
+/// The trimmed part of the as-built figures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Trimmed {
+    pub p99_deg: Spread,
+    pub max_deg: Spread,
+    /// Largest |trim rate − nominal| per build, N·m/rad.
+    pub trim_change_nm_per_rad: Spread,
+    /// Builds whose trims could not restore ∇²U = w² M within their ranges.
+    pub builds_not_restored: usize,
+}
+
+/// `"as_built"` of `summary.json`: p50 and p95 over the builds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AsBuilt {
+    /// `"catalogue"` or the ± fraction the builds were drawn at.
+    pub tolerance: ToleranceSpec,
+    /// `uniform` or `normal`.
+    pub distribution: Distribution,
+    pub builds: usize,
+    /// Seed of the builds.
+    pub seed: u64,
+    /// Builds with no stable equilibrium within 0.5 rad of q_eq (counted as the worst).
+    pub builds_without_equilibrium: usize,
+    pub p99_deg: Spread,
+    pub max_deg: Spread,
+    /// Euclidean |q′ − q_eq|₂, rad.
+    pub shift_rad: Spread,
+    /// sqrt(Δqᵀ M(q_eq) Δq).
+    pub shift_metric: Spread,
+    /// After each build's trim (designs with trim springs only).
+    pub trimmed: Option<Trimmed>,
+}
+
+/// The tolerance the as-built figures are drawn at: the fit's, or — when the fit is for the
+/// drawing only (`"none"`) — the catalogue's if any element states one. None: nothing to draw.
+pub fn effective_tolerance(spec: ToleranceSpec, bom: &[BomRow]) -> Option<ToleranceSpec> {
+    match spec {
+        ToleranceSpec::None if bom.iter().any(|r| r.tolerance > 0.0) => Some(ToleranceSpec::Catalogue),
+        ToleranceSpec::None => None,
+        ToleranceSpec::Fraction(0.0) => None,
+        ToleranceSpec::Catalogue if bom.iter().all(|r| r.tolerance == 0.0) => None,
+        s => Some(s),
+    }
+}
+
+/// How to draw and judge builds.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildSettings {
+    /// Tolerance (not `None`).
+    pub tolerance: ToleranceSpec,
+    pub distribution: Distribution,
+    pub builds: usize,
+    pub seed: u64,
+    /// Arc length of the region from q_eq (sample spacing).
+    pub extent: f64,
+    /// Held-out geodesics per build.
+    pub directions: usize,
+    /// Samples per geodesic.
+    pub samples: usize,
+}
+
+/// The stiffness factors 1 + δ_j of build `index` (every BOM row draws, trims included, so
+/// the streams do not depend on which rows are trims).
+pub fn draw(bom: &[BomRow], s: &BuildSettings, index: usize) -> Vec<f64> {
+    let mut rng = SplitMix64::stream(s.seed, index as u64);
+    bom.iter().map(|r| 1.0 + s.tolerance.for_element(r.tolerance) * s.distribution.draw_unit(&mut rng)).collect()
+}
+
+/// Trims a built spring set: the trims (rows with a trim range) are re-relaxed at the
+/// equilibrium of the other built springs and their rates set by [`crate::trim::solve`] against
+/// the design's ω. Returns the trimmed set, the equilibrium and the trim solution; None if the
+/// other springs hold no equilibrium near q_eq.
+pub fn trim_build(
+    design: &Design,
+    bom: &[BomRow],
+    built: &SpringSet,
+) -> Option<(SpringSet, DVector<f64>, crate::trim::TrimSolution)> {
+    let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
+    if trims.is_empty() {
+        return None;
+    }
+    let rest = SpringSet {
+        elements: (0..bom.len()).filter(|j| !trims.contains(j)).map(|j| built.elements[j].clone()).collect(),
+        stiffness: (0..bom.len()).filter(|j| !trims.contains(j)).map(|j| built.stiffness[j]).collect(),
+    };
+    let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
+    let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
+    let nominal: Vec<f64> = trims.iter().map(|&j| bom[j].stiffness).collect();
+    let n = design.dof();
+    let mut stiff = DMatrix::zeros(n, n);
+    for (a, k) in couplings.iter().zip(&nominal) {
+        let av = DVector::from_column_slice(a);
+        stiff += &av * av.transpose() * *k;
+    }
+    let q = stationary_point(design, &rest, Some(&stiff))?;
+    let h_rest = rest.hessian(q.as_slice()).ok()? + design.chain.gravity_hessian(q.as_slice());
+    let m = design.chain.mass_matrix(&q);
+    let sol = crate::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
+    let mut trimmed = built.clone();
+    for (i, &j) in trims.iter().enumerate() {
+        let e = &mut trimmed.elements[j];
+        e.offset = e.coupling.iter().zip(q.iter()).map(|(a, q)| a * q).sum();
+        trimmed.stiffness[j] = sol.rates[i];
+    }
+    Some((trimmed, q, sol))
+}
+
+/// Runs one build.
+pub fn run_build(
+    design: &Design,
+    bom: &[BomRow],
+    springs: &SpringSet,
+    s: &BuildSettings,
+    index: usize,
+) -> Result<Build> {
+    let built = springs.scaled(&draw(bom, s, index));
+    let nan = Build {
+        p99_deg: f64::NAN,
+        max_deg: f64::NAN,
+        shift_rad: f64::NAN,
+        shift_metric: f64::NAN,
+        trimmed: None,
+        trim_change: None,
+        trim_restored: false,
+    };
+    let mut b = nan;
+    if let Some(q) = equilibrium(design, &built) {
+        let (p99, max) = residual_about(design, s.extent, s.directions, s.samples, &built, &q)?;
+        let dq = &q - &design.q_eq;
+        let m = design.chain.mass_matrix(&design.q_eq);
+        b = Build {
+            p99_deg: p99,
+            max_deg: max,
+            shift_rad: dq.norm(),
+            shift_metric: dq.dot(&(&m * &dq)).max(0.0).sqrt(),
+            ..nan
+        };
+    }
+    if bom.iter().any(|r| r.adjust.trim_range.is_some()) {
+        b.trimmed = Some((f64::NAN, f64::NAN));
+        if let Some((trimmed, q, sol)) = trim_build(design, bom, &built) {
+            // The trimmed arm rests at q (trims add no torque there) if its Hessian is positive.
+            let h = trimmed.hessian(q.as_slice())? + design.chain.gravity_hessian(q.as_slice());
+            if h.cholesky().is_some() {
+                b.trimmed = Some(residual_about(design, s.extent, s.directions, s.samples, &trimmed, &q)?);
+            }
+            let nominal = bom.iter().filter(|r| r.adjust.trim_range.is_some()).map(|r| r.stiffness);
+            b.trim_change = Some(sol.rates.iter().zip(nominal).map(|(k, k0)| (k - k0).abs()).fold(0.0, f64::max));
+            b.trim_restored = sol.restored();
+        }
+    }
+    Ok(b)
+}
+
+/// Runs `s.builds` builds of `springs` (the BOM's stiffnesses) in parallel; results in build
+/// order.
+pub fn run_builds(design: &Design, bom: &[BomRow], springs: &SpringSet, s: &BuildSettings) -> Result<Vec<Build>> {
+    let out: Vec<Result<Build>> =
+        (0..s.builds).into_par_iter().map(|i| run_build(design, bom, springs, s, i)).collect();
+    out.into_iter().collect()
+}
+
+/// The summary over builds.
+pub fn summarise(s: &BuildSettings, builds: &[Build]) -> AsBuilt {
+    let trimmed = builds.first().and_then(|b| b.trimmed).map(|_| Trimmed {
+        p99_deg: Spread::of(builds.iter().map(|b| b.trimmed.map_or(f64::NAN, |t| t.0))),
+        max_deg: Spread::of(builds.iter().map(|b| b.trimmed.map_or(f64::NAN, |t| t.1))),
+        trim_change_nm_per_rad: Spread::of(builds.iter().map(|b| b.trim_change.unwrap_or(f64::NAN))),
+        builds_not_restored: builds.iter().filter(|b| !b.trim_restored).count(),
+    });
+    AsBuilt {
+        tolerance: s.tolerance,
+        distribution: s.distribution,
+        builds: builds.len(),
+        seed: s.seed,
+        builds_without_equilibrium: builds.iter().filter(|b| b.shift_rad.is_nan()).count(),
+        p99_deg: Spread::of(builds.iter().map(|b| b.p99_deg)),
+        max_deg: Spread::of(builds.iter().map(|b| b.max_deg)),
+        shift_rad: Spread::of(builds.iter().map(|b| b.shift_rad)),
+        shift_metric: Spread::of(builds.iter().map(|b| b.shift_metric)),
+        trimmed,
+    }
+}
+
+/// The p99 figures compare and pareto list: (untrimmed p50, p95), and trimmed (p50, p95) if any.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Brief {
+    pub p99_deg: Spread,
+    pub trimmed_p99_deg: Option<Spread>,
+}
+
+impl Brief {
+    /// From the summary.
+    pub fn of(ab: &AsBuilt) -> Brief {
+        Brief { p99_deg: ab.p99_deg, trimmed_p99_deg: ab.trimmed.map(|t| t.p99_deg) }
+    }
+
+    /// From the `"as_built"` object of a `summary.json` (None if absent or null).
+    pub fn from_json(v: &serde_json::Value) -> Option<Brief> {
+        let spread = |v: &serde_json::Value| -> Option<Spread> {
+            let num = |k: &str| v.get(k).map(|x| x.as_f64().unwrap_or(f64::INFINITY));
+            Some(Spread { p50: num("p50")?, p95: num("p95")? })
+        };
+        let ab = v.get("as_built").filter(|x| !x.is_null())?;
+        Some(Brief {
+            p99_deg: spread(ab.get("p99_deg")?)?,
+            trimmed_p99_deg: ab.get("trimmed").and_then(|t| t.get("p99_deg")).and_then(spread),
+        })
+    }
+}
+
+/// The as-built figures of a fit at the fit's tolerance settings (`[fit] tolerance`,
+/// `distribution`, `builds`, `seed`); None when there is nothing to draw (tolerance `"none"` and
+/// no catalogue tolerance, or `builds = 0`).
+pub fn of_fit(design: &Design, fit: &crate::fit::run::FitOutcome) -> Result<Option<AsBuilt>> {
+    let st = &fit.settings;
+    let Some(tolerance) = effective_tolerance(st.tolerance, &fit.bom) else { return Ok(None) };
+    if st.builds == 0 || fit.bom.is_empty() {
+        return Ok(None);
+    }
+    let s = BuildSettings {
+        tolerance,
+        distribution: st.distribution,
+        builds: st.builds,
+        seed: st.seed,
+        extent: fit.region.extent,
+        directions: DIRECTIONS,
+        samples: SAMPLES,
+    };
+    let builds = run_builds(design, &fit.bom, &fit.springs, &s)?;
+    Ok(Some(summarise(&s, &builds)))
+}

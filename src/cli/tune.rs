@@ -1,0 +1,106 @@
+//! `springfit tune`: offsets and trim rates to set on a built arm from its measured rates.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use springfit::design::Design;
+use springfit::report::output::OutputDir;
+use springfit::tune::{State, TuneOutcome, load_measured, tune};
+
+use super::progress::Progress;
+
+pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
+    let design = Design::load(design)?;
+    let (bom, rates) = load_measured(measured)?;
+    if bom[0].element.coupling.len() != design.dof() {
+        return Err(springfit::Error::invalid(
+            measured,
+            "line 2: coupling",
+            format!("has {} entries but the design's robot has {} joints", bom[0].element.coupling.len(), design.dof()),
+        )
+        .into());
+    }
+    let step = progress.step("tuning");
+    let outcome = tune(&design, &bom, &rates);
+    step.finish();
+    let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_tune", design.name)));
+    let step = progress.step("writing outputs");
+    let dir = OutputDir::create(&target)?;
+    dir.write("bom_tuned.csv", springfit::bom::to_csv(&outcome.bom))?;
+    dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
+    dir.write("tune.md", markdown(&design.name, &outcome))?;
+    let written = dir.commit();
+    step.finish();
+    let written = written?;
+    for line in summary_lines(&outcome) {
+        progress.say(line);
+    }
+    progress.say(format!("wrote {} (bom_tuned.csv, tune.json, tune.md)", written.display()));
+    Ok(())
+}
+
+fn state_line(name: &str, s: &State) -> String {
+    format!(
+        "{name}: p99 {:.4}°, max {:.4}° about its own equilibrium; shift {:.3e} rad; Hessian mismatch {:.2e}",
+        s.p99_deg, s.max_deg, s.shift_rad, s.hessian_mismatch
+    )
+}
+
+fn summary_lines(o: &TuneOutcome) -> Vec<String> {
+    let mut v = vec![state_line("before tuning", &o.before), state_line("after tuning ", &o.after)];
+    for s in &o.settings {
+        v.push(format!(
+            "  set {} {}: {:.6} (designed {:.6}){}",
+            s.id,
+            s.kind,
+            s.set,
+            s.designed,
+            if s.at_limit { ", at the end of its range" } else { "" }
+        ));
+    }
+    if o.settings.is_empty() {
+        v.push("  nothing to set: the bill of materials has no adjustable element and no trim spring".into());
+    }
+    v.push(format!(
+        "equilibrium {}; ∇²U(q_eq) = w² M(q_eq) {} (w² = {:.4})",
+        if o.equilibrium_restored { "restored at q_eq" } else { "NOT restored" },
+        if o.hessian_restored { "holds" } else { "NOT restored" },
+        o.w2
+    ));
+    v.extend(o.binding.iter().cloned());
+    v
+}
+
+fn markdown(name: &str, o: &TuneOutcome) -> String {
+    let mut s = format!(
+        "# springfit tune: {name}\n\n| | p99 | max | shift (rad) | Hessian mismatch |\n| --- | ---: | ---: | ---: | ---: |\n"
+    );
+    for (label, st) in [("before", &o.before), ("after", &o.after)] {
+        s.push_str(&format!(
+            "| {label} | {:.4}° | {:.4}° | {:.3e} | {:.2e} |\n",
+            st.p99_deg, st.max_deg, st.shift_rad, st.hessian_mismatch
+        ));
+    }
+    s.push_str("\nResidual angles on held-out geodesics from the arm's own equilibrium; shift |q′ − q_eq|₂.\n\n## Settings to make\n\n| id | what | designed | set | at the end of its range |\n| --- | --- | ---: | ---: | --- |\n");
+    for st in &o.settings {
+        s.push_str(&format!(
+            "| {} | {} | {:.6} | {:.6} | {} |\n",
+            st.id,
+            st.kind,
+            st.designed,
+            st.set,
+            if st.at_limit { "yes" } else { "no" }
+        ));
+    }
+    s.push_str(&format!(
+        "\nOffsets in rad, trim rates in N·m/rad. Equilibrium {}; ∇²U(q_eq) = w² M(q_eq) {} (w² = {:.4} (rad/s)²).\n",
+        if o.equilibrium_restored { "restored" } else { "not restored" },
+        if o.hessian_restored { "holds" } else { "not restored" },
+        o.w2
+    ));
+    for b in &o.binding {
+        s.push_str(&format!("\n- {b}\n"));
+    }
+    s
+}

@@ -1,0 +1,391 @@
+//! Trim after the build: linear springs whose rate is set once the arm is assembled.
+//!
+//! A built arm's rates deviate from the drawing, so its Hessian at its own equilibrium q′ is no
+//! longer ω² M(q′): small oscillations about q′ no longer share one frequency and the residual
+//! angles near q′ grow. Trim springs (a leaf spring with a sliding clamp, a screw that changes
+//! the active coils, a choice among stock springs) are linear elements relaxed at q′ — they add
+//! no torque there, so q′ stays the equilibrium — whose rates kᵢ are chosen within their ranges
+//! so that
+//!
+//! ∇²U_rest(q′) + Σᵢ kᵢ aᵢ aᵢᵀ = w² M(q′),
+//!
+//! with w² free (the frequency of the built arm need not be exactly the designed ω; it is chosen
+//! so that the trim rates move as little as possible from their nominal, mid-range values). The
+//! equations are the n(n+1)/2 entries of a symmetric matrix (Frobenius norm), linear in (k, w²).
+//!
+//! The problem is tiny (a few trims), so it is solved exactly by enumerating the faces of the
+//! box of ranges: on each face (every trim free, at its lower or at its upper end) the smallest
+//! Hessian mismatch is found by SVD and, among the minimisers, the smallest change of the trim
+//! rates; the best face whose free rates lie within their ranges wins (mismatch first, change
+//! second). The optimum of a convex problem over a box lies in the relative interior of one face,
+//! where it is also the optimum over that face's affine hull: the enumeration is exact.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::bom::{Adjustment, BomRow};
+use crate::catalog::Catalog;
+use crate::design::Design;
+use crate::error::Result;
+use crate::fit::run::{FitOutcome, evaluate, refit_with_fixed};
+use crate::potential::SpringSet;
+
+/// Most trim springs one design may carry (the solve enumerates 3^m faces).
+pub const MAX_TRIMS: usize = 9;
+
+/// Hessian mismatch (relative to ‖M‖_F) below which the trim counts as restoring ∇²U = w² M.
+pub const RESTORED: f64 = 1e-9;
+
+/// The trims' settings for one build.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrimSolution {
+    /// Rate of each trim, N·m/rad, within its range.
+    pub rates: Vec<f64>,
+    /// The squared frequency w² of the trimmed arm, (rad/s)².
+    pub w2: f64,
+    /// ‖∇²U(q′) − w² M(q′)‖_F / ‖M(q′)‖_F after trimming.
+    pub mismatch: f64,
+    /// Trims whose range binds (at an end of the range while the mismatch is above
+    /// [`RESTORED`]); empty when the trims restore ∇²U = w² M.
+    pub binding: Vec<usize>,
+}
+
+impl TrimSolution {
+    /// Whether ∇²U = w² M holds again (to [`RESTORED`]).
+    pub fn restored(&self) -> bool {
+        self.mismatch <= RESTORED
+    }
+}
+
+/// Puts the catalogue's trim springs into a fitted design at their mid-range rates and refits
+/// the other chosen elements around them.
+///
+/// Trims are not fit candidates (their rate is set after assembly, so the fit must not choose
+/// it). Once they sit at mid-range — room to trim both ways — their stiffness is part of the
+/// potential, so the chosen elements are refitted with the trims fixed, by the same NNLS refit
+/// the stock-rate snapping uses (`refit_with_fixed`: the fit's rows and weighted equalities on
+/// the chosen support). The element budget counts the fitted springs, not the trims. Elements
+/// the refit sets to zero leave the bill of materials.
+pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<FitOutcome> {
+    let trims = catalog.trims(design.q_eq.as_slice());
+    if trims.is_empty() {
+        return Ok(o);
+    }
+    let t0 = std::time::Instant::now();
+    let used = o.springs.elements.len();
+    let mut elements = o.springs.elements.clone();
+    elements.extend(trims.iter().map(|t| t.element.clone()));
+    let mut fixed: Vec<Option<f64>> = vec![None; used];
+    fixed.extend(trims.iter().map(|t| Some(0.5 * (t.range[0] + t.range[1]))));
+    let mut k = refit_with_fixed(design, &o.settings, &o.training, &elements, &fixed)?;
+    polish_equalities(design, &o.settings, &elements, &mut k, used);
+    let mut rows: Vec<BomRow> = Vec::new();
+    for (j, row) in o.bom.iter().enumerate() {
+        if k[j] > 0.0 {
+            rows.push(BomRow { stiffness: k[j], ..row.clone() });
+        }
+    }
+    for (i, t) in trims.iter().enumerate() {
+        let f = &catalog.families[t.family];
+        rows.push(BomRow {
+            id: String::new(),
+            family: f.name.clone(),
+            element: t.element.clone(),
+            stiffness: k[used + i],
+            max_torque_nm: 0.0,
+            max_deflection_rad: 0.0,
+            stock_rate: None,
+            tolerance: f.tolerance,
+            adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
+        });
+    }
+    // Peak torque and deflection over the held-out fan, as the fit reports them.
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.id = format!("S{:02}", i + 1);
+        let e = &row.element;
+        let (mut torque, mut defl) = (0.0f64, 0.0f64);
+        let mut visit = |q: &[f64]| {
+            let d = e.deflection(q);
+            let slope = e.profile.slope(d);
+            torque = torque.max((row.stiffness * slope).abs());
+            if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
+                defl = defl.max(d.abs());
+            }
+        };
+        visit(design.q_eq.as_slice());
+        for g in &o.evaluation.geodesics {
+            for s in 0..g.len() {
+                visit(g.q(s));
+            }
+        }
+        row.max_torque_nm = torque;
+        row.max_deflection_rad = defl;
+    }
+    o.springs = SpringSet {
+        elements: rows.iter().map(|r| r.element.clone()).collect(),
+        stiffness: rows.iter().map(|r| r.stiffness).collect(),
+    };
+    o.bom = rows;
+    o.metrics = evaluate(design, o.settings.frequency, o.settings.bands, &o.springs, &o.evaluation)?;
+    let dt = t0.elapsed().as_secs_f64();
+    o.timings.solve += dt;
+    o.timings.total += dt;
+    Ok(o)
+}
+
+/// The NNLS refit meets the equalities only by weighting: move the fitted (non-trim) elements by
+/// the smallest change that makes ∇U(q_eq) = 0 and ∇²U(q_eq) = ω² M(q_eq) (or, without the
+/// Hessian match, only the equilibrium) exact again. The change is of the order of the weighted
+/// residual (1e-6 relative); a rate it would make negative is left at zero.
+fn polish_equalities(
+    design: &Design,
+    settings: &crate::fit::settings::FitSettings,
+    elements: &[crate::elements::Element],
+    k: &mut [f64],
+    fitted: usize,
+) {
+    let n = design.dof();
+    let q = design.q_eq.as_slice();
+    let chain = &design.chain;
+    let m = chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
+    let scale = m.norm().max(f64::MIN_POSITIVE);
+    let pairs: Vec<(usize, usize)> =
+        if settings.hessian_match { (0..n).flat_map(|i| (i..n).map(move |j| (i, j))).collect() } else { Vec::new() };
+    let rows = n + pairs.len();
+    let coef = |e: &crate::elements::Element, r: usize| -> f64 {
+        let (_, slope, curv) = e.profile.eval(e.deflection(q));
+        if r < n { slope * e.coupling[r] } else { curv * e.coupling[pairs[r - n].0] * e.coupling[pairs[r - n].1] }
+    };
+    let grav = chain.gravity_gradient(q);
+    let grav_h = chain.gravity_hessian(q);
+    for _ in 0..3 {
+        let mut resid = DVector::zeros(rows);
+        for r in 0..rows {
+            let have: f64 = elements.iter().zip(k.iter()).map(|(e, kj)| kj * coef(e, r)).sum();
+            let want = if r < n { -grav[r] } else { m[pairs[r - n]] - grav_h[pairs[r - n]] };
+            resid[r] = (want - have) / scale;
+        }
+        let free: Vec<usize> = (0..fitted).filter(|&j| k[j] > 0.0).collect();
+        let jac = DMatrix::from_fn(rows, free.len(), |r, c| coef(&elements[free[c]], r) / scale);
+        let Some((dk, _)) = min_residual(&jac, &resid) else { return };
+        for (c, &j) in free.iter().enumerate() {
+            k[j] = (k[j] + dk[c]).max(0.0);
+        }
+    }
+}
+
+/// Upper-triangle entries (i ≤ k) of a symmetric matrix, off-diagonals weighted by √2 so that
+/// the Euclidean norm of the vector is the Frobenius norm of the matrix.
+fn vech(m: &DMatrix<f64>) -> DVector<f64> {
+    let n = m.nrows();
+    let mut v = Vec::with_capacity(n * (n + 1) / 2);
+    for i in 0..n {
+        for k in i..n {
+            v.push(if i == k { m[(i, k)] } else { std::f64::consts::SQRT_2 * 0.5 * (m[(i, k)] + m[(k, i)]) });
+        }
+    }
+    DVector::from_vec(v)
+}
+
+/// Trim rates (and w²) that make `h_rest + Σ kᵢ aᵢaᵢᵀ = w² m` as nearly as `ranges` allow, then
+/// change the rates least from `nominal`. `h_rest` is the Hessian of everything but the trims
+/// (gravity included) at the point where the trims are relaxed; `m` the mass matrix there.
+pub fn solve(
+    h_rest: &DMatrix<f64>,
+    m: &DMatrix<f64>,
+    couplings: &[Vec<f64>],
+    ranges: &[[f64; 2]],
+    nominal: &[f64],
+) -> TrimSolution {
+    let t = couplings.len();
+    let scale = m.norm().max(f64::MIN_POSITIVE);
+    // Columns: one per trim (vech of a aᵀ), then −vech(M) for w²; right-hand side −vech(H_rest).
+    let cols: Vec<DVector<f64>> = couplings
+        .iter()
+        .map(|a| {
+            let av = DVector::from_column_slice(a);
+            vech(&(&av * av.transpose())) / scale
+        })
+        .collect();
+    let mcol = -vech(m) / scale;
+    let rhs = -vech(h_rest) / scale;
+    let width = ranges.iter().map(|r| r[1] - r[0]).fold(0.0, f64::max).max(1.0);
+    let tol_bound = 1e-12 * width;
+    let mut best: Option<(f64, f64, TrimSolution)> = None;
+    let faces = 3usize.pow(t as u32);
+    for face in 0..faces {
+        // State of trim i: 0 free, 1 at the lower end, 2 at the upper end.
+        let state: Vec<usize> = (0..t).map(|i| face / 3usize.pow(i as u32) % 3).collect();
+        let free: Vec<usize> = (0..t).filter(|&i| state[i] == 0).collect();
+        let mut k: Vec<f64> = (0..t)
+            .map(|i| match state[i] {
+                1 => ranges[i][0],
+                2 => ranges[i][1],
+                _ => nominal[i],
+            })
+            .collect();
+        let mut c = rhs.clone();
+        for i in 0..t {
+            if state[i] != 0 {
+                c -= &cols[i] * k[i];
+            }
+        }
+        let mut jac_cols: Vec<DVector<f64>> = free.iter().map(|&i| cols[i].clone()).collect();
+        jac_cols.push(mcol.clone());
+        let jac = DMatrix::from_columns(&jac_cols);
+        let Some((z, null)) = min_residual(&jac, &c) else { continue };
+        // Among the minimisers z + N y, the one whose free rates change least from nominal.
+        let nf = free.len();
+        let mut z = z;
+        if null.ncols() > 0 && nf > 0 {
+            let sel = null.rows(0, nf).into_owned();
+            let target = DVector::from_iterator(nf, free.iter().enumerate().map(|(a, &i)| nominal[i] - z[a]));
+            if let Some((y, _)) = min_residual(&sel, &target) {
+                z += &null * y;
+            }
+        }
+        if free.iter().enumerate().any(|(a, &i)| z[a] < ranges[i][0] - tol_bound || z[a] > ranges[i][1] + tol_bound) {
+            continue;
+        }
+        for (a, &i) in free.iter().enumerate() {
+            k[i] = z[a].clamp(ranges[i][0], ranges[i][1]);
+        }
+        let w2 = z[nf];
+        // r = vech(H_rest + Σ k a aᵀ − w² M) / ‖M‖_F.
+        let mut r = &mcol * w2 - &rhs;
+        for i in 0..t {
+            r += &cols[i] * k[i];
+        }
+        let mismatch = r.norm();
+        let change: f64 = (0..t).map(|i| (k[i] - nominal[i]).powi(2)).sum();
+        let better = match &best {
+            None => true,
+            Some((bm, bc, _)) => {
+                mismatch < bm - 1e-13 || (mismatch <= bm + 1e-13 && change < *bc * (1.0 - 1e-12) - 1e-300)
+            }
+        };
+        if better {
+            let binding = if mismatch > RESTORED { (0..t).filter(|&i| state[i] != 0).collect() } else { Vec::new() };
+            best = Some((mismatch, change, TrimSolution { rates: k, w2, mismatch, binding }));
+        }
+    }
+    // The face with every trim at a bound and w² free always has a solution.
+    best.map(|b| b.2).unwrap_or(TrimSolution {
+        rates: nominal.to_vec(),
+        w2: f64::NAN,
+        mismatch: f64::INFINITY,
+        binding: Vec::new(),
+    })
+}
+
+/// The least-squares solution of J z ≈ c with the smallest norm, and a basis of J's null space
+/// (columns). None if J has non-finite entries.
+pub(crate) fn min_residual(jac: &DMatrix<f64>, c: &DVector<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
+    let (m, p) = jac.shape();
+    if p == 0 {
+        return Some((DVector::zeros(0), DMatrix::zeros(0, 0)));
+    }
+    if jac.iter().chain(c.iter()).any(|x| !x.is_finite()) {
+        return None;
+    }
+    // Pad to at least p rows so the SVD yields a full set of right singular vectors.
+    let rows = m.max(p);
+    let mut a = DMatrix::zeros(rows, p);
+    a.rows_mut(0, m).copy_from(jac);
+    let mut b = DVector::zeros(rows);
+    b.rows_mut(0, m).copy_from(c);
+    let svd = a.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let smax = svd.singular_values.iter().copied().fold(0.0, f64::max);
+    let tol = smax * 1e-10 * rows as f64;
+    let mut z = DVector::zeros(p);
+    let mut null = Vec::new();
+    for (s_i, &s) in svd.singular_values.iter().enumerate() {
+        let v = vt.row(s_i).transpose();
+        if s > tol {
+            z += &v * (u.column(s_i).dot(&b) / s);
+        } else {
+            null.push(v);
+        }
+    }
+    let null = if null.is_empty() { DMatrix::zeros(p, 0) } else { DMatrix::from_columns(&null) };
+    Some((z, null))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Chain;
+
+    fn couplings() -> Vec<Vec<f64>> {
+        vec![vec![1.0, 0.0], vec![0.0, 1.0], vec![1.0, 1.0]]
+    }
+
+    fn hessian(h_rest: &DMatrix<f64>, a: &[Vec<f64>], k: &[f64]) -> DMatrix<f64> {
+        let mut h = h_rest.clone();
+        for (a, k) in a.iter().zip(k) {
+            let av = DVector::from_column_slice(a);
+            h += &av * av.transpose() * *k;
+        }
+        h
+    }
+
+    /// A build whose springs are off by known amounts: the trims put ∇²U = w² M back to 1e-9,
+    /// and with ranges wide enough they move as little as the free w² allows.
+    #[test]
+    fn trims_restore_the_hessian_match() {
+        let chain = Chain::paper_double_pendulum();
+        let q = DVector::from_vec(vec![0.03, 1.55]);
+        let m = chain.mass_matrix(&q);
+        let omega2 = 16.0;
+        let a = couplings();
+        let nominal = [2.0, 2.0, 2.0];
+        // The designed arm: trims at nominal and the rest making ω² M exactly; then errors.
+        let designed_rest = &m * omega2 - hessian(&DMatrix::zeros(2, 2), &a, &nominal);
+        let error = DMatrix::from_row_slice(2, 2, &[0.9, -0.4, -0.4, -0.7]);
+        let built_rest = &designed_rest + &error;
+        let sol = solve(&built_rest, &m, &a, &[[0.0, 4.0]; 3], &nominal);
+        let h = hessian(&built_rest, &a, &sol.rates);
+        let rel = (&h - &m * sol.w2).norm() / m.norm();
+        assert!(rel < 1e-9, "mismatch {rel:e}");
+        assert!(sol.restored() && sol.binding.is_empty());
+        assert!(sol.rates.iter().all(|k| (0.0..=4.0).contains(k)));
+        // w² minimises the change: moving w² either way changes the rates more.
+        let change = |w2: f64| {
+            let target = &m * w2 - &built_rest;
+            // Three trims on (1,0), (0,1), (1,1) solve any symmetric 2×2 target uniquely.
+            let k3 = target[(0, 1)];
+            let k1 = target[(0, 0)] - k3;
+            let k2 = target[(1, 1)] - k3;
+            (k1 - 2.0).powi(2) + (k2 - 2.0).powi(2) + (k3 - 2.0).powi(2)
+        };
+        let c0 = change(sol.w2);
+        assert!(change(sol.w2 + 1e-4) > c0 && change(sol.w2 - 1e-4) > c0);
+        // Without errors nothing moves.
+        let same = solve(&designed_rest, &m, &a, &[[0.0, 4.0]; 3], &nominal);
+        assert!(same.rates.iter().all(|k| (k - 2.0).abs() < 1e-9) && (same.w2 - omega2).abs() < 1e-9);
+    }
+
+    /// Ranges too narrow for the error: the mismatch stays, and the trims at an end of their
+    /// range are named.
+    #[test]
+    fn narrow_ranges_bind_and_are_named() {
+        let chain = Chain::paper_double_pendulum();
+        let q = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
+        let m = chain.mass_matrix(&q);
+        let a = couplings();
+        let nominal = [2.0, 2.0, 2.0];
+        let designed_rest = &m * 16.0 - hessian(&DMatrix::zeros(2, 2), &a, &nominal);
+        // Joint 1 built 5 N·m/rad too stiff: k₁ = 6w² − 99 and k₃ = 2w² − 30 cannot both stay
+        // within ±0.5 of 2 for any w².
+        let error = DMatrix::from_row_slice(2, 2, &[5.0, 0.0, 0.0, 0.0]);
+        let sol = solve(&(&designed_rest + &error), &m, &a, &[[1.5, 2.5]; 3], &nominal);
+        assert!(!sol.restored(), "mismatch {}", sol.mismatch);
+        assert!(!sol.binding.is_empty());
+        for &i in &sol.binding {
+            assert!(sol.rates[i] == 1.5 || sol.rates[i] == 2.5, "trim {i} at {}", sol.rates[i]);
+        }
+        // The same error with room: restored.
+        let wide = solve(&(&designed_rest + &error), &m, &a, &[[0.0, 10.0]; 3], &nominal);
+        assert!(wide.restored() && wide.binding.is_empty());
+    }
+}

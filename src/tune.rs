@@ -1,0 +1,539 @@
+//! Tuning after the build: with the measured rates, set the adjustable offsets and the trim
+//! rates so the built arm rests at q_eq again with ∇²U(q_eq) = w² M(q_eq), then with the
+//! freedom left make the residual of the measured set as small as possible.
+//!
+//! Unknowns: an offset change Δx₀ ∈ [−r, r] per element of an adjustable family (a preload
+//! screw, a crank phase), a rate k ∈ [lo, hi] per trim spring (relaxed at q_eq: no torque there),
+//! and the squared frequency w² (free). In order of priority:
+//!
+//! 1. **Equilibrium**: ∇U(q_eq) = Σⱼ kⱼ τⱼ(aⱼ·q_eq − x₀ⱼ − Δx₀ⱼ) aⱼ + ∇U_g = 0. For a linear element
+//!    the torque change −kⱼ Δx₀ⱼ aⱼ is linear in Δx₀ⱼ; cranks and the others are linearised and
+//!    iterated (Gauss–Newton with the smallest step, bounded: an offset that reaches the end of
+//!    its range is held there and the others take over).
+//! 2. **Hessian**: the trims' rates from [`crate::trim::solve`] at q_eq, with the Hessian of the
+//!    tuned, measured elements (an offset change alters a crank's curvature).
+//! 3. **Residual**: Levenberg–Marquardt steps on the residual angles of a training fan from q_eq,
+//!    restricted to the null space of (1) and (2) linearised, each step followed by (1) and (2)
+//!    again and kept only if the residual falls.
+//!
+//! The outcome says which ranges bind when (1) or (2) cannot be met.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::bom::BomRow;
+use crate::design::Design;
+use crate::error::Result;
+use crate::geodesic::{Fan, FanSpec, Stop};
+use crate::potential::{Potential, SpringSet};
+
+/// |∇U(q_eq)| (N·m) below which the equilibrium counts as restored, relative to the largest
+/// element torque scale (1 + max k).
+const GRADIENT_TOLERANCE: f64 = 1e-12;
+
+/// Figures of the built arm before or after tuning.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct State {
+    /// p99 |residual angle| on held-out geodesics from the arm's own equilibrium, degrees.
+    pub p99_deg: f64,
+    /// max |residual angle|, degrees.
+    pub max_deg: f64,
+    /// |q′ − q_eq|₂ of its own equilibrium, rad (NaN: none within 0.5 rad).
+    pub shift_rad: f64,
+    /// ‖∇²U(q′) − w² M(q′)‖_F / ‖w² M(q′)‖_F with the best w² (least squares).
+    pub hessian_mismatch: f64,
+}
+
+/// One setting to make.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Setting {
+    /// BOM id.
+    pub id: String,
+    /// `offset` or `trim rate`.
+    pub kind: &'static str,
+    /// Value as designed (offset rad, or the trim's nominal rate N·m/rad).
+    pub designed: f64,
+    /// Value to set.
+    pub set: f64,
+    /// Whether the value sits at an end of its range.
+    pub at_limit: bool,
+}
+
+/// The outcome of `tune`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TuneOutcome {
+    pub before: State,
+    pub after: State,
+    /// Offsets and trim rates to set, in BOM order.
+    pub settings: Vec<Setting>,
+    /// Whether the equilibrium is back at q_eq (|∇U(q_eq)| within tolerance).
+    pub equilibrium_restored: bool,
+    /// Whether ∇²U(q_eq) = w² M(q_eq) holds again (trims; to [`crate::trim::RESTORED`]).
+    pub hessian_restored: bool,
+    /// w² of the tuned arm, (rad/s)².
+    pub w2: f64,
+    /// What binds, in words (empty when everything was restored).
+    pub binding: Vec<String>,
+    /// The tuned bill of materials: measured rates, new offsets and trim rates.
+    #[serde(skip)]
+    pub bom: Vec<BomRow>,
+}
+
+/// The tuning problem.
+struct Problem<'a> {
+    design: &'a Design,
+    bom: &'a [BomRow],
+    /// Measured rates (trims: their nominal rate).
+    k: Vec<f64>,
+    /// Indices of adjustable (non-trim) elements and their ranges.
+    adjustable: Vec<(usize, f64)>,
+    /// Indices of trims.
+    trims: Vec<usize>,
+    /// Training fan from q_eq for the residual.
+    fan: Fan,
+}
+
+/// Variables: Δx₀ per adjustable element, then the trim rates.
+impl Problem<'_> {
+    fn springs(&self, z: &[f64]) -> SpringSet {
+        let mut s =
+            SpringSet { elements: self.bom.iter().map(|r| r.element.clone()).collect(), stiffness: self.k.clone() };
+        for (a, &(j, _)) in self.adjustable.iter().enumerate() {
+            s.elements[j].offset += z[a];
+        }
+        let na = self.adjustable.len();
+        for (i, &j) in self.trims.iter().enumerate() {
+            s.stiffness[j] = z[na + i];
+        }
+        s
+    }
+
+    fn bounds(&self, v: usize) -> [f64; 2] {
+        let na = self.adjustable.len();
+        if v < na {
+            let r = self.adjustable[v].1;
+            [-r, r]
+        } else {
+            self.bom[self.trims[v - na]].adjust.trim_range.unwrap_or([0.0, 0.0])
+        }
+    }
+
+    fn gradient(&self, z: &[f64]) -> Result<DVector<f64>> {
+        let q = self.design.q_eq.as_slice();
+        Ok(self.springs(z).gradient(q)? + self.design.chain.gravity_gradient(q))
+    }
+
+    fn scale(&self) -> f64 {
+        1.0 + self.k.iter().fold(0.0f64, |a, k| a.max(*k))
+    }
+
+    /// Step 1: offsets that zero ∇U(q_eq), bounded Gauss–Newton with the smallest steps.
+    fn restore_equilibrium(&self, z: &mut [f64]) -> Result<()> {
+        let na = self.adjustable.len();
+        if na == 0 {
+            return Ok(());
+        }
+        let q = self.design.q_eq.as_slice();
+        let n = self.design.dof();
+        for _ in 0..60 {
+            let g = self.gradient(z)?;
+            if g.amax() < GRADIENT_TOLERANCE * self.scale() {
+                return Ok(());
+            }
+            let s = self.springs(z);
+            // ∂g/∂Δx₀ⱼ = −kⱼ u″ⱼ aⱼ; offsets held at a bound (pushing outward) are left out.
+            let free: Vec<usize> = (0..na).collect();
+            let jac = DMatrix::from_fn(n, na, |i, a| {
+                let j = self.adjustable[a].0;
+                let e = &s.elements[j];
+                -self.k[j] * e.profile.eval(e.deflection(q)).2 * e.coupling[i]
+            });
+            let mut active: Vec<bool> = vec![true; na];
+            let mut step = DVector::zeros(na);
+            for _ in 0..=na {
+                let cols: Vec<usize> = free.iter().copied().filter(|&a| active[a]).collect();
+                if cols.is_empty() {
+                    break;
+                }
+                let sub = DMatrix::from_fn(n, cols.len(), |i, c| jac[(i, cols[c])]);
+                let Some((dz, _)) = crate::trim::min_residual(&sub, &(-&g)) else { break };
+                step.fill(0.0);
+                for (c, &a) in cols.iter().enumerate() {
+                    step[a] = dz[c];
+                }
+                // Hold offsets that would leave their range at the bound.
+                let mut changed = false;
+                for &a in &cols {
+                    let [lo, hi] = self.bounds(a);
+                    if (z[a] + step[a] > hi && z[a] >= hi - 1e-15) || (z[a] + step[a] < lo && z[a] <= lo + 1e-15) {
+                        active[a] = false;
+                        changed = true;
+                    }
+                }
+                if !changed {
+                    break;
+                }
+            }
+            let before = g.norm();
+            let mut t = 1.0;
+            loop {
+                let trial: Vec<f64> = (0..na)
+                    .map(|a| {
+                        let [lo, hi] = self.bounds(a);
+                        (z[a] + t * step[a]).clamp(lo, hi)
+                    })
+                    .chain(z[na..].iter().copied())
+                    .collect();
+                if self.gradient(&trial)?.norm() < before || t < 1e-6 {
+                    z.copy_from_slice(&trial);
+                    break;
+                }
+                t *= 0.5;
+            }
+            if t < 1e-6 {
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+
+    /// Step 2: trim rates for ∇²U(q_eq) = w² M(q_eq).
+    fn restore_hessian(&self, z: &mut [f64]) -> Result<crate::trim::TrimSolution> {
+        let q = self.design.q_eq.as_slice();
+        let na = self.adjustable.len();
+        let s = self.springs(z);
+        let rest = SpringSet {
+            elements: (0..s.elements.len())
+                .filter(|j| !self.trims.contains(j))
+                .map(|j| s.elements[j].clone())
+                .collect(),
+            stiffness: (0..s.elements.len()).filter(|j| !self.trims.contains(j)).map(|j| s.stiffness[j]).collect(),
+        };
+        let h_rest = rest.hessian(q)? + self.design.chain.gravity_hessian(q);
+        let m = self.design.chain.mass_matrix(&self.design.q_eq);
+        let couplings: Vec<Vec<f64>> = self.trims.iter().map(|&j| self.bom[j].element.coupling.clone()).collect();
+        let ranges: Vec<[f64; 2]> = (0..self.trims.len()).map(|i| self.bounds(na + i)).collect();
+        let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
+        let sol = crate::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
+        if !self.trims.is_empty() {
+            z[na..].copy_from_slice(&sol.rates);
+        }
+        Ok(sol)
+    }
+
+    /// Residual angles (rad) on the training fan from q_eq.
+    fn residual(&self, z: &[f64]) -> Result<DVector<f64>> {
+        let s = self.springs(z);
+        let a = crate::residual::fan_angles(&self.design.chain, &self.fan, &s)?;
+        Ok(DVector::from_iterator(a.len(), a.iter().map(|x| x.angle_deg.to_radians())))
+    }
+
+    /// Constraint values: ∇U(q_eq)/scale and vech(∇²U − w² M) (w² from the trim solve).
+    fn constraints(&self, z: &[f64], w2: f64) -> Result<DVector<f64>> {
+        let q = self.design.q_eq.as_slice();
+        let s = self.springs(z);
+        let g = self.gradient(z)? / self.scale();
+        let mut v: Vec<f64> = g.iter().copied().collect();
+        if !self.trims.is_empty() {
+            let m = self.design.chain.mass_matrix(&self.design.q_eq);
+            let h = s.hessian(q)? + self.design.chain.gravity_hessian(q) - &m * w2;
+            let n = h.nrows();
+            for i in 0..n {
+                for k in i..n {
+                    v.push(h[(i, k)] / m.norm());
+                }
+            }
+        }
+        Ok(DVector::from_vec(v))
+    }
+}
+
+/// Own-equilibrium figures of a spring set.
+fn state(design: &Design, extent: f64, springs: &SpringSet) -> Result<State> {
+    let nan = State { p99_deg: f64::NAN, max_deg: f64::NAN, shift_rad: f64::NAN, hessian_mismatch: f64::NAN };
+    let Some(q) = crate::asbuilt::equilibrium(design, springs) else { return Ok(nan) };
+    let (p99, max) = crate::asbuilt::residual_about(
+        design,
+        extent,
+        crate::asbuilt::DIRECTIONS,
+        crate::asbuilt::SAMPLES,
+        springs,
+        &q,
+    )?;
+    let h = springs.hessian(q.as_slice())? + design.chain.gravity_hessian(q.as_slice());
+    let m = design.chain.mass_matrix(&q);
+    let w2 = (h.dot(&m)) / m.dot(&m);
+    let mismatch = (&h - &m * w2).norm() / (&m * w2).norm();
+    Ok(State { p99_deg: p99, max_deg: max, shift_rad: (&q - &design.q_eq).norm(), hessian_mismatch: mismatch })
+}
+
+/// Tunes a built arm. `bom` is the bill of materials as designed; `measured[j]` the measured
+/// rate of row j (None: as designed; ignored for trims, whose rate tune sets).
+pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result<TuneOutcome> {
+    let region = design.valid_region()?;
+    let extent = region.extent;
+    let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
+    let k: Vec<f64> = bom
+        .iter()
+        .zip(measured)
+        .map(|(r, m)| if r.adjust.trim_range.is_some() { r.stiffness } else { m.unwrap_or(r.stiffness) })
+        .collect();
+    let adjustable: Vec<(usize, f64)> = (0..bom.len())
+        .filter(|&j| bom[j].adjust.trim_range.is_none())
+        .filter_map(|j| bom[j].adjust.adjust_range.map(|r| (j, r)))
+        .collect();
+    let stop = match &design.region {
+        crate::geodesic::Region::Ball { radius } => Stop::Arc(*radius),
+        region => Stop::Region { region, max_arc: design.geodesics.max_arc },
+    };
+    let fan = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec { count: 48, phase: 0.0, stop, spacing: extent / 20.0 },
+        design.geodesics.ode,
+    )?;
+    let p = Problem { design, bom, k, adjustable, trims, fan };
+    let na = p.adjustable.len();
+    let nv = na + p.trims.len();
+    let mut z: Vec<f64> = (0..na).map(|_| 0.0).chain(p.trims.iter().map(|&j| bom[j].stiffness)).collect();
+    let before = state(design, extent, &p.springs(&z))?;
+
+    p.restore_equilibrium(&mut z)?;
+    let mut sol = p.restore_hessian(&mut z)?;
+    let objective = |z: &[f64]| -> Result<f64> { Ok(p.residual(z)?.norm_squared()) };
+    let mut best = objective(&z)?;
+    let feasible = |z: &[f64], w2: f64| -> Result<f64> { Ok(p.constraints(z, w2)?.amax()) };
+    let mut mu = 1e-3;
+    for _ in 0..12 {
+        if nv == 0 {
+            break;
+        }
+        // Free variables: those not at a bound.
+        let free: Vec<usize> = (0..nv)
+            .filter(|&v| {
+                let [lo, hi] = p.bounds(v);
+                z[v] > lo + 1e-12 && z[v] < hi - 1e-12
+            })
+            .collect();
+        if free.is_empty() {
+            break;
+        }
+        let r0 = p.residual(&z)?;
+        let c0 = p.constraints(&z, sol.w2)?;
+        // Forward differences (the variables are offsets in rad and rates in N·m/rad).
+        let mut jr = DMatrix::zeros(r0.len(), free.len() + 1);
+        let mut jc = DMatrix::zeros(c0.len(), free.len() + 1);
+        for (c, &v) in free.iter().enumerate() {
+            let h = 1e-6 * (1.0 + z[v].abs());
+            let mut zt = z.clone();
+            zt[v] += h;
+            jr.set_column(c, &((p.residual(&zt)? - &r0) / h));
+            jc.set_column(c, &((p.constraints(&zt, sol.w2)? - &c0) / h));
+        }
+        // w² enters the Hessian constraints only.
+        let h = 1e-6 * (1.0 + sol.w2.abs());
+        jc.set_column(free.len(), &((p.constraints(&z, sol.w2 + h)? - &c0) / h));
+        let Some((_, null)) = crate::trim::min_residual(&jc, &c0) else { break };
+        if null.ncols() == 0 {
+            break;
+        }
+        let a = &jr * &null;
+        let mut improved = false;
+        for _ in 0..6 {
+            let lhs = a.transpose() * &a + DMatrix::identity(null.ncols(), null.ncols()) * mu;
+            let Some(y) = lhs.lu().solve(&(-(a.transpose() * &r0))) else { break };
+            let dz = &null * y;
+            let mut trial = z.clone();
+            for (c, &v) in free.iter().enumerate() {
+                let [lo, hi] = p.bounds(v);
+                trial[v] = (z[v] + dz[c]).clamp(lo, hi);
+            }
+            p.restore_equilibrium(&mut trial)?;
+            let tsol = p.restore_hessian(&mut trial)?;
+            let obj = objective(&trial)?;
+            if obj < best && feasible(&trial, tsol.w2)? <= feasible(&z, sol.w2)?.max(1e-12) {
+                z = trial;
+                sol = tsol;
+                best = obj;
+                mu = (mu * 0.3).max(1e-9);
+                improved = true;
+                break;
+            }
+            mu *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+
+    let tuned = p.springs(&z);
+    let after = state(design, extent, &tuned)?;
+    let g = p.gradient(&z)?;
+    let equilibrium_restored = g.amax() < 1e-9 * p.scale();
+    let hessian_restored = p.trims.is_empty() || sol.restored();
+    let mut binding = Vec::new();
+    let at_limit = |v: usize| {
+        let [lo, hi] = p.bounds(v);
+        z[v] <= lo + 1e-12 || z[v] >= hi - 1e-12
+    };
+    if !equilibrium_restored {
+        let held: Vec<String> = (0..na).filter(|&v| at_limit(v)).map(|v| bom[p.adjustable[v].0].id.clone()).collect();
+        binding.push(if na == 0 {
+            format!(
+                "no adjustable element: |∇U(q_eq)| = {:.3e} N·m stays (the arm rests {:.2e} rad from q_eq)",
+                g.norm(),
+                after.shift_rad
+            )
+        } else if held.is_empty() {
+            format!(
+                "the adjustable elements' couplings cannot cancel |∇U(q_eq)| = {:.3e} N·m (they span too few directions)",
+                g.norm()
+            )
+        } else {
+            format!(
+                "the offset ranges of {} bind: |∇U(q_eq)| = {:.3e} N·m remains (the arm rests {:.2e} rad from q_eq)",
+                held.join(", "),
+                g.norm(),
+                after.shift_rad
+            )
+        });
+    }
+    if !hessian_restored {
+        let names: Vec<String> = sol.binding.iter().map(|&i| bom[p.trims[i]].id.clone()).collect();
+        binding.push(if names.is_empty() {
+            format!("the trims cannot reach ∇²U(q_eq) = w² M(q_eq): mismatch {:.2e} remains", sol.mismatch)
+        } else {
+            format!(
+                "the trim ranges of {} bind: ∇²U(q_eq) − w² M(q_eq) stays at {:.2e} of ‖M‖",
+                names.join(", "),
+                sol.mismatch
+            )
+        });
+    }
+    let settings: Vec<Setting> = (0..nv)
+        .map(|v| {
+            if v < na {
+                let j = p.adjustable[v].0;
+                Setting {
+                    id: bom[j].id.clone(),
+                    kind: "offset",
+                    designed: bom[j].element.offset,
+                    set: bom[j].element.offset + z[v],
+                    at_limit: at_limit(v),
+                }
+            } else {
+                let j = p.trims[v - na];
+                Setting {
+                    id: bom[j].id.clone(),
+                    kind: "trim rate",
+                    designed: bom[j].stiffness,
+                    set: z[v],
+                    at_limit: at_limit(v),
+                }
+            }
+        })
+        .collect();
+    let tuned_bom: Vec<BomRow> = bom
+        .iter()
+        .enumerate()
+        .map(|(j, r)| {
+            let mut row = r.clone();
+            row.element = tuned.elements[j].clone();
+            row.stiffness = tuned.stiffness[j];
+            row
+        })
+        .collect();
+    Ok(TuneOutcome {
+        before,
+        after,
+        settings,
+        equilibrium_restored,
+        hessian_restored,
+        w2: sol.w2,
+        binding,
+        bom: tuned_bom,
+    })
+}
+
+/// Reads the file of [`read_measured`].
+pub fn load_measured(path: &std::path::Path) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
+    read_measured(path, &crate::design::read_text(path)?)
+}
+
+/// Reads a bill of materials with a `measured_stiffness` column (anywhere; blank = as designed):
+/// the rows and the measured rates.
+pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
+    use crate::bom::{csv_field, split_csv_line};
+    use crate::error::Error;
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let Some((_, header)) = lines.next() else {
+        return Err(Error::invalid(path, "line 1: header", "the file is empty"));
+    };
+    let names = split_csv_line(header.trim_start_matches('\u{feff}').trim())
+        .map_err(|e| Error::invalid(path, "line 1: header", e))?;
+    let col = names.iter().position(|n| n.trim() == "measured_stiffness").ok_or_else(|| {
+        Error::invalid(
+            path,
+            "line 1: measured_stiffness",
+            "the bill of materials has no measured_stiffness column: add one and fill in the rates from the spring tester (blank = as designed)",
+        )
+    })?;
+    let strip = |f: Vec<String>| {
+        f.into_iter().enumerate().filter(|(i, _)| *i != col).map(|(_, s)| csv_field(&s)).collect::<Vec<_>>().join(",")
+    };
+    let mut rest = strip(names.clone());
+    rest.push('\n');
+    let mut measured = Vec::new();
+    for (idx, line) in lines {
+        let ln = idx + 1;
+        let f = split_csv_line(line).map_err(|e| Error::invalid(path, format!("line {ln}: row"), e))?;
+        if f.len() != names.len() {
+            return Err(Error::invalid(
+                path,
+                format!("line {ln}: row"),
+                format!("has {} fields, the header {}", f.len(), names.len()),
+            ));
+        }
+        let m = f[col].trim();
+        measured.push(if m.is_empty() {
+            None
+        } else {
+            let v: f64 = m.parse().map_err(|_| {
+                Error::invalid(path, format!("line {ln}: measured_stiffness"), format!("`{m}` is not a number"))
+            })?;
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(
+                    path,
+                    format!("line {ln}: measured_stiffness"),
+                    format!("must be a finite rate ≥ 0, got {m}"),
+                ));
+            }
+            Some(v)
+        });
+        rest.push_str(&strip(f));
+        rest.push('\n');
+    }
+    let rows = crate::bom::parse(path, &rest)?;
+    Ok((rows, measured))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_column_is_found_anywhere_and_checked() {
+        let h = crate::bom::HEADER;
+        let text = format!(
+            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,0.2,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,\n"
+        );
+        let (rows, m) = read_measured(std::path::Path::new("m.csv"), &text).unwrap();
+        assert_eq!(rows.len(), 2);
+        assert_eq!(m, vec![Some(10.4), None]);
+        assert_eq!(rows[0].adjust.adjust_range, Some(0.2));
+        let bad = text.replace("10.4", "-1");
+        let err = read_measured(std::path::Path::new("m.csv"), &bad).unwrap_err().to_string();
+        assert!(err.contains("m.csv") && err.contains("line 2: measured_stiffness"), "{err}");
+        let none = read_measured(std::path::Path::new("m.csv"), &crate::bom::to_csv(&rows)).unwrap_err().to_string();
+        assert!(none.contains("no measured_stiffness column"), "{none}");
+    }
+}

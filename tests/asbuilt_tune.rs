@@ -1,0 +1,146 @@
+//! As-built figures and tuning after the build on the paper's arm with the paper catalogue
+//! (adjustable torsion springs and cranks, three trim springs): figures independent of the thread
+//! count, a build with known rate errors tuned back to q_eq, and the trim of a build restoring
+//! ∇²U = w² M at its equilibrium.
+
+use std::path::Path;
+
+use springfit::asbuilt::{self, BuildSettings};
+use springfit::catalog::Catalog;
+use springfit::design::Design;
+use springfit::fit::run::{FitOutcome, fit};
+use springfit::fit::settings::FitSettings;
+use springfit::potential::Potential;
+use springfit::rng::SplitMix64;
+use springfit::tolerance::{Distribution, ToleranceSpec};
+
+fn fitted() -> (Design, FitOutcome) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml");
+    let design = Design::load(&path).unwrap();
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    let settings = FitSettings {
+        training_directions: 36,
+        training_samples: 20,
+        evaluation_directions: 48,
+        evaluation_samples: 20,
+        ..design.fit
+    };
+    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    (design, outcome)
+}
+
+fn build_settings(o: &FitOutcome, builds: usize) -> BuildSettings {
+    BuildSettings {
+        tolerance: ToleranceSpec::Fraction(0.05),
+        distribution: Distribution::Uniform,
+        builds,
+        seed: 3,
+        extent: o.region.extent,
+        directions: 24,
+        samples: 12,
+    }
+}
+
+/// The shipped catalogue's trims are in the bill of materials at mid-range, and the fit still
+/// holds the equilibrium and the Hessian match with them.
+#[test]
+fn trims_join_the_fit_at_mid_range() {
+    let (_, o) = fitted();
+    let trims: Vec<_> = o.bom.iter().filter(|r| r.adjust.trim_range.is_some()).collect();
+    assert_eq!(trims.len(), 3);
+    for t in trims {
+        let [lo, hi] = t.adjust.trim_range.unwrap();
+        assert_eq!(t.stiffness, 0.5 * (lo + hi));
+    }
+    assert!(o.metrics.hessian_rel_error < 1e-4, "{}", o.metrics.hessian_rel_error);
+    assert!(o.metrics.equilibrium_gradient_norm < 1e-3, "{}", o.metrics.equilibrium_gradient_norm);
+}
+
+#[test]
+fn as_built_figures_do_not_depend_on_the_thread_count() {
+    let (design, o) = fitted();
+    let s = build_settings(&o, 8);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| asbuilt::run_builds(&design, &o.bom, &o.springs, &s).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a, b);
+    let sum = asbuilt::summarise(&s, &a);
+    assert_eq!(sum, asbuilt::summarise(&s, &b));
+    // Rate errors move the equilibrium; the trim brings the residual down on the median build.
+    assert!(sum.shift_rad.p50 > 1e-4);
+    let t = sum.trimmed.unwrap();
+    assert!(t.p99_deg.p50 < sum.p99_deg.p50, "trimmed {} vs {}", t.p99_deg.p50, sum.p99_deg.p50);
+}
+
+/// Trimming a build with known rate errors: the trims, relaxed at the equilibrium of the other
+/// built springs, restore ∇²U = w² M there to 1e-9 and keep that point an equilibrium.
+#[test]
+fn trimming_a_build_restores_the_hessian_match() {
+    let (design, o) = fitted();
+    let s = build_settings(&o, 1);
+    let built = o.springs.scaled(&asbuilt::draw(&o.bom, &s, 0));
+    let (trimmed, q, sol) = asbuilt::trim_build(&design, &o.bom, &built).unwrap();
+    assert!(sol.restored() && sol.binding.is_empty());
+    let h = trimmed.hessian(q.as_slice()).unwrap() + design.chain.gravity_hessian(q.as_slice());
+    let m = design.chain.mass_matrix(&q);
+    assert!((&h - &m * sol.w2).norm() / m.norm() < 1e-9);
+    let g = trimmed.gradient(q.as_slice()).unwrap();
+    assert!(g.amax() < 1e-9, "|∇U(q′)| {}", g.amax());
+}
+
+/// A build with rates off by known δ (±5 %): tune puts the equilibrium back at q_eq to 1e-6 rad
+/// with the adjustable offsets, restores the Hessian match with the trims, and the residual
+/// about q_eq ends below the untuned build's.
+#[test]
+fn tuning_a_build_with_known_errors_restores_the_equilibrium() {
+    let (design, o) = fitted();
+    let mut rng = SplitMix64::stream(11, 0);
+    let measured: Vec<Option<f64>> =
+        o.bom.iter().map(|r| Some(r.stiffness * (1.0 + 0.05 * (2.0 * rng.uniform() - 1.0)))).collect();
+    let t = springfit::tune::tune(&design, &o.bom, &measured).unwrap();
+    assert!(t.equilibrium_restored && t.hessian_restored, "{:?}", t.binding);
+    assert!(t.after.shift_rad <= 1e-6, "shift {}", t.after.shift_rad);
+    assert!(t.before.shift_rad > 1e-3, "the build was off: {}", t.before.shift_rad);
+    assert!(t.after.hessian_mismatch < 1e-9, "{}", t.after.hessian_mismatch);
+    assert!(t.after.p99_deg < t.before.p99_deg, "{} → {}", t.before.p99_deg, t.after.p99_deg);
+    for s in &t.settings {
+        let row = o.bom.iter().find(|r| r.id == s.id).unwrap();
+        if let Some(r) = row.adjust.adjust_range {
+            assert!((s.set - s.designed).abs() <= r + 1e-12);
+        }
+        if let Some([lo, hi]) = row.adjust.trim_range {
+            assert!((lo..=hi).contains(&s.set));
+        }
+    }
+    // The tuned bill of materials holds the arm at q_eq.
+    let tuned = springfit::bom::spring_set(&t.bom);
+    let q = design.q_eq.as_slice();
+    assert!((tuned.gradient(q).unwrap() + design.chain.gravity_gradient(q)).amax() < 1e-8);
+}
+
+/// Without adjustable elements the equilibrium cannot be restored: tune says so.
+#[test]
+fn tune_says_when_nothing_can_restore_the_equilibrium() {
+    let (design, o) = fitted();
+    let mut bom = o.bom.clone();
+    for r in &mut bom {
+        r.adjust.adjust_range = None;
+    }
+    let measured: Vec<Option<f64>> =
+        bom.iter().enumerate().map(|(j, r)| Some(r.stiffness * if j % 2 == 0 { 1.04 } else { 0.97 })).collect();
+    let t = springfit::tune::tune(&design, &bom, &measured).unwrap();
+    assert!(!t.equilibrium_restored);
+    assert!(t.binding.iter().any(|b| b.contains("no adjustable element")), "{:?}", t.binding);
+    // Narrow offset ranges bind and are named.
+    let mut narrow = o.bom.clone();
+    for r in &mut narrow {
+        if r.adjust.adjust_range.is_some() {
+            r.adjust.adjust_range = Some(1e-5);
+        }
+    }
+    let t = springfit::tune::tune(&design, &narrow, &measured).unwrap();
+    assert!(!t.equilibrium_restored);
+    assert!(t.binding.iter().any(|b| b.contains("offset ranges of") && b.contains("bind")), "{:?}", t.binding);
+}
