@@ -88,7 +88,11 @@ fn main() {
             .unwrap();
         assert!(status.success());
     });
-    println!("springfit fit (default design: ±5 % fit and 200 as-built builds, end to end with outputs): {:.0} ms / {:.0} ms", ms(med), ms(min));
+    println!(
+        "springfit fit (default design: ±5 % fit and 200 as-built builds, end to end with outputs): {:.0} ms / {:.0} ms",
+        ms(med),
+        ms(min)
+    );
     // The spatial arm from its URDF, end to end (target ≤ 5 s).
     let (med, min) = time(3, || {
         let status = Command::new(env!("CARGO_BIN_EXE_springfit"))

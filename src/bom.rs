@@ -153,7 +153,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
     } else if header == HEADER_WITHOUT_PRELOAD {
         12
     } else {
-        return Err(bad(1, "header", format!("expected `{HEADER}` (or an older file's first 12 or 13 of those columns)")));
+        return Err(bad(
+            1,
+            "header",
+            format!("expected `{HEADER}` (or an older file's first 12 or 13 of those columns)"),
+        ));
     };
     let mut rows = Vec::new();
     let mut dof = None;

@@ -551,7 +551,7 @@ impl Catalog {
                     if profiles != [Profile::Linear] {
                         return Err(invalid(field("profile"), "trim springs are linear".into()));
                     }
-                    if !matches!(f.offsets, OffsetSpec::Equilibrium) {
+                    if !matches!(f.offsets, Some(OffsetSpec::Equilibrium)) {
                         return Err(invalid(
                             field("offsets"),
                             "trim springs are relaxed at the equilibrium: offsets = \"equilibrium\"".into(),

@@ -96,6 +96,7 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
             stock_rate: None,
             tolerance: f.tolerance,
             adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
+            preload_nm: None,
         });
     }
     // Peak torque and deflection over the held-out fan, as the fit reports them.
@@ -119,6 +120,8 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
         }
         row.max_torque_nm = torque;
         row.max_deflection_rad = defl;
+        // The refit changed the stiffnesses: preloads follow them (a trim's is zero).
+        row.preload_nm = Some(row.element.preload(row.stiffness, design.q_eq.as_slice()));
     }
     o.springs = SpringSet {
         elements: rows.iter().map(|r| r.element.clone()).collect(),

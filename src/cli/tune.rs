@@ -3,16 +3,18 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::design::Design;
 use springfit::report::output::OutputDir;
 use springfit::tune::{State, TuneOutcome, load_measured, tune};
 
 use super::progress::Progress;
 
 pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
-    let design = Design::load(design)?;
+    // The same validation every command runs first, and the output folder checked before any work.
+    let (design, _) = super::load_design(design, progress)?;
+    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_tune", design.name)));
+    springfit::report::output::check(&target, "tune")?;
     let (bom, rates) = load_measured(measured)?;
-    if bom[0].element.coupling.len() != design.dof() {
+    if bom.first().is_some_and(|r| r.element.coupling.len() != design.dof()) {
         return Err(springfit::Error::invalid(
             measured,
             "line 2: coupling",
@@ -24,9 +26,8 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Prog
     let outcome = tune(&design, &bom, &rates);
     step.finish();
     let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
-    let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_tune", design.name)));
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target)?;
+    let dir = OutputDir::create(&target, "tune")?;
     dir.write("bom_tuned.csv", springfit::bom::to_csv(&outcome.bom))?;
     dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
     dir.write("tune.md", markdown(&design.name, &outcome))?;

@@ -452,6 +452,7 @@ mod tests {
             stock_rate: None,
             tolerance: 0.0,
             preload_nm: None,
+            adjust: crate::bom::Adjustment::default(),
         }
     }
 
