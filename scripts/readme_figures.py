@@ -52,6 +52,13 @@ JOBS = {
     "fit.workshop": ["fit", "designs/double_pendulum_workshop.toml"],
     "fit.window": ["fit", "designs/double_pendulum_paper_window.toml"],
     "fit.triple": ["fit", "designs/triple_pendulum.toml"],
+    "fit.dense_robust": ["fit", "designs/double_pendulum_dense_robust.toml"],
+    "fit.window_cams": ["fit", "designs/double_pendulum_paper_window_cams.toml"],
+    "fit.dp_trim": ["fit", "designs/double_pendulum_trim.toml"],
+    "fit.dp_trim_tol10": ["fit", "{tolerance:double_pendulum_trim:0.1}"],
+    "fit.dp_nominal": ["fit", "{tolerance:double_pendulum:none}"],
+    "fit.dp_nominal10": ["fit", "{tolerance:double_pendulum:none}", "--max-elements", "10"],
+    "fit.dp_nominal8": ["fit", "{tolerance:double_pendulum:none}", "--max-elements", "8"],
     "sim.dp": ["simulate", "designs/double_pendulum.toml"],
     "sim.dp_exact": ["simulate", "designs/double_pendulum.toml", "--exact", "--scenario", "free"],
     "sim.dense": ["simulate", "designs/double_pendulum_dense.toml", "--scenario", "free"],
@@ -136,6 +143,26 @@ class Runner:
         dst.write_text(text, encoding="utf-8")
         return str(dst)
 
+    def tolerance_copy(self, name, value):
+        """designs/NAME.toml with its `[fit] tolerance` line set to VALUE (`none` or a fraction),
+        written under the scratch folder; a relative catalogue path is made absolute."""
+        src = ROOT / "designs" / f"{name}.toml"
+        text = src.read_text(encoding="utf-8")
+        literal = '"none"' if value == "none" else value
+        text, n = re.subn(r"^tolerance = [^\n]*$", f"tolerance = {literal}", text, count=1, flags=re.M)
+        if n != 1:
+            sys.exit(f"readme_figures: {src} has no `tolerance = …` line in [fit] to change")
+        text = re.sub(
+            r'^(\s*catalog\s*=\s*)"([^"]*)"',
+            lambda m: f'{m.group(1)}"{(src.parent / m.group(2)).resolve().as_posix()}"',
+            text,
+            flags=re.M,
+        )
+        dst = self.out / "designs" / f"{name}_tolerance_{value}.toml"
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_text(text, encoding="utf-8")
+        return str(dst)
+
     def run(self, job):
         """Runs a job once; returns (output folder, stdout)."""
         if job in self.done:
@@ -143,7 +170,8 @@ class Runner:
         args = []
         for a in JOBS[job]:
             m = re.fullmatch(r"\{probe:(\w+)\}", a)
-            args.append(self.probe_copy(m.group(1)) if m else a)
+            t = re.fullmatch(r"\{tolerance:(\w+):([\w.]+)\}", a)
+            args.append(self.probe_copy(m.group(1)) if m else self.tolerance_copy(*t.groups()) if t else a)
         folder = self.out / job.replace(".", "_")
         saved = self.out / (job.replace(".", "_") + ".stdout")
         if self.reuse and folder.is_dir() and saved.is_file():
@@ -186,8 +214,10 @@ class Runner:
 def fit_stdout(r):
     """The two result lines `springfit fit` prints for the paper's design."""
     _, stdout = r.run("fit.dp")
-    lines = [l for l in stdout.splitlines() if l.strip()]
-    return "```text\n" + "\n".join(lines[:2]) + "\n```"
+    keep = ("double_pendulum:", "residual angle", "as built", "verdict")
+    # Timings vary from run to run: drop them so the quote regenerates identically.
+    lines = [re.sub(r"; [0-9.]+ s$", "", l) for l in stdout.splitlines() if l.startswith(keep)]
+    return "```text\n" + "\n".join(lines) + "\n```"
 
 
 def fit_summary(job):
@@ -202,12 +232,42 @@ def fit_figures():
         ("workshop", "fit.workshop"),
         ("window", "fit.window"),
         ("triple", "fit.triple"),
+        ("dense_robust", "fit.dense_robust"),
+        ("window_cams", "fit.window_cams"),
+        ("dp_nominal", "fit.dp_nominal"),
+        ("dp_nominal10", "fit.dp_nominal10"),
+        ("dp_nominal8", "fit.dp_nominal8"),
     ]:
         s = fit_summary(job)
         figs[f"fit.{key}.springs"] = lambda r, s=s: str(s(r)["used"])
         figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
         figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
+    # A cam's bill of materials lists its basis columns, not springs: no count is quoted.
+    del figs["fit.window_cams.springs"]
     return figs
+
+
+def as_built(job, what):
+    """p50 / p95 over builds of an as-built figure of a fit (`p99_deg`, `trimmed.p99_deg`, …)."""
+
+    def f(r):
+        ab = r.json(job, "summary.json")["as_built"]
+        for key in what.split("."):
+            ab = ab[key]
+        unit = (lambda x: f"{x:.4f}") if what.startswith("shift") else deg
+        return f"{unit(ab['p50'])} / {unit(ab['p95'])}"
+
+    return f
+
+
+def deviation(job, bound):
+    """Largest geodesic deviation of the free runs, √(kg·m²)·rad: `≤ max`, or `min to max`."""
+
+    def f(r):
+        d = [m["geodesic_deviation"]["max"] for m in sim(r, job, "free")["runs"].values()]
+        return f"≤ {max(d):.1e}" if bound else f"{min(d):.1e} to {max(d):.1e}"
+
+    return f
 
 
 def sim(r, job, scenario):
@@ -269,7 +329,7 @@ def tolerance_cell(level):
         t = rows[0]
         return (
             f"{pct(t['actuator_share_p50'])} / {pct(t['actuator_share_p95'])}, "
-            f"{deg(t['residual_p99_deg_p50'])}"
+            f"{deg(t['residual_p99_deg_p50'])} / {deg(t['residual_p99_deg_p95'])}"
         )
 
     return f
@@ -322,6 +382,18 @@ FIGURES = {
         "energy_compensated", "actuator_share_last5s", lambda x: pct(x, 2)
     ),
     "sim.dp.label_error": label_error,
+    "sim.dense.free.dev": deviation("sim.dense", True),
+    "sim.dp.free.dev": deviation("sim.dp", False),
+    "sim.exact.free.dev": deviation("sim.dp_exact", True),
+    "sim.dp.switch.peak": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['peak_actuator_torque_nm']:.1f} N·m",
+    "asbuilt.dp5.p99": as_built("fit.dp", "p99_deg"),
+    "asbuilt.dp5.shift": as_built("fit.dp", "shift_rad"),
+    "asbuilt.trim5.p99": as_built("fit.dp_trim", "p99_deg"),
+    "asbuilt.trim5.trimmed": as_built("fit.dp_trim", "trimmed.p99_deg"),
+    "asbuilt.trim5.shift": as_built("fit.dp_trim", "shift_rad"),
+    "asbuilt.trim10.p99": as_built("fit.dp_trim_tol10", "p99_deg"),
+    "asbuilt.trim10.trimmed": as_built("fit.dp_trim_tol10", "trimmed.p99_deg"),
+    "asbuilt.trim10.shift": as_built("fit.dp_trim_tol10", "shift_rad"),
     "sweep.dp.eps0.share": parasitic_share(0.0),
     "sweep.dp.eps1.share": parasitic_share(1.0),
     "sweep.dp.tol5": tolerance_cell(0.05),

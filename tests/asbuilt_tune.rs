@@ -15,7 +15,7 @@ use springfit::rng::SplitMix64;
 use springfit::tolerance::{Distribution, ToleranceSpec};
 
 fn fitted() -> (Design, FitOutcome) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum_trim.toml");
     let design = Design::load(&path).unwrap();
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
     let settings = FitSettings {

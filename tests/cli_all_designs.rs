@@ -112,3 +112,8 @@ fn double_pendulum_paper_window_cams() {
     springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
     // every_command("double_pendulum_paper_window_cams") is this test (the coverage check reads it).
 }
+
+#[test]
+fn double_pendulum_trim() {
+    every_command("double_pendulum_trim");
+}
