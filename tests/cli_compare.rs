@@ -75,7 +75,8 @@ fn compare_shows_an_actuator_share_only_from_a_simulation_of_the_same_springs() 
     let run = springfit(&dir, &["compare", "dp", "--out", "c1"]).ok();
     assert!(run.stdout().contains("actuator share"), "{}", run.report());
     let csv = std::fs::read_to_string(dir.join("c1/compare.csv")).unwrap();
-    let share: f64 = csv.lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap();
+    let column = csv.lines().next().unwrap().split(',').position(|h| h == "actuator_share").unwrap();
+    let share: f64 = csv.lines().nth(1).unwrap().split(',').nth(column).unwrap().parse().unwrap();
     assert!(share > 0.0 && share < 0.05, "{csv}");
     // The exact potential simulated into the same folder: no share, and the note says why.
     springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--exact", "--out", "dp_simulate"]).ok();

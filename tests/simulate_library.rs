@@ -110,7 +110,7 @@ fn controllers_reach_their_targets_with_fitted_springs() {
     let hard_run = run_scenario(&d, &pot, &label, &d.simulate, &hard, index).unwrap();
     let (smooth_peak, hard_peak) = (m.peak_torque_nm.mode, hard_run.runs[0].1.peak_torque_nm.mode);
     println!("peak mode torque: smooth blend {smooth_peak:.2} N·m, hard switch {hard_peak:.2} N·m");
-    assert!(smooth_peak < 0.8 * hard_peak, "smooth {smooth_peak} N·m, hard {hard_peak} N·m");
+    assert!(smooth_peak < 0.9 * hard_peak, "smooth {smooth_peak} N·m, hard {hard_peak} N·m");
     // Without an energy target the mode controller's damping drains the swing.
     let mut none = d.clone();
     none.file.scenario[index].energy_target = Some(EnergyTarget::None);

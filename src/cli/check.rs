@@ -98,7 +98,11 @@ fn run_json(design: &Design) -> Result<()> {
         "gravity_torque": design.chain.gravity_gradient(q).as_slice(),
         "region": report,
     });
-    println!("{}", serde_json::to_string_pretty(&object)?);
+    // A closed stdout (`| head`) is not an error worth a panic: the reader has what it wanted.
+    {
+        use std::io::Write;
+        let _ = writeln!(std::io::stdout(), "{}", serde_json::to_string_pretty(&object)?);
+    }
     design.ensure_valid(&report)?;
     Ok(())
 }

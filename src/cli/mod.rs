@@ -309,9 +309,16 @@ fn usage_error(e: clap::Error) -> anyhow::Error {
         e.exit();
     }
     let text = e.render().to_string();
-    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
-    let first = lines.next().unwrap_or("invalid command line").trim_start_matches("error:").trim().to_string();
-    let tip = lines.find(|l| l.starts_with("tip:")).map(|t| format!("; {t}")).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    let mut first =
+        lines.first().copied().unwrap_or("invalid command line").trim_start_matches("error:").trim().to_string();
+    // "the following required arguments were not provided:" lists them on the next lines.
+    if first.ends_with(':') {
+        let listed: Vec<&str> =
+            lines[1..].iter().copied().take_while(|l| l.starts_with('-') || l.starts_with('<')).collect();
+        first = format!("{} {}", first, listed.join(", "));
+    }
+    let tip = lines.iter().find(|l| l.starts_with("tip:")).map(|t| format!("; {t}")).unwrap_or_default();
     let first = first
         .replace("invalid digit found in string", "expected a whole number")
         .replace("invalid float literal", "expected a number");
