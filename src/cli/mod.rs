@@ -101,8 +101,8 @@ as SVG and PNG."
     /// Sensitivity of a fitted design: parasitic springs, manufacturing tolerance, stock rates.
     #[command(
         after_help = "Examples:\n  springfit sweep\n  springfit sweep --shard 1/4 --out shards/1   # on a batch scheduler, one per task\n  springfit sweep --merge shards/1 shards/2 shards/3 shards/4\n\n\
-Writes sweep.csv (one row per run), sweep.json (the tables), tolerance.md, bom_stock.csv and\n\
-plots. A shard writes sweep_shard.json; merging the shards gives the same tables as one run."
+Writes sweep.csv (one row per run), sweep.json (the tables), tolerance.md, plots and, when the\n\
+catalogue lists stock rates, bom_stock.csv. A shard writes sweep_shard.json; merging the shards gives the same tables as one run."
     )]
     Sweep {
         /// Design file (TOML).
