@@ -50,10 +50,14 @@ fn the_default_design_meets_its_accuracy_targets() {
         assert!(s.get(key).is_some(), "summary.json lacks {key}");
     }
     let r = &s["residual_deg"];
-    assert!(r["p99_abs"].as_f64().unwrap() <= 0.5, "{r}");
+    // The shipped design is fitted for ±5 % builds (`tolerance = 0.05`, λ = 0.5), which costs
+    // some accuracy of the drawing (0.58° p99 now; 0.30° with `tolerance = "none"`): these
+    // bounds guard against regressions, the as-built figures below against builds going bad.
+    assert!(r["p99_abs"].as_f64().unwrap() <= 0.6, "{r}");
     assert!(r["max_abs"].as_f64().unwrap() <= 1.5, "{r}");
-    // At most 12 fitted springs plus the paper catalogue's three trim springs.
-    assert!(s["used"].as_u64().unwrap() <= 12 + 3);
+    assert!(s["used"].as_u64().unwrap() <= 12);
+    let ab = &s["as_built"];
+    assert!(ab["p99_deg"]["p95"].as_f64().unwrap() <= 2.5, "{ab}");
     assert!(s["equilibrium_gradient_norm"].as_f64().unwrap() < 1e-9);
     assert_eq!(s["dof"], 2);
     assert!(run.stdout().contains("p99"), "{}", run.report());
