@@ -69,7 +69,26 @@ JOBS = {
     "geo.dp_long": ["geodesics", "{probe:double_pendulum}"],
     "geo.straight_long": ["geodesics", "{probe:double_pendulum_straight}"],
     "geo.folded_long": ["geodesics", "{probe:double_pendulum_folded}"],
+    "sweep.dense_robust": ["sweep", "designs/double_pendulum_dense_robust.toml"],
+    # MuJoCo: export the fitted springs, simulate the same springs' free releases, compare.
+    "export.dp": ["export", "--bom", "{bom:fit.dp}", "--mujoco"],
+    "free.dp": ["simulate", "--bom", "{bom:fit.dp}", "--scenario", "free"],
+    "export.dense": ["export", "designs/double_pendulum_dense.toml", "--bom", "{bom:fit.dense}", "--mujoco"],
+    "free.dense": ["simulate", "designs/double_pendulum_dense.toml", "--bom", "{bom:fit.dense}", "--scenario", "free"],
+    # The UR5 from its URDF.
+    "check.ur5": ["check", "designs/ur5_lift_elbow.toml", "--json"],
+    "fit.ur5": ["fit", "designs/ur5_lift_elbow.toml"],
+    "sim.ur5": ["simulate", "designs/ur5_lift_elbow.toml", "--scenario", "free"],
+    "sweep.ur5": ["sweep", "designs/ur5_lift_elbow.toml"],
+    "check.ur5_3": ["check", "designs/ur5_pan_lift_elbow.toml", "--json"],
+    "fit.ur5_3": ["fit", "designs/ur5_pan_lift_elbow.toml"],
+    "fit.ur5_3_dense": ["fit", "designs/ur5_pan_lift_elbow.toml", "--max-elements", "0"],
+    "sim.ur5_3_dense": ["simulate", "designs/ur5_pan_lift_elbow.toml", "--bom", "{bom:fit.ur5_3_dense}", "--scenario", "free"],
+    "sweep.ur5_3": ["sweep", "designs/ur5_pan_lift_elbow.toml"],
 }
+
+# Jobs that write no folder (`check` prints its report): run without --out, stdout kept.
+NO_OUT = ("check",)
 
 
 # --------------------------------------------------------------------------------------------
@@ -171,16 +190,21 @@ class Runner:
         for a in JOBS[job]:
             m = re.fullmatch(r"\{probe:(\w+)\}", a)
             t = re.fullmatch(r"\{tolerance:(\w+):([\w.]+)\}", a)
+            b = re.fullmatch(r"\{bom:([\w.]+)\}", a)
+            if b:
+                # The bill of materials another job wrote (that job runs first).
+                args.append(str(self.folder(b.group(1)) / "bom.csv"))
+                continue
             args.append(self.probe_copy(m.group(1)) if m else self.tolerance_copy(*t.groups()) if t else a)
         folder = self.out / job.replace(".", "_")
         saved = self.out / (job.replace(".", "_") + ".stdout")
-        if self.reuse and folder.is_dir() and saved.is_file():
+        if self.reuse and (folder.is_dir() or JOBS[job][0] in NO_OUT) and saved.is_file():
             self.done[job] = (folder, saved.read_text(encoding="utf-8"))
             return self.done[job]
         cmd = [str(self.binary)]
         if self.threads:
             cmd += ["--threads", str(self.threads)]
-        cmd += args + ["--out", str(folder)]
+        cmd += args if JOBS[job][0] in NO_OUT else args + ["--out", str(folder)]
         shown = " ".join(["springfit"] + cmd[1:])
         if self.verbose:
             print(f"$ {shown}", file=sys.stderr, flush=True)
@@ -196,6 +220,26 @@ class Runner:
 
     def folder(self, job):
         return self.run(job)[0]
+
+    def verify_mujoco(self, key):
+        """scripts/verify_mujoco.py on the model of job `export.KEY` and the free releases of job
+        `free.KEY` (the same bill of materials); returns its stdout."""
+        if ("verify", key) in self.done:
+            return self.done[("verify", key)]
+        export, free = self.folder(f"export.{key}"), self.folder(f"free.{key}")
+        saved = self.out / f"verify_{key}.stdout"
+        if not (self.reuse and saved.is_file()):
+            model = next(export.glob("*.xml"))
+            cmd = [sys.executable, str(ROOT / "scripts" / "verify_mujoco.py"), str(model), str(free / "sim_free.csv")]
+            if self.verbose:
+                print("$ python3 scripts/verify_mujoco.py " + " ".join(cmd[2:]), file=sys.stderr, flush=True)
+            proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+            if proc.returncode != 0:
+                sys.stderr.write(proc.stdout + proc.stderr)
+                sys.exit(f"readme_figures: verify_mujoco.py on {model} failed with exit code {proc.returncode}")
+            saved.write_text(proc.stdout, encoding="utf-8")
+        self.done[("verify", key)] = saved.read_text(encoding="utf-8")
+        return self.done[("verify", key)]
 
     def json(self, job, name):
         with open(self.folder(job) / name, encoding="utf-8") as f:
@@ -366,6 +410,89 @@ def region_cell(job, probe_word):
     return f
 
 
+def mujoco_row(key):
+    """A row of the MuJoCo table: springs exact / by callback (from `export`'s stdout), the
+    largest joint-angle difference and MuJoCo's largest energy drift (from verify_mujoco.py)."""
+
+    def f(r):
+        exported = r.run(f"export.{key}")[1]
+        m = re.search(r"(\d+) springs for MuJoCo, (\d+) exact, (\d+) by passive-force callback", exported)
+        if not m:
+            sys.exit(f"readme_figures: export.{key}: unexpected stdout {exported!r}")
+        out = r.verify_mujoco(key)
+        v = re.search(r"largest difference ([0-9.e+-]+) rad .*largest MuJoCo energy drift ([0-9.e+-]+) J", out)
+        if not v:
+            sys.exit(f"readme_figures: verify_mujoco.py ({key}): unexpected output {out!r}")
+        diff, drift = float(v.group(1)), float(v.group(2))
+        return f"{m.group(1)}: {m.group(2)} / {m.group(3)} | {diff:.1e} rad | {drift:.1e} J"
+
+    return f
+
+
+def stdout_lines(job, starts):
+    """The lines of a job's stdout that start with `starts`, timings dropped, as a text block."""
+
+    def f(r):
+        _, stdout = r.run(job)
+        lines = [re.sub(r"; [0-9.]+ s$", "", l) for l in stdout.splitlines() if l.startswith(starts)]
+        return "```text\n" + "\n".join(lines) + "\n```"
+
+    return f
+
+
+def check_json(job):
+    return lambda r: json.loads(r.run(job)[1])
+
+
+def matrix2(m):
+    return " ".join("(" + ", ".join(f"{x:.4f}" for x in row) + ")" for row in m)
+
+
+def sweep_row(job, level):
+    """share p50 / p95 and residual p99 p50 / p95 over builds at one tolerance level."""
+
+    def f(r):
+        t = [t for t in r.json(job, "sweep.json")["tolerance_levels"] if t["tolerance"] == level][0]
+        return (
+            f"{pct(t['actuator_share_p50'], 2)} / {pct(t['actuator_share_p95'], 2)}, "
+            f"{deg(t['residual_p99_deg_p50'], 2)} / {deg(t['residual_p99_deg_p95'], 2)}"
+        )
+
+    return f
+
+
+def parasitic(job, eps_list):
+    def f(r):
+        rows = r.json(job, "sweep.json")["parasitic"]
+        return " / ".join(pct([p for p in rows if p["eps"] == e][0]["actuator_share"]) for e in eps_list)
+
+    return f
+
+
+def ur5_tolerance(job):
+    def f(r):
+        t = [t for t in r.json(job, "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0]
+        return f"{deg(t['residual_p99_deg_p50'], 4)} / {deg(t['residual_p99_deg_p95'], 4)}"
+
+    return f
+
+
+def ur5_shift(job):
+    def f(r):
+        t = [t for t in r.json(job, "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0]
+        return f"{t['equilibrium_shift_rad_p50']:.3g} rad"
+
+    return f
+
+
+def drift_list(job):
+    def f(r):
+        d = drifts(r, job)
+        return ", ".join(deg(x, 2) for x in d[:-1]) + " and " + deg(d[-1], 2)
+
+    return f
+
+
 FIGURES = {
     "fit.stdout": fit_stdout,
     **fit_figures(),
@@ -407,6 +534,42 @@ FIGURES = {
     "region.straight.long": region_cell("geo.straight_long", "no failure found"),
     "region.folded.long": region_cell("geo.folded_long", "no failure found"),
     "region.triple": region_cell("geo.triple", "no failure found"),
+    "sweep.dense_robust.eps0.share": lambda r: pct(
+        [p for p in r.json("sweep.dense_robust", "sweep.json")["parasitic"] if p["eps"] == 0.0][0]["actuator_share"], 2
+    ),
+    "sweep.dense_robust.eps1.share": lambda r: pct(
+        [p for p in r.json("sweep.dense_robust", "sweep.json")["parasitic"] if p["eps"] == 1.0][0]["actuator_share"]
+    ),
+    "sweep.dense_robust.tol5": sweep_row("sweep.dense_robust", 0.05),
+    "sweep.dense_robust.tol10": sweep_row("sweep.dense_robust", 0.1),
+    "mujoco.dp": mujoco_row("dp"),
+    "mujoco.dense": mujoco_row("dense"),
+    "ur5.mass": lambda r: matrix2(check_json("check.ur5")(r)["mass_matrix"]),
+    "ur5.radius": lambda r: radius(check_json("check.ur5")(r)["region"]["largest_radius"]),
+    "ur5.gravity": lambda r: "(" + ", ".join(sig(x, 4) for x in check_json("check.ur5")(r)["gravity_torque"]) + ")",
+    "ur5.fit.stdout": stdout_lines("fit.ur5", ("ur5_lift_elbow:", "residual angle")),
+    "ur5.free.drift": drift_list("sim.ur5"),
+    "ur5_3.radius": lambda r: radius(check_json("check.ur5_3")(r)["region"]["largest_radius"]),
+    "ur5_3.springs": lambda r: str(r.json("fit.ur5_3", "summary.json")["used"]),
+    "ur5_3.p99": lambda r: deg(r.json("fit.ur5_3", "summary.json")["residual_deg"]["p99_abs"]),
+    "ur5_3.max": lambda r: deg(r.json("fit.ur5_3", "summary.json")["residual_deg"]["max_abs"]),
+    "ur5_3.dense.springs": lambda r: str(r.json("fit.ur5_3_dense", "summary.json")["used"]),
+    "ur5_3.dense.p99": lambda r: deg(r.json("fit.ur5_3_dense", "summary.json")["residual_deg"]["p99_abs"]),
+    "ur5_3.dense.max": lambda r: deg(r.json("fit.ur5_3_dense", "summary.json")["residual_deg"]["max_abs"]),
+    "ur5_3.dense.drift": drift_list("sim.ur5_3_dense"),
+    "ur5.sweep.parasitic": parasitic("sweep.ur5", [0.0, 0.1, 1.0]),
+    "ur5.sweep.tol5": ur5_tolerance("sweep.ur5"),
+    "ur5.sweep.shift": ur5_shift("sweep.ur5"),
+    "ur5_3.sweep.parasitic": parasitic("sweep.ur5_3", [0.0, 0.1, 1.0]),
+    "ur5_3.sweep.tol5": ur5_tolerance("sweep.ur5_3"),
+    "ur5_3.sweep.shift": ur5_shift("sweep.ur5_3"),
+    "ur5.fit.p99": lambda r: deg(r.json("fit.ur5", "summary.json")["residual_deg"]["p99_abs"], 4),
+    "ur5.sweep.p99_p50": lambda r: deg(
+        [t for t in r.json("sweep.ur5", "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0][
+            "residual_p99_deg_p50"
+        ],
+        4,
+    ),
 }
 
 # --------------------------------------------------------------------------------------------
