@@ -410,6 +410,122 @@ def region_cell(job, probe_word):
     return f
 
 
+# --------------------------------------------------------------------------------------------
+# Error messages: small bad inputs written under <out>/errors/<case>/, each run from its own
+# folder so the messages name `design.toml` and `catalog.toml` as a user would see them.
+# --------------------------------------------------------------------------------------------
+
+ERROR_DESIGN = """name = "demo"
+catalog = "catalog.toml"
+
+[robot]
+gravity = [0.0, 0.0]
+
+[[robot.links]]
+mass = 1.0
+length = 2.0
+com = 1.0
+inertia = 1.0
+
+[[robot.links]]
+mass = 1.0
+length = 2.0
+com = 1.0
+inertia = 1.0
+
+[equilibrium]
+q = [0.0, "pi/2"]
+
+[region]
+kind = "ball"
+radius = 2.0
+
+[fit]
+frequency = 4.0
+
+[[scenario]]
+name = "free"
+kind = "free"
+duration = 5.0
+releases = [{ mode = 0.0, energy = 5.0 }]
+
+[sweep]
+scenario = "free"
+"""
+
+ERROR_CATALOG = """name = "demo"
+
+[[family]]
+name = "torsion spring"
+profile = "linear"
+couplings = [[1, 0], [0, 1], [1, 1]]
+offsets = "equilibrium"
+"""
+
+# (what is wrong, edits of the design [(old, new)], edits of the catalogue, command, exit code)
+ERROR_CASES = [
+    ("malformed TOML", [("[region]", "[region")], [], "check", 2),
+    ("unknown field", [('kind = "ball"', 'kind = "ball"\nspeed = 1.0')], [], "check", 2),
+    ("wrong type", [("length = 2.0", 'length = "long"')], [], "check", 2),
+    ("NaN or infinite numbers", [("inertia = 1.0", "inertia = nan")], [], "check", 2),
+    ("zero or negative mass, length", [("mass = 1.0", "mass = -1.0")], [], "check", 2),
+    ("equilibrium outside the region",
+     [('kind = "ball"\nradius = 2.0', 'kind = "box"\nlower = [-1.0, 2.0]\nupper = [1.0, 3.0]')], [], "check", 2),
+    ("region past the largest valid radius", [("radius = 2.0", "radius = 10.0")], [], "check", 2),
+    ("a catalogue file that does not exist", [('catalog = "catalog.toml"', 'catalog = "../catalogs/x.toml"')], [],
+     "check", 2),
+    ("a scenario that cannot run",
+     [('releases = [{ mode = 0.0, energy = 5.0 }]\n',
+       'releases = [{ mode = 0.0, energy = 5.0 }]\n\n[[scenario]]\nname = "switch"\nkind = "switch"\n'
+       'duration = 10.0\nmode = 0.0\nenergy = 5.0\nstep = "pi/6"\nevery = 0.0\n')], [], "check", 2),
+    ("a gravity vector with three components", [("gravity = [0.0, 0.0]", "gravity = [0.0, 0.0, -9.81]")], [],
+     "check", 2),
+    ("a sweep scenario the design lacks", [('scenario = "free"', 'scenario = "sensitivity"')], [], "check", 2),
+    ("a catalogue that yields no candidate", [], [(ERROR_CATALOG[ERROR_CATALOG.index("[[family]]"):], "")], "check", 2),
+    ("an infeasible fit (exit 1)", [], [("[[1, 0], [0, 1], [1, 1]]", "[[1, 0]]")], "fit", 1),
+    ("an unwritable output folder", [], [], "fit --out plainfile/out", 2),
+]
+
+# Longer messages are cut here in the table (the full text is in the case's stderr file).
+ERROR_WIDTH = 200
+
+
+def error_table(r):
+    """The README's table of example error messages, from running each bad input."""
+    rows = ["| input | message |", "| --- | --- |"]
+    for label, design_edits, catalog_edits, command, code in ERROR_CASES:
+        case = r.out / "errors" / re.sub(r"\W+", "_", label).strip("_")
+        if not (r.reuse and (case / "stderr").is_file()):
+            case.mkdir(parents=True, exist_ok=True)
+            design, catalog = ERROR_DESIGN, ERROR_CATALOG
+            for old, new in design_edits:
+                if old not in design:
+                    sys.exit(f"readme_figures: error case {label!r}: {old!r} not in the design")
+                design = design.replace(old, new, 1)
+            for old, new in catalog_edits:
+                catalog = catalog.replace(old, new, 1)
+            (case / "design.toml").write_text(design, encoding="utf-8")
+            (case / "catalog.toml").write_text(catalog, encoding="utf-8")
+            (case / "plainfile").write_text("a file, not a folder\n", encoding="utf-8")
+            args = command.split()
+            cmd = [str(r.binary)] + (["--threads", str(r.threads)] if r.threads else []) + args[:1] + ["design.toml"]
+            cmd += args[1:] if len(args) > 1 else (["--out", "out"] if args[0] == "fit" else [])
+            proc = subprocess.run(cmd, cwd=case, capture_output=True, text=True)
+            if proc.returncode != code:
+                sys.stderr.write(proc.stdout + proc.stderr)
+                sys.exit(f"readme_figures: error case {label!r} exited {proc.returncode}, expected {code}")
+            (case / "stderr").write_text(proc.stderr, encoding="utf-8")
+        lines = [l for l in (case / "stderr").read_text(encoding="utf-8").splitlines() if "error:" in l]
+        if len(lines) != 1:
+            sys.exit(f"readme_figures: error case {label!r} printed {len(lines)} error lines, expected one")
+        message = lines[0].split("error: ", 1)[1].replace(str(case.resolve()), "…").replace(str(case), "…")
+        if len(message) > ERROR_WIDTH:
+            message = message[: message.rfind(" ", 0, ERROR_WIDTH)].rstrip(" ,;:(") + " …"
+        # Messages quote fields in backticks: a double-backtick code span holds them.
+        rows.append(f"| {label} | `` {message.replace('|', '/')} `` |")
+    return "\n".join(rows)
+
+
 def mujoco_row(key):
     """A row of the MuJoCo table: springs exact / by callback (from `export`'s stdout), the
     largest joint-angle difference and MuJoCo's largest energy drift (from verify_mujoco.py)."""
@@ -563,6 +679,7 @@ FIGURES = {
     "ur5_3.sweep.parasitic": parasitic("sweep.ur5_3", [0.0, 0.1, 1.0]),
     "ur5_3.sweep.tol5": ur5_tolerance("sweep.ur5_3"),
     "ur5_3.sweep.shift": ur5_shift("sweep.ur5_3"),
+    "errors.table": error_table,
     "ur5.fit.p99": lambda r: deg(r.json("fit.ur5", "summary.json")["residual_deg"]["p99_abs"], 4),
     "ur5.sweep.p99_p50": lambda r: deg(
         [t for t in r.json("sweep.ur5", "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0][

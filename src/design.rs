@@ -78,6 +78,11 @@ pub struct DesignFile {
     pub scenario: Vec<ScenarioSpec>,
     /// Sensitivity sweeps.
     pub sweep: SweepSettings,
+    /// Whether the file has a `[sweep]` table (set by [`Design::parse`]): a sweep scenario the
+    /// user named and the design lacks is an error, the default one missing only a warning (a
+    /// design may never be swept).
+    #[serde(skip)]
+    pub sweep_given: bool,
 }
 
 /// `[robot]`: links from the base outwards and gravity, or a URDF and the joints that move.
@@ -247,7 +252,8 @@ impl Design {
     /// is read). `path` is used for messages and to resolve the catalogue. Never panics: every
     /// problem in `text` is an [`Error`].
     pub fn parse(path: &Path, text: &str) -> Result<Design> {
-        let file: DesignFile = parse_toml(path, text)?;
+        let mut file: DesignFile = parse_toml(path, text)?;
+        file.sweep_given = toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("sweep"));
         Design::from_file(path, file)
     }
 

@@ -61,11 +61,25 @@ pub fn validate(design: &Design) -> Result<Validated> {
     for (i, sc) in design.file.scenario.iter().enumerate() {
         check_scenario(design, i, sc)?;
     }
-    // A design with scenarios is meant to be simulated and swept: its sweep scenario must exist.
-    if !design.file.scenario.is_empty() {
-        sweep_scenario(design)?;
-    }
+    // The sweep scenario a `[sweep]` table names must exist; without the table the default one
+    // (`sensitivity`) missing is only worth a warning: the design may never be swept, and
+    // `springfit sweep` refuses it with the same message.
     let mut warnings = Vec::new();
+    if !design.file.scenario.is_empty() {
+        if let Err(e) = sweep_scenario(design) {
+            if design.file.sweep_given {
+                return Err(e);
+            }
+            warnings.push(Warning {
+                path: design.path.clone(),
+                field: "sweep.scenario".into(),
+                message: format!(
+                    "no [[scenario]] named `{}`: `springfit sweep` will refuse this design until a [sweep] table names one of its scenarios",
+                    design.file.sweep.scenario
+                ),
+            });
+        }
+    }
     suspicious(design, &mut warnings);
     Ok(Validated { catalog, warnings })
 }
@@ -391,10 +405,13 @@ radius = 2.0
 
     #[test]
     fn a_missing_sweep_scenario_lists_the_ones_there_are() {
-        let d =
-            design(&format!("{BASE}[[scenario]]\nname = \"free\"\nkind = \"free\"\nstarts = [[0.0, 1.0]]\n")).unwrap();
+        let free = "[[scenario]]\nname = \"free\"\nkind = \"free\"\nstarts = [[0.0, 1.0]]\n";
+        let d = design(&format!("{BASE}{free}[sweep]\nbuilds = 10\n")).unwrap();
         let err = validate(&d).unwrap_err().to_string();
         assert!(err.contains("sweep.scenario") && err.contains("`sensitivity`") && err.contains("has: free"), "{err}");
+        // Without a [sweep] table the default scenario missing is a warning: fit and simulate run.
+        let v = validate(&design(&format!("{BASE}{free}")).unwrap()).unwrap();
+        assert!(v.warnings.iter().any(|w| w.field == "sweep.scenario" && w.message.contains("springfit sweep")));
         // Without scenarios there is nothing to sweep and nothing to check.
         assert!(validate(&design(BASE).unwrap()).is_ok());
     }
