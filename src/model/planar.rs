@@ -319,15 +319,7 @@ impl PlanarChain {
         self.fill_trig(q, ws);
         self.fill_mass(ws);
         self.coriolis_into(qd, &ws.sin, &mut ws.h);
-        if !linalg::cholesky_in_place(&mut ws.m, n) {
-            return false;
-        }
-        dy[..n].copy_from_slice(qd);
-        for (d, h) in dy[n..2 * n].iter_mut().zip(&ws.h) {
-            *d = -h;
-        }
-        linalg::cholesky_solve(&ws.m, n, &mut dy[n..2 * n]);
-        true
+        linalg::geodesic_accel(&mut ws.m, &ws.h, n, qd, dy)
     }
 
     /// Right-hand side of the geodesic equation with its variational (Jacobi-field) equations:

@@ -496,15 +496,7 @@ impl SpatialChain {
         self.crba(q, &mut ws.m);
         let zero = [0.0; MAX_BODIES];
         self.rnea(q, qd, &zero[..n], false, &mut ws.h);
-        if !linalg::cholesky_in_place(&mut ws.m, n) {
-            return false;
-        }
-        dy[..n].copy_from_slice(qd);
-        for (d, h) in dy[n..2 * n].iter_mut().zip(&ws.h) {
-            *d = -h;
-        }
-        linalg::cholesky_solve(&ws.m, n, &mut dy[n..2 * n]);
-        true
+        linalg::geodesic_accel(&mut ws.m, &ws.h, n, qd, dy)
     }
 
     /// The geodesic equation with its Jacobi fields, y = (q, q̇, Φ_q, Φ_q̇) (column-major):
