@@ -54,6 +54,8 @@ JOBS = {
     "fit.triple": ["fit", "designs/triple_pendulum.toml"],
     "fit.dense_robust": ["fit", "designs/double_pendulum_dense_robust.toml"],
     "fit.window_cams": ["fit", "designs/double_pendulum_paper_window_cams.toml"],
+    "fit.cams4": ["fit", "designs/double_pendulum_cams4.toml"],
+    "fit.cams": ["fit", "designs/double_pendulum_cams.toml"],
     "fit.dp_trim": ["fit", "designs/double_pendulum_trim.toml"],
     "fit.dp_trim_tol10": ["fit", "{tolerance:double_pendulum_trim:0.1}"],
     "fit.dp_nominal": ["fit", "{tolerance:double_pendulum:none}"],
@@ -278,6 +280,8 @@ def fit_figures():
         ("triple", "fit.triple"),
         ("dense_robust", "fit.dense_robust"),
         ("window_cams", "fit.window_cams"),
+        ("cams4", "fit.cams4"),
+        ("cams", "fit.cams"),
         ("dp_nominal", "fit.dp_nominal"),
         ("dp_nominal10", "fit.dp_nominal10"),
         ("dp_nominal8", "fit.dp_nominal8"),
@@ -287,7 +291,8 @@ def fit_figures():
         figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
         figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
     # A cam's bill of materials lists its basis columns, not springs: no count is quoted.
-    del figs["fit.window_cams.springs"]
+    for key in ("window_cams", "cams4", "cams"):
+        del figs[f"fit.{key}.springs"]
     return figs
 
 
@@ -637,6 +642,9 @@ FIGURES = {
     "asbuilt.trim10.p99": as_built("fit.dp_trim_tol10", "p99_deg"),
     "asbuilt.trim10.trimmed": as_built("fit.dp_trim_tol10", "trimmed.p99_deg"),
     "asbuilt.trim10.shift": as_built("fit.dp_trim_tol10", "shift_rad"),
+    "asbuilt.cams4.p99": as_built("fit.cams4", "p99_deg"),
+    "asbuilt.cams.p99": as_built("fit.cams", "p99_deg"),
+    "asbuilt.cams.trimmed": as_built("fit.cams", "trimmed.p99_deg"),
     "sweep.dp.eps0.share": parasitic_share(0.0),
     "sweep.dp.eps1.share": parasitic_share(1.0),
     "sweep.dp.tol5": tolerance_cell(0.05),

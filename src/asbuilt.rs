@@ -11,6 +11,9 @@
 //! would: the trims are re-relaxed at the equilibrium of the other built springs and their rates
 //! set so that ∇²U = w² M holds there again; the trimmed build is judged the same way.
 //!
+//! A cam's basis columns are one part, a cam on one follower spring: they share one δ per build
+//! ([`factors`]).
+//!
 //! Every build draws from its own SplitMix64 stream (seed, build index), and builds run in
 //! parallel with results collected in build order, so the figures do not depend on the thread
 //! count. The sweep judges its tolerance builds with the same functions.
@@ -206,11 +209,63 @@ pub struct BuildSettings {
     pub samples: usize,
 }
 
-/// The stiffness factors 1 + δ_j of build `index` (every BOM row draws, trims included, so
-/// the streams do not depend on which rows are trims).
+/// The stiffness factors 1 + δ_j of build `index` (every spring row draws, trims included, so
+/// the streams do not depend on which rows are trims; a cam draws once, see [`factors`]).
 pub fn draw(bom: &[BomRow], s: &BuildSettings, index: usize) -> Vec<f64> {
     let mut rng = SplitMix64::stream(s.seed, index as u64);
-    bom.iter().map(|r| 1.0 + s.tolerance.for_element(r.tolerance) * s.distribution.draw_unit(&mut rng)).collect()
+    factors(bom, |r| s.tolerance.for_element(r.tolerance), s.distribution, &mut rng)
+}
+
+/// The cam each BOM row belongs to (numbered in order of appearance), None for springs: rows
+/// of one family on one coupling with one knot spacing ([`crate::fit::run::cam_groups`]).
+pub fn bom_cam_groups(bom: &[BomRow]) -> Vec<Option<usize>> {
+    let mut families: Vec<&str> = Vec::new();
+    let candidates: Vec<crate::catalog::Candidate> = bom
+        .iter()
+        .map(|r| {
+            let family = families.iter().position(|f| *f == r.family).unwrap_or_else(|| {
+                families.push(&r.family);
+                families.len() - 1
+            });
+            crate::catalog::Candidate {
+                element: r.element.clone(),
+                family,
+                max_stiffness: None,
+                stock_rates: Vec::new(),
+                tolerance: r.tolerance,
+            }
+        })
+        .collect();
+    crate::fit::run::cam_groups(&candidates)
+}
+
+/// The stiffness factors 1 + t_j u of one build, rows in order, u ∈ [−1, 1] drawn from `rng` by
+/// `distribution` and t_j = `tolerance(row)`. A spring draws its own u; a cam's rows (its basis
+/// columns) share one u, drawn at the cam's first row: the follower spring's rate error scales
+/// the whole cam. Without cams this is one draw per row, as before cams existed.
+pub fn factors(
+    bom: &[BomRow],
+    tolerance: impl Fn(&BomRow) -> f64,
+    distribution: Distribution,
+    rng: &mut SplitMix64,
+) -> Vec<f64> {
+    let groups = bom_cam_groups(bom);
+    let mut drawn: Vec<Option<f64>> = Vec::new();
+    bom.iter()
+        .zip(&groups)
+        .map(|(r, g)| {
+            let u = match *g {
+                None => distribution.draw_unit(rng),
+                Some(g) => {
+                    if drawn.len() <= g {
+                        drawn.resize(g + 1, None);
+                    }
+                    *drawn[g].get_or_insert_with(|| distribution.draw_unit(rng))
+                }
+            };
+            1.0 + tolerance(r) * u
+        })
+        .collect()
 }
 
 /// Trims a built spring set: the trims (rows with a trim range) are re-relaxed at the

@@ -8,7 +8,8 @@
 //!   κᵢ = max|∂U_e/∂qᵢ| / max|qᵢ − q_eq,ᵢ| over the region, for each ε;
 //! * **tolerance**: a Monte Carlo build with each stiffness scaled by 1 + δ, δ uniform in
 //!   ±tolerance or normal with σ = tolerance/3 truncated at ±tolerance (the catalogue's tolerance
-//!   per element, or a level given in the sweep settings for all elements);
+//!   per element, or a level given in the sweep settings for all elements); a cam's basis rows
+//!   share one δ (its follower spring);
 //! * **stock**: each stiffness snapped to the nearest stock rate, largest torque first, the others
 //!   refitted after each snap.
 //!
@@ -338,15 +339,13 @@ impl<'a> SweepContext<'a> {
             WorkItem::Build { level, build } => {
                 let springs = self.springs();
                 let mut rng = SplitMix64::stream(self.settings.seed, (index as u64) << 20 | build as u64);
-                let scale: Vec<f64> = self
-                    .fit
-                    .bom
-                    .iter()
-                    .map(|row| {
-                        let t = level.unwrap_or(row.tolerance);
-                        1.0 + t * self.settings.distribution.draw_unit(&mut rng)
-                    })
-                    .collect();
+                // One δ per spring, one per cam (all its basis rows).
+                let scale = crate::asbuilt::factors(
+                    &self.fit.bom,
+                    |row| level.unwrap_or(row.tolerance),
+                    self.settings.distribution,
+                    &mut rng,
+                );
                 let built = springs.scaled(&scale);
                 let (p99, shift) = self.residual_about_own_equilibrium(&built)?;
                 let trimmed = self.trimmed_p99(&built)?;

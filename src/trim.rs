@@ -100,8 +100,14 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
         });
     }
     // Peak torque and deflection over the held-out fan, as the fit reports them.
-    for (i, row) in rows.iter_mut().enumerate() {
-        row.id = format!("S{:02}", i + 1);
+    let mut spring_no = 0;
+    for row in rows.iter_mut() {
+        // Springs are numbered again; a cam's rows keep their `Cnn.jj±` ids (the cam they
+        // belong to).
+        if !matches!(row.element.profile, crate::elements::Profile::Spline(_)) {
+            spring_no += 1;
+            row.id = format!("S{spring_no:02}");
+        }
         let e = &row.element;
         let (mut torque, mut defl) = (0.0f64, 0.0f64);
         let mut visit = |q: &[f64]| {
@@ -128,6 +134,8 @@ pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<Fi
         stiffness: rows.iter().map(|r| r.stiffness).collect(),
     };
     o.bom = rows;
+    // The refit moved the cams' coefficients: realise them again.
+    o.cams = crate::cam::fitted_cams(catalog, &o.bom);
     o.metrics = evaluate(design, o.settings.frequency, o.settings.bands, &o.springs, &o.evaluation)?;
     let dt = t0.elapsed().as_secs_f64();
     o.timings.solve += dt;

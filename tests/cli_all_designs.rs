@@ -117,3 +117,46 @@ fn double_pendulum_paper_window_cams() {
 fn double_pendulum_trim() {
     every_command("double_pendulum_trim");
 }
+
+/// A cam design on the default design's ball: every command but `pareto` (cams cannot be counted
+/// by a spring budget yet), one Monte Carlo build, and every cam within its pressure-angle and
+/// curvature limits (a cam beyond them is a warning naming it).
+fn cam_design(name: &str) -> String {
+    let dir = temp_dir(&format!("all-{name}"));
+    let design = repo().join("designs").join(format!("{name}.toml"));
+    let d = design.to_str().unwrap();
+    let check = springfit(&dir, &["check", d]).ok();
+    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
+    let fit = springfit(&dir, &["fit", d, "--out", "fit", "--threads", "2"]).ok();
+    assert!(dir.join("fit/cams").is_dir(), "{}", fit.report());
+    assert!(!fit.stderr().contains("warning: cam"), "a cam beyond its limits\n{}", fit.report());
+    springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
+    springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
+    springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
+    fit.stdout()
+}
+
+/// Four cams on the ball r = 2: the drawing to p99 ≈ 0.1° (held-out samples).
+#[test]
+fn double_pendulum_cams4() {
+    // every_command("double_pendulum_cams4") is cam_design (the coverage check reads this).
+    let out = cam_design("double_pendulum_cams4");
+    assert_eq!(out.matches("\ncam C").count() + usize::from(out.starts_with("cam C")), 4, "{out}");
+}
+
+/// Six cams, linear springs and trims on the ball r = 2: the drawing to p99 ≤ 0.02°, and the
+/// as-built figures with and without trims.
+#[test]
+fn double_pendulum_cams() {
+    // every_command("double_pendulum_cams") is cam_design (the coverage check reads this).
+    let out = cam_design("double_pendulum_cams");
+    assert!(out.contains("as built and trimmed"), "{out}");
+    let p99: f64 = out
+        .split("held-out samples: ")
+        .nth(1)
+        .and_then(|s| s.split("p99 ").nth(1))
+        .and_then(|s| s.split('°').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no p99 in\n{out}"));
+    assert!(p99 <= 0.02, "nominal p99 {p99}° > 0.02°\n{out}");
+}

@@ -8,7 +8,7 @@ use springfit::bom;
 use springfit::catalog::{Candidate, Catalog};
 use springfit::design::Design;
 use springfit::fit::problem::{Requirements, assemble};
-use springfit::fit::robust::{retrace, rows_of, spread};
+use springfit::fit::robust::{BuildPenalty, retrace, rows_of, spread};
 use springfit::fit::run::fit;
 use springfit::fit::settings::{FitSettings, SolverKind};
 use springfit::rng::SplitMix64;
@@ -124,6 +124,122 @@ fn expected_objective_matches_monte_carlo_builds() {
     assert!((m_total - expected).abs() <= 4.0 * se_total, "{m_total} vs {expected} ± {se_total}");
     // Judged about the old equilibrium the spread would be far larger.
     assert!(naive > 3.0 * predicted, "naive {naive} vs {predicted}");
+}
+
+/// The same model with a cam: its basis columns all scale with one δ (the follower spring's rate
+/// error), so its expected spread is a block σ² V_gᵀ V_g over its columns, not a diagonal. A
+/// small problem (one cam on (1, 1) with 8 knots, linear springs on four couplings) fitted
+/// nominally, then Monte Carlo builds with only the cam deviating, drawn as the as-built figures
+/// draw them (`asbuilt::factors`: one δ per cam): the expected objective matches their mean
+/// within sampling error, and charging each column its own δ (the diagonal) would not.
+#[test]
+fn expected_objective_with_a_cam_matches_monte_carlo_builds() {
+    let (design, _) = load("double_pendulum");
+    let dir = std::env::temp_dir().join(format!("springfit-robust-cam-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cat_path = dir.join("one_cam.toml");
+    std::fs::write(
+        &cat_path,
+        r#"name = "one_cam"
+description = "one cam and four linear springs"
+
+[[family]]
+name = "disc cam"
+profile = "cam"
+unit = "J"
+couplings = [[1, 1]]
+knots = 8
+smoothing = 1e-5
+tolerance = 0.05
+
+[[family]]
+name = "torsion spring"
+profile = "linear"
+unit = "N*m/rad"
+couplings = [[1, 0], [0, 1], [1, 1], [1, -1]]
+offsets = "equilibrium"
+tolerance = 0.05
+"#,
+    )
+    .unwrap();
+    let catalog = Catalog::load(&cat_path, design.dof()).unwrap();
+    let settings = FitSettings {
+        tolerance: ToleranceSpec::None,
+        solver: SolverKind::Nnls,
+        max_elements: 0,
+        monotone: false,
+        builds: 0,
+        ..quick(&design)
+    };
+    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let groups = springfit::asbuilt::bom_cam_groups(&o.bom);
+    let cam_rows = groups.iter().filter(|g| g.is_some()).count();
+    assert!(cam_rows >= 4, "the cam uses {cam_rows} basis columns");
+    assert!(groups.iter().flatten().all(|&g| g == 0), "one cam: {groups:?}");
+    let springs = &o.springs;
+    let chain = &design.chain;
+    let ode = design.geodesics.ode;
+    let omega = settings.frequency;
+    let spacing = o.region.extent / settings.training_samples as f64;
+    // Every element in one family index: cams are grouped by (family, coupling, knots), springs
+    // never.
+    let candidates: Vec<Candidate> = springs
+        .elements
+        .iter()
+        .map(|e| Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: vec![], tolerance: 0.0 })
+        .collect();
+    let req = Requirements { omega, hessian_match: settings.hessian_match, monotone: false };
+    let problem = assemble(chain, &design.q_eq, &o.training, &candidates, req);
+    let k = DVector::from_column_slice(&springs.stiffness);
+    let r0 = &problem.rows * &k - &problem.rhs;
+
+    let t = 0.01;
+    let dist = Distribution::Uniform;
+    // Only the cam deviates, so that its share of the spread is all there is to see.
+    let sigma2: Vec<f64> = groups.iter().map(|g| if g.is_some() { dist.variance(t) } else { 0.0 }).collect();
+    let sp = spread(chain, &o.training, spacing, &candidates, &problem.rows, springs, &sigma2, omega, ode).unwrap();
+    assert_eq!(sp.blocks.len(), 1);
+    assert_eq!(sp.blocks[0].columns.len(), cam_rows);
+    assert!(sp.blocks[0].columns.iter().all(|&j| sp.rows[j] == 0.0 && sp.shift[j] == 0.0));
+    let predicted = BuildPenalty::of(&sp, 1.0, 0.0).value(k.as_slice());
+    let expected = r0.norm_squared() + predicted;
+    // Each cam column with its own δ: the diagonal of the block.
+    let b = &sp.blocks[0];
+    let per_column: f64 = b.columns.iter().enumerate().map(|(a, &j)| b.rows[(a, a)] * k[j] * k[j]).sum();
+
+    let builds = 300;
+    let (mut total, mut change) = (Vec::new(), Vec::new());
+    for i in 0..builds {
+        let mut rng = SplitMix64::stream(42, i);
+        let scale =
+            springfit::asbuilt::factors(&o.bom, |r| if r.id.starts_with('C') { t } else { 0.0 }, dist, &mut rng);
+        for (a, &j) in b.columns.iter().enumerate().skip(1) {
+            assert_eq!(scale[j], scale[b.columns[a - 1]], "one δ per cam");
+        }
+        let built = springs.scaled(&scale);
+        let q_b = springfit::sweep::equilibrium(&design, &built).expect("a build near the design has an equilibrium");
+        let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
+        let r = rows_of(chain, &fan, &built, omega);
+        total.push(r.norm_squared());
+        change.push((&r - &r0).norm_squared());
+    }
+    let mean_se = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0);
+        (m, (var / n).sqrt())
+    };
+    let (m_change, se_change) = mean_se(&change);
+    let (m_total, se_total) = mean_se(&total);
+    eprintln!(
+        "with a cam: rows change predicted {predicted:.4e}, measured {m_change:.4e} ± {se_change:.1e}; per column \
+         {per_column:.4e}; objective: expected {expected:.6e}, measured {m_total:.6e} ± {se_total:.1e}"
+    );
+    assert!(predicted > 0.0);
+    assert!((m_change - predicted).abs() <= 4.0 * se_change, "{m_change} vs {predicted} ± {se_change}");
+    assert!((m_total - expected).abs() <= 4.0 * se_total, "{m_total} vs {expected} ± {se_total}");
+    assert!((m_change - per_column).abs() > 4.0 * se_change, "the diagonal model {per_column} fits {m_change} too");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `max_preload` bounds Σ|τᵢ(q_eq)| exactly with the QP while the equilibrium and Hessian still

@@ -22,6 +22,18 @@
 //! build absorbs, and throws out the useful antagonistic pairs. The expected squared metric
 //! shift of the equilibrium, E‖Δq‖²_M = Σᵢ σᵢ² kᵢ² ‖H⁻¹ gᵢ‖²_M, can be penalised as well (an
 //! optional weight; tuning after the build can put the equilibrium back instead).
+//!
+//! **Cams.** A cam's potential Σⱼ cⱼ Bⱼ is stored by one follower spring: its rate error scales
+//! the whole cam, so all the columns of cam g share one δ_g. With vᵢ = Aᵢ − J H⁻¹ gᵢ and V_g the
+//! columns vᵢ of the cam, ΔR = Σ_g δ_g V_g k_g + Σ_springs δᵢ kᵢ vᵢ, and
+//!
+//! E‖ΔR‖² = Σ_springs σᵢ² ‖vᵢ‖² kᵢ² + Σ_g σ_g² k_gᵀ V_gᵀ V_g k_g:
+//!
+//! the diagonal of the springs plus, per cam, a block σ_g² V_gᵀ V_g over its columns (and the
+//! shift term's block σ_g² (H⁻¹G_g)ᵀ M (H⁻¹G_g)). Charging each column its own δ instead would
+//! underrate the spread: the columns of a fitted cam largely cancel, so their independent errors
+//! average out where one shared error does not. Only the training rows count: rows appended
+//! after them (the cams' smoothing penalty) are no residual of a build.
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -43,10 +55,77 @@ pub const BASE_STEP: f64 = 1e-4;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Spread {
     /// Dᵢᵢ = σᵢ² ‖Aᵢ − J H⁻¹ gᵢ‖²: expected squared change of the training rows about the build's
-    /// own equilibrium.
+    /// own equilibrium (0 for a cam's columns: their spread is in `blocks`).
     pub rows: DVector<f64>,
-    /// σᵢ² ‖H⁻¹ gᵢ‖²_M(q_eq): expected squared metric shift of the equilibrium (rad²·kg·m²).
+    /// σᵢ² ‖H⁻¹ gᵢ‖²_M(q_eq): expected squared metric shift of the equilibrium (rad²·kg·m²; 0 for
+    /// a cam's columns).
     pub shift: DVector<f64>,
+    /// One block per cam whose columns share one deviation.
+    pub blocks: Vec<Block>,
+}
+
+/// The spread of one cam: all its columns scale with one δ, so its expected squared change is a
+/// quadratic form kᵀ B k over its columns rather than a diagonal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Block {
+    /// The candidates (columns) of the cam, ascending.
+    pub columns: Vec<usize>,
+    /// σ² V_gᵀ V_g, V_g the cam's columns of A − J H⁻¹ G.
+    pub rows: DMatrix<f64>,
+    /// σ² (H⁻¹ G_g)ᵀ M(q_eq) (H⁻¹ G_g): the expected squared metric shift of the equilibrium.
+    pub shift: DMatrix<f64>,
+}
+
+/// What the tolerance-aware fit adds to the normal equations: a diagonal (springs, each with its
+/// own deviation) plus symmetric blocks over the columns of each cam (one deviation per cam).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuildPenalty {
+    /// Added to G's diagonal.
+    pub diagonal: DVector<f64>,
+    /// (columns, block) added to G over those columns.
+    pub blocks: Vec<(Vec<usize>, DMatrix<f64>)>,
+}
+
+impl BuildPenalty {
+    /// `rows_weight` × the expected row spread + `shift_weight` × the expected shift.
+    pub fn of(sp: &Spread, rows_weight: f64, shift_weight: f64) -> BuildPenalty {
+        BuildPenalty {
+            diagonal: &sp.rows * rows_weight + &sp.shift * shift_weight,
+            blocks: sp
+                .blocks
+                .iter()
+                .map(|b| (b.columns.clone(), &b.rows * rows_weight + &b.shift * shift_weight))
+                .collect(),
+        }
+    }
+
+    /// Adds the penalty to a Gram matrix G (p × p over all candidates).
+    pub fn add_to(&self, g: &mut DMatrix<f64>) {
+        for j in 0..self.diagonal.len() {
+            g[(j, j)] += self.diagonal[j];
+        }
+        for (cols, b) in &self.blocks {
+            for (a, &i) in cols.iter().enumerate() {
+                for (c, &j) in cols.iter().enumerate() {
+                    g[(i, j)] += b[(a, c)];
+                }
+            }
+        }
+    }
+
+    /// kᵀ P k: the penalty's value at the stiffnesses `k` (all candidates).
+    pub fn value(&self, k: &[f64]) -> f64 {
+        let diag: f64 = k.iter().zip(self.diagonal.iter()).map(|(k, d)| d * k * k).sum();
+        let blocks: f64 = self
+            .blocks
+            .iter()
+            .map(|(cols, b)| {
+                let kg = DVector::from_iterator(cols.len(), cols.iter().map(|&j| k[j]));
+                kg.dot(&(b * &kg))
+            })
+            .sum();
+        diag + blocks
+    }
 }
 
 /// The fan `nominal` traced again from `base`: the same directions in the metric frame at
@@ -128,8 +207,11 @@ pub fn base_jacobian(
 }
 
 /// The first-order spread of every candidate (see the module docs). `rows` are the fit's
-/// weighted rows (one column per candidate), `nominal` the nominal fit's spring set whose rows
-/// define J and whose Hessian at q_eq is H, `sigma2[i]` the variance of candidate i's deviation.
+/// weighted rows (one column per candidate; rows past the training rows, such as the cams'
+/// smoothing penalty, are ignored), `nominal` the nominal fit's spring set whose rows define J
+/// and whose Hessian at q_eq is H, `sigma2[i]` the variance of candidate i's deviation. The
+/// columns of one cam ([`super::run::cam_groups`]) share one deviation, with the variance of its
+/// first column.
 #[allow(clippy::too_many_arguments)]
 pub fn spread(
     chain: &Chain,
@@ -151,29 +233,47 @@ pub fn spread(
         )
     })?;
     let jac = base_jacobian(chain, training, spacing, nominal, omega, ode)?;
-    if jac.nrows() != rows.nrows() {
+    if jac.nrows() > rows.nrows() {
         return Err(Error::numerical(
             "tolerance-aware fit",
             format!("{} retraced rows against {} training rows", jac.nrows(), rows.nrows()),
         ));
     }
+    let training_rows = rows.rows(0, jac.nrows());
     let jh = &jac * &h_inv;
     let m_eq = chain.mass_matrix(&training.q_eq);
+    // vᵢ = Aᵢ − J H⁻¹ gᵢ (Aᵢ alone when the element exerts no torque at q_eq) and hᵢ = H⁻¹ gᵢ.
+    let column = |i: usize| -> (DVector<f64>, DVector<f64>) {
+        let g = candidates[i].element.gradient(q_eq);
+        let col = training_rows.column(i).into_owned();
+        if g.iter().all(|v| *v == 0.0) {
+            return (col, DVector::zeros(g.len()));
+        }
+        (col - &jh * &g, &h_inv * &g)
+    };
+    let groups = super::run::cam_groups(candidates);
     let mut d_rows = DVector::zeros(candidates.len());
     let mut d_shift = DVector::zeros(candidates.len());
-    for (i, c) in candidates.iter().enumerate() {
-        if sigma2[i] == 0.0 {
+    for (i, _) in candidates.iter().enumerate() {
+        if sigma2[i] == 0.0 || groups[i].is_some() {
             continue;
         }
-        let g = c.element.gradient(q_eq);
-        let col = rows.column(i);
-        if g.iter().all(|v| *v == 0.0) {
-            d_rows[i] = sigma2[i] * col.norm_squared();
-            continue;
-        }
-        d_rows[i] = sigma2[i] * (col - &jh * &g).norm_squared();
-        let h = &h_inv * &g;
+        let (v, h) = column(i);
+        d_rows[i] = sigma2[i] * v.norm_squared();
         d_shift[i] = sigma2[i] * h.dot(&(&m_eq * &h));
     }
-    Ok(Spread { rows: d_rows, shift: d_shift })
+    let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
+    let mut blocks = Vec::new();
+    for g in 0..n_groups {
+        let columns: Vec<usize> = (0..candidates.len()).filter(|&j| groups[j] == Some(g)).collect();
+        let s2 = sigma2[columns[0]];
+        if s2 == 0.0 {
+            continue;
+        }
+        let (vs, hs): (Vec<DVector<f64>>, Vec<DVector<f64>>) = columns.iter().map(|&j| column(j)).unzip();
+        let v = DMatrix::from_columns(&vs);
+        let h = DMatrix::from_columns(&hs);
+        blocks.push(Block { rows: v.transpose() * &v * s2, shift: h.transpose() * &m_eq * &h * s2, columns });
+    }
+    Ok(Spread { rows: d_rows, shift: d_shift, blocks })
 }

@@ -16,7 +16,7 @@ use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls};
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble};
 use super::qp::{QpSettings, QpStatus, qp};
-use super::robust::spread;
+use super::robust::{BuildPenalty, spread};
 use super::selection::{
     SelectionSettings, backward_elimination, gain_scores, search, select_from, subset_nnls, subset_nnls_warm,
 };
@@ -59,7 +59,7 @@ pub struct SolveReport {
     /// QP: cutting-plane rounds for monotonicity.
     pub cut_rounds: usize,
     /// With a tolerance: the term the tolerance-aware fit adds for the final stiffnesses,
-    /// λ Σᵢ Dᵢᵢ kᵢ² (+ the shift penalty); with λ = 1 and no shift weight, the predicted mean
+    /// λ (Σᵢ Dᵢᵢ kᵢ² + Σ_cams k_gᵀ B_g k_g) (+ the shift penalty); with λ = 1 and no shift weight, the predicted mean
     /// squared change of the training rows of a build about its own equilibrium. None without
     /// a tolerance.
     pub expected_build_spread: Option<f64>,
@@ -235,13 +235,13 @@ impl<'a> Prepared<'a> {
             // Design for the build: the nominal fit fixes J and H, then the expected residual
             // over builds is minimised (see `fit::robust`).
             stage("fitting for the build tolerance");
-            let d = self.build_diagonal(&k, settings)?;
+            let d = self.build_penalty(&k, settings)?;
             let (k2, mut again) =
                 solve(&self.problem, &self.candidates, self.design.q_eq.as_slice(), settings, Some(&d))?;
             again.selection_evaluations += report.selection_evaluations;
             again.selection_swaps += report.selection_swaps;
             again.cut_rounds += report.cut_rounds;
-            again.expected_build_spread = Some(k2.iter().zip(d.iter()).map(|(k, d)| d * k * k).sum());
+            again.expected_build_spread = Some(d.value(&k2));
             k = k2;
             report = again;
         }
@@ -285,9 +285,10 @@ impl<'a> Prepared<'a> {
 }
 
 impl Prepared<'_> {
-    /// The diagonal the tolerance-aware fit adds to the normal equations, from the nominal
-    /// stiffnesses `k`: Dᵢᵢ plus the optional shift penalty (see `fit::robust`).
-    fn build_diagonal(&self, k: &[f64], settings: &FitSettings) -> Result<DVector<f64>> {
+    /// What the tolerance-aware fit adds to the normal equations, from the nominal stiffnesses
+    /// `k`: the diagonal Dᵢᵢ of the springs and one block per cam (one deviation per cam), plus
+    /// the optional shift penalty (see `fit::robust`).
+    fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<BuildPenalty> {
         let design = self.design;
         let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
         let nominal = SpringSet {
@@ -312,7 +313,7 @@ impl Prepared<'_> {
             design.geodesics.ode,
         )?;
         let m = self.problem.rows.nrows() as f64;
-        Ok(sp.rows * settings.tolerance_weight + sp.shift * (settings.shift_weight * m))
+        Ok(BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m))
     }
 }
 
@@ -435,20 +436,19 @@ const NNLS_EQUALITY_TOLERANCE: f64 = 1e-3;
 /// Solves the assembled problem with the chosen solver and, with `max_elements`, the sparse
 /// selection. Returns the stiffness of every candidate.
 ///
-/// `extra` is a diagonal added to the normal equations (the tolerance-aware fit's expected
-/// spread of the builds): every solver and the selection minimise the same objective.
+/// `extra` is added to the normal equations (the tolerance-aware fit's expected spread of the
+/// builds: a diagonal for the springs, a block per cam): every solver and the selection minimise
+/// the same objective.
 fn solve(
     problem: &FitProblem,
     candidates: &[Candidate],
     q_eq: &[f64],
     settings: &FitSettings,
-    extra: Option<&DVector<f64>>,
+    extra: Option<&BuildPenalty>,
 ) -> Result<(Vec<f64>, SolveReport)> {
     let mut gram = Gram::from_rows(&problem.rows, &problem.rhs);
     if let Some(d) = extra {
-        for j in 0..candidates.len() {
-            gram.g[(j, j)] += d[j];
-        }
+        d.add_to(&mut gram.g);
     }
     solve_gram(problem, gram, candidates, q_eq, settings)
 }
