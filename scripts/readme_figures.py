@@ -384,6 +384,29 @@ def tolerance_cell(level):
     return f
 
 
+def tuned_cell(level):
+    """The sweep's builds tuned after assembly: share p50 / p95, residual p99 p50 / p95."""
+
+    def f(r):
+        t = [t for t in sweep_tables(r)["tolerance_levels"] if t["tolerance"] == level][0]["tuned"]
+        return (
+            f"{pct(t['actuator_share']['p50'])} / {pct(t['actuator_share']['p95'])}, "
+            f"{deg(t['residual_p99_deg']['p50'])} / {deg(t['residual_p99_deg']['p95'])}"
+        )
+
+    return f
+
+
+def trimmed_cell(level):
+    """The sweep's trimmed builds: residual p99 p50 / p95."""
+
+    def f(r):
+        t = [t for t in sweep_tables(r)["tolerance_levels"] if t["tolerance"] == level][0]
+        return f"{deg(t['trimmed_residual_p99_deg_p50'])} / {deg(t['trimmed_residual_p99_deg_p95'])}"
+
+    return f
+
+
 def pareto_rows(r):
     return r.csv("pareto.dp", "pareto.csv")
 
@@ -636,6 +659,7 @@ FIGURES = {
     "sim.dp.switch.peak": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['peak_actuator_torque_nm']:.1f} N·m",
     "asbuilt.dp5.p99": as_built("fit.dp", "p99_deg"),
     "asbuilt.dp5.shift": as_built("fit.dp", "shift_rad"),
+    "asbuilt.dp5.trimmed": as_built("fit.dp", "trimmed.p99_deg"),
     "asbuilt.trim5.p99": as_built("fit.dp_trim", "p99_deg"),
     "asbuilt.trim5.trimmed": as_built("fit.dp_trim", "trimmed.p99_deg"),
     "asbuilt.trim5.shift": as_built("fit.dp_trim", "shift_rad"),
@@ -649,6 +673,9 @@ FIGURES = {
     "sweep.dp.eps1.share": parasitic_share(1.0),
     "sweep.dp.tol5": tolerance_cell(0.05),
     "sweep.dp.tol10": tolerance_cell(0.1),
+    "sweep.dp.tol5.tuned": tuned_cell(0.05),
+    "sweep.dp.tol10.tuned": tuned_cell(0.1),
+    "sweep.dp.tol10.trimmed": trimmed_cell(0.1),
     **{f"pareto.dp.k{k}": pareto_budget(k) for k in (4, 6, 8, 10, 12, 16)},
     "pareto.dp.r0.5": pareto_radius(0.5),
     "pareto.dp.r2": pareto_radius(2.0),

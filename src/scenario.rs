@@ -297,6 +297,7 @@ impl ScenarioSpec {
             energy: None,
             parasitic: None,
             stiffness_scale: None,
+            built: None,
         };
         let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
         let runs = match self.kind {

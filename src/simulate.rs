@@ -190,6 +190,10 @@ pub struct RunSpec {
     /// Built stiffness / nominal stiffness per element of a spring-set potential (manufacturing
     /// deviations); like parasitic springs, unknown to the controllers.
     pub stiffness_scale: Option<Vec<f64>>,
+    /// The springs actually built and tuned (rates, offsets and trims as a builder set them),
+    /// in place of a spring-set potential; like `stiffness_scale`, unknown to the controllers,
+    /// which keep the nominal potential. Takes precedence over `stiffness_scale`.
+    pub built: Option<crate::potential::SpringSet>,
 }
 
 /// The sampled result of a run.
@@ -440,7 +444,9 @@ impl<'a> Dynamics<'a> {
         let mut nominal_u = None;
         match self.potential {
             ElasticPotential::Springs(s) => {
-                if self.spec.stiffness_scale.is_none() {
+                if let Some(b) = &self.spec.built {
+                    b.gradient_scaled_into(q, None, &mut self.buf);
+                } else if self.spec.stiffness_scale.is_none() {
                     let ue = s.value_gradient_into(q, &mut self.buf);
                     nominal_u = Some(ue + self.chain.gravity_potential(q));
                 } else {

@@ -144,10 +144,28 @@ pub struct ItemResult {
     /// make (see [`crate::asbuilt::trim_build`]), degrees.
     #[serde(default)]
     pub residual_p99_deg_trimmed: Option<f64>,
+    /// Builds of designs with trim springs or adjustable elements: the build tuned as
+    /// `springfit tune` would tune it with the build's rates measured exactly (adjustable offsets
+    /// put the equilibrium back at q_eq, trims restore ∇²U = w² M): its actuator share from the
+    /// same closed-loop run (controllers still nominal), its p99 residual (degrees) and its
+    /// equilibrium shift (rad) about its own equilibrium. NaN when the tuning fails.
+    #[serde(default)]
+    pub tuned: Option<TunedBuild>,
     /// Stiffnesses after snapping (stock only), in BOM order.
     pub stock_stiffness: Option<Vec<f64>>,
     /// Time series (parasitic only).
     pub series: Option<Series>,
+}
+
+/// A build after the builder's tuning (see [`ItemResult::tuned`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TunedBuild {
+    /// (∫|P_θ| + ∫|P_E|)/∫|P_Ũ| of the tuned build.
+    pub actuator_share: f64,
+    /// p99 |residual angle| about the tuned build's own equilibrium, degrees.
+    pub residual_p99_deg: f64,
+    /// |q′ − q_eq|₂ of the tuned build, rad.
+    pub equilibrium_shift_rad: f64,
 }
 
 /// Everything the items need, built once per process.
@@ -295,6 +313,29 @@ impl<'a> SweepContext<'a> {
         Ok(Some(p99))
     }
 
+    /// The build tuned after assembly, as `springfit tune` tunes it from exactly measured rates
+    /// (designs with trim springs or adjustable elements only): the closed-loop run of `spec`
+    /// with the tuned springs as the plant, the controllers unchanged. A build the tuning cannot
+    /// handle (no equilibrium near q_eq, a failed solve) counts as NaN, the worst.
+    fn tuned(&self, built: &SpringSet, spec: &RunSpec) -> Result<Option<TunedBuild>> {
+        let bom = &self.fit.bom;
+        if !bom.iter().any(|r| r.adjust.trim_range.is_some() || r.adjust.adjust_range.is_some()) {
+            return Ok(None);
+        }
+        let failed =
+            TunedBuild { actuator_share: f64::NAN, residual_p99_deg: f64::NAN, equilibrium_shift_rad: f64::NAN };
+        let measured: Vec<Option<f64>> = built.stiffness.iter().map(|k| Some(*k)).collect();
+        let Ok(t) = crate::tune::tune(self.design, bom, &measured) else { return Ok(Some(failed)) };
+        let tuned = crate::bom::spring_set(&t.bom);
+        let (p99, shift) = self.residual_about_own_equilibrium(&tuned)?;
+        let mut spec = spec.clone();
+        spec.name = format!("{}_tuned", spec.name);
+        spec.stiffness_scale = None;
+        spec.built = Some(tuned);
+        let Ok((_, m)) = self.closed_loop(&self.nominal, &spec) else { return Ok(Some(failed)) };
+        Ok(Some(TunedBuild { actuator_share: m.actuator_share, residual_p99_deg: p99, equilibrium_shift_rad: shift }))
+    }
+
     fn run_item(&self, index: usize, item: WorkItem) -> Result<ItemResult> {
         let blank = |item| ItemResult {
             index,
@@ -308,6 +349,7 @@ impl<'a> SweepContext<'a> {
             actuator_share_before: None,
             equilibrium_shift_rad: None,
             residual_p99_deg_trimmed: None,
+            tuned: None,
             stock_stiffness: None,
             series: None,
         };
@@ -352,12 +394,14 @@ impl<'a> SweepContext<'a> {
                 let mut spec = self.base.clone();
                 spec.name = format!("build_{build}");
                 spec.stiffness_scale = Some(scale);
+                let tuned = self.tuned(&built, &spec)?;
                 let (_, m) = self.closed_loop(&self.nominal, &spec)?;
                 let mut r = blank(item);
                 fill(&mut r, &m);
                 r.residual_p99_deg = p99;
                 r.residual_p99_deg_trimmed = trimmed;
                 r.equilibrium_shift_rad = Some(shift);
+                r.tuned = tuned;
                 Ok(r)
             }
             WorkItem::Stock => {
@@ -428,6 +472,17 @@ pub struct ToleranceSummary {
     /// After each build's trim (designs with trim springs), p99 residual percentiles.
     pub trimmed_residual_p99_deg_p50: Option<f64>,
     pub trimmed_residual_p99_deg_p95: Option<f64>,
+    /// After each build's tuning (designs with trims or adjustable elements; see
+    /// [`ItemResult::tuned`]): actuator share, p99 residual and equilibrium shift percentiles.
+    pub tuned: Option<TunedSummary>,
+}
+
+/// Percentiles over the tuned builds of a tolerance level (NaN builds count as the worst).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TunedSummary {
+    pub actuator_share: crate::asbuilt::Spread,
+    pub residual_p99_deg: crate::asbuilt::Spread,
+    pub equilibrium_shift_rad: crate::asbuilt::Spread,
 }
 
 /// Stock snapping before and after.
@@ -490,6 +545,16 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                     crate::asbuilt::Spread::of(builds.iter().map(|r| r.residual_p99_deg_trimmed.unwrap_or(f64::NAN)))
                 })
                 .filter(|_| !builds.is_empty());
+            let tuned = (!builds.is_empty() && builds.iter().all(|r| r.tuned.is_some())).then(|| {
+                let of = |f: fn(&TunedBuild) -> f64| {
+                    crate::asbuilt::Spread::of(builds.iter().map(|r| r.tuned.as_ref().map_or(f64::NAN, f)))
+                };
+                TunedSummary {
+                    actuator_share: of(|t| t.actuator_share),
+                    residual_p99_deg: of(|t| t.residual_p99_deg),
+                    equilibrium_shift_rad: of(|t| t.equilibrium_shift_rad),
+                }
+            });
             share.sort_by(f64::total_cmp);
             resid.sort_by(f64::total_cmp);
             shift.sort_by(f64::total_cmp);
@@ -505,6 +570,7 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 equilibrium_shift_rad_p95: percentile(&shift, 95.0),
                 trimmed_residual_p99_deg_p50: trimmed.map(|t| t.p50),
                 trimmed_residual_p99_deg_p95: trimmed.map(|t| t.p95),
+                tuned,
             }
         })
         .collect();

@@ -23,10 +23,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::bom::{Adjustment, BomRow};
-use crate::catalog::Catalog;
+use crate::catalog::{Catalog, TrimSpring};
 use crate::design::Design;
-use crate::error::Result;
-use crate::fit::run::{FitOutcome, evaluate, refit_with_fixed};
+use crate::geodesic::Fan;
 use crate::potential::SpringSet;
 
 /// Most trim springs one design may carry (the solve enumerates 3^m faces).
@@ -56,131 +55,58 @@ impl TrimSolution {
     }
 }
 
-/// Puts the catalogue's trim springs into a fitted design at their mid-range rates and refits
-/// the other chosen elements around them.
+/// The catalogue's trim springs at their mid-range rates (room to trim both ways), relaxed at
+/// q_eq: the part of the potential the fit holds fixed (see `fit::problem::fold_fixed`).
+pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet) {
+    let trims = catalog.trims(q_eq);
+    let springs = SpringSet {
+        elements: trims.iter().map(|t| t.element.clone()).collect(),
+        stiffness: trims.iter().map(|t| 0.5 * (t.range[0] + t.range[1])).collect(),
+    };
+    (trims, springs)
+}
+
+/// Appends the catalogue's trim springs, at mid-range, to a fitted bill of materials.
 ///
 /// Trims are not fit candidates (their rate is set after assembly, so the fit must not choose
-/// it). Once they sit at mid-range — room to trim both ways — their stiffness is part of the
-/// potential, so the chosen elements are refitted with the trims fixed, by the same NNLS refit
-/// the stock-rate snapping uses (`refit_with_fixed`: the fit's rows and weighted equalities on
-/// the chosen support). The element budget counts the fitted springs, not the trims. Elements
-/// the refit sets to zero leave the bill of materials.
-pub fn place(design: &Design, catalog: &Catalog, mut o: FitOutcome) -> Result<FitOutcome> {
-    let trims = catalog.trims(design.q_eq.as_slice());
-    if trims.is_empty() {
-        return Ok(o);
-    }
-    let t0 = std::time::Instant::now();
-    let used = o.springs.elements.len();
-    let mut elements = o.springs.elements.clone();
-    elements.extend(trims.iter().map(|t| t.element.clone()));
-    let mut fixed: Vec<Option<f64>> = vec![None; used];
-    fixed.extend(trims.iter().map(|t| Some(0.5 * (t.range[0] + t.range[1]))));
-    let mut k = refit_with_fixed(design, &o.settings, &o.training, &elements, &fixed)?;
-    polish_equalities(design, &o.settings, &elements, &mut k, used);
-    let mut rows: Vec<BomRow> = Vec::new();
-    for (j, row) in o.bom.iter().enumerate() {
-        if k[j] > 0.0 {
-            rows.push(BomRow { stiffness: k[j], ..row.clone() });
-        }
-    }
+/// it), and the element budget counts the fitted elements, not the trims. The fit has already
+/// been solved *around* them: their contribution at mid-range was moved to the right-hand sides
+/// of the rows, the equalities and the inequalities before both the nominal and the
+/// tolerance-aware solve (`fit::problem::fold_fixed`), so the other rows need no change here.
+/// Peak torque and deflection are taken over the held-out fan `evaluation`, as the fit's.
+pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluation: &Fan) {
+    let (trims, springs) = mid_range(catalog, design.q_eq.as_slice());
+    // Trims are numbered after the springs (a cam's rows keep their `Cnn.jj±` ids).
+    let first = bom.iter().filter(|r| !matches!(r.element.profile, crate::elements::Profile::Spline(_))).count();
     for (i, t) in trims.iter().enumerate() {
         let f = &catalog.families[t.family];
-        rows.push(BomRow {
-            id: String::new(),
-            family: f.name.clone(),
-            element: t.element.clone(),
-            stiffness: k[used + i],
-            max_torque_nm: 0.0,
-            max_deflection_rad: 0.0,
-            stock_rate: None,
-            tolerance: f.tolerance,
-            adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
-            preload_nm: None,
-        });
-    }
-    // Peak torque and deflection over the held-out fan, as the fit reports them.
-    let mut spring_no = 0;
-    for row in rows.iter_mut() {
-        // Springs are numbered again; a cam's rows keep their `Cnn.jj±` ids (the cam they
-        // belong to).
-        if !matches!(row.element.profile, crate::elements::Profile::Spline(_)) {
-            spring_no += 1;
-            row.id = format!("S{spring_no:02}");
-        }
-        let e = &row.element;
+        let stiffness = springs.stiffness[i];
+        let e = &t.element;
         let (mut torque, mut defl) = (0.0f64, 0.0f64);
         let mut visit = |q: &[f64]| {
             let d = e.deflection(q);
-            let slope = e.profile.slope(d);
-            torque = torque.max((row.stiffness * slope).abs());
-            if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
-                defl = defl.max(d.abs());
-            }
+            torque = torque.max((stiffness * e.profile.slope(d)).abs());
+            defl = defl.max(d.abs());
         };
         visit(design.q_eq.as_slice());
-        for g in &o.evaluation.geodesics {
+        for g in &evaluation.geodesics {
             for s in 0..g.len() {
                 visit(g.q(s));
             }
         }
-        row.max_torque_nm = torque;
-        row.max_deflection_rad = defl;
-        // The refit changed the stiffnesses: preloads follow them (a trim's is zero).
-        row.preload_nm = Some(row.element.preload(row.stiffness, design.q_eq.as_slice()));
-    }
-    o.springs = SpringSet {
-        elements: rows.iter().map(|r| r.element.clone()).collect(),
-        stiffness: rows.iter().map(|r| r.stiffness).collect(),
-    };
-    o.bom = rows;
-    // The refit moved the cams' coefficients: realise them again.
-    o.cams = crate::cam::fitted_cams(catalog, &o.bom);
-    o.metrics = evaluate(design, o.settings.frequency, o.settings.bands, &o.springs, &o.evaluation)?;
-    let dt = t0.elapsed().as_secs_f64();
-    o.timings.solve += dt;
-    o.timings.total += dt;
-    Ok(o)
-}
-
-/// The NNLS refit meets the equalities only by weighting: move the fitted (non-trim) elements by
-/// the smallest change that makes ∇U(q_eq) = 0 and ∇²U(q_eq) = ω² M(q_eq) (or, without the
-/// Hessian match, only the equilibrium) exact again. The change is of the order of the weighted
-/// residual (1e-6 relative); a rate it would make negative is left at zero.
-fn polish_equalities(
-    design: &Design,
-    settings: &crate::fit::settings::FitSettings,
-    elements: &[crate::elements::Element],
-    k: &mut [f64],
-    fitted: usize,
-) {
-    let n = design.dof();
-    let q = design.q_eq.as_slice();
-    let chain = &design.chain;
-    let m = chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
-    let scale = m.norm().max(f64::MIN_POSITIVE);
-    let pairs: Vec<(usize, usize)> =
-        if settings.hessian_match { (0..n).flat_map(|i| (i..n).map(move |j| (i, j))).collect() } else { Vec::new() };
-    let rows = n + pairs.len();
-    let coef = |e: &crate::elements::Element, r: usize| -> f64 {
-        let (_, slope, curv) = e.profile.eval(e.deflection(q));
-        if r < n { slope * e.coupling[r] } else { curv * e.coupling[pairs[r - n].0] * e.coupling[pairs[r - n].1] }
-    };
-    let grav = chain.gravity_gradient(q);
-    let grav_h = chain.gravity_hessian(q);
-    for _ in 0..3 {
-        let mut resid = DVector::zeros(rows);
-        for r in 0..rows {
-            let have: f64 = elements.iter().zip(k.iter()).map(|(e, kj)| kj * coef(e, r)).sum();
-            let want = if r < n { -grav[r] } else { m[pairs[r - n]] - grav_h[pairs[r - n]] };
-            resid[r] = (want - have) / scale;
-        }
-        let free: Vec<usize> = (0..fitted).filter(|&j| k[j] > 0.0).collect();
-        let jac = DMatrix::from_fn(rows, free.len(), |r, c| coef(&elements[free[c]], r) / scale);
-        let Some((dk, _)) = min_residual(&jac, &resid) else { return };
-        for (c, &j) in free.iter().enumerate() {
-            k[j] = (k[j] + dk[c]).max(0.0);
-        }
+        bom.push(BomRow {
+            id: format!("S{:02}", first + i + 1),
+            family: f.name.clone(),
+            element: e.clone(),
+            stiffness,
+            max_torque_nm: torque,
+            max_deflection_rad: defl,
+            stock_rate: None,
+            tolerance: f.tolerance,
+            adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
+            // Relaxed at q_eq: no torque there.
+            preload_nm: Some(e.preload(stiffness, design.q_eq.as_slice())),
+        });
     }
 }
 

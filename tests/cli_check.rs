@@ -83,7 +83,7 @@ fn check_rejects_what_later_commands_would() {
         (
             "no_catalogue.toml",
             design_text("double_pendulum.toml"),
-            vec!["no_catalogue.toml", "field `catalog`", "../catalogs/paper.toml", "names no file"],
+            vec!["no_catalogue.toml", "field `catalog`", "../catalogs/paper_trim.toml", "names no file"],
         ),
         (
             "every.toml",

@@ -50,3 +50,42 @@ fn shards_merge_into_the_same_tables_and_threads_do_not_matter() {
     springfit(&dir, &["sweep", d, "--merge", "s1", "--out", "partial"]).fails(2, &["missing", "merge every shard"]);
     springfit(&dir, &["sweep", d, "--shard", "3/2"]).fails(2, &["--shard", "i/N"]);
 }
+
+/// The shipped design has trim springs and adjustable offsets: every build is reported as built
+/// (untuned) and tuned after assembly as `springfit tune` would tune it, on stdout and in every
+/// file. Tuned builds rest at q_eq again and need less of the actuators than untuned ones.
+#[test]
+fn builds_are_reported_untuned_and_tuned() {
+    let dir = temp_dir("sweep-tuned");
+    let text = util::design_text_anywhere("double_pendulum.toml")
+        .replace("epsilons = [0.0, 0.01, 0.05, 0.1, 0.5, 1.0]", "epsilons = [0.0]")
+        .replace("builds = 200", "builds = 4")
+        .replace("tolerances = [0.05, 0.1]", "tolerances = [0.1]")
+        .replace(
+            "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 20.0",
+            "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 6.0",
+        );
+    assert!(text.contains("duration = 6.0") && text.contains("builds = 4") && text.contains("[0.1]"));
+    let design = write(&dir, "d.toml", &text);
+    let run = springfit(&dir, &["sweep", design.to_str().unwrap(), "--out", "s"]).ok();
+    let out = run.stdout();
+    assert!(out.contains("as built (untuned)") && out.contains("tuned after the build"), "{}", run.report());
+    let read = |p: &str| std::fs::read_to_string(dir.join(p)).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&read("s/sweep.json")).unwrap();
+    let level = &json["tolerance_levels"][0];
+    let tuned = &level["tuned"];
+    let share = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(share(&tuned["equilibrium_shift_rad"]["p95"]) < 1e-6, "{tuned}");
+    assert!(share(&level["equilibrium_shift_rad_p50"]) > 1e-3, "{level}");
+    assert!(share(&tuned["actuator_share"]["p50"]) < share(&level["actuator_share_p50"]), "{level}");
+    assert!(read("s/tolerance.md").contains("tuned actuator share"));
+    let csv = read("s/sweep.csv");
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "actuator_share_tuned").unwrap();
+    let builds: Vec<&str> = csv.lines().filter(|l| l.split(',').nth(1) == Some("build")).collect();
+    assert_eq!(builds.len(), 4);
+    for b in builds {
+        let v: f64 = b.split(',').nth(col).unwrap().parse().unwrap();
+        assert!(v.is_finite() && v >= 0.0, "{b}");
+    }
+}

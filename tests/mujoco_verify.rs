@@ -131,9 +131,10 @@ fn export_fits_when_no_bill_is_given_and_writes_its_springs() {
         std::fs::read_to_string(dir.join("mj/bom.csv")).unwrap(),
         std::fs::read_to_string(dir.join("fit/bom.csv")).unwrap()
     );
-    assert!(run.stdout().contains("12 springs for MuJoCo"), "{}", run.report());
+    // Twelve fitted springs and the three trims at their mid-range rate (the drawing).
+    assert!(run.stdout().contains("15 springs for MuJoCo"), "{}", run.report());
     let md = std::fs::read_to_string(dir.join("mj/elements.md")).unwrap();
-    assert_eq!(md.matches("| S").count(), 12, "{md}");
+    assert_eq!(md.matches("| S").count(), 15, "{md}");
 }
 
 #[test]

@@ -66,7 +66,7 @@ fn a_design_description_with_markup_is_shown_as_text() {
     let dir = temp_dir("html-escape");
     let text = util::design_text("double_pendulum.toml")
         .replace("description = \"Paper's double pendulum", "description = \"<b>bold</b> & <script>x</script> pendulum")
-        .replace("../catalogs/paper.toml", &repo().join("catalogs/paper.toml").display().to_string());
+        .replace("../catalogs/paper_trim.toml", &repo().join("catalogs/paper_trim.toml").display().to_string());
     let design = util::write(&dir, "d.toml", &text);
     springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "fit", "--max-elements", "6"]).ok();
     let html = std::fs::read_to_string(dir.join("fit/report.html")).unwrap();

@@ -70,8 +70,10 @@ fn twelve_springs_leave_the_geodesic_by_a_bounded_amount() {
     let mut worst: f64 = 0.0;
     for (r, m) in &out.runs {
         let dev = m.geodesic_deviation.as_ref().unwrap();
-        // 0.33° p99 residual: visibly off the mode, but by a few per cent of the amplitude.
-        assert!(dev.max > 1e-3 && dev.max_rel < 0.2, "{}: {dev:?}", r.name);
+        // 0.39° p99 residual (12 springs around 3 trims): visibly off the mode, by a few per
+        // cent of the amplitude per swing; the worst release (mode 4π/3) drifts by 22 % of its
+        // start radius over the 20 s (12.7 periods), the others by less.
+        assert!(dev.max > 1e-3 && dev.max_rel < 0.25, "{}: {dev:?}", r.name);
         // Deviation grows swing by swing from nothing at the release.
         assert!(dev.per_swing[0] < dev.max, "{}: {:?}", r.name, dev.per_swing);
         worst = worst.max(dev.max);
@@ -156,6 +158,7 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
         energy: None,
         parasitic: None,
         stiffness_scale: None,
+        built: None,
     };
     let settings = SimSettings { rate: 400.0, ..d.simulate };
     let controllers = ControllerSettings { k_theta: 5.0, ..d.controllers };

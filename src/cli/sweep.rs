@@ -271,7 +271,7 @@ fn finish(
     }
     for l in &t.tolerance_levels {
         progress.say(format!(
-            "tolerance {}: {} builds; actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
+            "tolerance {}: {} builds, as built (untuned); actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
             l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "of the catalogue".into()),
             l.builds,
             100.0 * l.actuator_share_p50,
@@ -282,6 +282,16 @@ fn finish(
         ));
         if let (Some(a), Some(b)) = (l.trimmed_residual_p99_deg_p50, l.trimmed_residual_p99_deg_p95) {
             progress.say(format!("  trimmed: residual p99 p50 {a:.3}°, p95 {b:.3}°"));
+        }
+        if let Some(u) = &l.tuned {
+            progress.say(format!(
+                "  tuned after the build (offsets and trims set from the measured rates, as `springfit tune`): actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
+                100.0 * u.actuator_share.p50,
+                100.0 * u.actuator_share.p95,
+                or_none(u.residual_p99_deg.p50, "°", 3),
+                or_none(u.residual_p99_deg.p95, "°", 3),
+                or_none(u.equilibrium_shift_rad.p50, " rad", 4)
+            ));
         }
     }
     if let Some(s) = &t.stock {

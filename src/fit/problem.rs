@@ -209,6 +209,48 @@ pub fn assemble(
     FitProblem { rows, rhs, equalities, inequalities }
 }
 
+/// Moves the contribution of elements whose stiffness is fixed (trim springs at mid-range: set
+/// after the build, so not the fit's to choose) to the right-hand sides of `problem`, which was
+/// assembled with the same fan and requirements: with the fixed elements' columns F and
+/// stiffnesses k_f, rows A k ≈ b become A k ≈ b − F k_f, equalities E k = e become
+/// E k = e − E_f k_f and inequalities G k ≥ h become G k ≥ h − G_f k_f. Everything solved
+/// afterwards (the nominal fit, the tolerance-aware fit, the selection) then sees the fixed
+/// elements. The preload bound needs no change for trims: they are relaxed at q_eq, so their
+/// preload is zero.
+#[allow(clippy::too_many_arguments)]
+pub fn fold_fixed(
+    problem: &mut FitProblem,
+    chain: &Chain,
+    q_eq: &DVector<f64>,
+    fan: &Fan,
+    elements: &[crate::elements::Element],
+    stiffness: &[f64],
+    req: Requirements,
+) {
+    if elements.is_empty() {
+        return;
+    }
+    let fixed: Vec<Candidate> = elements
+        .iter()
+        .map(|e| Candidate {
+            element: e.clone(),
+            family: 0,
+            max_stiffness: None,
+            stock_rates: Vec::new(),
+            tolerance: 0.0,
+        })
+        .collect();
+    let f = assemble(chain, q_eq, fan, &fixed, req);
+    let k = DVector::from_column_slice(stiffness);
+    problem.rhs -= &f.rows * &k;
+    for (g, gf) in problem.equalities.iter_mut().zip(&f.equalities) {
+        g.rhs -= &gf.matrix * &k;
+    }
+    for (g, gf) in problem.inequalities.iter_mut().zip(&f.inequalities) {
+        g.rhs -= &gf.matrix * &k;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

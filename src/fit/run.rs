@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls};
-use super::problem::{FitProblem, LinearGroup, Requirements, assemble};
+use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed};
 use super::qp::{QpSettings, QpStatus, qp};
 use super::robust::{BuildPenalty, spread};
 use super::selection::{
@@ -148,6 +148,8 @@ pub struct Prepared<'a> {
     candidates: Vec<Candidate>,
     n_expanded: usize,
     problem: FitProblem,
+    /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
+    trims: SpringSet,
     t_geo: f64,
     t_asm: f64,
 }
@@ -199,6 +201,9 @@ impl<'a> Prepared<'a> {
             monotone: settings.monotone,
         };
         let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
+        let (_, trims) = crate::trim::mid_range(catalog, q_eq);
+        fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         if candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_))) {
             if settings.max_elements > 0 {
                 return Err(Error::invalid(
@@ -213,7 +218,19 @@ impl<'a> Prepared<'a> {
             append_rows(&mut problem, &penalty);
         }
         let t_asm = t1.elapsed().as_secs_f64();
-        Ok(Prepared { design, catalog, region, training, evaluation, candidates, n_expanded, problem, t_geo, t_asm })
+        Ok(Prepared {
+            design,
+            catalog,
+            region,
+            training,
+            evaluation,
+            candidates,
+            n_expanded,
+            problem,
+            trims,
+            t_geo,
+            t_asm,
+        })
     }
 
     /// Solves and evaluates with `settings` (which must agree with the preparation's in
@@ -250,8 +267,11 @@ impl<'a> Prepared<'a> {
         stage("evaluating on held-out geodesics");
         let t3 = Instant::now();
         let q_eq = design.q_eq.as_slice();
-        let (bom, springs) =
+        let (mut bom, _) =
             bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
+        // Trim springs (never candidates) join at mid-range: the fit was solved around them.
+        crate::trim::append(design, catalog, &mut bom, &self.evaluation);
+        let springs = crate::bom::spring_set(&bom);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
         let cams = crate::cam::fitted_cams(catalog, &bom);
@@ -279,8 +299,6 @@ impl<'a> Prepared<'a> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
         })
-        // Trim springs (never candidates) join at mid-range; the rest is refitted around them.
-        .and_then(|o| crate::trim::place(design, catalog, o))
     }
 }
 
@@ -291,9 +309,15 @@ impl Prepared<'_> {
     fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<BuildPenalty> {
         let design = self.design;
         let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+        // The nominal potential includes the trims at mid-range (H and J are the whole arm's);
+        // the trims themselves spread nothing: they are set after the build.
         let nominal = SpringSet {
-            elements: used.iter().map(|&j| self.candidates[j].element.clone()).collect(),
-            stiffness: used.iter().map(|&j| k[j]).collect(),
+            elements: used
+                .iter()
+                .map(|&j| self.candidates[j].element.clone())
+                .chain(self.trims.elements.iter().cloned())
+                .collect(),
+            stiffness: used.iter().map(|&j| k[j]).chain(self.trims.stiffness.iter().copied()).collect(),
         };
         let sigma2: Vec<f64> = self
             .candidates
@@ -855,6 +879,7 @@ fn cam_smoothing(
     )?;
     let mut best: Option<(f64, f64)> = None;
     let gram = Gram::from_rows(&problem.rows, &problem.rhs);
+    let (_, trims) = crate::trim::mid_range(catalog, design.q_eq.as_slice());
     for &w in &AUTO_SMOOTHING {
         let (rows, rhs) = build(w);
         let mut trial = gram.clone();
@@ -862,9 +887,14 @@ fn cam_smoothing(
         // A weight whose solve fails (infeasible, numerical trouble) is simply not chosen.
         let Ok((k, _)) = solve_gram(problem, trial, candidates, design.q_eq.as_slice(), settings) else { continue };
         let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+        // The problem was solved around the trims at mid-range: judge the arm with them.
         let springs = SpringSet {
-            elements: used.iter().map(|&j| candidates[j].element.clone()).collect(),
-            stiffness: used.iter().map(|&j| k[j]).collect(),
+            elements: used
+                .iter()
+                .map(|&j| candidates[j].element.clone())
+                .chain(trims.elements.iter().cloned())
+                .collect(),
+            stiffness: used.iter().map(|&j| k[j]).chain(trims.stiffness.iter().copied()).collect(),
         };
         let p99 = stats(&fan_angles(&design.chain, &validation, &springs)?).p99_abs;
         if best.is_none_or(|(_, b)| p99 < b) {
@@ -890,4 +920,97 @@ fn append_rows(problem: &mut FitProblem, extra: &(DMatrix<f64>, DVector<f64>)) {
     rhs.rows_mut(m, r).copy_from(&extra.1);
     problem.rows = rows;
     problem.rhs = rhs;
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::fit::robust::rows_of;
+
+    /// The trims folded into the fit equal the problem with the trims as extra columns whose
+    /// contribution (column × mid-range rate) is subtracted by hand from every right-hand side:
+    /// rows, equilibrium, Hessian match and monotonicity. The fit solved around them (nominal
+    /// pass, then the tolerance-aware pass) holds ∇U(q_eq) = 0 and ∇²U(q_eq) = ω² M(q_eq) with
+    /// the trims in, and the folded residual is the whole arm's residual.
+    #[test]
+    fn trims_are_subtracted_from_every_right_hand_side_before_the_solve() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml");
+        let design = Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let settings = FitSettings {
+            training_directions: 24,
+            training_samples: 12,
+            evaluation_directions: 24,
+            evaluation_samples: 12,
+            restarts: 0,
+            pair_swaps: false,
+            builds: 0,
+            monotone: true,
+            ..design.fit
+        };
+        assert!(!settings.tolerance.is_none(), "the shipped design fits for a tolerance");
+        let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
+        let (trims, mid) = crate::trim::mid_range(&catalog, design.q_eq.as_slice());
+        assert_eq!(trims.len(), 3);
+
+        let mut all = prepared.candidates.clone();
+        all.extend(trims.iter().map(|t| Candidate {
+            element: t.element.clone(),
+            family: t.family,
+            max_stiffness: None,
+            stock_rates: Vec::new(),
+            tolerance: 0.0,
+        }));
+        let req = Requirements { omega: settings.frequency, hessian_match: true, monotone: true };
+        let full = assemble(&design.chain, &design.q_eq, &prepared.training, &all, req);
+        let p = prepared.candidates.len();
+        let by_hand = |m: &DMatrix<f64>, rhs: &DVector<f64>| -> DVector<f64> {
+            let mut r = rhs.clone();
+            for (i, k) in mid.stiffness.iter().enumerate() {
+                for row in 0..m.nrows() {
+                    r[row] -= m[(row, p + i)] * k;
+                }
+            }
+            r
+        };
+        let same = |a: &DVector<f64>, b: &DVector<f64>| (a - b).amax() <= 1e-12 * (1.0 + b.amax());
+        let prob = &prepared.problem;
+        assert_eq!(prob.rows, full.rows.columns(0, p).into_owned());
+        assert!(same(&prob.rhs, &by_hand(&full.rows, &full.rhs)));
+        assert_eq!(prob.equalities.len(), 2);
+        assert_eq!(prob.inequalities.len(), 1);
+        for (g, f) in
+            prob.equalities.iter().zip(&full.equalities).chain(prob.inequalities.iter().zip(&full.inequalities))
+        {
+            assert_eq!(g.matrix, f.matrix.columns(0, p).into_owned(), "{}", g.name);
+            assert!(same(&g.rhs, &by_hand(&f.matrix, &f.rhs)), "{}", g.name);
+        }
+        // The trims matter: unfolded, the Hessian match would be off by their stiffness.
+        let trims_hessian = full.equalities[1].matrix.columns(p, 3) * DVector::from_column_slice(&mid.stiffness);
+        assert!(trims_hessian.amax() > 0.01, "{trims_hessian}");
+
+        let o = prepared.solve(&settings, &|_| {}).unwrap();
+        assert!(o.solve.expected_build_spread.is_some());
+        assert_eq!(o.bom.iter().filter(|r| r.adjust.trim_range.is_some()).count(), 3);
+        let q = design.q_eq.as_slice();
+        let target = design.chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
+        let h = o.springs.hessian(q).unwrap();
+        assert!((h - &target).norm() / target.norm() < 1e-8);
+        assert!(o.springs.gradient(q).unwrap().amax() < 1e-8 * target.norm());
+        let k: Vec<f64> = prepared
+            .candidates
+            .iter()
+            .map(|c| {
+                o.bom
+                    .iter()
+                    .find(|r| r.adjust.trim_range.is_none() && r.element == c.element)
+                    .map_or(0.0, |r| r.stiffness)
+            })
+            .collect();
+        let folded = &prob.rows * DVector::from_vec(k) - &prob.rhs;
+        let whole = rows_of(&design.chain, &prepared.training, &o.springs, settings.frequency);
+        assert!((&folded - &whole).amax() < 1e-6 * (1.0 + whole.amax()), "{}", (&folded - &whole).amax());
+    }
 }

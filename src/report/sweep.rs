@@ -10,7 +10,8 @@ use crate::sweep::{ItemResult, SweepTables, WorkItem};
 /// `sweep.csv`: one row per item.
 pub fn items_csv(results: &[ItemResult]) -> String {
     let mut s = String::from(
-        "index,kind,eps,tolerance,build,flux_potential,flux_mode,flux_energy,actuator_share,residual_p99_deg\n",
+        "index,kind,eps,tolerance,build,flux_potential,flux_mode,flux_energy,actuator_share,residual_p99_deg,\
+         residual_p99_deg_trimmed,actuator_share_tuned,residual_p99_deg_tuned,equilibrium_shift_rad_tuned\n",
     );
     let mut sorted: Vec<&ItemResult> = results.iter().collect();
     sorted.sort_by_key(|r| r.index);
@@ -25,9 +26,21 @@ pub fn items_csv(results: &[ItemResult]) -> String {
             ),
             WorkItem::Stock => ("stock", String::new(), String::new(), String::new()),
         };
+        // Blank where a column does not apply (not a build, or a design without trims/tuning).
+        let opt = |x: Option<f64>| x.map(|v| format!("{v}")).unwrap_or_default();
+        let tuned = r.tuned.as_ref();
         s.push_str(&format!(
-            "{},{kind},{eps},{tol},{build},{},{},{},{},{}\n",
-            r.index, r.flux_potential, r.flux_mode, r.flux_energy, r.actuator_share, r.residual_p99_deg
+            "{},{kind},{eps},{tol},{build},{},{},{},{},{},{},{},{},{}\n",
+            r.index,
+            r.flux_potential,
+            r.flux_mode,
+            r.flux_energy,
+            r.actuator_share,
+            r.residual_p99_deg,
+            opt(r.residual_p99_deg_trimmed),
+            opt(tuned.map(|t| t.actuator_share)),
+            opt(tuned.map(|t| t.residual_p99_deg)),
+            opt(tuned.map(|t| t.equilibrium_shift_rad))
         ));
     }
     s
@@ -71,6 +84,22 @@ pub fn tables_md(design: &str, t: &SweepTables) -> String {
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
                 l.trimmed_residual_p99_deg_p50.unwrap_or(f64::NAN),
                 l.trimmed_residual_p99_deg_p95.unwrap_or(f64::NAN)
+            ));
+        }
+    }
+    if t.tolerance_levels.iter().any(|l| l.tuned.is_some()) {
+        s.push_str("\nAfter the tuning a builder would make (each build's rates measured exactly; adjustable offsets put the equilibrium back at q_eq and trims restore ∇²U = w² M, as `springfit tune` does), the same closed-loop run with the controllers unchanged. The untuned figures above are what the build does before that.\n\n| tolerance | tuned actuator share p50 | p95 | tuned residual p99 p50 | p95 | equilibrium shift p50 | p95 |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+        for l in &t.tolerance_levels {
+            let Some(u) = &l.tuned else { continue };
+            s.push_str(&format!(
+                "| {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {:.2e} rad | {:.2e} rad |\n",
+                l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
+                100.0 * u.actuator_share.p50,
+                100.0 * u.actuator_share.p95,
+                u.residual_p99_deg.p50,
+                u.residual_p99_deg.p95,
+                u.equilibrium_shift_rad.p50,
+                u.equilibrium_shift_rad.p95
             ));
         }
     }
