@@ -18,7 +18,8 @@ use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed
 use super::qp::{QpSettings, QpStatus, qp};
 use super::robust::{BuildPenalty, spread};
 use super::selection::{
-    SelectionSettings, backward_elimination, gain_scores, search, select_from, subset_nnls, subset_nnls_warm,
+    Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
+    subset_nnls_warm,
 };
 use super::settings::{FitSettings, SolverKind};
 use crate::bom::BomRow;
@@ -205,14 +206,6 @@ impl<'a> Prepared<'a> {
         let (_, trims) = crate::trim::mid_range(catalog, q_eq);
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         if candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_))) {
-            if settings.max_elements > 0 {
-                return Err(Error::invalid(
-                    &design.path,
-                    "fit.max_elements",
-                    "a sparse selection with cams in the catalogue is not supported yet: set max_elements = 0 and list \
-                     only the couplings the cams may use",
-                ));
-            }
             stage("choosing the cams' smoothing");
             let penalty = cam_smoothing(design, catalog, settings, &candidates, &problem)?;
             append_rows(&mut problem, &penalty);
@@ -504,28 +497,30 @@ fn solve_gram(
         cut_rounds: 0,
         expected_build_spread: None,
     };
-    let support: Vec<usize> = if settings.max_elements > 0 && settings.max_elements < p {
+    // The selection counts items: a spring is one, a cam (all its basis columns) is one.
+    let items = Items::from_groups(&cam_groups(candidates));
+    let support: Vec<usize> = if settings.max_elements > 0 && settings.max_elements < items.len() {
         let dense = nnls(&weighted, 0.0, &NnlsSettings::default())?;
-        let pool: Vec<usize> = (0..p).filter(|&j| dense.k[j] > 0.0).collect();
-        let start = backward_elimination(&weighted, pool.clone(), settings.max_elements)?;
+        let pool = items.touching(|j| dense.k[j] > 0.0);
+        let start = backward_elimination(&weighted, &items, pool.clone(), settings.max_elements)?;
         let sel_settings = SelectionSettings {
             max_elements: settings.max_elements,
             swap_passes: settings.swap_passes,
             restarts: settings.restarts,
             pair_swaps: settings.pair_swaps,
             seed: settings.seed,
-            shortlist: settings.shortlist,
         };
+        let n = items.len();
         let sel = if settings.restarts == 0 && !settings.pair_swaps {
             // The single exchange search, with cold-started refits as before restarts existed.
-            select_from(p, sel_settings, start, |s| subset_nnls(&weighted, s))?
+            select_from(n, sel_settings, start, |s| subset_nnls(&weighted, &items, s))?
         } else {
-            let screen = |s: &[usize], k: &[f64]| gain_scores(&weighted, s, k);
-            search(p, sel_settings, start, &pool, |s| subset_nnls_warm(&weighted, s), Some(&screen))?
+            let bound = |s: &[usize]| extension_bounds(&weighted, &items, s);
+            search(n, sel_settings, start, &pool, |s| subset_nnls_warm(&weighted, &items, s), Some(&bound))?
         };
         report.selection_evaluations = sel.evaluations;
         report.selection_swaps = sel.swaps;
-        sel.support
+        items.columns(&sel.support)
     } else {
         (0..p).collect()
     };
@@ -808,7 +803,8 @@ pub const AUTO_SMOOTHING: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
 /// tangentiality rows and by the family's weight λ, so λ = 1 weighs ∫(V‴/(ω² m̄))² dx like all
 /// the rows together. Families with `smoothing = "auto"` share one weight, the one of
 /// [`AUTO_SMOOTHING`] with the smallest p99 residual on a *validation* fan (directions at a
-/// quarter of the training spacing, apart from both the training and the held-out fans).
+/// quarter of the training spacing, apart from both the training and the held-out fans), judged
+/// on the dense fit (without `max_elements`).
 fn cam_smoothing(
     design: &Design,
     catalog: &Catalog,
@@ -885,7 +881,10 @@ fn cam_smoothing(
         let mut trial = gram.clone();
         trial.add_weighted(&rows, &rhs, 1.0);
         // A weight whose solve fails (infeasible, numerical trouble) is simply not chosen.
-        let Ok((k, _)) = solve_gram(problem, trial, candidates, design.q_eq.as_slice(), settings) else { continue };
+        // Chosen on the dense fit (every element allowed): a sparse selection per weight would
+        // cost the selection five times over, and the weight only tempers each cam's wiggle.
+        let dense = FitSettings { max_elements: 0, ..*settings };
+        let Ok((k, _)) = solve_gram(problem, trial, candidates, design.q_eq.as_slice(), &dense) else { continue };
         let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
         // The problem was solved around the trims at mid-range: judge the arm with them.
         let springs = SpringSet {

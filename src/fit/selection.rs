@@ -1,77 +1,167 @@
-//! Choosing at most K springs: greedy forward selection refined by exchange moves, random
-//! restarts and 2-for-2 swaps.
+//! Choosing at most K elements: greedy forward selection or backward elimination for a start,
+//! refined by exchange moves, 2-for-2 swaps and random restarts.
 //!
 //! The best K-subset of a few hundred candidates is a combinatorial problem. Backward elimination
-//! from the dense solution is cheap but myopic (it cannot undo an early removal). Here a greedy
-//! forward pass builds a support one element at a time, each step trying every candidate with a
-//! non-negative refit; exchange moves then try replacing each chosen element by each unchosen one
-//! and take the best improving swap, until none improves. Every trial is a small non-negative
-//! least-squares solve on the Gram matrix restricted to the trial support, so the cost is
-//! (passes × K × p) solves of size ≤ K — milliseconds each pass for p ≈ 500. Trials of one step
-//! run in parallel; the winner is the smallest objective with ties broken by candidate index, so
-//! the result does not depend on the thread count.
+//! from the dense solution is cheap but myopic (it cannot undo an early removal). Exchange moves
+//! try replacing each chosen element by each unchosen one and take the best improving swap, until
+//! none improves. Every trial is a small non-negative least-squares solve on the Gram matrix
+//! restricted to the trial support. Trials run in parallel; the winner is the smallest objective
+//! with ties broken by trial index, so the result does not depend on the thread count.
 //!
-//! One exchange search stops in a local optimum: no single swap improves, yet two elements that
-//! only help together (an antagonistic pair, two crank phases) are never tried. [`search`] adds
-//! two remedies. *2-for-2 swaps*: when no single swap improves, every pair of chosen elements is
-//! removed and the best two replacements are added greedily; an improvement resumes the exchange
-//! moves. *Random restarts*: restart r replaces 1 + (r − 1) mod ⌈K/2⌉ elements of that optimum by
-//! elements drawn from a pool (the dense solution's support) with its own SplitMix64 stream
-//! (seed, r), and runs the exchange moves from there. Restarts run in parallel and the winner is
-//! the smallest objective, ties broken by restart index: the result does not depend on the
-//! thread count either. Refits are warm-started, and with a screen only the replacements that
-//! lower the objective most to first order are refitted (`shortlist`), so one exchange pass costs
-//! K·(shortlist + 1) refits instead of K·p.
+//! **Bounds instead of a shortlist.** Refitting all K·p swaps of a pass is wasteful: most cannot
+//! improve. Dropping the sign constraints can only lower a least-squares minimum, so the
+//! unconstrained minimum over R ∪ {j} is a *lower bound* on the trial's refit, and for all j at
+//! once it costs one Cholesky factor of G_RR and a triangular solve (see [`extension_bounds`]):
+//! obj(R ∪ {j}) ≥ bᵀb − ‖L⁻¹c_R‖² − wⱼ²/sⱼ with wⱼ, sⱼ the residual correlation and the Schur
+//! complement of j. It is exact whenever the unconstrained refit is non-negative, which is most
+//! of the time. A pass therefore refits trials in increasing order of their bound and stops at
+//! the first whose bound exceeds the best objective refitted so far (or the current objective):
+//! the outcome is that of refitting every trial, at the cost of a few refits. (An earlier version
+//! refitted a fixed shortlist of the 48 best first-order gains per element taken out: it missed
+//! improving swaps and spent most of its time on refits that could not win.) Trials are refitted
+//! in batches of a fixed size, so the counts reported do not depend on the thread count either.
+//!
+//! **Escaping local optima.** One exchange search stops in a local optimum: no single swap
+//! improves, yet elements that only help together (an antagonistic pair, two crank phases) are
+//! never tried. [`search`] adds two remedies. *2-for-2 swaps*: when no single swap improves,
+//! every pair of chosen elements is removed and the best two replacements are added greedily; an
+//! improvement resumes the exchange moves. *Random restarts*: iterated local search in a fixed
+//! number of chains ([`CHAINS`], whatever the thread count). Each step of a chain replaces some
+//! elements of the chain's best support by elements drawn from a pool (the dense solution's
+//! support) with its own SplitMix64 stream (seed, step), runs the exchange moves from there (and
+//! the pair swaps when that optimum is within 5 % of the chain's best) and keeps the result if it
+//! improves on the chain's best. Chains run in parallel and
+//! the winner is the smallest objective, ties broken by chain index: the result does not depend
+//! on the thread count. Chaining matters: on the paper's catalogue with K = 12 most perturbations
+//! of one optimum fall back into it, while a chain that moved on keeps exploring from there.
+//!
+//! **Groups.** The search counts *items*, not columns ([`Items`]): a spring is one column, a cam
+//! all its basis columns, chosen or left out together and counted as one element.
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls, nnls_warm};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::rng::SplitMix64;
 
 /// Stream offset of the restarts (the as-built builds use small stream indices of the same seed).
 const RESTART_STREAM: u64 = 0x5e1e_c700_0000;
 
+/// Chains of the iterated local search: the restarts are dealt out to this many chains, a fixed
+/// number so that the result does not depend on the thread count.
+pub const CHAINS: usize = 8;
+
+/// A restart's local optimum is refined by pair swaps only if its objective is below this
+/// multiple of its chain's best (pair swaps cost most of a restart; far worse optima rarely win).
+const PAIR_WITHIN: f64 = 1.05;
+
+/// Trials refitted together between two checks of the bound: fixed, so the number of refits
+/// does not depend on the thread count.
+const BATCH: usize = 8;
+
 /// Settings of the sparse selection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SelectionSettings {
-    /// At most this many elements.
+    /// At most this many elements (items: a cam counts once).
     pub max_elements: usize,
     /// Most passes of exchange moves after the greedy build.
     pub swap_passes: usize,
     /// Random restarts of the local search besides the one from the given start (0: the single
-    /// exchange search of [`select_from`]).
+    /// exchange search of [`select_from`]), dealt out to [`CHAINS`] chains.
     pub restarts: usize,
     /// Also try 2-for-2 swaps when no single exchange improves.
     pub pair_swaps: bool,
     /// Seed of the restarts (restart r draws from its own stream).
     pub seed: u64,
-    /// With a screen (see [`search`]): refit only this many replacements per removed element,
-    /// the best by the screen's score (0: all).
-    pub shortlist: usize,
 }
 
-/// A screen: given a support and its refitted stiffnesses, a score per candidate of how much
-/// adding it would lower the objective (0 or less: not worth a refit). Used to shortlist the
-/// replacements an exchange or pair move refits.
-pub type Screen<'a> = &'a (dyn Fn(&[usize], &[f64]) -> Vec<f64> + Sync);
+/// Lower bounds for the search: given a support, for every item a lower bound on the objective
+/// of the support with that item added (anything for items already in the support). The search
+/// refits only trials whose bound could beat the best objective found (see the module docs).
+pub type Bound<'a> = &'a (dyn Fn(&[usize]) -> Vec<f64> + Sync);
 
-/// The `limit` best-scoring candidates outside `exclude` with a positive score, best first
-/// (ties by index).
-fn shortlist(scores: &[f64], exclude: &[usize], limit: usize) -> Vec<usize> {
-    let mut c: Vec<usize> =
-        (0..scores.len()).filter(|j| scores[*j] > 0.0 && scores[*j].is_finite() && !exclude.contains(j)).collect();
-    c.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-    c.truncate(limit);
-    c
+/// The candidates as the selection counts them: item i stands for the columns `members[i]` of
+/// the least-squares problem. A spring is one column; a cam is all its basis columns, chosen or
+/// left out together and counted as one element.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Items {
+    members: Vec<Vec<usize>>,
+}
+
+impl Items {
+    /// Every column its own item (item j is column j).
+    pub fn singletons(p: usize) -> Items {
+        Items { members: (0..p).map(|j| vec![j]).collect() }
+    }
+
+    /// Columns with the same group (`Some(g)`) form one item, the others one item each; items are
+    /// numbered in order of their first column, so without groups item j is column j.
+    pub fn from_groups(groups: &[Option<usize>]) -> Items {
+        let mut members: Vec<Vec<usize>> = Vec::new();
+        let mut item_of_group: Vec<(usize, usize)> = Vec::new();
+        for (j, g) in groups.iter().enumerate() {
+            match g {
+                None => members.push(vec![j]),
+                Some(g) => match item_of_group.iter().find(|(h, _)| h == g) {
+                    Some(&(_, i)) => members[i].push(j),
+                    None => {
+                        item_of_group.push((*g, members.len()));
+                        members.push(vec![j]);
+                    }
+                },
+            }
+        }
+        Items { members }
+    }
+
+    /// Number of items.
+    pub fn len(&self) -> usize {
+        self.members.len()
+    }
+
+    /// Whether there are no items.
+    pub fn is_empty(&self) -> bool {
+        self.members.is_empty()
+    }
+
+    /// The columns of item `i`.
+    pub fn members(&self, i: usize) -> &[usize] {
+        &self.members[i]
+    }
+
+    /// The columns of the items in `support`, ascending.
+    pub fn columns(&self, support: &[usize]) -> Vec<usize> {
+        let mut c: Vec<usize> = support.iter().flat_map(|&i| self.members[i].iter().copied()).collect();
+        c.sort_unstable();
+        c
+    }
+
+    /// The items with at least one column for which `used` holds, ascending.
+    pub fn touching(&self, used: impl Fn(usize) -> bool) -> Vec<usize> {
+        (0..self.len()).filter(|&i| self.members[i].iter().any(|&j| used(j))).collect()
+    }
+
+    /// Per item of `support`, the largest of `k` (given per column of `columns`, ascending) over
+    /// its columns: positive when the item is used.
+    fn per_item(&self, support: &[usize], columns: &[usize], k: &[f64]) -> Vec<f64> {
+        support
+            .iter()
+            .map(|&i| {
+                self.members[i]
+                    .iter()
+                    .map(|j| columns.binary_search(j).map_or(0.0, |a| k[a]))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .collect()
+    }
 }
 
 /// The outcome of a selection.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Selection {
-    /// Chosen candidate indices, ascending (elements refitted to zero are dropped).
+    /// Chosen items, ascending (items refitted to zero are dropped).
     pub support: Vec<usize>,
     /// Objective of the refit on the support.
     pub objective: f64,
@@ -97,7 +187,7 @@ where
         if support.len() >= k_max {
             break;
         }
-        let trials: Vec<(usize, f64, Vec<usize>)> = (0..p)
+        let trials: Vec<Scored> = (0..p)
             .into_par_iter()
             .filter(|j| !support.contains(j))
             .map(|j| {
@@ -117,7 +207,7 @@ where
             _ => break,
         }
     }
-    exchange(p, settings, objective, support, best, evaluations, None)
+    exchange(p, settings, &objective, support, best, evaluations, None)
 }
 
 /// Exchange moves from a given support (e.g. one found by backward elimination).
@@ -126,87 +216,117 @@ where
     F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
 {
     let (best, _) = objective(&support)?;
-    exchange(p, settings, objective, support, best, 1, None)
+    exchange(p, settings, &objective, support, best, 1, None)
 }
 
+/// A trial support before its refit: its index in the pass (for ties) and its lower bound.
+struct Trial {
+    index: usize,
+    bound: f64,
+    support: Vec<usize>,
+}
+
+/// A refitted trial: its index, objective and support without the elements refitted to zero.
+type Scored = (usize, f64, Vec<usize>);
+
+/// The trial with the smallest refitted objective below `threshold` (ties by index), and the
+/// number of refits. With bounds, trials are refitted in increasing order of their bound, in
+/// batches of [`BATCH`], until the next bound exceeds the best objective so far: no trial left
+/// can beat it, so the outcome is that of refitting them all. Without bounds every trial is
+/// refitted in one parallel sweep.
+fn best_trial<F>(
+    mut trials: Vec<Trial>,
+    threshold: f64,
+    objective: &F,
+    bounded: bool,
+) -> Result<(Option<Scored>, usize)>
+where
+    F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
+{
+    if bounded {
+        trials.sort_by(|a, b| a.bound.total_cmp(&b.bound).then(a.index.cmp(&b.index)));
+    }
+    let batch = if bounded { BATCH } else { trials.len().max(1) };
+    let mut best: Option<Scored> = None;
+    let mut evaluations = 0;
+    let mut at = 0;
+    while at < trials.len() {
+        let limit = best.as_ref().map_or(threshold, |b| b.1.min(threshold));
+        let n = trials[at..].iter().take(batch).take_while(|t| may_beat(t.bound, limit)).count();
+        if n == 0 {
+            break;
+        }
+        let scored: Vec<Scored> = trials[at..at + n]
+            .par_iter()
+            .map(|t| {
+                let (obj, k) = objective(&t.support)?;
+                Ok((t.index, obj, prune(&t.support, &k)))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        at += n;
+        evaluations += n;
+        for s in scored {
+            let better = best.as_ref().is_none_or(|b| s.1 < b.1 || (s.1 == b.1 && s.0 < b.0));
+            if s.1.is_finite() && s.1 < threshold && better {
+                best = Some(s);
+            }
+        }
+    }
+    Ok((best, evaluations))
+}
+
+/// Exchange moves from `support` (objective `best`) until none improves or `swap_passes` are
+/// spent: per pass, every element out and every other in (and plain additions while below the
+/// budget); the best improving trial is taken.
 fn exchange<F>(
     p: usize,
     settings: SelectionSettings,
-    objective: F,
+    objective: &F,
     mut support: Vec<usize>,
     mut best: f64,
     mut evaluations: usize,
-    screen: Option<Screen<'_>>,
+    bound: Option<Bound<'_>>,
 ) -> Result<Selection>
 where
     F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
 {
     let k_max = settings.max_elements.min(p);
-    let screen = screen.filter(|_| settings.shortlist > 0);
-    // Exchange moves: best improving swap per pass.
     let mut swaps = 0;
     for _ in 0..settings.swap_passes {
+        let threshold = best * (1.0 - 1e-9);
         let out: Vec<usize> = (0..p).filter(|j| !support.contains(j)).collect();
-        let (moves, adds): (Vec<(usize, usize)>, Vec<usize>) = match screen {
-            None => (
-                support.iter().flat_map(|&i| out.iter().map(move |&j| (i, j))).collect(),
-                // Also allow plain additions while below the budget.
-                if support.len() < k_max { out.clone() } else { Vec::new() },
-            ),
-            Some(sc) => {
-                // Per removed element, only the replacements the screen ranks best.
-                let per: Vec<Vec<(usize, usize)>> = support
-                    .par_iter()
-                    .map(|&i| {
-                        let reduced: Vec<usize> = support.iter().copied().filter(|&x| x != i).collect();
-                        let (_, k) = objective(&reduced)?;
-                        let scores = sc(&reduced, &k);
-                        Ok(shortlist(&scores, &support, settings.shortlist).into_iter().map(|j| (i, j)).collect())
-                    })
-                    .collect::<Result<Vec<_>>>()?;
-                evaluations += support.len();
-                let adds = if support.len() < k_max {
-                    let (_, k) = objective(&support)?;
-                    evaluations += 1;
-                    shortlist(&sc(&support, &k), &support, settings.shortlist)
-                } else {
-                    Vec::new()
-                };
-                (per.concat(), adds)
-            }
-        };
-        let mut trials: Vec<(usize, f64, Vec<usize>)> = moves
-            .par_iter()
-            .enumerate()
-            .map(|(t, &(i, j))| {
-                let mut s: Vec<usize> = support.iter().copied().filter(|&x| x != i).collect();
-                s.push(j);
-                s.sort_unstable();
-                let (obj, k) = objective(&s)?;
-                Ok((t, obj, prune(&s, &k)))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let offset = moves.len();
-        trials.extend(
-            adds.par_iter()
-                .enumerate()
-                .map(|(t, &j)| {
-                    let mut s = support.clone();
+        // The bases the trials extend: the support without each element, and the support itself
+        // (plain additions) while below the budget.
+        let mut bases: Vec<Vec<usize>> =
+            support.iter().map(|&i| support.iter().copied().filter(|&x| x != i).collect()).collect();
+        if support.len() < k_max {
+            bases.push(support.clone());
+        }
+        let bounds: Vec<Option<Vec<f64>>> = bases.par_iter().map(|r| bound.map(|b| b(r))).collect();
+        let mut trials = Vec::new();
+        let mut index = 0;
+        for (r, b) in bases.iter().zip(&bounds) {
+            for &j in &out {
+                let lb = b.as_ref().map_or(f64::NEG_INFINITY, |b| b[j]);
+                // A trial whose bound is above the threshold cannot improve.
+                if may_beat(lb, threshold) {
+                    let mut s = r.clone();
                     s.push(j);
                     s.sort_unstable();
-                    let (obj, k) = objective(&s)?;
-                    Ok((offset + t, obj, prune(&s, &k)))
-                })
-                .collect::<Result<Vec<_>>>()?,
-        );
-        evaluations += trials.len();
-        match pick(trials) {
-            Some((_, obj, s)) if obj < best * (1.0 - 1e-9) => {
+                    trials.push(Trial { index, bound: lb, support: s });
+                }
+                index += 1;
+            }
+        }
+        let (found, evals) = best_trial(trials, threshold, objective, bound.is_some())?;
+        evaluations += evals;
+        match found {
+            Some((_, obj, s)) => {
                 best = obj;
                 support = s;
                 swaps += 1;
             }
-            _ => break,
+            None => break,
         }
     }
     let (objective, k) = objective(&support)?;
@@ -217,18 +337,18 @@ where
 
 /// Local search from `start` with 2-for-2 swaps and random restarts (see the module docs): the
 /// exchange moves from `start`, refined by 2-for-2 swaps alternating with exchange moves, give a
-/// first optimum; each restart perturbs it and runs exchange moves (in parallel); the best of
-/// all, ties broken by restart index, is refined by pair swaps again (they cost K² shortlists a
-/// round, too many to spend on every restart). `pool` holds the candidates restarts draw from
-/// (all candidates when it has fewer than 2K). `screen` shortlists the replacements (see
-/// [`gain_scores`]); without it every candidate is refitted.
+/// first optimum; `restarts` steps of iterated local search, dealt out to [`CHAINS`] chains that
+/// run in parallel, each perturb their chain's best and run the exchange moves and pair swaps
+/// from there; the best of all, ties broken by chain index, is returned. `pool` holds the
+/// candidates restarts draw from (all candidates when it has fewer than 2K). `bound` gives lower
+/// bounds on trial objectives (see [`extension_bounds`]); without it every trial is refitted.
 pub fn search<F>(
     p: usize,
     settings: SelectionSettings,
     start: Vec<usize>,
     pool: &[usize],
     objective: F,
-    screen: Option<Screen<'_>>,
+    bound: Option<Bound<'_>>,
 ) -> Result<Selection>
 where
     F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
@@ -238,45 +358,51 @@ where
     let pool: &[usize] = if pool.len() >= 2 * k_max { pool } else { &all };
     // The local optimum from the given start, refined by pair swaps.
     let (obj0, _) = objective(&start)?;
-    let first = exchange(p, settings, &objective, start, obj0, 1, screen)?;
-    let first = {
-        let refined = pair_refine(p, settings, first.clone(), &objective, screen)?;
-        Selection {
-            evaluations: first.evaluations + refined.evaluations,
-            swaps: first.swaps + refined.swaps,
-            ..refined
-        }
-    };
-    // Restarts from perturbations of it, in parallel.
-    let centre = first.support.clone();
-    let runs: Vec<Selection> = (1..=settings.restarts)
+    let first = exchange(p, settings, &objective, start, obj0, 1, bound)?;
+    let first = pair_refine(p, settings, first, &objective, bound)?;
+    // Chains of iterated local search, in parallel; restart r belongs to chain (r − 1) mod CHAINS.
+    let chains: Vec<Selection> = (0..CHAINS.min(settings.restarts))
         .into_par_iter()
-        .map(|r| {
-            let mut rng = SplitMix64::stream(settings.seed, RESTART_STREAM + r as u64);
-            // Perturbations of every size from one element to half the support, in turn: small
-            // ones explore near the optimum, large ones farther away.
-            let half = centre.len().div_ceil(2).max(1);
-            let s = perturbed(&centre, pool, k_max, 1 + (r - 1) % half, &mut rng);
-            let (obj, _) = objective(&s)?;
-            exchange(p, settings, &objective, s, obj, 1, screen)
+        .map(|c| {
+            let mut current = Selection { evaluations: 0, swaps: 0, ..first.clone() };
+            let (mut evaluations, mut swaps) = (0, 0);
+            for r in (c + 1..=settings.restarts).step_by(CHAINS) {
+                let mut rng = SplitMix64::stream(settings.seed, RESTART_STREAM + r as u64);
+                // Perturbations of every size from one element to half the support, in turn:
+                // small ones explore near the optimum, large ones farther away.
+                let centre = &current.support;
+                let half = centre.len().div_ceil(2).max(1);
+                let step = (r - 1) / CHAINS;
+                let s = perturbed(centre, pool, k_max, 1 + step % half, &mut rng);
+                let (obj, _) = objective(&s)?;
+                let local = exchange(p, settings, &objective, s, obj, 1, bound)?;
+                // Pair swaps cost K²/2 greedy refills: spent only on optima near the chain's best.
+                let local = if local.objective < current.objective * PAIR_WITHIN {
+                    pair_refine(p, settings, local, &objective, bound)?
+                } else {
+                    local
+                };
+                evaluations += local.evaluations;
+                swaps += local.swaps;
+                if local.objective < current.objective * (1.0 - 1e-9) {
+                    current = local;
+                }
+            }
+            Ok(Selection { evaluations, swaps, ..current })
         })
         .collect::<Result<Vec<_>>>()?;
-    let evaluations: usize = first.evaluations + runs.iter().map(|r| r.evaluations).sum::<usize>();
-    let swaps: usize = first.swaps + runs.iter().map(|r| r.swaps).sum::<usize>();
-    // The best, ties broken by restart index (the first search is index 0).
+    let evaluations: usize = first.evaluations + chains.iter().map(|r| r.evaluations).sum::<usize>();
+    let swaps: usize = first.swaps + chains.iter().map(|r| r.swaps).sum::<usize>();
+    // The best, ties broken by chain index (the first search is index 0).
     let best = std::iter::once(first)
-        .chain(runs)
+        .chain(chains)
         .enumerate()
         .filter(|(_, r)| r.objective.is_finite())
         .min_by(|a, b| a.1.objective.total_cmp(&b.1.objective).then(a.0.cmp(&b.0)));
-    let Some((index, best)) = best else {
-        return Err(crate::error::Error::numerical("sparse selection", "no finite objective"));
+    let Some((_, best)) = best else {
+        return Err(Error::numerical("sparse selection", "no finite objective"));
     };
-    if index == 0 {
-        return Ok(Selection { evaluations, swaps, ..best });
-    }
-    let refined = pair_refine(p, settings, best, &objective, screen)?;
-    Ok(Selection { evaluations: evaluations + refined.evaluations, swaps: swaps + refined.swaps, ..refined })
+    Ok(Selection { evaluations, swaps, ..best })
 }
 
 /// `start` with `drop` of its elements replaced by random members of `pool`.
@@ -300,26 +426,26 @@ fn perturbed(start: &[usize], pool: &[usize], k_max: usize, drop: usize, rng: &m
 
 /// 2-for-2 swaps (if enabled) alternating with exchange moves from a local optimum of the
 /// exchange moves, until neither improves or `swap_passes` rounds are spent. The counts returned
-/// are those of the refinement alone.
+/// include those of `from`.
 fn pair_refine<F>(
     p: usize,
     settings: SelectionSettings,
     from: Selection,
     objective: &F,
-    screen: Option<Screen<'_>>,
+    bound: Option<Bound<'_>>,
 ) -> Result<Selection>
 where
     F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
 {
-    let mut sel = Selection { evaluations: 0, swaps: 0, ..from };
+    let mut sel = from;
     if !settings.pair_swaps {
         return Ok(sel);
     }
     for _ in 0..settings.swap_passes {
-        let (found, evals) = pair_swap(p, settings, &sel.support, sel.objective, objective, screen)?;
+        let (found, evals) = pair_swap(p, settings, &sel.support, sel.objective, objective, bound)?;
         sel.evaluations += evals;
         let Some((obj, s)) = found else { break };
-        let next = exchange(p, settings, objective, s, obj, 0, screen)?;
+        let next = exchange(p, settings, objective, s, obj, 0, bound)?;
         sel = Selection { evaluations: sel.evaluations + next.evaluations, swaps: sel.swaps + next.swaps + 1, ..next };
     }
     Ok(sel)
@@ -337,13 +463,13 @@ fn pair_swap<F>(
     support: &[usize],
     best: f64,
     objective: &F,
-    screen: Option<Screen<'_>>,
+    bound: Option<Bound<'_>>,
 ) -> Result<(Option<Candidate>, usize)>
 where
     F: Fn(&[usize]) -> Result<(f64, Vec<f64>)> + Sync,
 {
     let k_max = settings.max_elements.min(p);
-    let screen = screen.filter(|_| settings.shortlist > 0);
+    let threshold = best * (1.0 - 1e-9);
     let pairs: Vec<(usize, usize)> =
         (0..support.len()).flat_map(|a| (a + 1..support.len()).map(move |b| (a, b))).collect();
     let trials: Vec<(usize, f64, Vec<usize>, usize)> = pairs
@@ -354,32 +480,30 @@ where
             let mut s: Vec<usize> = support.iter().copied().filter(|x| !removed.contains(x)).collect();
             let mut obj = f64::INFINITY;
             let mut evals = 0;
-            for _ in 0..2 {
+            for step in 0..2 {
                 if s.len() >= k_max {
                     break;
                 }
-                let mut step: Option<(f64, usize, Vec<usize>)> = None;
-                let tries: Vec<usize> = match screen {
-                    None => (0..p).filter(|j| !s.contains(j) && !removed.contains(j)).collect(),
-                    Some(sc) => {
-                        let (_, k) = objective(&s)?;
-                        evals += 1;
-                        let mut exclude = s.clone();
-                        exclude.extend_from_slice(&removed);
-                        shortlist(&sc(&s, &k), &exclude, settings.shortlist)
-                    }
+                // Only the last addition has to beat the threshold; the first may be anything.
+                let last = step == 1 || s.len() + 1 >= k_max;
+                let limit = if last { threshold } else { f64::INFINITY };
+                let lb = bound.map(|b| b(&s));
+                let tries: Vec<Trial> = (0..p)
+                    .filter(|j| !s.contains(j) && !removed.contains(j))
+                    .map(|j| {
+                        let mut trial = s.clone();
+                        trial.push(j);
+                        trial.sort_unstable();
+                        Trial { index: j, bound: lb.as_ref().map_or(f64::NEG_INFINITY, |b| b[j]), support: trial }
+                    })
+                    .filter(|t| may_beat(t.bound, limit))
+                    .collect();
+                let (found, e) = best_trial(tries, limit, objective, bound.is_some())?;
+                evals += e;
+                let Some((_, o, next)) = found else {
+                    obj = f64::INFINITY;
+                    break;
                 };
-                for j in tries {
-                    let mut trial = s.clone();
-                    trial.push(j);
-                    trial.sort_unstable();
-                    let (o, k) = objective(&trial)?;
-                    evals += 1;
-                    if o.is_finite() && step.as_ref().is_none_or(|(bo, _, _)| o < *bo) {
-                        step = Some((o, j, prune(&trial, &k)));
-                    }
-                }
-                let Some((o, _, next)) = step else { break };
                 obj = o;
                 s = next;
             }
@@ -388,22 +512,24 @@ where
         .collect::<Result<Vec<_>>>()?;
     let evals = trials.iter().map(|t| t.3).sum();
     let winner = pick(trials.into_iter().map(|(t, o, s, _)| (t, o, s)).collect());
-    Ok((winner.filter(|(_, o, _)| *o < best * (1.0 - 1e-9)).map(|(_, o, s)| (o, s)), evals))
+    Ok((winner.filter(|(_, o, _)| *o < threshold).map(|(_, o, s)| (o, s)), evals))
 }
 
-/// Backward elimination from `start` down to at most `k_max` elements on the normal equations:
-/// each step refits by NNLS (warm-started from the previous support) and removes the elements
-/// whose removal raises the objective least by the least-squares deletion estimate
-/// kⱼ² / (G_S⁻¹)ⱼⱼ (elements refitted to zero go first). While the support is much larger than
-/// the budget, an eighth of the excess goes per step; the last steps remove one at a time.
-pub fn backward_elimination(gram: &Gram, start: Vec<usize>, k_max: usize) -> Result<Vec<usize>> {
+/// Backward elimination over `items` from `start` down to at most `k_max` items on the normal
+/// equations: each step refits by NNLS (warm-started from the previous support) and removes the
+/// items whose removal raises the objective least by the least-squares deletion estimate
+/// k_Gᵀ ((G_S⁻¹)_GG)⁻¹ k_G (kⱼ² / (G_S⁻¹)ⱼⱼ for a single column; items refitted to zero go
+/// first). While the support is much larger than the budget, an eighth of the excess goes per
+/// step; the last steps remove one at a time.
+pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max: usize) -> Result<Vec<usize>> {
     let settings = NnlsSettings::default();
     let mut support = start;
     loop {
-        let sub = gram.subset(&support);
-        let all: Vec<usize> = (0..support.len()).collect();
+        let cols = items.columns(&support);
+        let sub = gram.subset(&cols);
+        let all: Vec<usize> = (0..cols.len()).collect();
         let sol = nnls_warm(&sub, 0.0, &settings, &all)?;
-        let kept = prune(&support, sol.k.as_slice());
+        let kept = prune(&support, &items.per_item(&support, &cols, sol.k.as_slice()));
         if kept.len() < support.len() {
             support = kept;
             continue;
@@ -411,16 +537,33 @@ pub fn backward_elimination(gram: &Gram, start: Vec<usize>, k_max: usize) -> Res
         if support.len() <= k_max {
             return Ok(support);
         }
-        let n = support.len();
+        let n = cols.len();
         let mut g = sub.g.clone();
         let ridge = 1e-12 * g.diagonal().amax().max(1e-300);
         for a in 0..n {
             g[(a, a)] += ridge;
         }
         let inv = g.try_inverse().unwrap_or_else(|| DMatrix::identity(n, n));
-        let mut cost: Vec<(usize, f64)> = (0..n).map(|a| (a, sol.k[a] * sol.k[a] / inv[(a, a)].max(1e-300))).collect();
+        let mut cost: Vec<(usize, f64)> = support
+            .iter()
+            .enumerate()
+            .map(|(a, &i)| {
+                let at: Vec<usize> = items.members(i).iter().map(|j| cols.binary_search(j).unwrap_or(0)).collect();
+                if let [c] = at[..] {
+                    return (a, sol.k[c] * sol.k[c] / inv[(c, c)].max(1e-300));
+                }
+                let k = DVector::from_fn(at.len(), |r, _| sol.k[at[r]]);
+                let mut block = DMatrix::from_fn(at.len(), at.len(), |r, s| inv[(at[r], at[s])]);
+                let scale = block.diagonal().amax().max(1e-300);
+                for r in 0..at.len() {
+                    block[(r, r)] += 1e-12 * scale;
+                }
+                let cost = block.cholesky().map_or(f64::INFINITY, |ch| k.dot(&ch.solve(&k)));
+                (a, cost)
+            })
+            .collect();
         cost.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
-        let excess = n - k_max;
+        let excess = support.len() - k_max;
         let remove = if excess > 8 { excess / 8 } else { 1 };
         let mut victims: Vec<usize> = cost.iter().take(remove).map(|c| c.0).collect();
         victims.sort_unstable_by(|a, b| b.cmp(a));
@@ -430,66 +573,95 @@ pub fn backward_elimination(gram: &Gram, start: Vec<usize>, k_max: usize) -> Res
     }
 }
 
-/// The objective and stiffnesses of the NNLS refit of `gram` on `support` (the usual objective
-/// for [`select`] and [`select_from`]).
-pub fn subset_nnls(gram: &Gram, support: &[usize]) -> Result<(f64, Vec<f64>)> {
-    let sol = nnls(&gram.subset(support), 0.0, &NnlsSettings::default())?;
-    Ok((sol.objective, sol.k.iter().copied().collect()))
+/// The objective of the NNLS refit of `gram` on the columns of the items in `support`, and per
+/// item its largest stiffness (the usual objective for [`select`] and [`select_from`]).
+pub fn subset_nnls(gram: &Gram, items: &Items, support: &[usize]) -> Result<(f64, Vec<f64>)> {
+    let cols = items.columns(support);
+    let sol = nnls(&gram.subset(&cols), 0.0, &NnlsSettings::default())?;
+    Ok((sol.objective, items.per_item(support, &cols, sol.k.as_slice())))
 }
 
 /// [`subset_nnls`] warm-started with the whole support passive: the exchange and pair trials
 /// differ from a solved support by one or two elements, so one passive-set solve usually settles
 /// them (same answer as the cold start up to round-off, several times faster).
-pub fn subset_nnls_warm(gram: &Gram, support: &[usize]) -> Result<(f64, Vec<f64>)> {
-    let all: Vec<usize> = (0..support.len()).collect();
-    let sol = nnls_warm(&gram.subset(support), 0.0, &NnlsSettings::default(), &all)?;
-    Ok((sol.objective, sol.k.iter().copied().collect()))
+pub fn subset_nnls_warm(gram: &Gram, items: &Items, support: &[usize]) -> Result<(f64, Vec<f64>)> {
+    let cols = items.columns(support);
+    let all: Vec<usize> = (0..cols.len()).collect();
+    let sol = nnls_warm(&gram.subset(&cols), 0.0, &NnlsSettings::default(), &all)?;
+    Ok((sol.objective, items.per_item(support, &cols, sol.k.as_slice())))
 }
 
-/// A [`Screen`] for the least-squares problem `gram`: the drop of the unconstrained objective
-/// when candidate j joins `support` (stiffnesses `k`), wⱼ² / (Gⱼⱼ − G_jS G_SS⁻¹ G_Sj) with
-/// w = c − G_{:,S} k; 0 where wⱼ ≤ 0 (with kⱼ ≥ 0 it cannot help to first order).
-pub fn gain_scores(gram: &Gram, support: &[usize], k: &[f64]) -> Vec<f64> {
+/// A [`Bound`] for the least-squares problem `gram`: for every item g outside `support`, a lower
+/// bound on the NNLS objective of the support with g added, the unconstrained minimum over the
+/// same columns, bᵀb − ‖y‖² − w_Gᵀ S_G⁻¹ w_G with L Lᵀ = G_RR (R the support's columns),
+/// y = L⁻¹ c_R, V = L⁻¹ G_RG, w_G = c_G − Vᵀ y and S_G = G_GG − Vᵀ V (the Schur complement). One
+/// factorisation and one triangular solve against all columns serve every item. A small margin
+/// (relative to bᵀb, whose cancellation limits the accuracy of every objective) keeps round-off
+/// from pruning a trial that ties. `+∞` for items in the support and for empty columns.
+pub fn extension_bounds(gram: &Gram, items: &Items, support: &[usize]) -> Vec<f64> {
     let p = gram.dim();
-    let ns = support.len();
-    let mut w = gram.c.clone();
-    for (a, &i) in support.iter().enumerate() {
-        if k[a] != 0.0 {
-            w -= gram.g.column(i) * k[a];
-        }
+    let cols = items.columns(support);
+    let n = cols.len();
+    // G_RR with the NNLS solver's ridge (1e-12 of each diagonal entry).
+    let mut grr = DMatrix::from_fn(n, n, |a, b| gram.g[(cols[a], cols[b])]);
+    for a in 0..n {
+        grr[(a, a)] *= 1.0 + 1e-12;
     }
-    let gs = DMatrix::from_fn(ns, p, |a, j| gram.g[(support[a], j)]);
-    let x = if ns == 0 {
-        None
-    } else {
-        let mut gss = DMatrix::from_fn(ns, ns, |a, b| gram.g[(support[a], support[b])]);
-        let ridge = 1e-12 * gss.diagonal().amax().max(1e-300);
-        for a in 0..ns {
-            gss[(a, a)] += ridge;
-        }
-        gss.cholesky().map(|c| c.solve(&gs))
+    let Some(l) = grr.cholesky().map(|c| c.l()) else {
+        // Degenerate support: no bound (every trial is refitted).
+        return (0..items.len())
+            .map(|i| if support.contains(&i) { f64::INFINITY } else { f64::NEG_INFINITY })
+            .collect();
     };
-    (0..p)
-        .map(|j| {
-            let gjj = gram.g[(j, j)];
-            if w[j] <= 0.0 || gjj <= 0.0 {
-                return 0.0;
+    let cr = DVector::from_fn(n, |a, _| gram.c[cols[a]]);
+    let y = l.solve_lower_triangular(&cr).unwrap_or_else(|| DVector::zeros(n));
+    let grp = DMatrix::from_fn(n, p, |a, j| gram.g[(cols[a], j)]);
+    let v = l.solve_lower_triangular(&grp).unwrap_or_else(|| DMatrix::zeros(n, p));
+    let base = gram.bb - y.norm_squared();
+    let margin = 1e-12 * gram.bb.abs() + 1e-9 * base.abs();
+    // Per column: wⱼ = cⱼ − vⱼ·y.
+    let w = DVector::from_fn(p, |j, _| gram.c[j] - v.column(j).dot(&y));
+    (0..items.len())
+        .map(|i| {
+            if support.contains(&i) {
+                return f64::INFINITY;
             }
-            let schur = match &x {
-                Some(x) => gjj - (0..ns).map(|a| gs[(a, j)] * x[(a, j)]).sum::<f64>(),
-                None => gjj,
+            let m = items.members(i);
+            if m.iter().all(|&j| gram.g[(j, j)] <= 0.0) {
+                return f64::INFINITY;
+            }
+            let gain = if let [j] = m[..] {
+                let s = gram.g[(j, j)] - v.column(j).norm_squared();
+                if s <= 1e-12 * gram.g[(j, j)] { 0.0 } else { w[j] * w[j] / s }
+            } else {
+                let q = m.len();
+                let mut s = DMatrix::from_fn(q, q, |a, b| gram.g[(m[a], m[b])] - v.column(m[a]).dot(&v.column(m[b])));
+                let scale = (0..q).map(|a| gram.g[(m[a], m[a])]).fold(0.0, f64::max);
+                for a in 0..q {
+                    s[(a, a)] += 1e-12 * scale;
+                }
+                let wg = DVector::from_fn(q, |a, _| w[m[a]]);
+                // A Schur complement that is not positive definite (round-off in a dependent
+                // block): no bound for this item.
+                s.cholesky().map_or(f64::INFINITY, |ch| wg.dot(&ch.solve(&wg)))
             };
-            if schur <= 1e-12 * gjj { 0.0 } else { w[j] * w[j] / schur }
+            base - gain - margin
         })
         .collect()
 }
 
+/// Whether a trial with lower bound `bound` may reach `limit` (a NaN bound bounds nothing).
+fn may_beat(bound: f64, limit: f64) -> bool {
+    bound <= limit || bound.is_nan()
+}
+
 /// The trial with the smallest objective, ties broken by trial index.
-fn pick(trials: Vec<(usize, f64, Vec<usize>)>) -> Option<(usize, f64, Vec<usize>)> {
+fn pick(trials: Vec<Scored>) -> Option<Scored> {
     trials.into_iter().filter(|t| t.1.is_finite()).min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
 }
 
-/// The support without elements refitted to exactly zero.
+/// The support without elements refitted to exactly zero (or below: a group's largest
+/// coefficient).
 fn prune(support: &[usize], k: &[f64]) -> Vec<usize> {
     support.iter().zip(k).filter(|(_, k)| **k > 0.0).map(|(s, _)| *s).collect()
 }
@@ -510,7 +682,7 @@ mod tests {
     }
 
     const NONE: SelectionSettings =
-        SelectionSettings { max_elements: 0, swap_passes: 0, restarts: 0, pair_swaps: false, seed: 1, shortlist: 0 };
+        SelectionSettings { max_elements: 0, swap_passes: 0, restarts: 0, pair_swaps: false, seed: 1 };
 
     #[test]
     fn exchange_moves_find_what_greedy_misses() {
@@ -594,5 +766,119 @@ mod tests {
         let paired =
             search(5, SelectionSettings { pair_swaps: true, ..base }, vec![0, 1], &[], |s| Ok(pair(s)), None).unwrap();
         assert_eq!(paired.support, vec![2, 3]);
+    }
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    /// A least-squares problem with correlated columns (so that greedy choices mislead): 60 rows,
+    /// `p` columns mixing a few shared factors, right-hand side from a sparse non-negative mix
+    /// plus noise.
+    fn correlated(p: usize, seed: u64) -> Gram {
+        let mut s = seed;
+        let factors = DMatrix::from_fn(60, 6, |_, _| lcg(&mut s));
+        let a = DMatrix::from_fn(60, p, |i, j| {
+            factors[(i, j % 6)] + 0.6 * factors[(i, (j * 7 + 3) % 6)] * if j % 2 == 0 { 1.0 } else { -1.0 }
+        }) + DMatrix::from_fn(60, p, |_, _| 0.4 * lcg(&mut s));
+        let truth = DVector::from_fn(p, |j, _| if j % 5 == 1 { 1.0 + 0.3 * j as f64 / p as f64 } else { 0.0 });
+        let b = &a * truth + DVector::from_fn(60, |_, _| 0.3 * lcg(&mut s));
+        Gram::from_rows(&a, &b)
+    }
+
+    /// Every subset of at most `k` items, refitted by NNLS: the best objective.
+    fn brute_force(gram: &Gram, items: &Items, k: usize) -> f64 {
+        let n = items.len();
+        let mut best = f64::INFINITY;
+        for mask in 1u32..(1 << n) {
+            if mask.count_ones() as usize > k {
+                continue;
+            }
+            let s: Vec<usize> = (0..n).filter(|i| mask & (1 << i) != 0).collect();
+            best = best.min(subset_nnls(gram, items, &s).unwrap().0);
+        }
+        best
+    }
+
+    fn run_search(gram: &Gram, items: &Items, k: usize, restarts: usize) -> Selection {
+        let n = items.len();
+        let dense = nnls(gram, 0.0, &NnlsSettings::default()).unwrap();
+        let pool = items.touching(|j| dense.k[j] > 0.0);
+        let start = backward_elimination(gram, items, pool.clone(), k).unwrap();
+        let settings = SelectionSettings { max_elements: k, swap_passes: 50, restarts, pair_swaps: true, seed: 3 };
+        let bound = |s: &[usize]| extension_bounds(gram, items, s);
+        search(n, settings, start, &pool, |s| subset_nnls_warm(gram, items, s), Some(&bound)).unwrap()
+    }
+
+    /// The bound is a lower bound on every refit, and exact where the unconstrained refit is
+    /// non-negative; for single columns and for groups of columns.
+    #[test]
+    fn extension_bounds_are_lower_bounds() {
+        let gram = correlated(16, 21);
+        let groups: Vec<Option<usize>> = (0..16).map(|j| if j >= 10 { Some(j / 3) } else { None }).collect();
+        for items in [Items::singletons(16), Items::from_groups(&groups)] {
+            let mut exact = 0;
+            for support in [vec![], vec![1], vec![0, 3, 6], vec![2, 4, 5, 8]] {
+                let support: Vec<usize> = support.into_iter().filter(|&i| i < items.len()).collect();
+                let bounds = extension_bounds(&gram, &items, &support);
+                for i in (0..items.len()).filter(|i| !support.contains(i)) {
+                    let mut s = support.clone();
+                    s.push(i);
+                    s.sort_unstable();
+                    let (obj, _) = subset_nnls(&gram, &items, &s).unwrap();
+                    assert!(bounds[i] <= obj * (1.0 + 1e-9) + 1e-9, "{support:?} + {i}: {} > {obj}", bounds[i]);
+                    if (obj - bounds[i]).abs() < 1e-6 * obj {
+                        exact += 1;
+                    }
+                }
+                assert!(support.iter().all(|&i| bounds[i] == f64::INFINITY));
+            }
+            assert!(exact > 10, "the bound should be exact for many trials, was for {exact}");
+        }
+    }
+
+    /// On problems small enough for brute force (16 columns, at most 4), the search with
+    /// restarts finds the best subset, and the same one on one thread and on four.
+    #[test]
+    fn search_finds_the_brute_force_optimum_whatever_the_threads() {
+        for seed in [5, 17, 29] {
+            let gram = correlated(16, seed);
+            let items = Items::singletons(16);
+            let best = brute_force(&gram, &items, 4);
+            let run = |threads| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                pool.install(|| run_search(&gram, &items, 4, 24))
+            };
+            let (one, four) = (run(1), run(4));
+            assert_eq!(one, four);
+            assert!(one.support.len() <= 4);
+            assert!(
+                (one.objective - best).abs() <= 1e-9 * best,
+                "seed {seed}: {} vs brute force {best}",
+                one.objective
+            );
+        }
+    }
+
+    /// Groups count once: with columns 8..16 in groups of four (two "cams") and a budget of 3,
+    /// the selection returns at most 3 items, reaches the brute-force optimum over items, and
+    /// its columns are whole groups.
+    #[test]
+    fn groups_count_as_one_element() {
+        let gram = correlated(16, 41);
+        let groups: Vec<Option<usize>> = (0..16).map(|j| if j >= 8 { Some(j / 4) } else { None }).collect();
+        let items = Items::from_groups(&groups);
+        assert_eq!(items.len(), 10);
+        assert_eq!(items.members(8), &[8, 9, 10, 11]);
+        let sel = run_search(&gram, &items, 3, 16);
+        assert!(sel.support.len() <= 3);
+        let best = brute_force(&gram, &items, 3);
+        assert!((sel.objective - best).abs() <= 1e-9 * best, "{} vs brute force {best}", sel.objective);
+        let cols = items.columns(&sel.support);
+        for g in [8, 9] {
+            let m = items.members(g);
+            assert!(m.iter().all(|j| cols.contains(j)) || m.iter().all(|j| !cols.contains(j)));
+        }
     }
 }

@@ -56,15 +56,13 @@ pub struct FitSettings {
     pub equality_weight: f64,
     /// Most passes of exchange moves in the sparse selection.
     pub swap_passes: usize,
-    /// Random restarts of the sparse selection's local search (each from the starting support
-    /// with half its elements replaced at random, seeded by `seed`). 0 with `pair_swaps = false`
-    /// is the single exchange search of springfit before restarts.
+    /// Random restarts of the sparse selection's local search: steps of iterated local search in
+    /// 8 chains, each replacing 1 to ⌈K/2⌉ elements of its chain's best support at random (seeded
+    /// by `seed`). 0 with `pair_swaps = false` is the single exchange search of springfit before
+    /// restarts.
     pub restarts: usize,
     /// Try 2-for-2 swaps in the sparse selection when no single exchange improves.
     pub pair_swaps: bool,
-    /// With restarts or pair swaps: per element taken out, refit only this many replacements,
-    /// those whose addition lowers the least-squares objective most to first order (0: all).
-    pub shortlist: usize,
     /// An element counts as used when its peak torque over the region exceeds this fraction of
     /// the largest element's peak torque.
     pub used_threshold: f64,
@@ -111,9 +109,8 @@ impl Default for FitSettings {
             l1: 0.0,
             equality_weight: 30.0,
             swap_passes: 50,
-            restarts: 32,
+            restarts: 128,
             pair_swaps: true,
-            shortlist: 48,
             used_threshold: 1e-6,
             bands: 4,
             tolerance: ToleranceSpec::None,
@@ -176,9 +173,6 @@ impl FitSettings {
         }
         if let Err(reason) = self.tolerance.validate() {
             return err("tolerance", &reason);
-        }
-        if self.shortlist > 100_000 {
-            return err("shortlist", "must be at most 100000");
         }
         if self.restarts > 10_000 {
             return err("restarts", "must be at most 10000");
