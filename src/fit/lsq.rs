@@ -27,6 +27,40 @@ impl Gram {
         Gram { g: &at * a, c: &at * b, bb: b.dot(b) }
     }
 
+    /// [`Gram::from_rows`] for rows that are mostly zero (a cam's B-spline columns: 4 of its
+    /// N + 2 basis functions are non-zero at any x), by accumulating the outer product of each
+    /// row's non-zero entries: O(m·nnz²) instead of O(m·p²) — for eight cams on 15 000 rows
+    /// about 100× less work than the dense product. Falls back to the dense product when more
+    /// than a quarter of the entries are non-zero. Deterministic (fixed summation order).
+    pub fn from_sparse_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
+        let (m, p) = a.shape();
+        let nnz = a.iter().filter(|v| **v != 0.0).count();
+        if nnz * 4 > m * p {
+            return Gram::from_rows(a, b);
+        }
+        let mut g = DMatrix::zeros(p, p);
+        let mut c = DVector::zeros(p);
+        let mut entries: Vec<(usize, f64)> = Vec::with_capacity(p);
+        for i in 0..m {
+            entries.clear();
+            entries.extend((0..p).map(|j| (j, a[(i, j)])).filter(|e| e.1 != 0.0));
+            let bi = b[i];
+            for (x, &(j, vj)) in entries.iter().enumerate() {
+                c[j] += vj * bi;
+                // Upper triangle (row index ≤ column index), column by column.
+                for &(k, vk) in &entries[x..] {
+                    g[(j, k)] += vj * vk;
+                }
+            }
+        }
+        for k in 0..p {
+            for j in 0..k {
+                g[(k, j)] = g[(j, k)];
+            }
+        }
+        Gram { g, c, bb: b.dot(b) }
+    }
+
     /// Number of unknowns.
     pub fn dim(&self) -> usize {
         self.c.len()
@@ -94,5 +128,21 @@ mod tests {
         with.add_weighted(&e, &f, 3.0);
         let extra = 9.0 * (k.sum() - 2.0).powi(2);
         assert!((with.objective(&k) - direct - extra).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sparse_rows_give_the_dense_normal_equations() {
+        // Banded rows like a cam's B-spline columns (4 non-zeros in 20), plus one dense column.
+        let mut seed = 1u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let a = DMatrix::from_fn(200, 21, |i, j| if j == 20 || (j + 4 > i % 20 && j <= i % 20) { next() } else { 0.0 });
+        let b = DVector::from_fn(200, |_, _| next());
+        let (dense, sparse) = (Gram::from_rows(&a, &b), Gram::from_sparse_rows(&a, &b));
+        assert!((&dense.g - &sparse.g).amax() < 1e-12 && (&dense.c - &sparse.c).amax() < 1e-12);
+        assert_eq!(sparse.g, sparse.g.transpose());
+        assert!(a.iter().filter(|v| **v != 0.0).count() * 4 <= a.len(), "the test must take the sparse path");
     }
 }

@@ -51,32 +51,61 @@ pub fn nnls(gram: &Gram, l1: f64, settings: &NnlsSettings) -> Result<NnlsSolutio
 /// elements). Starting from k = 0 with that passive set, the usual Lawson–Hanson steps first drop
 /// whatever must be zero, so the answer is the same as from a cold start, only faster.
 pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &[usize]) -> Result<NnlsSolution> {
+    nnls_signed(gram, l1, settings, passive_start, &[])
+}
+
+/// [`nnls_warm`] with some unknowns free of sign (`free[j]`; an empty slice means none): a cam's
+/// B-spline coefficients. Free unknowns are passive from the start and never leave the passive
+/// set, so Lawson–Hanson's steps only ever clamp the sign-constrained ones: with springs absent
+/// this is one linear solve. The L1 weight applies to the sign-constrained unknowns only (on a
+/// free one it would not be linear); cams are regularised by their smoothing penalty instead.
+pub fn nnls_signed(
+    gram: &Gram,
+    l1: f64,
+    settings: &NnlsSettings,
+    passive_start: &[usize],
+    free: &[bool],
+) -> Result<NnlsSolution> {
     let p = gram.dim();
+    let is_free = |j: usize| free.get(j).copied().unwrap_or(false);
     if p == 0 {
         return Ok(NnlsSolution { k: DVector::zeros(0), objective: gram.bb, iterations: 0 });
     }
     // Column scaling: k = D x with D = diag(G)^(-1/2); zero columns stay at zero.
     let d: Vec<f64> = (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 0.0 }).collect();
     let g = DMatrix::from_fn(p, p, |i, j| gram.g[(i, j)] * d[i] * d[j]);
-    let c = DVector::from_fn(p, |i, _| (gram.c[i] - l1) * d[i]);
+    let c = DVector::from_fn(p, |i, _| (gram.c[i] - if is_free(i) { 0.0 } else { l1 }) * d[i]);
     if g.iter().chain(c.iter()).any(|v| !v.is_finite()) {
         return Err(Error::numerical("NNLS", "the least-squares problem has non-finite entries"));
     }
+    // Only the sign-constrained entries of a passive-set solution must be positive.
+    let positive = |z: &DVector<f64>, idx: &[usize]| idx.iter().enumerate().all(|(a, &j)| is_free(j) || z[a] > 0.0);
     let tol = settings.tolerance * c.amax().max(1e-300);
     let mut x = DVector::zeros(p);
     let mut passive = vec![false; p];
     let mut forbidden = vec![false; p];
     let max_outer = settings.max_iterations_factor.max(1) * p + 10;
     let mut iterations = 0;
-    let warm: Vec<usize> = passive_start.iter().copied().filter(|&j| j < p && d[j] > 0.0).collect();
+    let fixed_free: Vec<usize> = (0..p).filter(|&j| is_free(j) && d[j] > 0.0).collect();
+    if !fixed_free.is_empty() {
+        // The free unknowns alone: any signs are feasible, so this is the starting point.
+        let z = solve_passive(&g, &c, &fixed_free);
+        for (a, &j) in fixed_free.iter().enumerate() {
+            passive[j] = true;
+            x[j] = z[a];
+        }
+        iterations += 1;
+    }
+    let warm: Vec<usize> = passive_start.iter().copied().filter(|&j| j < p && d[j] > 0.0 && !passive[j]).collect();
     if !warm.is_empty() {
         // Warm start: the whole starting set enters at once if its unconstrained solution is
         // positive (a feasible point to continue from); otherwise start cold. (Stepping from
         // x = 0 towards a solution with non-positive entries only drops the whole set again,
         // and an exactly zero entry made that step undefined.)
-        let z = solve_passive(&g, &c, &warm);
-        if z.iter().all(|v| v.is_finite() && *v > 0.0) {
-            for (a, &j) in warm.iter().enumerate() {
+        let idx: Vec<usize> = (0..p).filter(|&j| passive[j] || warm.contains(&j)).collect();
+        let z = solve_passive(&g, &c, &idx);
+        if z.iter().all(|v| v.is_finite()) && positive(&z, &idx) {
+            for (a, &j) in idx.iter().enumerate() {
                 passive[j] = true;
                 x[j] = z[a];
             }
@@ -101,7 +130,7 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
         loop {
             let idx: Vec<usize> = (0..p).filter(|&i| passive[i]).collect();
             let z = solve_passive(&g, &c, &idx);
-            if z.iter().all(|v| *v > 0.0) {
+            if positive(&z, &idx) {
                 for (a, &i) in idx.iter().enumerate() {
                     x[i] = z[a];
                 }
@@ -109,7 +138,8 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
             }
             // The element just added cannot enter (round-off at the KKT boundary): forbid it for
             // this solve instead of cycling.
-            if first && idx.len() == 1 && z[0] <= 0.0 {
+            let constrained: Vec<usize> = (0..idx.len()).filter(|&a| !is_free(idx[a])).collect();
+            if first && constrained.len() == 1 && z[constrained[0]] <= 0.0 {
                 passive[j] = false;
                 forbidden[j] = true;
                 break;
@@ -117,7 +147,7 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
             first = false;
             let mut alpha = f64::INFINITY;
             for (a, &i) in idx.iter().enumerate() {
-                if z[a] <= 0.0 {
+                if !is_free(i) && z[a] <= 0.0 {
                     let t = x[i] / (x[i] - z[a]);
                     if t < alpha {
                         alpha = t;
@@ -126,18 +156,18 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
             }
             for (a, &i) in idx.iter().enumerate() {
                 x[i] += alpha * (z[a] - x[i]);
-                if x[i] <= 0.0 || (z[a] <= 0.0 && x[i] <= 1e-14 * x.amax()) {
+                if !is_free(i) && (x[i] <= 0.0 || (z[a] <= 0.0 && x[i] <= 1e-14 * x.amax())) {
                     x[i] = 0.0;
                     passive[i] = false;
                 }
             }
-            if idx.iter().all(|&i| !passive[i]) {
+            if idx.iter().all(|&i| !passive[i] || is_free(i)) {
                 break;
             }
         }
     }
     let k = DVector::from_fn(p, |i, _| x[i] * d[i]);
-    let objective = gram.objective(&k) + 2.0 * l1 * k.sum();
+    let objective = gram.objective(&k) + 2.0 * l1 * (0..p).filter(|&j| !is_free(j)).map(|j| k[j]).sum::<f64>();
     Ok(NnlsSolution { k, objective, iterations })
 }
 

@@ -74,12 +74,49 @@ pub fn qp(
     l1: f64,
     settings: &QpSettings,
 ) -> Result<QpSolution> {
+    qp_signed(gram, equalities, inequalities, upper, &[], l1, settings)
+}
+
+/// [`qp`] with some unknowns free of sign (`free[j]`; an empty slice means none): a cam's
+/// B-spline coefficients. A free unknown has no k ≥ 0 row, its bound `upper[j]` = u means
+/// |x| ≤ u, and the L1 weight does not apply to it (it would not be linear there).
+///
+/// Why free unknowns rather than ± column pairs: with cⱼ = k⁺ⱼ − k⁻ⱼ every pair adds a direction
+/// (k⁺ⱼ, k⁻ⱼ) + t(1, 1) along which nothing changes but the tiny ridge, so the optimum sits at
+/// the end of a nearly flat valley and an interior-point method, which keeps every pair strictly
+/// inside k ≥ 0, converges there slowly or stops with a numerical error. One signed unknown per
+/// coefficient removes those directions, halves the unknowns and needs no sign rows.
+#[allow(clippy::too_many_arguments)]
+pub fn qp_signed(
+    gram: &Gram,
+    equalities: &[LinearGroup],
+    inequalities: &[LinearGroup],
+    upper: &[Option<f64>],
+    free: &[bool],
+    l1: f64,
+    settings: &QpSettings,
+) -> Result<QpSolution> {
     let p = gram.dim();
+    let free: Vec<bool> = (0..p).map(|j| free.get(j).copied().unwrap_or(false)).collect();
+    let l1s: Vec<f64> = free.iter().map(|&f| if f { 0.0 } else { l1 }).collect();
     let d: Vec<f64> = (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();
-    let scaled = Scaled::new(gram, &d, l1);
+    let scaled = Scaled::new(gram, &d, &l1s);
     let eqs: Vec<(DMatrix<f64>, DVector<f64>)> = equalities.iter().map(|g| scale_cols(g, &d)).collect();
     let ineqs: Vec<(DMatrix<f64>, DVector<f64>)> = inequalities.iter().map(|g| scale_cols(g, &d)).collect();
     let ub: Vec<Option<f64>> = upper.iter().zip(&d).map(|(u, dj)| u.map(|u| u / dj)).collect();
+    if free.iter().any(|&f| f) && ub.iter().all(Option::is_none) {
+        let x = active_set_with_cuts(gram, &d, &l1s, &eqs, &ineqs, &free, settings, equalities, inequalities)?;
+        let k = DVector::from_fn(p, |j, _| if free[j] { x.0[j] * d[j] } else { (x.0[j] * d[j]).max(0.0) });
+        let max_equality_residual = eqs.iter().map(|(m, f)| (m * &x.0 - f).amax()).fold(0.0, f64::max);
+        return Ok(QpSolution {
+            k,
+            status: QpStatus::Solved,
+            iterations: x.1,
+            cut_rounds: x.2,
+            cuts: x.3,
+            max_equality_residual,
+        });
+    }
 
     let mut active: Vec<(usize, usize)> = Vec::new(); // (group, row)
     let mut iterations = 0;
@@ -87,12 +124,12 @@ pub fn qp(
     let x = loop {
         let cut_rows: Vec<(DVector<f64>, f64)> =
             active.iter().map(|&(g, r)| (ineqs[g].0.row(r).transpose(), ineqs[g].1[r])).collect();
-        let (status, x, iters) = solve_once(&scaled, &eqs, &cut_rows, &ub, settings)?;
+        let (status, x, iters) = solve_once(&scaled, &eqs, &cut_rows, &ub, &free, settings)?;
         iterations += iters;
         match status {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {}
             SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
-                return Err(diagnose(&scaled, equalities, &eqs, inequalities, &ineqs, &ub, settings));
+                return Err(diagnose(&scaled, equalities, &eqs, inequalities, &ineqs, &ub, &free, settings));
             }
             other => {
                 return Err(Error::numerical("QP (Clarabel)", format!("the solver stopped with status {other:?}")));
@@ -126,8 +163,8 @@ pub fn qp(
         active.extend(violated.iter().take(settings.cuts_per_round).map(|&(_, g, r)| (g, r)));
     };
     let (x, status) = x;
-    let x = polish(&scaled, gram, &d, l1, &eqs, &ineqs, &ub, x, settings);
-    let k = DVector::from_fn(p, |j, _| (x[j] * d[j]).max(0.0));
+    let x = polish(&scaled, gram, &d, &l1s, &eqs, &ineqs, &ub, &free, x, settings);
+    let k = DVector::from_fn(p, |j, _| if free[j] { x[j] * d[j] } else { (x[j] * d[j]).max(0.0) });
     let max_equality_residual = eqs.iter().map(|(m, f)| (m * &x - f).amax()).fold(0.0, f64::max);
     Ok(QpSolution {
         k,
@@ -137,6 +174,156 @@ pub fn qp(
         cuts: active.len(),
         max_equality_residual,
     })
+}
+
+/// The QP with signed unknowns (cam coefficients) and no upper bounds, by a primal active-set
+/// method with cutting planes instead of Clarabel.
+///
+/// Clarabel stops with a numerical error on the cams' problems whatever the formulation tried
+/// (factor or direct form, larger ridges): a signed unknown has no cone row, so the interior
+/// point's barrier never touches it, and the smoothing penalty leaves the B-spline problem with
+/// a condition number near 1e11 at the weights the automatic choice tries; the KKT systems of
+/// an interior point then lose their accuracy. An active-set method solves the exact KKT system
+/// of each passive set instead, and with cams alone the signed unknowns need one solve per
+/// round. Inequality rows enter as cuts (most violated first, like the interior-point path),
+/// held as equations, and leave again when their multiplier says they pull the wrong way.
+/// Returns (x in scaled units, KKT solves, rounds, cut rows at the end).
+#[allow(clippy::too_many_arguments)]
+fn active_set_with_cuts(
+    gram: &Gram,
+    d: &[f64],
+    l1: &[f64],
+    eqs: &[(DMatrix<f64>, DVector<f64>)],
+    ineqs: &[(DMatrix<f64>, DVector<f64>)],
+    free: &[bool],
+    settings: &QpSettings,
+    equalities: &[LinearGroup],
+    inequalities: &[LinearGroup],
+) -> Result<(DVector<f64>, u32, usize, usize)> {
+    let n = gram.dim();
+    let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
+    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1[i]) * d[i]);
+    let mut eq_rows: Vec<(DVector<f64>, f64)> = Vec::new();
+    for (m, f) in eqs {
+        for i in 0..m.nrows() {
+            eq_rows.push((m.row(i).transpose(), f[i]));
+        }
+    }
+    let names = |groups: &[LinearGroup]| groups.iter().map(|g| g.name.clone()).collect::<Vec<_>>().join(", ");
+    let mut active: Vec<(usize, usize)> = Vec::new();
+    let (mut solves, mut rounds) = (0u32, 0usize);
+    loop {
+        let mut rows = eq_rows.clone();
+        rows.extend(active.iter().map(|&(gi, r)| (ineqs[gi].0.row(r).transpose(), ineqs[gi].1[r])));
+        let Some((x, nu, k)) = active_set(&g, &c, &rows, free) else {
+            return Err(Error::Infeasible {
+                constraint: if active.is_empty() { names(equalities) } else { format!("{}; {}", names(equalities), names(inequalities)) },
+                reason: "the active-set solve for the cams' signed coefficients found no point meeting these rows:                          the available elements cannot meet them together"
+                    .into(),
+            });
+        };
+        solves += k;
+        // Cut rows whose multiplier is positive push x the wrong way (λ = −ν < 0): release them.
+        let scale = c.amax().max(1e-300);
+        let released: Vec<usize> = (0..active.len()).filter(|&a| nu[eq_rows.len() + a] > 1e-10 * scale).collect();
+        let mut violated: Vec<(f64, usize, usize)> = Vec::new();
+        for (gi, (m, h)) in ineqs.iter().enumerate() {
+            let r = m * &x - h;
+            for (row, v) in r.iter().enumerate() {
+                if *v < -settings.cut_margin && !active.contains(&(gi, row)) {
+                    violated.push((*v, gi, row));
+                }
+            }
+        }
+        if violated.is_empty() && released.is_empty() {
+            // Cut rows dependent on others are left out of the KKT system: check them too.
+            let worst = active
+                .iter()
+                .map(|&(gi, r)| ineqs[gi].0.row(r).dot(&x.transpose()) - ineqs[gi].1[r])
+                .fold(0.0, f64::min);
+            if worst < -settings.cut_margin {
+                return Err(Error::numerical(
+                    "QP (active set)",
+                    format!("an inequality row held as an equation is violated by {:.2e}", -worst),
+                ));
+            }
+            return Ok((x, solves, rounds, active.len()));
+        }
+        rounds += 1;
+        if rounds > settings.cut_rounds {
+            return Err(Error::numerical(
+                "QP (active set)",
+                format!(
+                    "{} inequality rows still violated and {} to release after {} cutting-plane rounds",
+                    violated.len(),
+                    released.len(),
+                    settings.cut_rounds
+                ),
+            ));
+        }
+        let keep: Vec<(usize, usize)> =
+            active.iter().enumerate().filter(|(a, _)| !released.contains(a)).map(|(_, &r)| r).collect();
+        active = keep;
+        violated.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        // Never more equations than unknowns: an active set is a vertex at most.
+        let room = n.saturating_sub(eq_rows.len() + active.len()).max(1);
+        active.extend(violated.iter().take(settings.cuts_per_round.min(room)).map(|&(_, gi, r)| (gi, r)));
+    }
+}
+
+/// Lawson–Hanson's primal active-set iteration for min ½xᵀGx − cᵀx subject to `rows` as
+/// equations and x ≥ 0 for the unknowns that are not `free`, from x = 0 with the free unknowns
+/// passive (which must meet the rows on their own). Returns x, the rows' multipliers ν (G x +
+/// Σ ν_r row_r = c) and the KKT solves, or None when a passive set cannot meet the rows.
+fn active_set(
+    g: &DMatrix<f64>,
+    c: &DVector<f64>,
+    rows: &[(DVector<f64>, f64)],
+    free: &[bool],
+) -> Option<(DVector<f64>, DVector<f64>, u32)> {
+    let n = g.nrows();
+    let mut passive: Vec<bool> = free.to_vec();
+    let mut x = DVector::zeros(n);
+    let none = vec![false; n];
+    let ub = vec![None; n];
+    let tol = 1e-10 * c.amax().max(1e-300);
+    let mut solves = 0;
+    for _ in 0..3 * n + 10 {
+        let idx: Vec<usize> = (0..n).filter(|&j| passive[j]).collect();
+        let (z, nu) = kkt_solve(g, c, rows, &idx, &none, &ub)?;
+        solves += 1;
+        if idx.iter().enumerate().all(|(a, &j)| free[j] || z[a] > 0.0) {
+            for (a, &j) in idx.iter().enumerate() {
+                x[j] = z[a];
+            }
+            let mut w = c - g * &x;
+            for (r, (row, _)) in rows.iter().enumerate() {
+                w -= row * nu[r];
+            }
+            let entering =
+                (0..n).filter(|&j| !passive[j] && w[j] > tol).max_by(|&a, &b| w[a].total_cmp(&w[b]).then(b.cmp(&a)));
+            match entering {
+                Some(j) => passive[j] = true,
+                None => return Some((x, nu, solves)),
+            }
+        } else {
+            let xmax = x.amax().max(1e-300);
+            let mut alpha: f64 = 1.0;
+            for (a, &j) in idx.iter().enumerate() {
+                if !free[j] && z[a] <= 0.0 {
+                    alpha = alpha.min(x[j] / (x[j] - z[a]));
+                }
+            }
+            for (a, &j) in idx.iter().enumerate() {
+                x[j] += alpha * (z[a] - x[j]);
+                if !free[j] && (x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax)) {
+                    x[j] = 0.0;
+                    passive[j] = false;
+                }
+            }
+        }
+    }
+    None
 }
 
 /// Solution polishing by an active-set method started from the interior-point solution.
@@ -153,16 +340,17 @@ fn polish(
     s: &Scaled,
     gram: &Gram,
     d: &[f64],
-    l1: f64,
+    l1: &[f64],
     eqs: &[(DMatrix<f64>, DVector<f64>)],
     ineqs: &[(DMatrix<f64>, DVector<f64>)],
     ub: &[Option<f64>],
+    free: &[bool],
     x_ipm: DVector<f64>,
     settings: &QpSettings,
 ) -> DVector<f64> {
     let n = s.n;
     let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
-    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1) * d[i]);
+    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1[i]) * d[i]);
     let objective = |v: &DVector<f64>| 0.5 * v.dot(&(&g * v)) - c.dot(v);
     // Equations: the equality groups and the inequality rows at their bound.
     let mut rows: Vec<(DVector<f64>, f64)> = Vec::new();
@@ -181,8 +369,12 @@ fn polish(
     }
     let ne = rows.len();
     let xmax = x_ipm.amax().max(1e-300);
-    let at_upper: Vec<bool> = (0..n).map(|j| ub[j].is_some_and(|u| x_ipm[j] >= u * (1.0 - 1e-6))).collect();
-    let mut passive: Vec<bool> = (0..n).map(|j| !at_upper[j] && x_ipm[j] > 1e-6 * xmax).collect();
+    // A free unknown is always passive; one at either bound is left to the interior point.
+    if (0..n).any(|j| free[j] && ub[j].is_some_and(|u| x_ipm[j].abs() >= u * (1.0 - 1e-6))) {
+        return x_ipm;
+    }
+    let at_upper: Vec<bool> = (0..n).map(|j| !free[j] && ub[j].is_some_and(|u| x_ipm[j] >= u * (1.0 - 1e-6))).collect();
+    let mut passive: Vec<bool> = (0..n).map(|j| free[j] || (!at_upper[j] && x_ipm[j] > 1e-6 * xmax)).collect();
     let mut x = DVector::from_fn(n, |j, _| {
         if at_upper[j] {
             ub[j].unwrap_or(0.0)
@@ -196,7 +388,7 @@ fn polish(
     for _ in 0..3 * n + 10 {
         let idx: Vec<usize> = (0..n).filter(|&j| passive[j]).collect();
         let Some((z, nu)) = kkt_solve(&g, &c, &rows, &idx, &at_upper, ub) else { return x_ipm };
-        if z.iter().all(|v| *v > 0.0) {
+        if idx.iter().enumerate().all(|(a, &j)| free[j] || z[a] > 0.0) {
             for (a, &j) in idx.iter().enumerate() {
                 x[j] = z[a];
             }
@@ -216,25 +408,25 @@ fn polish(
             // Step towards z until the first passive element reaches zero; drop it.
             let mut alpha: f64 = 1.0;
             for (a, &j) in idx.iter().enumerate() {
-                if z[a] <= 0.0 {
+                if !free[j] && z[a] <= 0.0 {
                     alpha = alpha.min(x[j] / (x[j] - z[a]));
                 }
             }
             for (a, &j) in idx.iter().enumerate() {
                 x[j] += alpha * (z[a] - x[j]);
-                if x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax) {
+                if !free[j] && (x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax)) {
                     x[j] = 0.0;
                     passive[j] = false;
                 }
             }
-            if idx.iter().all(|&j| !passive[j]) && ne > 0 {
+            if idx.iter().all(|&j| !passive[j] || free[j]) && ne > 0 {
                 return x_ipm;
             }
         }
     }
     let eq_tol = 1e-9;
-    let feasible = x.iter().all(|v| v.is_finite() && *v >= 0.0)
-        && ub.iter().zip(x.iter()).all(|(u, v)| u.is_none_or(|u| *v <= u * (1.0 + 1e-12)))
+    let feasible = x.iter().zip(free).all(|(v, &f)| v.is_finite() && (f || *v >= 0.0))
+        && ub.iter().zip(x.iter()).all(|(u, v)| u.is_none_or(|u| v.abs() <= u * (1.0 + 1e-12)))
         && eqs.iter().all(|(m, f)| (m * &x - f).amax() <= eq_tol)
         && ineqs.iter().all(|(m, h)| (m * &x - h).min() >= -settings.cut_margin);
     let better = objective(&x) <= objective(&x_ipm) + 1e-9 * objective(&x_ipm).abs().max(1e-12);
@@ -323,7 +515,7 @@ impl Scaled {
     /// G. With the hundreds of nearly dependent columns of a rich catalogue (crank phases span two
     /// functions per coupling) the direct form stalls with a numerical error. A ridge of 1e-10 on
     /// the unit diagonal keeps the factorisation defined.
-    fn new(gram: &Gram, d: &[f64], l1: f64) -> Self {
+    fn new(gram: &Gram, d: &[f64], l1: &[f64]) -> Self {
         let n = gram.dim();
         let mut ridge = RIDGE;
         let r = loop {
@@ -333,7 +525,7 @@ impl Scaled {
             }
             ridge *= 100.0;
         };
-        let q = (0..n).map(|j| -(gram.c[j] - l1) * d[j]).collect();
+        let q = (0..n).map(|j| -(gram.c[j] - l1[j]) * d[j]).collect();
         Scaled { r, q, n }
     }
 }
@@ -352,6 +544,7 @@ fn solve_once(
     eqs: &[(DMatrix<f64>, DVector<f64>)],
     cuts: &[(DVector<f64>, f64)],
     ub: &[Option<f64>],
+    free: &[bool],
     settings: &QpSettings,
 ) -> Result<(SolverStatus, DVector<f64>, u32)> {
     let n = s.n;
@@ -393,10 +586,14 @@ fn solve_once(
         b.push(-h);
         r += 1;
     }
-    // −x + s = 0 (x ≥ 0).
-    for col in rows.iter_mut().take(n) {
+    // −x + s = 0 (x ≥ 0), or −x + s = u (x ≥ −u) for a free unknown with a bound.
+    for (j, col) in rows.iter_mut().take(n).enumerate() {
+        match (free[j], ub[j]) {
+            (false, _) => b.push(0.0),
+            (true, Some(u)) => b.push(u),
+            (true, None) => continue,
+        }
         col.push((r, -1.0));
-        b.push(0.0);
         r += 1;
     }
     // x + s = u (x ≤ u).
@@ -431,7 +628,9 @@ fn solve_once(
     if n_eq > 0 {
         cones.push(SupportedConeT::ZeroConeT(n_eq));
     }
-    cones.push(SupportedConeT::NonnegativeConeT(r - n_eq));
+    if r > n_eq {
+        cones.push(SupportedConeT::NonnegativeConeT(r - n_eq));
+    }
     let cs = DefaultSettings {
         verbose: false,
         max_iter: settings.max_iterations,
@@ -455,6 +654,7 @@ fn solve_once(
 }
 
 /// Names the constraint group(s) that make the QP infeasible by dropping one at a time.
+#[allow(clippy::too_many_arguments)]
 fn diagnose(
     s: &Scaled,
     equalities: &[LinearGroup],
@@ -462,10 +662,14 @@ fn diagnose(
     inequalities: &[LinearGroup],
     ineqs: &[(DMatrix<f64>, DVector<f64>)],
     ub: &[Option<f64>],
+    free: &[bool],
     settings: &QpSettings,
 ) -> Error {
     let feasible = |eqs: &[(DMatrix<f64>, DVector<f64>)], cuts: &[(DVector<f64>, f64)], ub: &[Option<f64>]| {
-        matches!(solve_once(s, eqs, cuts, ub, settings), Ok((SolverStatus::Solved | SolverStatus::AlmostSolved, _, _)))
+        matches!(
+            solve_once(s, eqs, cuts, ub, free, settings),
+            Ok((SolverStatus::Solved | SolverStatus::AlmostSolved, _, _))
+        )
     };
     let all_cuts: Vec<(DVector<f64>, f64)> =
         ineqs.iter().flat_map(|(m, h)| (0..m.nrows()).map(move |r| (m.row(r).transpose(), h[r]))).collect();
