@@ -72,6 +72,9 @@ JOBS = {
     "geo.straight_long": ["geodesics", "{probe:double_pendulum_straight}"],
     "geo.folded_long": ["geodesics", "{probe:double_pendulum_folded}"],
     "sweep.dense_robust": ["sweep", "designs/double_pendulum_dense_robust.toml"],
+    "fit.window_cams16": ["fit", "designs/double_pendulum_paper_window_cams16.toml"],
+    # The paper's window: springs, 8 and 16 cams, the exact potential, side by side.
+    "compare.window": ["compare", "{dir:fit.window}", "{dir:fit.window_cams}", "{dir:fit.window_cams16}", "--exact"],
     # MuJoCo: export the fitted springs, simulate the same springs' free releases, compare.
     "export.dp": ["export", "--bom", "{bom:fit.dp}", "--mujoco"],
     "free.dp": ["simulate", "--bom", "{bom:fit.dp}", "--scenario", "free"],
@@ -193,6 +196,11 @@ class Runner:
             m = re.fullmatch(r"\{probe:(\w+)\}", a)
             t = re.fullmatch(r"\{tolerance:(\w+):([\w.]+)\}", a)
             b = re.fullmatch(r"\{bom:([\w.]+)\}", a)
+            d = re.fullmatch(r"\{dir:([\w.]+)\}", a)
+            if d:
+                # The output folder of another job (that job runs first).
+                args.append(str(self.folder(d.group(1))))
+                continue
             if b:
                 # The bill of materials another job wrote (that job runs first).
                 args.append(str(self.folder(b.group(1)) / "bom.csv"))
@@ -554,6 +562,28 @@ def error_table(r):
     return "\n".join(rows)
 
 
+def compare_table(job):
+    """The rows of a `compare` run: input, elements, p99 and max |angle| as drawn, and the p99
+    as built at the design's tolerance (p50 / p95 over builds) where the fit drew builds."""
+
+    def f(r):
+        rows = ["| input | elements | p99 | max | as built: p99, p50 / p95 over builds |", "| --- | ---: | ---: | ---: | --- |"]
+        for row in r.csv(job, "compare.csv"):
+            built = (
+                f"{deg(float(row['as_built_p99_p50_deg']))} / {deg(float(row['as_built_p99_p95_deg']))}"
+                if row.get("as_built_p99_p50_deg")
+                else "–"
+            )
+            springs = row["springs"] if row["catalog"] != "exact" else "–"
+            rows.append(
+                f"| `{row['label']}` ({row['catalog']}) | {springs} | {deg(float(row['p99_abs_deg']))} | "
+                f"{deg(float(row['max_abs_deg']))} | {built} |"
+            )
+        return "\n".join(rows)
+
+    return f
+
+
 def mujoco_row(key):
     """A row of the MuJoCo table: springs exact / by callback (from `export`'s stdout), the
     largest joint-angle difference and MuJoCo's largest energy drift (from verify_mujoco.py)."""
@@ -715,6 +745,9 @@ FIGURES = {
     "ur5_3.sweep.tol5": ur5_tolerance("sweep.ur5_3"),
     "ur5_3.sweep.shift": ur5_shift("sweep.ur5_3"),
     "errors.table": error_table,
+    "compare.window": compare_table("compare.window"),
+    "fit.window_cams16.p99": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["p99_abs"]),
+    "fit.window_cams16.max": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["max_abs"]),
     "ur5.fit.p99": lambda r: deg(r.json("fit.ur5", "summary.json")["residual_deg"]["p99_abs"], 4),
     "ur5.sweep.p99_p50": lambda r: deg(
         [t for t in r.json("sweep.ur5", "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0][

@@ -1259,7 +1259,9 @@ mod tests {
                 }
             }
             let n = candidates.len();
-            assert!((k[n - 2] - 5.0).abs() < 1e-6 && k[n - 1].abs() < 1e-6, "{solver:?}: {:?}", &k[n - 2..]);
+            // The spring: exact under the QP; NNLS's weighted equalities leave ~1e-6 relative.
+            let ktol = if solver == SolverKind::Qp { 1e-6 } else { 1e-4 };
+            assert!((k[n - 2] - 5.0).abs() < ktol && k[n - 1].abs() < ktol, "{solver:?}: {:?}", &k[n - 2..]);
         }
     }
 }
