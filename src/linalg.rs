@@ -46,6 +46,22 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     }
 }
 
+/// The geodesic equation's first-order right-hand side ẏ = (q̇, −M⁻¹h) into `dy[..2n]`, given M
+/// (overwritten by its Cholesky factor, which the Jacobi-field equations reuse) and the bias
+/// h(q, q̇). Returns `false` if M is not positive definite. Shared by the planar and the spatial
+/// chain, which differ only in how they compute M and h.
+pub fn geodesic_accel(m: &mut [f64], h: &[f64], n: usize, qd: &[f64], dy: &mut [f64]) -> bool {
+    if !cholesky_in_place(m, n) {
+        return false;
+    }
+    dy[..n].copy_from_slice(qd);
+    for (d, h) in dy[n..2 * n].iter_mut().zip(h) {
+        *d = -h;
+    }
+    cholesky_solve(m, n, &mut dy[n..2 * n]);
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -73,20 +89,4 @@ mod tests {
         let mut nan = vec![f64::NAN, 0.0, 0.0, 1.0];
         assert!(!cholesky_in_place(&mut nan, 2));
     }
-}
-
-/// The geodesic equation's first-order right-hand side ẏ = (q̇, −M⁻¹h) into `dy[..2n]`, given M
-/// (overwritten by its Cholesky factor, which the Jacobi-field equations reuse) and the bias
-/// h(q, q̇). Returns `false` if M is not positive definite. Shared by the planar and the spatial
-/// chain, which differ only in how they compute M and h.
-pub fn geodesic_accel(m: &mut [f64], h: &[f64], n: usize, qd: &[f64], dy: &mut [f64]) -> bool {
-    if !cholesky_in_place(m, n) {
-        return false;
-    }
-    dy[..n].copy_from_slice(qd);
-    for (d, h) in dy[n..2 * n].iter_mut().zip(h) {
-        *d = -h;
-    }
-    cholesky_solve(m, n, &mut dy[n..2 * n]);
-    true
 }
