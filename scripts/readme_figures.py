@@ -567,7 +567,7 @@ def compare_table(job):
     as built at the design's tolerance (p50 / p95 over builds) where the fit drew builds."""
 
     def f(r):
-        rows = ["| input | elements | p99 | max | as built: p99, p50 / p95 over builds |", "| --- | ---: | ---: | ---: | --- |"]
+        rows = ["| input | rows in bom.csv | p99 | max | as built: p99, p50 / p95 over builds |", "| --- | ---: | ---: | ---: | --- |"]
         for row in r.csv(job, "compare.csv"):
             built = (
                 f"{deg(float(row['as_built_p99_p50_deg']))} / {deg(float(row['as_built_p99_p95_deg']))}"

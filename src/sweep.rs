@@ -54,6 +54,10 @@ pub struct SweepSettings {
     pub evaluation_directions: usize,
     /// Samples per geodesic per build.
     pub evaluation_samples: usize,
+    /// Also run every build tuned as `springfit tune` would tune it (designs with trim springs
+    /// or adjustable elements). Tuning costs one residual evaluation per adjustable offset per
+    /// Gauss–Newton step, so a design with hundreds of adjustable elements may turn it off.
+    pub tune_builds: bool,
 }
 
 impl Default for SweepSettings {
@@ -67,6 +71,7 @@ impl Default for SweepSettings {
             tolerances: Vec::new(),
             evaluation_directions: 120,
             evaluation_samples: 50,
+            tune_builds: true,
         }
     }
 }
@@ -319,7 +324,9 @@ impl<'a> SweepContext<'a> {
     /// handle (no equilibrium near q_eq, a failed solve) counts as NaN, the worst.
     fn tuned(&self, built: &SpringSet, spec: &RunSpec) -> Result<Option<TunedBuild>> {
         let bom = &self.fit.bom;
-        if !bom.iter().any(|r| r.adjust.trim_range.is_some() || r.adjust.adjust_range.is_some()) {
+        if !self.design.file.sweep.tune_builds
+            || !bom.iter().any(|r| r.adjust.trim_range.is_some() || r.adjust.adjust_range.is_some())
+        {
             return Ok(None);
         }
         let failed =

@@ -997,7 +997,11 @@ fn cam_smoothing(
     // antagonistic cams, accurate as drawn, whose one-δ-per-cam rate errors un-cancel in every
     // build (measured: cams4 as built p99 p95 4.8° with the ridge, 15.6° without). At this
     // weight it costs nothing measurable as drawn.
-    let cam_columns: Vec<usize> = (0..candidates.len()).filter(|&j| groups[j].is_some()).collect();
+    // The QP's signed unknowns need no ridge (and it moves the QP's optimum: with it the 16-cam
+    // window design turned a mode over on the held-out fan); NNLS's ± pairs keep it.
+    let ridge = settings.solver == SolverKind::Nnls;
+    let cam_columns: Vec<usize> =
+        if ridge { (0..candidates.len()).filter(|&j| groups[j].is_some()).collect() } else { Vec::new() };
     let build = |auto: f64| -> (DMatrix<f64>, DVector<f64>) {
         let rows: usize = blocks.iter().map(|b| b.0.nrows()).sum::<usize>() + cam_columns.len();
         let mut m = DMatrix::zeros(rows, candidates.len());
@@ -1007,8 +1011,10 @@ fn cam_smoothing(
             m.view_mut((r0, 0), block.shape()).copy_from(&(block * w));
             r0 += block.nrows();
         }
-        for (i, &j) in cam_columns.iter().enumerate() {
-            m[(r0 + i, j)] = CAM_RIDGE.sqrt() * base;
+        if ridge {
+            for (i, &j) in cam_columns.iter().enumerate() {
+                m[(r0 + i, j)] = CAM_RIDGE.sqrt() * base;
+            }
         }
         (m, DVector::zeros(rows))
     };
