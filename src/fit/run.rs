@@ -216,7 +216,7 @@ impl<'a> Prepared<'a> {
         };
         if has_cams {
             stage("choosing the cams' smoothing");
-            let penalty = cam_smoothing(design, catalog, settings, &candidates, &problem, &gram)?;
+            let penalty = cam_smoothing(design, catalog, settings, &candidates, &problem, &gram, &trims)?;
             gram.add_weighted(&penalty.0, &penalty.1, 1.0);
             append_rows(&mut problem, &penalty);
         }
@@ -313,17 +313,9 @@ impl Prepared<'_> {
     /// the optional shift penalty (see `fit::robust`).
     fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<BuildPenalty> {
         let design = self.design;
-        let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
         // The nominal potential includes the trims at mid-range (H and J are the whole arm's);
         // the trims themselves spread nothing: they are set after the build.
-        let nominal = SpringSet {
-            elements: used
-                .iter()
-                .map(|&j| self.candidates[j].element.clone())
-                .chain(self.trims.elements.iter().cloned())
-                .collect(),
-            stiffness: used.iter().map(|&j| k[j]).chain(self.trims.stiffness.iter().copied()).collect(),
-        };
+        let nominal = arm(&self.candidates, k, &self.trims);
         let sigma2: Vec<f64> = self
             .candidates
             .iter()
@@ -343,6 +335,16 @@ impl Prepared<'_> {
         )?;
         let m = self.problem.rows.nrows() as f64;
         Ok(BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m))
+    }
+}
+
+/// The arm a solve describes: the candidates with k > 0 and the trims at their fixed rates (the
+/// fit was solved around them).
+fn arm(candidates: &[Candidate], k: &[f64], trims: &SpringSet) -> SpringSet {
+    let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+    SpringSet {
+        elements: used.iter().map(|&j| candidates[j].element.clone()).chain(trims.elements.iter().cloned()).collect(),
+        stiffness: used.iter().map(|&j| k[j]).chain(trims.stiffness.iter().copied()).collect(),
     }
 }
 
@@ -963,6 +965,7 @@ fn cam_smoothing(
     candidates: &[Candidate],
     problem: &FitProblem,
     gram: &Gram,
+    trims: &SpringSet,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let groups = cam_groups(candidates);
     let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
@@ -1035,7 +1038,6 @@ fn cam_smoothing(
         design.geodesics.ode,
     )?;
     let mut best: Option<(f64, f64)> = None;
-    let (_, trims) = crate::trim::mid_range(catalog, design.q_eq.as_slice());
     for &w in &AUTO_SMOOTHING {
         let (rows, rhs) = build(w);
         let mut trial = gram.clone();
@@ -1049,16 +1051,8 @@ fn cam_smoothing(
         let Ok((k, _)) = solve_gram_with(problem, trial, candidates, design.q_eq.as_slice(), &dense, true) else {
             continue;
         };
-        let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
         // The problem was solved around the trims at mid-range: judge the arm with them.
-        let springs = SpringSet {
-            elements: used
-                .iter()
-                .map(|&j| candidates[j].element.clone())
-                .chain(trims.elements.iter().cloned())
-                .collect(),
-            stiffness: used.iter().map(|&j| k[j]).chain(trims.stiffness.iter().copied()).collect(),
-        };
+        let springs = arm(candidates, &k, trims);
         let p99 = stats(&fan_angles(&design.chain, &validation, &springs)?).p99_abs;
         if best.is_none_or(|(_, b)| p99 < b) {
             best = Some((w, p99));
