@@ -55,12 +55,13 @@ pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Re
             label: Some(r.label.clone()),
         })
         .collect();
+    let short = box_labels(records.iter().map(|r| r.label.as_str()));
     let boxes = records
         .iter()
         .enumerate()
         .map(|(i, r)| {
             BoxItem::from_samples(
-                &r.label,
+                &short[i],
                 &r.angles.iter().map(|a| a.abs().max(edges[0])).collect::<Vec<_>>(),
                 palette(i),
             )
@@ -242,4 +243,29 @@ pub fn write_pareto(
         &out.path("pareto"),
     )?;
     Ok(())
+}
+
+/// Box-plot labels sit side by side under narrow boxes: the part of the design names that most
+/// inputs share (up to its last `_`, e.g. `double_pendulum_paper_`) is shown as `…` so that
+/// the labels stay apart. The histogram's legend keeps the full names.
+fn box_labels<'a>(labels: impl Iterator<Item = &'a str>) -> Vec<String> {
+    let labels: Vec<&str> = labels.collect();
+    let sharing: Vec<&str> = labels.iter().copied().filter(|l| l.contains('_')).collect();
+    let prefix = match sharing.split_first() {
+        Some((first, rest)) if !rest.is_empty() => {
+            let mut n = first.len();
+            for l in rest {
+                n = n.min(first.bytes().zip(l.bytes()).take_while(|(a, b)| a == b).count());
+            }
+            first[..n].rfind('_').map_or("", |i| &first[..=i])
+        }
+        _ => "",
+    };
+    labels
+        .iter()
+        .map(|l| match l.strip_prefix(prefix) {
+            Some(rest) if prefix.len() > 3 && !rest.is_empty() => format!("…{rest}"),
+            _ => l.to_string(),
+        })
+        .collect()
 }
