@@ -260,6 +260,155 @@ pub struct PeakTorques {
 }
 
 impl ScenarioSpec {
+    /// Every check of the scenario that needs no springs: names, kinds and the keys each kind
+    /// takes, durations, damping, step times, energy schedules, modes and variants. `check`
+    /// (through [`crate::validate::validate`]) runs it before any work and [`ScenarioSpec::resolve`]
+    /// runs it first, so the two cannot drift apart; what needs the fitted potential (an energy
+    /// reachable inside the region) is left to `resolve`. Errors name `scenario[index].field`.
+    pub fn check(&self, index: usize, design: &Design) -> Result<()> {
+        let sc = self;
+        let n = design.dof();
+        let bad = |f: &str, r: String| Error::invalid(&design.path, format!("scenario[{index}].{f}"), r);
+        if sc.name.trim().is_empty() || sc.name.contains(['/', '\\']) {
+            return Err(bad("name", format!("`{}` cannot name an output file", sc.name)));
+        }
+        let kind = kind_name(sc.kind);
+        let unused = |f: &str, present: bool| -> Result<()> {
+            if present { Err(bad(f, format!("does not apply to kind = \"{kind}\""))) } else { Ok(()) }
+        };
+        let duration = sc.duration.unwrap_or(if sc.kind == ScenarioKind::Switch { 100.0 } else { 20.0 });
+        if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
+            return Err(bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
+        }
+        if let Some(d) = sc.damping {
+            if !(d.is_finite() && d >= 0.0) {
+                return Err(bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
+            }
+        }
+        let energy = |f: &str, e: f64| -> Result<()> {
+            if e.is_finite() && e > 0.0 {
+                Ok(())
+            } else {
+                Err(bad(f, format!("must be a positive energy (J), got {e}")))
+            }
+        };
+        let mode = |f: &str, m: &ModeSpec| -> Result<()> {
+            match m {
+                ModeSpec::Angle(a) if n != 2 => Err(bad(
+                    f,
+                    format!("an angle ({a}) names a mode of a two-joint arm; give a direction of {n} joint velocities"),
+                )),
+                ModeSpec::Angle(a) if !a.is_finite() => Err(bad(f, format!("must be finite, got {a}"))),
+                ModeSpec::Angle(_) => Ok(()),
+                ModeSpec::Vector(v) if v.len() != n => {
+                    Err(bad(f, format!("has {} entries but the robot has {n} joints", v.len())))
+                }
+                ModeSpec::Vector(v) if v.iter().any(|x| !x.is_finite()) || v.iter().all(|x| *x == 0.0) => {
+                    Err(bad(f, "must be a finite, non-zero direction".into()))
+                }
+                ModeSpec::Vector(_) => Ok(()),
+            }
+        };
+        match sc.kind {
+            ScenarioKind::Free => {
+                unused("mode", sc.mode.is_some())?;
+                unused("energy", sc.energy.is_some())?;
+                unused("step", sc.step.is_some())?;
+                unused("every", sc.every.is_some())?;
+                unused("energy_target", sc.energy_target.is_some())?;
+                unused("e0", sc.e0.is_some())?;
+                unused("ed", sc.ed.is_some())?;
+                unused("variants", !sc.variants.is_empty())?;
+                if sc.starts.is_empty() && sc.releases.is_empty() {
+                    return Err(bad(
+                        "releases",
+                        "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into(),
+                    ));
+                }
+                for (k, s) in sc.starts.iter().enumerate() {
+                    if s.len() != n {
+                        return Err(bad(
+                            &format!("starts[{k}]"),
+                            format!("has {} angles but the robot has {n} joints", s.len()),
+                        ));
+                    }
+                    if let Some(a) = s.iter().find(|a| !a.0.is_finite()) {
+                        return Err(bad(&format!("starts[{k}]"), format!("angles must be finite, got {}", a.0)));
+                    }
+                }
+                for (k, r) in sc.releases.iter().enumerate() {
+                    mode(&format!("releases[{k}].mode"), &r.mode)?;
+                    energy(&format!("releases[{k}].energy"), r.energy)?;
+                }
+            }
+            ScenarioKind::Switch => {
+                unused("starts", !sc.starts.is_empty())?;
+                unused("releases", !sc.releases.is_empty())?;
+                unused("e0", sc.e0.is_some())?;
+                unused("ed", sc.ed.is_some())?;
+                unused("variants", !sc.variants.is_empty())?;
+                if n != 2 {
+                    return Err(bad("kind", format!("mode switching by θ steps needs two joints; this arm has {n}")));
+                }
+                if let Some(m) = &sc.mode {
+                    if matches!(m, ModeSpec::Vector(_)) {
+                        return Err(bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
+                    }
+                    mode("mode", m)?;
+                }
+                if let Some(s) = sc.step {
+                    if !s.0.is_finite() {
+                        return Err(bad("step", format!("must be finite, got {}", s.0)));
+                    }
+                }
+                let every = sc.every.unwrap_or(15.0);
+                if !(every.is_finite() && every > 0.0) {
+                    return Err(bad("every", format!("must be positive (s), got {every}")));
+                }
+                if duration / every > 10_000.0 {
+                    return Err(bad(
+                        "every",
+                        format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
+                    ));
+                }
+                energy("energy", sc.energy.unwrap_or(10.0))?;
+            }
+            ScenarioKind::Swingup => {
+                unused("starts", !sc.starts.is_empty())?;
+                unused("releases", !sc.releases.is_empty())?;
+                unused("energy", sc.energy.is_some())?;
+                unused("step", sc.step.is_some())?;
+                unused("every", sc.every.is_some())?;
+                unused("energy_target", sc.energy_target.is_some())?;
+                energy("e0", sc.e0.unwrap_or(5.0))?;
+                let schedule: Vec<(f64, f64)> = match sc.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
+                    EnergySpec::Value(v) => vec![(0.0, v)],
+                    EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
+                };
+                if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
+                    return Err(bad("ed", "steps must start at t = 0 and increase in time".into()));
+                }
+                for (t, e) in &schedule {
+                    if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
+                        return Err(bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
+                    }
+                }
+                if let Some(m) = &sc.mode {
+                    mode("mode", m)?;
+                }
+                for (k, v) in sc.variants.iter().enumerate() {
+                    if !["energy", "negative_damping", "energy_compensated"].contains(&v.as_str()) {
+                        return Err(bad(
+                            &format!("variants[{k}]"),
+                            format!("unknown variant `{v}`: expected energy, negative_damping or energy_compensated"),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Resolves the scenario into runs for `design`; errors name `scenario[index].field`.
     pub fn resolve(
         &self,
@@ -267,26 +416,14 @@ impl ScenarioSpec {
         design: &Design,
         energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>,
     ) -> Result<Scenario> {
+        self.check(index, design)?;
         let n = design.dof();
-        let field = |f: &str| format!("scenario[{index}].{f}");
-        let bad = |f: &str, r: String| Error::invalid(&design.path, field(f), r);
-        let unused = |f: &str, present: bool| -> Result<()> {
-            if present { Err(bad(f, format!("does not apply to kind = \"{}\"", kind_name(self.kind)))) } else { Ok(()) }
-        };
-        if self.name.trim().is_empty() || self.name.contains(['/', '\\']) {
-            return Err(bad("name", format!("`{}` cannot name an output file", self.name)));
-        }
+        let bad = |f: &str, r: String| Error::invalid(&design.path, format!("scenario[{index}].{f}"), r);
         let duration = self.duration.unwrap_or(match self.kind {
             ScenarioKind::Switch => 100.0,
             _ => 20.0,
         });
-        if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
-            return Err(bad("duration", format!("must be positive (s), got {duration}")));
-        }
         let d = self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 });
-        if !(d.is_finite() && d >= 0.0) {
-            return Err(bad("damping", format!("must be ≥ 0, got {d}")));
-        }
         let base = |name: String, q0: Vec<f64>| RunSpec {
             name,
             q0,
@@ -302,28 +439,8 @@ impl ScenarioSpec {
         let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
         let runs = match self.kind {
             ScenarioKind::Free => {
-                unused("mode", self.mode.is_some())?;
-                unused("energy", self.energy.is_some())?;
-                unused("step", self.step.is_some())?;
-                unused("every", self.every.is_some())?;
-                unused("energy_target", self.energy_target.is_some())?;
-                unused("e0", self.e0.is_some())?;
-                unused("ed", self.ed.is_some())?;
-                unused("variants", !self.variants.is_empty())?;
-                if self.starts.is_empty() && self.releases.is_empty() {
-                    return Err(bad(
-                        "releases",
-                        "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into(),
-                    ));
-                }
                 let mut runs = Vec::new();
                 for (k, s) in self.starts.iter().enumerate() {
-                    if s.len() != n {
-                        return Err(bad(
-                            &format!("starts[{k}]"),
-                            format!("has {} angles but the robot has {n} joints", s.len()),
-                        ));
-                    }
                     runs.push(base(format!("start_{}", k + 1), s.iter().map(|a| a.0).collect()));
                 }
                 for (k, r) in self.releases.iter().enumerate() {
@@ -335,31 +452,13 @@ impl ScenarioSpec {
                 runs
             }
             ScenarioKind::Switch => {
-                unused("starts", !self.starts.is_empty())?;
-                unused("releases", !self.releases.is_empty())?;
-                unused("e0", self.e0.is_some())?;
-                unused("ed", self.ed.is_some())?;
-                unused("variants", !self.variants.is_empty())?;
-                if n != 2 {
-                    return Err(bad("kind", "mode switching by θ steps needs two joints".into()));
-                }
+                // `check` refused a direction vector as the first mode of a switch.
                 let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
                     ModeSpec::Angle(a) => a,
-                    ModeSpec::Vector(_) => {
-                        return Err(bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
-                    }
+                    ModeSpec::Vector(_) => 0.0,
                 };
                 let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
                 let every = self.every.unwrap_or(15.0);
-                if !(every.is_finite() && every > 0.0) {
-                    return Err(bad("every", format!("must be positive (s), got {every}")));
-                }
-                if duration / every > 10_000.0 {
-                    return Err(bad(
-                        "every",
-                        format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
-                    ));
-                }
                 let energy = self.energy.unwrap_or(10.0);
                 let u = mode_direction(&ModeSpec::Angle(theta0), n, &frame).map_err(|e| bad("mode", e))?;
                 let q0 = start_on_mode(design, &u, energy, energy_at).map_err(|e| bad("energy", e))?;
@@ -379,25 +478,11 @@ impl ScenarioSpec {
                 vec![run]
             }
             ScenarioKind::Swingup => {
-                unused("starts", !self.starts.is_empty())?;
-                unused("releases", !self.releases.is_empty())?;
-                unused("energy", self.energy.is_some())?;
-                unused("step", self.step.is_some())?;
-                unused("every", self.every.is_some())?;
-                unused("energy_target", self.energy_target.is_some())?;
                 let e0 = self.e0.unwrap_or(5.0);
                 let schedule: Vec<(f64, f64)> = match self.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
                     EnergySpec::Value(v) => vec![(0.0, v)],
                     EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
                 };
-                if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
-                    return Err(bad("ed", "steps must start at t = 0 and increase in time".into()));
-                }
-                for (t, e) in &schedule {
-                    if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
-                        return Err(bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
-                    }
-                }
                 let ed = schedule.iter().map(|s| s.1).fold(0.0, f64::max);
                 let mode = self.mode.clone().unwrap_or(ModeSpec::Angle(0.0));
                 let u = mode_direction(&mode, n, &frame).map_err(|e| bad("mode", e))?;
@@ -414,19 +499,12 @@ impl ScenarioSpec {
                     self.variants.clone()
                 };
                 let mut runs = Vec::new();
-                for (k, v) in variants.iter().enumerate() {
+                for v in &variants {
                     let (law, compensate) = match v.as_str() {
                         "energy" => (EnergyLaw::Energy, false),
                         "negative_damping" => (EnergyLaw::NegativeDamping, false),
-                        "energy_compensated" => (EnergyLaw::Energy, true),
-                        other => {
-                            return Err(bad(
-                                &format!("variants[{k}]"),
-                                format!(
-                                    "unknown variant `{other}`: expected energy, negative_damping or energy_compensated"
-                                ),
-                            ));
-                        }
+                        // "energy_compensated": `check` refused any other name.
+                        _ => (EnergyLaw::Energy, true),
                     };
                     let mut run = base(v.clone(), q0.clone());
                     run.mode = Some(ModeControl { schedule: vec![(0.0, target.clone())] });
