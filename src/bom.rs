@@ -144,6 +144,9 @@ pub fn split_csv_line(line: &str) -> std::result::Result<Vec<String>, String> {
 /// The path of cam `id`'s file, relative to the folder of the bill of materials `name`:
 /// `cams/C01.toml` beside `bom.csv`, `cams/C01_bom_tuned.toml` beside `bom_tuned.csv`.
 pub fn cam_file_name(name: &str, id: &str) -> String {
+    // An id read from an older file could hold anything: only letters, digits, `_` and `-` make
+    // a file name.
+    let id: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
     match name.strip_suffix(".csv").unwrap_or(name) {
         "bom" => format!("cams/{id}.toml"),
         stem => format!("cams/{id}_{stem}.toml"),
@@ -433,6 +436,8 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
             if stock_rate.is_some() {
                 return Err(bad(ln, "stock_rate", "a cam has no stock rate: leave it empty".into()));
             }
+            // Written as the knot span; the file's knots say it exactly.
+            num(9, "max_deflection_rad")?;
             let (coefficients, summary, span) = cam.load(num(8, "max_torque_nm")?, preload_nm)?;
             for (elements, c) in coefficients {
                 rows.push(BomRow {
@@ -787,7 +792,7 @@ mod tests {
     /// evaluating it take seconds. No design has more than eight joints.
     #[test]
     fn couplings_longer_than_the_longest_chain_are_errors() {
-        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,,\n");
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,,,,\n");
         let wide = vec!["1"; 2000].join(";");
         let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");

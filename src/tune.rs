@@ -545,7 +545,7 @@ mod tests {
     fn measured_column_is_found_anywhere_and_checked() {
         let h = crate::bom::HEADER;
         let text = format!(
-            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,\n"
+            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,,,\n"
         );
         let (rows, m) = read_measured(std::path::Path::new("m.csv"), &text).unwrap();
         assert_eq!(rows.len(), 2);
