@@ -1,25 +1,42 @@
-//! The bill of materials: the fitted springs as a CSV a workshop can build from and springfit can
-//! read back to rebuild the potential exactly.
+//! The bill of materials: the fitted springs and cams as a CSV a workshop can build from and
+//! springfit can read back to rebuild the potential exactly.
 //!
 //! Columns: `id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,
-//! max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max`.
-//! `coupling` is the vector a with entries joined by `;` (`1;-2`), `side` is `+`, `-` or empty,
-//! `preload_nm` the element's torque on its coordinate at the equilibrium (signed; empty when
-//! unknown). The last three say what can be set after assembly (empty when nothing): an adjustable
-//! offset's ± range and a trim spring's rate range (see [`crate::trim`]). Files of older springfit
-//! versions (twelve columns, ending at `tolerance`, or thirteen, ending at `preload_nm`) are read
-//! as well. Numbers are written with Rust's shortest
+//! max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max,
+//! gear_ratio,file`. `coupling` is the vector a with entries joined by `;` (`1;-2`), `side` is `+`,
+//! `-` or empty, `preload_nm` the element's torque on its coordinate at the equilibrium (signed;
+//! empty when unknown). `adjust_range_rad`, `trim_min`, `trim_max` say what can be set after
+//! assembly (empty when nothing): an adjustable offset's ± range and a trim spring's rate range
+//! (see [`crate::trim`]).
+//!
+//! **Cams.** A cam is one row: profile `cam`, side empty, `offset_rad` its first knot,
+//! `stiffness` its follower spring rate in N/mm (the rate the tolerance applies to: one δ per
+//! cam), `max_torque_nm` the largest |V′| over the region, `max_deflection_rad` the knot span,
+//! `preload_nm` V′ at the equilibrium, `gear_ratio` the cam's gearing and `file` its
+//! `cams/<id>.toml` ([`crate::cam::CamFile`], relative to the bill of materials' folder) with the
+//! coefficients. Inside springfit a cam stays what the fit solved for: one row per non-zero
+//! signed B-spline coefficient (`C01.07+`, profile [`Profile::Spline`], stiffness |cⱼ|, the basis
+//! negated when cⱼ < 0); [`parse`] expands a cam row into those rows and [`to_csv`] collapses
+//! them, so reading a fit's files gives its spring set bit for bit.
+//!
+//! Files of older springfit versions are read as well: twelve columns (ending at `tolerance`),
+//! thirteen (ending at `preload_nm`) or sixteen (ending at `trim_max`), with cams as one row per
+//! signed coefficient (side `+j/N/h`, stiffness in J). Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
 use std::path::Path;
 
+use crate::cam::{CamBuild, CamFile, Knots};
 use crate::design::{MAX_LINKS, read_text};
 use crate::elements::{Element, Profile, fmt_number};
 use crate::error::{Error, Result};
 use crate::potential::SpringSet;
 
 /// The CSV header.
-pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max";
+pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max,gear_ratio,file";
+
+/// The header of files with the after-assembly columns but before cams were one row (still read).
+const HEADER_16: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max";
 
 /// The header of files with the preload but before the after-assembly columns (still read).
 const HEADER_13: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm";
@@ -27,6 +44,9 @@ const HEADER_13: &str = "id,family,profile,side,coupling,offset_rad,stiffness,un
 /// The header of files written before the `preload_nm` column (still read).
 pub const HEADER_WITHOUT_PRELOAD: &str =
     "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance";
+
+/// The unit of a cam row's `stiffness` (its follower spring rate).
+pub const CAM_UNIT: &str = "N/mm";
 
 /// What can be set on an element after assembly.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -37,10 +57,22 @@ pub struct Adjustment {
     pub trim_range: Option<[f64; 2]>,
 }
 
+/// What the bill of materials says about a whole cam, carried by each of its coefficient rows
+/// (the figures of its one row in `bom.csv`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CamSummary {
+    /// How it is built (follower rate, preload, gear ratio, radii).
+    pub build: CamBuild,
+    /// Largest |V′(x)| over the region, N·m.
+    pub max_torque_nm: f64,
+    /// V′ at the equilibrium, N·m (signed; None when unknown).
+    pub preload_nm: Option<f64>,
+}
+
 /// One row of the bill of materials.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BomRow {
-    /// `S01`, `S02`, …
+    /// `S01`, `S02`, …; `C01.07+` for a cam's coefficient.
     pub id: String,
     /// The catalogue family's name.
     pub family: String,
@@ -48,19 +80,23 @@ pub struct BomRow {
     pub element: Element,
     /// Fitted stiffness in the profile's unit.
     pub stiffness: f64,
-    /// Largest torque on the element's transmission coordinate over the region, N·m.
+    /// Largest torque on the element's transmission coordinate over the region, N·m (a cam
+    /// coefficient read from a file: the cam's).
     pub max_torque_nm: f64,
-    /// Largest deflection |x − x₀| while engaged over the region, rad.
+    /// Largest deflection |x − x₀| while engaged over the region, rad (a cam coefficient read
+    /// from a file: the knot span).
     pub max_deflection_rad: f64,
     /// The nearest stock rate the catalogue offers, if it lists any.
     pub stock_rate: Option<f64>,
     /// ± fraction the built element may deviate.
     pub tolerance: f64,
     /// Torque on the element's coordinate at the equilibrium, k·u′(a·q_eq − x₀), N·m (signed).
-    /// None when read from a file without the column.
+    /// None when read from a file without the column (and for a cam's coefficients read back).
     pub preload_nm: Option<f64>,
     /// What can be set after assembly.
     pub adjust: Adjustment,
+    /// The cam this coefficient belongs to (None for springs and for cams of older files).
+    pub cam: Option<CamSummary>,
 }
 
 /// Quotes a CSV field if it needs it.
@@ -105,48 +141,181 @@ pub fn split_csv_line(line: &str) -> std::result::Result<Vec<String>, String> {
     Ok(out)
 }
 
-/// Writes the rows as CSV text.
-pub fn to_csv(rows: &[BomRow]) -> String {
-    let mut s = String::from(HEADER);
-    s.push('\n');
+/// The path of cam `id`'s file, relative to the folder of the bill of materials `name`:
+/// `cams/C01.toml` beside `bom.csv`, `cams/C01_bom_tuned.toml` beside `bom_tuned.csv`.
+pub fn cam_file_name(name: &str, id: &str) -> String {
+    // An id read from an older file could hold anything: only letters, digits, `_` and `-` make
+    // a file name.
+    let id: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
+    match name.strip_suffix(".csv").unwrap_or(name) {
+        "bom" => format!("cams/{id}.toml"),
+        stem => format!("cams/{id}_{stem}.toml"),
+    }
+}
+
+/// One line of the written bill of materials: a spring row as it is, a cam collapsed.
+struct Line {
+    id: String,
+    family: String,
+    profile: &'static str,
+    side: String,
+    coupling: Vec<f64>,
+    offset: f64,
+    stiffness: f64,
+    unit: &'static str,
+    max_torque_nm: f64,
+    max_deflection_rad: f64,
+    stock_rate: Option<f64>,
+    tolerance: f64,
+    preload_nm: Option<f64>,
+    adjust: Adjustment,
+    /// A cam: its file's name and content.
+    cam: Option<(String, CamFile)>,
+}
+
+/// The lines of a bill of materials written as `name`: each cam (its coefficient rows, grouped
+/// by the `Cnn` of their ids) one line at the place of its first row, with the coefficients
+/// summed with their signs and the build of its [`CamSummary`] (a default realisation when the
+/// rows carry none, as rows of an older file).
+fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
+    let cams = crate::cam::grouped(rows);
+    let mut done = vec![false; cams.len()];
+    let mut out = Vec::new();
     for r in rows {
         let e = &r.element;
+        if !matches!(e.profile, Profile::Spline(_)) {
+            out.push(Line {
+                id: r.id.clone(),
+                family: r.family.clone(),
+                profile: e.profile.name(),
+                side: e.profile.side(),
+                coupling: e.coupling.clone(),
+                offset: e.offset,
+                stiffness: r.stiffness,
+                unit: e.profile.unit(),
+                max_torque_nm: r.max_torque_nm,
+                max_deflection_rad: r.max_deflection_rad,
+                stock_rate: r.stock_rate,
+                tolerance: r.tolerance,
+                preload_nm: r.preload_nm,
+                adjust: r.adjust,
+                cam: None,
+            });
+            continue;
+        }
+        let id = r.id.split('.').next().unwrap_or(&r.id);
+        let Some(ci) = cams.iter().position(|c| c.id == id) else { continue };
+        if std::mem::replace(&mut done[ci], true) {
+            continue;
+        }
+        let c = &cams[ci];
+        let summary = r.cam.unwrap_or_else(|| {
+            let real = crate::cam::realise_default(&c.knots, &c.coefficients);
+            let max_torque = real.points.iter().map(|p| p.torque.abs()).fold(0.0, f64::max);
+            CamSummary { build: real.build, max_torque_nm: max_torque, preload_nm: None }
+        });
+        out.push(Line {
+            id: c.id.clone(),
+            family: c.family.clone(),
+            profile: "cam",
+            side: String::new(),
+            coupling: c.coupling.clone(),
+            offset: c.knots.lo,
+            stiffness: summary.build.follower_rate,
+            unit: CAM_UNIT,
+            max_torque_nm: summary.max_torque_nm,
+            max_deflection_rad: c.knots.hi() - c.knots.lo,
+            stock_rate: None,
+            tolerance: r.tolerance,
+            preload_nm: summary.preload_nm,
+            adjust: r.adjust,
+            cam: Some((
+                cam_file_name(name, &c.id),
+                CamFile::new(&c.coupling, &c.knots, &c.coefficients, &summary.build),
+            )),
+        });
+    }
+    out
+}
+
+/// A coupling as `bom.csv` writes it (as [`Element::coupling_text`]).
+fn coupling_text(a: &[f64]) -> String {
+    a.iter().map(|x| fmt_number(*x)).collect::<Vec<_>>().join(";")
+}
+
+/// The files of a bill of materials written as `name` (`bom.csv`): the CSV, then one
+/// `cams/<id>.toml` per cam ([`cam_file_name`]); paths relative to the CSV's folder.
+pub fn files(name: &str, rows: &[BomRow]) -> Vec<(String, String)> {
+    let lines = lines(name, rows);
+    let mut s = String::from(HEADER);
+    s.push('\n');
+    let mut cams = Vec::new();
+    for l in &lines {
         let fields = [
-            csv_field(&r.id),
-            csv_field(&r.family),
-            e.profile.name().to_string(),
-            e.profile.side().to_string(),
-            e.coupling_text(),
-            format!("{}", e.offset),
-            format!("{}", r.stiffness),
-            e.profile.unit().to_string(),
-            format!("{}", r.max_torque_nm),
-            format!("{}", r.max_deflection_rad),
-            r.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
-            format!("{}", r.tolerance),
-            r.preload_nm.map(|x| format!("{x}")).unwrap_or_default(),
-            r.adjust.adjust_range.map(|x| format!("{x}")).unwrap_or_default(),
-            r.adjust.trim_range.map(|x| format!("{}", x[0])).unwrap_or_default(),
-            r.adjust.trim_range.map(|x| format!("{}", x[1])).unwrap_or_default(),
+            csv_field(&l.id),
+            csv_field(&l.family),
+            l.profile.to_string(),
+            l.side.clone(),
+            coupling_text(&l.coupling),
+            format!("{}", l.offset),
+            format!("{}", l.stiffness),
+            l.unit.to_string(),
+            format!("{}", l.max_torque_nm),
+            format!("{}", l.max_deflection_rad),
+            l.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
+            format!("{}", l.tolerance),
+            l.preload_nm.map(|x| format!("{x}")).unwrap_or_default(),
+            l.adjust.adjust_range.map(|x| format!("{x}")).unwrap_or_default(),
+            l.adjust.trim_range.map(|x| format!("{}", x[0])).unwrap_or_default(),
+            l.adjust.trim_range.map(|x| format!("{}", x[1])).unwrap_or_default(),
+            l.cam.as_ref().map(|(_, f)| format!("{}", f.realisation.gear_ratio)).unwrap_or_default(),
+            l.cam.as_ref().map(|(p, _)| csv_field(p)).unwrap_or_default(),
         ];
         s.push_str(&fields.join(","));
         s.push('\n');
+        if let Some((path, f)) = &l.cam {
+            cams.push((path.clone(), f.to_toml(&format!("{} (family \"{}\")", l.id, l.family))));
+        }
     }
-    s
+    let mut out = vec![(name.to_string(), s)];
+    out.extend(cams);
+    out
 }
 
-/// Reads a bill of materials. Every problem names the line and the column.
+/// The CSV text of `bom.csv` (its cams' files: [`files`]).
+pub fn to_csv(rows: &[BomRow]) -> String {
+    files("bom.csv", rows).swap_remove(0).1
+}
+
+/// Writes the bill of materials as `name` into `out`, with its cams' files.
+pub fn write(out: &crate::report::output::OutputDir, name: &str, rows: &[BomRow]) -> Result<()> {
+    for (path, text) in files(name, rows) {
+        out.write(&path, text)?;
+    }
+    Ok(())
+}
+
+/// Reads a bill of materials (and the files of its cams, relative to its folder). Every
+/// problem names the file, the line and the column.
 pub fn read(path: &Path) -> Result<Vec<BomRow>> {
     parse(path, &read_text(path)?)
 }
 
-/// Parses bill-of-materials text (see [`read`]).
+/// Parses bill-of-materials text (see [`read`]); cams' files are looked for beside `path`.
 pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
+    parse_lines(path, text).map(|(rows, _)| rows)
+}
+
+/// [`parse`], with the data line (0 = the first after the header) each row comes from: a cam's
+/// coefficient rows all come from its one line.
+pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)> {
     let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
     let header = header.trim_start_matches('\u{feff}').trim();
     let columns = if header == HEADER {
+        18
+    } else if header == HEADER_16 {
         16
     } else if header == HEADER_13 {
         13
@@ -156,12 +325,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         return Err(bad(
             1,
             "header",
-            format!("expected `{HEADER}` (or an older file's first 12 or 13 of those columns)"),
+            format!("expected `{HEADER}` (or an older file's first 12, 13 or 16 of those columns)"),
         ));
     };
     let mut rows = Vec::new();
+    let mut origin = Vec::new();
     let mut dof = None;
-    for (idx, line) in lines {
+    for (line_index, (idx, line)) in lines.enumerate() {
         let ln = idx + 1;
         let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
         if f.len() != columns {
@@ -174,7 +344,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             }
             Ok(v)
         };
-        let profile = Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| bad(ln, "profile", e))?;
+        // A cam as one row (side empty) or, in older files, one row per signed coefficient.
+        let whole_cam = f[2].trim() == "cam" && f[3].trim().is_empty();
+        let profile = if whole_cam {
+            None
+        } else {
+            Some(Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| bad(ln, "profile", e))?)
+        };
         let coupling: Vec<f64> = f[4]
             .split(';')
             .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
@@ -201,12 +377,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         if stiffness < 0.0 {
             return Err(bad(ln, "stiffness", format!("must be ≥ 0, got {stiffness}")));
         }
-        if f[7].trim() != profile.unit() {
-            return Err(bad(
-                ln,
-                "unit",
-                format!("a {} element's stiffness is in {}, not `{}`", profile.name(), profile.unit(), f[7]),
-            ));
+        let unit = profile.map_or(CAM_UNIT, |p| p.unit());
+        if f[7].trim() != unit {
+            let what = profile.map_or("cam's follower rate", |p| p.name());
+            return Err(bad(ln, "unit", format!("a {what} element's stiffness is in {unit}, not `{}`", f[7])));
         }
         let stock_rate = if f[10].trim().is_empty() { None } else { Some(num(10, "stock_rate")?) };
         let tolerance = num(11, "tolerance")?;
@@ -215,7 +389,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
         }
         let preload_nm = if columns < 13 || f[12].trim().is_empty() { None } else { Some(num(12, "preload_nm")?) };
         let mut adjust = Adjustment::default();
-        if columns == 16 {
+        if columns >= 16 {
             if !f[13].trim().is_empty() {
                 let r = num(13, "adjust_range_rad")?;
                 if !(r > 0.0 && r <= std::f64::consts::PI) {
@@ -234,13 +408,61 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
                             format!("a trim range needs 0 ≤ trim_min < trim_max, got [{lo}, {hi}]"),
                         ));
                     }
-                    if profile != Profile::Linear {
+                    if profile != Some(Profile::Linear) {
                         return Err(bad(ln, "trim_min", "only linear springs can be trims".into()));
                     }
                     adjust.trim_range = Some([lo, hi]);
                 }
                 _ => return Err(bad(ln, "trim_max", "trim_min and trim_max are given together or not at all".into())),
             }
+        }
+        let (gear_ratio, file) = if columns == 18 {
+            let g = if f[16].trim().is_empty() { None } else { Some(num(16, "gear_ratio")?) };
+            (g, f[17].trim())
+        } else {
+            (None, "")
+        };
+        let Some(profile) = profile else {
+            let cam = CamRowText {
+                bom: path,
+                line: ln,
+                id: &f[0],
+                coupling: &coupling,
+                first_knot: num(5, "offset_rad")?,
+                follower_rate: stiffness,
+                gear_ratio,
+                file,
+            };
+            if stock_rate.is_some() {
+                return Err(bad(ln, "stock_rate", "a cam has no stock rate: leave it empty".into()));
+            }
+            // Written as the knot span; the file's knots say it exactly.
+            num(9, "max_deflection_rad")?;
+            let (coefficients, summary, span) = cam.load(num(8, "max_torque_nm")?, preload_nm)?;
+            for (elements, c) in coefficients {
+                rows.push(BomRow {
+                    id: elements.0,
+                    family: f[1].clone(),
+                    element: elements.1,
+                    stiffness: c,
+                    max_torque_nm: summary.max_torque_nm,
+                    max_deflection_rad: span,
+                    stock_rate: None,
+                    tolerance,
+                    preload_nm: None,
+                    adjust,
+                    cam: Some(summary),
+                });
+                origin.push(line_index);
+            }
+            continue;
+        };
+        if gear_ratio.is_some() || !file.is_empty() {
+            return Err(bad(
+                ln,
+                if file.is_empty() { "gear_ratio" } else { "file" },
+                "only a cam's row (profile `cam`, side empty) has a gear ratio and a file".into(),
+            ));
         }
         rows.push(BomRow {
             id: f[0].clone(),
@@ -253,12 +475,116 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
             tolerance,
             preload_nm,
             adjust,
+            cam: None,
         });
+        origin.push(line_index);
     }
     if rows.is_empty() {
         return Err(bad(1, "rows", "the bill of materials lists no element".into()));
     }
-    Ok(rows)
+    Ok((rows, origin))
+}
+
+/// A cam's row in `bom.csv`, read: what its file must agree with.
+struct CamRowText<'a> {
+    bom: &'a Path,
+    line: usize,
+    id: &'a str,
+    coupling: &'a [f64],
+    first_knot: f64,
+    follower_rate: f64,
+    gear_ratio: Option<f64>,
+    file: &'a str,
+}
+
+/// A cam's coefficient rows: ((id, element), |cⱼ|).
+type CoefficientRows = Vec<((String, Element), f64)>;
+
+impl CamRowText<'_> {
+    /// Reads the cam's file and checks it against the row: the coefficient rows (zero
+    /// coefficients left out), the summary and the knot span.
+    fn load(&self, max_torque_nm: f64, preload_nm: Option<f64>) -> Result<(CoefficientRows, CamSummary, f64)> {
+        let ln = self.line;
+        let bad = |field: &str, reason: String| Error::invalid(self.bom, format!("line {ln}: {field}"), reason);
+        if self.id.contains('.') || self.id.trim().is_empty() {
+            return Err(bad("id", format!("a cam's id is a name without `.` (C01), got `{}`", self.id)));
+        }
+        if self.file.is_empty() {
+            return Err(bad(
+                "file",
+                "a cam's row (profile `cam`, side empty) names the file of its coefficients (cams/<id>.toml); \
+                 files before springfit wrote one listed each coefficient as a row (side `+j/N/h`)"
+                    .into(),
+            ));
+        }
+        let cam_path = self.bom.parent().unwrap_or(Path::new("")).join(self.file);
+        if !cam_path.is_file() {
+            return Err(bad("file", format!("{} does not exist", cam_path.display())));
+        }
+        let cam = CamFile::read(&cam_path)?;
+        let disagree = |field: &str, file_value: String, column: &str, row_value: String| {
+            Error::invalid(
+                &cam_path,
+                field,
+                format!(
+                    "{file_value} disagrees with {column} = {row_value} of row {} (line {ln}) of {}",
+                    self.id,
+                    self.bom.display()
+                ),
+            )
+        };
+        if cam.coupling.len() != self.coupling.len() || cam.coupling.iter().zip(self.coupling).any(|(a, b)| a != b) {
+            return Err(disagree(
+                "coupling",
+                format!("({})", coupling_text(&cam.coupling)),
+                "coupling",
+                format!("({})", coupling_text(self.coupling)),
+            ));
+        }
+        if cam.first_knot_rad != self.first_knot {
+            return Err(disagree(
+                "first_knot_rad",
+                format!("{}", cam.first_knot_rad),
+                "offset_rad",
+                format!("{}", self.first_knot),
+            ));
+        }
+        let build = cam.realisation.build();
+        if build.follower_rate != self.follower_rate {
+            return Err(disagree(
+                "realisation.follower_rate_n_per_mm",
+                format!("{}", build.follower_rate),
+                "stiffness",
+                format!("{}", self.follower_rate),
+            ));
+        }
+        if let Some(g) = self.gear_ratio.filter(|g| *g != build.gear_ratio) {
+            return Err(disagree(
+                "realisation.gear_ratio",
+                format!("{}", build.gear_ratio),
+                "gear_ratio",
+                format!("{g}"),
+            ));
+        }
+        let knots: Knots = cam.knot_vector();
+        let coefficients = cam
+            .coefficients_j
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(j, &c)| {
+                let negative = c < 0.0;
+                let id = format!("{}.{j:02}{}", self.id, if negative { "-" } else { "+" });
+                let element = Element {
+                    profile: Profile::Spline(knots.basis(j, negative)),
+                    coupling: self.coupling.to_vec(),
+                    offset: self.first_knot,
+                };
+                ((id, element), c.abs())
+            })
+            .collect();
+        Ok((coefficients, CamSummary { build, max_torque_nm, preload_nm }, knots.hi() - knots.lo))
+    }
 }
 
 /// The spring set a bill of materials describes.
@@ -302,47 +628,51 @@ fn after_assembly(a: &Adjustment) -> String {
     }
 }
 
-/// The bill of materials as a Markdown table with totals per unit.
+/// The bill of materials as a Markdown table with totals per unit (a cam is one row, its
+/// stiffness the follower rate).
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
+    let lines = lines("bom.csv", rows);
     let mut s = format!("# Bill of materials: {title}\n\n");
     s.push_str("| id | family | profile | coupling a | offset x₀ (rad) | stiffness | unit | max torque (N·m) | max deflection (rad) | stock rate | tolerance | preload (N·m) | after assembly |\n");
     s.push_str("| --- | --- | --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- |\n");
-    for r in rows {
-        let e = &r.element;
+    for l in &lines {
+        let profile = match &l.cam {
+            Some((path, f)) => format!("cam, gear ratio {:.4}, {path}", f.realisation.gear_ratio),
+            None if l.side.is_empty() => l.profile.to_string(),
+            None => format!("{} {}", l.profile, l.side),
+        };
         s.push_str(&format!(
-            "| {} | {} | {}{} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} | {} | {} |\n",
-            r.id,
-            r.family.replace('|', "/"),
-            e.profile.name(),
-            if e.profile.side().is_empty() { String::new() } else { format!(" {}", e.profile.side()) },
-            e.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(", "),
-            e.offset,
-            r.stiffness,
-            e.profile.unit(),
-            r.max_torque_nm,
-            r.max_deflection_rad,
-            r.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
+            "| {} | {} | {} | ({}) | {:.4} | {:.4} | {} | {:.3} | {:.3} | {} | {} | {} | {} |\n",
+            l.id,
+            l.family.replace('|', "/"),
+            profile,
+            l.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(", "),
+            l.offset,
+            l.stiffness,
+            l.unit,
+            l.max_torque_nm,
+            l.max_deflection_rad,
+            l.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
             // A catalogue that states no tolerance is not one of ±0 %.
-            if r.tolerance == 0.0 {
+            if l.tolerance == 0.0 {
                 "not stated".to_string()
             } else {
-                format!("±{} %", fmt_number(r.tolerance * 100.0))
+                format!("±{} %", fmt_number(l.tolerance * 100.0))
             },
-            r.preload_nm.map(|x| format!("{x:.3}")).unwrap_or_else(|| "–".into()),
-            after_assembly(&r.adjust),
+            l.preload_nm.map(|x| format!("{x:.3}")).unwrap_or_else(|| "–".into()),
+            after_assembly(&l.adjust),
         ));
     }
-    s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", rows.len()));
-    let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
+    s.push_str(&format!("\n**{} elements.** Total stiffness per unit:\n\n", lines.len()));
+    let mut units: Vec<&str> = lines.iter().map(|l| l.unit).collect();
     units.sort_unstable();
     units.dedup();
     for u in units {
-        let (count, total) =
-            rows.iter().filter(|r| r.element.profile.unit() == u).fold((0, 0.0), |(c, t), r| (c + 1, t + r.stiffness));
+        let (count, total) = lines.iter().filter(|l| l.unit == u).fold((0, 0.0), |(c, t), l| (c + 1, t + l.stiffness));
         s.push_str(&format!("- {u}: {total:.4} over {count} element(s)\n"));
     }
-    if rows.iter().all(|r| r.preload_nm.is_some()) {
-        let total: f64 = rows.iter().filter_map(|r| r.preload_nm).map(f64::abs).sum();
+    if lines.iter().all(|l| l.preload_nm.is_some()) {
+        let total: f64 = lines.iter().filter_map(|l| l.preload_nm).map(f64::abs).sum();
         s.push_str(&format!(
             "\n**Total preload** Σ|τ(q_eq)| = {total:.3} N·m (torques the elements hold against each other at the equilibrium; a rate error un-cancels them)\n"
         ));
@@ -368,6 +698,7 @@ mod tests {
                 tolerance: 0.05,
                 preload_nm: Some(-0.125),
                 adjust: Adjustment { adjust_range: Some(0.3), trim_range: None },
+                cam: None,
             },
             BomRow {
                 id: "S02".into(),
@@ -380,6 +711,7 @@ mod tests {
                 tolerance: 0.1,
                 preload_nm: Some(2.5),
                 adjust: Adjustment::default(),
+                cam: None,
             },
             BomRow {
                 id: "S03".into(),
@@ -392,6 +724,7 @@ mod tests {
                 tolerance: 0.0,
                 adjust: Adjustment { adjust_range: None, trim_range: Some([0.5, 3.5]) },
                 preload_nm: Some(0.0),
+                cam: None,
             },
         ]
     }
@@ -413,8 +746,8 @@ mod tests {
         let mut old = String::from(HEADER_WITHOUT_PRELOAD);
         old.push('\n');
         for line in to_csv(&rows()).lines().skip(1) {
-            // Drop the four newer columns (preload, adjust range, trim range) from the end.
-            old.push_str(line.rsplitn(5, ',').last().unwrap());
+            // Drop the six newer columns (preload, adjust range, trim range, gear ratio, file).
+            old.push_str(line.rsplitn(7, ',').last().unwrap());
             old.push('\n');
         }
         let back = parse(Path::new("bom.csv"), &old).unwrap();
@@ -426,7 +759,7 @@ mod tests {
         assert!(parse(Path::new("bom.csv"), &bad).unwrap_err().to_string().contains("line 2: preload_nm"));
         // Old rows under the new header have a field too few.
         let mixed = old.replacen(HEADER_WITHOUT_PRELOAD, HEADER, 1);
-        assert!(parse(Path::new("bom.csv"), &mixed).unwrap_err().to_string().contains("expected 16"));
+        assert!(parse(Path::new("bom.csv"), &mixed).unwrap_err().to_string().contains("expected 18"));
         assert!(to_markdown("t", &rows()).contains("trim: rate 0.5 to 3.5 N·m/rad"));
     }
 
@@ -459,13 +792,145 @@ mod tests {
     /// evaluating it take seconds. No design has more than eight joints.
     #[test]
     fn couplings_longer_than_the_longest_chain_are_errors() {
-        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,,\n");
+        let row = |coupling: &str| format!("{HEADER}\nS01,a,linear,,{coupling},0,1,N*m/rad,1,1,,0,,,,,,\n");
         let wide = vec!["1"; 2000].join(";");
         let err = parse(Path::new("bom.csv"), &row(&wide)).unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("line 2: coupling") && err.contains("2000 entries"), "{err}");
         assert!(parse(Path::new("bom.csv"), &row(&["1"; 9].join(";"))).is_err());
         let rows = parse(Path::new("bom.csv"), &row(&["1"; 8].join(";"))).unwrap();
         assert_eq!(rows[0].element.coupling.len(), 8);
+    }
+
+    /// A fresh folder for one test.
+    fn folder(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("springfit-bom-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn write_files(dir: &Path, name: &str, rows: &[BomRow]) {
+        for (path, text) in files(name, rows) {
+            let p = dir.join(path);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, text).unwrap();
+        }
+    }
+
+    /// The rows of a spring, a cam and two springs: the cam as a fit makes it, one row per
+    /// non-zero coefficient, the basis negated where cⱼ < 0.
+    fn rows_with_cam() -> Vec<BomRow> {
+        let knots = Knots { lo: -0.3, width: 0.1 + 0.2, count: 5 };
+        let c: [f64; 7] = [1.0 / 3.0, 0.0, -2.5, 1e-17, -0.0, 7.25, -1.0 / 7.0];
+        let build =
+            CamBuild { follower_rate: 12.345, preload: 4.0, gear_ratio: 0.7, base_radius: 40.0, roller_radius: 8.0 };
+        let summary = CamSummary { build, max_torque_nm: 3.5, preload_nm: Some(-0.25) };
+        let cam = c.iter().enumerate().filter(|(_, c)| **c != 0.0).map(|(j, &cj)| BomRow {
+            id: format!("C01.{j:02}{}", if cj < 0.0 { "-" } else { "+" }),
+            family: "disc, cam".into(),
+            element: Element {
+                profile: Profile::Spline(knots.basis(j, cj < 0.0)),
+                coupling: vec![1.0, -1.0],
+                offset: knots.lo,
+            },
+            stiffness: cj.abs(),
+            max_torque_nm: 3.5,
+            max_deflection_rad: knots.hi() - knots.lo,
+            stock_rate: None,
+            tolerance: 0.05,
+            preload_nm: None,
+            adjust: Adjustment::default(),
+            cam: Some(summary),
+        });
+        let mut all = rows();
+        all.splice(1..1, cam);
+        all
+    }
+
+    #[test]
+    fn a_cam_is_one_row_and_a_file_and_comes_back_bit_for_bit() {
+        let dir = folder("cam");
+        let rows = rows_with_cam();
+        write_files(&dir, "bom.csv", &rows);
+        let text = std::fs::read_to_string(dir.join("bom.csv")).unwrap();
+        assert_eq!(text.lines().count(), 1 + 4, "{text}");
+        let cam_line = text.lines().nth(2).unwrap();
+        assert!(cam_line.starts_with("C01,\"disc, cam\",cam,,1;-1,-0.3,12.345,N/mm,3.5,"), "{cam_line}");
+        assert!(cam_line.ends_with(",0.05,-0.25,,,,0.7,cams/C01.toml"), "{cam_line}");
+        let back = read(&dir.join("bom.csv")).unwrap();
+        assert_eq!(back, rows);
+        assert_eq!(fingerprint(&spring_set(&back)), fingerprint(&spring_set(&rows)));
+        let md = to_markdown("t", &rows);
+        assert!(md.contains("| C01 | disc, cam | cam, gear ratio 0.7000, cams/C01.toml | (1, -1) |"), "{md}");
+        assert!(md.contains("**4 elements.**") && md.contains("N/mm: 12.3450 over 1 element(s)"), "{md}");
+        // Beside another bill of materials the cam's file has that one's name in it.
+        assert_eq!(files("bom_tuned.csv", &rows)[1].0, "cams/C01_bom_tuned.toml");
+        // An older file, one row per signed coefficient (side `±j/N/h`, stiffness in J), is read
+        // into the same spring set.
+        let mut old = format!("{HEADER_16}\n");
+        for r in &rows {
+            let e = &r.element;
+            old.push_str(&format!(
+                "{},{},{},{},{},{},{},{},1,1,,0.05,,,,\n",
+                r.id,
+                csv_field(&r.family),
+                e.profile.name(),
+                e.profile.side(),
+                e.coupling_text(),
+                e.offset,
+                r.stiffness,
+                e.profile.unit()
+            ));
+        }
+        let old_rows = parse(&dir.join("old.csv"), &old).unwrap();
+        assert_eq!(spring_set(&old_rows), spring_set(&rows));
+        assert!(old_rows.iter().all(|r| r.cam.is_none()));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_cam_file_that_disagrees_or_is_missing_is_one_error_naming_it() {
+        let dir = folder("cam-errors");
+        let rows = rows_with_cam();
+        let csv = files("bom.csv", &rows)[0].1.clone();
+        let toml = files("bom.csv", &rows)[1].1.clone();
+        let bom = dir.join("bom.csv");
+        let cases: [(String, String, &[&str]); 8] = [
+            (
+                csv.clone(),
+                toml.replace("knots = 5", "knots = 6"),
+                &["C01.toml", "coefficients_j", "has 7 values, expected knots + 2 = 8"],
+            ),
+            (
+                csv.clone(),
+                toml.replace("coupling = [1.0, -1.0]", "coupling = [1.0, 1.0]"),
+                &["C01.toml", "coupling", "(1;1) disagrees with coupling = (1;-1) of row C01 (line 3)"],
+            ),
+            (
+                csv.replace(",12.345,", ",12.5,"),
+                toml.clone(),
+                &["C01.toml", "realisation.follower_rate_n_per_mm", "stiffness = 12.5"],
+            ),
+            (csv.replace(",-0.3,", ",-0.25,"), toml.clone(), &["C01.toml", "first_knot_rad"]),
+            (csv.replace(",0.7,", ",0.75,"), toml.clone(), &["C01.toml", "realisation.gear_ratio"]),
+            (csv.replace("7.25", "inf"), toml.replace("7.25", "inf"), &["C01.toml", "coefficients_j", "c_5 = inf"]),
+            (csv.replace(",cams/C01.toml", ","), toml.clone(), &["bom.csv", "line 3: file"]),
+            (csv.replace(",N/mm,", ",J,"), toml.clone(), &["bom.csv", "line 3: unit"]),
+        ];
+        for (c, t, needles) in cases {
+            std::fs::create_dir_all(dir.join("cams")).unwrap();
+            std::fs::write(&bom, &c).unwrap();
+            std::fs::write(dir.join("cams/C01.toml"), &t).unwrap();
+            let err = read(&bom).unwrap_err().to_string();
+            for n in needles {
+                assert!(err.contains(n), "expected `{n}` in `{err}`");
+            }
+        }
+        std::fs::write(&bom, &csv).unwrap();
+        std::fs::remove_file(dir.join("cams/C01.toml")).unwrap();
+        let err = read(&bom).unwrap_err().to_string();
+        assert!(err.contains("line 3: file") && err.contains("C01.toml does not exist"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

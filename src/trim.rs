@@ -106,6 +106,7 @@ pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluat
             adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
             // Relaxed at q_eq: no torque there.
             preload_nm: Some(e.preload(stiffness, design.q_eq.as_slice())),
+            cam: None,
         });
     }
 }

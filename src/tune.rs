@@ -439,6 +439,13 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
             let mut row = r.clone();
             row.element = tuned.elements[j].clone();
             row.stiffness = tuned.stiffness[j];
+            // A cam as built: the same profile, its follower spring at the measured rate.
+            if let Some(cam) = row.cam.as_mut().filter(|_| r.stiffness > 0.0) {
+                let ratio = tuned.stiffness[j] / r.stiffness;
+                cam.build.follower_rate *= ratio;
+                cam.max_torque_nm *= ratio;
+                cam.preload_nm = cam.preload_nm.map(|p| p * ratio);
+            }
             row
         })
         .collect();
@@ -460,7 +467,8 @@ pub fn load_measured(path: &std::path::Path) -> Result<(Vec<BomRow>, Vec<Option<
 }
 
 /// Reads a bill of materials with a `measured_stiffness` column (anywhere; blank = as designed):
-/// the rows and the measured rates.
+/// the rows and the measured rates. On a cam's line the measured value is its follower spring's
+/// rate (N/mm); each of its coefficient rows gets its stiffness scaled by measured / designed.
 pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
     use crate::bom::{csv_field, split_csv_line};
     use crate::error::Error;
@@ -512,7 +520,20 @@ pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>,
         rest.push_str(&strip(f));
         rest.push('\n');
     }
-    let rows = crate::bom::parse(path, &rest)?;
+    let (rows, origin) = crate::bom::parse_lines(path, &rest)?;
+    // A cam's line gives its follower spring's rate: measured / designed scales the whole cam,
+    // every coefficient row, as the build does (one δ per cam).
+    let measured = rows
+        .iter()
+        .zip(&origin)
+        .map(|(r, &line)| {
+            let m = measured[line]?;
+            Some(match r.cam {
+                Some(cam) => r.stiffness * (m / cam.build.follower_rate),
+                None => m,
+            })
+        })
+        .collect();
     Ok((rows, measured))
 }
 
@@ -524,7 +545,7 @@ mod tests {
     fn measured_column_is_found_anywhere_and_checked() {
         let h = crate::bom::HEADER;
         let text = format!(
-            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,\n"
+            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,,,\n"
         );
         let (rows, m) = read_measured(std::path::Path::new("m.csv"), &text).unwrap();
         assert_eq!(rows.len(), 2);

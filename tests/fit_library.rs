@@ -189,9 +189,24 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
     let settings = quick(&design);
     let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
     assert_eq!(outcome.cams.len(), 3);
-    let rows = bom::parse(Path::new("bom.csv"), &bom::to_csv(&outcome.bom)).unwrap();
+    // The files as the fit writes them: bom.csv with one row per cam, and cams/<id>.toml.
+    let dir = std::env::temp_dir().join(format!("springfit-cam-round-trip-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let files = bom::files("bom.csv", &outcome.bom);
+    assert_eq!(files.len(), 1 + 3);
+    for (name, text) in &files {
+        let p = dir.join(name);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    assert_eq!(files[0].1.lines().count(), 1 + 3, "{}", files[0].1);
+    let rows = bom::read(&dir.join("bom.csv")).unwrap();
     let rebuilt = bom::spring_set(&rows);
     assert_eq!(rebuilt, outcome.springs);
+    assert_eq!(bom::fingerprint(&rebuilt), bom::fingerprint(&outcome.springs));
+    // Written again, the rows read back give the same files.
+    assert_eq!(bom::files("bom.csv", &rows), files);
+    let _ = std::fs::remove_dir_all(&dir);
     let again = evaluate(&design, settings.frequency, settings.bands, &rebuilt, &outcome.evaluation).unwrap();
     assert_eq!(again.residuals, outcome.metrics.residuals);
     // The cams regrouped from the read-back rows are the same cams.

@@ -85,11 +85,11 @@ fn mujoco_reproduces_the_dense_design() {
 fn offsets_of_minus_one_are_not_read_as_mujocos_default() {
     // MuJoCo reads a single springlength of exactly -1 as "the length at qpos_spring": the
     // export negates such tendons. Every kind of element at x0 = -1, added to the fitted springs.
-    let extra = "X1,extra,linear,,1;-2,-1,0.5,N*m/rad,0,0,,0,,,,\n\
-X2,extra,cubic,,1;1,-1,0.5,N*m/rad^3,0,0,,0,,,,\n\
-X3,extra,compression,+,0;1,-1,0.5,N*m/rad,0,0,,0,,,,\n\
-X4,extra,compression,-,1;0,-1,0.5,N*m/rad,0,0,,0,,,,\n\
-X5,extra,crank,,1;0,-1,0.5,N*m,0,0,,0,,,,\n";
+    let extra = "X1,extra,linear,,1;-2,-1,0.5,N*m/rad,0,0,,0,,,,,,\n\
+X2,extra,cubic,,1;1,-1,0.5,N*m/rad^3,0,0,,0,,,,,,\n\
+X3,extra,compression,+,0;1,-1,0.5,N*m/rad,0,0,,0,,,,,,\n\
+X4,extra,compression,-,1;0,-1,0.5,N*m/rad,0,0,,0,,,,,,\n\
+X5,extra,crank,,1;0,-1,0.5,N*m,0,0,,0,,,,,,\n";
     let Some((_, md)) = fit_export_verify_with("double_pendulum.toml", extra) else { return };
     assert!(md.contains("| X1 |") && md.contains("coef = −a"), "{md}");
 }
@@ -140,7 +140,11 @@ fn export_fits_when_no_bill_is_given_and_writes_its_springs() {
 #[test]
 fn export_refuses_a_bill_for_another_arm_and_needs_a_format() {
     let dir = temp_dir("export-bad");
-    util::write(&dir, "bom3.csv", &format!("{}\nS01,f,linear,,1;0;0,0,1,N*m/rad,0,0,,0,,,,\n", springfit::bom::HEADER));
+    util::write(
+        &dir,
+        "bom3.csv",
+        &format!("{}\nS01,f,linear,,1;0;0,0,1,N*m/rad,0,0,,0,,,,,,\n", springfit::bom::HEADER),
+    );
     let d = repo().join("designs/double_pendulum.toml");
     let d = d.to_str().unwrap();
     springfit(&dir, &["export", d, "--bom", "bom3.csv", "--mujoco", "--out", "mj"]).fails(2, &["bom3.csv", "3 joints"]);

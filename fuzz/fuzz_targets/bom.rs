@@ -24,9 +24,13 @@ fuzz_target!(|data: &[u8]| {
                 assert_eq!(g.len(), n);
                 assert_eq!(h.shape(), (n, n));
             }
-            // Writing the rows back and reading them again gives the same rows.
-            let again = bom::parse(path, &bom::to_csv(&rows)).expect("a written bill of materials reads back");
-            assert_eq!(again, rows);
+            // Writing the rows back and reading them again gives the same rows (cams are written
+            // as rows naming files, which are not on disk here: only written).
+            let files = bom::files("bom.csv", &rows);
+            if files.len() == 1 {
+                let again = bom::parse(path, &files[0].1).expect("a written bill of materials reads back");
+                assert_eq!(again, rows);
+            }
             let _ = bom::to_markdown("fuzz", &rows);
         }
         Err(e) => {

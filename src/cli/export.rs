@@ -64,7 +64,7 @@ pub fn run(args: ExportArgs, progress: &Progress) -> Result<()> {
     let dir = OutputDir::create(&target, "export")?;
     dir.write(&xml_name, &model.xml)?;
     dir.write("elements.md", mujoco::elements_md(&design, &model, &from, &xml_name))?;
-    dir.write("bom.csv", bom::to_csv(&rows))?;
+    bom::write(&dir, "bom.csv", &rows)?;
     let written = dir.commit()?;
     progress.say(format!(
         "{}: {} springs for MuJoCo, {} exact, {} by passive-force callback; RK4 at {} s",

@@ -83,9 +83,10 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         progress.say(format!("{}: exact potential ½ω²r² (ω = {} rad/s)", outcome.design, settings.frequency));
     } else {
         progress.say(format!(
-            "{}: {} springs from {} candidates of catalogue {} ({} never engage, {} enter the fit); solver {} ({})",
+            "{}: {} {} from {} candidates of catalogue {} ({} never engage, {} enter the fit); solver {} ({})",
             outcome.design,
             outcome.used(),
+            outcome.used_noun(),
             outcome.candidates,
             outcome.catalog,
             outcome.dropped,

@@ -28,7 +28,7 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Prog
     let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
     let step = progress.step("writing outputs");
     let dir = OutputDir::create(&target, "tune")?;
-    dir.write("bom_tuned.csv", springfit::bom::to_csv(&outcome.bom))?;
+    springfit::bom::write(&dir, "bom_tuned.csv", &outcome.bom)?;
     dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
     dir.write("tune.md", markdown(&design.name, &outcome))?;
     let written = dir.commit();
@@ -37,7 +37,8 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Prog
     for line in summary_lines(&outcome) {
         progress.say(line);
     }
-    progress.say(format!("wrote {} (bom_tuned.csv, tune.json, tune.md)", written.display()));
+    let cams = if outcome.bom.iter().any(|r| r.cam.is_some()) { ", cams/" } else { "" };
+    progress.say(format!("wrote {} (bom_tuned.csv{cams}, tune.json, tune.md)", written.display()));
     Ok(())
 }
 

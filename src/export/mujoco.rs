@@ -185,8 +185,9 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
         return Err(Error::Setting {
             field: "bom".into(),
             reason: format!(
-                "element {} is a cam basis function: cams are not exported to MuJoCo yet (no passive-force callback for them)",
-                r.id
+                "cam {} cannot be exported: MuJoCo has no element for an arbitrary profile, and the passive-force \
+                 callback does not carry cams yet (export a bill of materials without cams)",
+                r.id.split('.').next().unwrap_or(&r.id)
             ),
         });
     }
@@ -453,6 +454,7 @@ mod tests {
             tolerance: 0.0,
             preload_nm: None,
             adjust: crate::bom::Adjustment::default(),
+            cam: None,
         }
     }
 

@@ -121,9 +121,15 @@ pub struct FitOutcome {
 }
 
 impl FitOutcome {
-    /// Number of elements used.
+    /// Number of elements used: the rows of `bom.csv`, a cam counting as one (as for
+    /// `max_elements`) however many coefficients it has.
     pub fn used(&self) -> usize {
-        self.bom.len()
+        self.bom.iter().filter(|r| !matches!(r.element.profile, Profile::Spline(_))).count() + self.cams.len()
+    }
+
+    /// What [`FitOutcome::used`] counts, in words: `springs`, or `elements (N cams)` with cams.
+    pub fn used_noun(&self) -> String {
+        if self.cams.is_empty() { "springs".into() } else { format!("elements ({} cams)", self.cams.len()) }
     }
 }
 
@@ -280,6 +286,7 @@ impl<'a> Prepared<'a> {
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
         let cams = crate::cam::fitted_cams(catalog, &bom);
+        summarise_cams(&mut bom, &cams, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),
             dof: design.dof(),
@@ -786,6 +793,20 @@ fn bill_of_materials(
     q_eq: &[f64],
     threshold: f64,
 ) -> (Vec<BomRow>, SpringSet) {
+    // A cam's +Bⱼ and −Bⱼ columns become one signed coefficient cⱼ = k⁺ − k⁻ on the column of its
+    // sign, as `bom.csv` writes it: the set evaluated below is the one its files rebuild. (The
+    // solve already leaves one of each pair at zero; then this changes no bit.)
+    let mut k = k.to_vec();
+    for (j, n) in cam_partners(candidates).into_iter().enumerate() {
+        if let Some(n) = n {
+            if k[j] > 0.0 && k[n] > 0.0 {
+                let c = k[j] - k[n];
+                k[j] = c.max(0.0);
+                k[n] = (-c).max(0.0);
+            }
+        }
+    }
+    let k = k.as_slice();
     // Peak torque on x and engaged deflection of each candidate over the region.
     let peaks: Vec<(f64, f64)> = candidates
         .iter()
@@ -843,6 +864,7 @@ fn bill_of_materials(
                     adjust_range: catalog.families[c.family].adjust_range,
                     trim_range: None,
                 },
+                cam: None,
             }
         })
         .collect();
@@ -851,6 +873,31 @@ fn bill_of_materials(
         stiffness: used.iter().map(|&j| k[j]).collect(),
     };
     (bom, springs)
+}
+
+/// Gives each cam coefficient row its cam's [`crate::bom::CamSummary`]: the build, the largest
+/// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
+fn summarise_cams(bom: &mut [BomRow], cams: &[crate::cam::FittedCam], evaluation: &Fan, q_eq: &[f64]) {
+    for cam in cams {
+        let torque = |q: &[f64]| {
+            let x: f64 = cam.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
+            cam.knots.eval(&cam.coefficients, x).1
+        };
+        let preload = torque(q_eq);
+        let mut peak = preload.abs();
+        for g in &evaluation.geodesics {
+            for i in 0..g.len() {
+                peak = peak.max(torque(g.q(i)).abs());
+            }
+        }
+        let summary =
+            crate::bom::CamSummary { build: cam.realisation.build, max_torque_nm: peak, preload_nm: Some(preload) };
+        for r in bom.iter_mut().filter(|r| {
+            matches!(r.element.profile, Profile::Spline(_)) && r.id.split('.').next() == Some(cam.id.as_str())
+        }) {
+            r.cam = Some(summary);
+        }
+    }
 }
 
 /// The stock rate nearest to `k` in ratio (rates are usually geometric series).

@@ -133,10 +133,10 @@ pub fn write_with_as_built(
     let label = if exact {
         format!("{} — exact ½ω²r²", o.design)
     } else {
-        format!("{} — {} ({}), {} springs", o.design, o.catalog, o.solve.solver, o.used())
+        format!("{} — {} ({}), {} {}", o.design, o.catalog, o.solve.solver, o.used(), o.used_noun())
     };
     if !exact {
-        out.write("bom.csv", bom::to_csv(&o.bom))?;
+        bom::write(out, "bom.csv", &o.bom)?;
         out.write("bom.md", bom::to_markdown(&o.design, &o.bom))?;
         for cam in &o.cams {
             out.write(&format!("cams/{}.csv", cam.id), crate::cam::csv(cam))?;

@@ -135,7 +135,7 @@ pub fn write(
                 ..row.clone()
             })
             .collect();
-        out.write("bom_stock.csv", bom::to_csv(&rows))?;
+        bom::write(out, "bom_stock.csv", &rows)?;
     }
     let mut parasitic: Vec<&ItemResult> =
         results.iter().filter(|r| matches!(r.item, WorkItem::Parasitic { .. })).collect();
