@@ -207,16 +207,7 @@ impl<'a> Prepared<'a> {
         let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
         let (_, trims) = crate::trim::mid_range(catalog, q_eq);
-        if settings.trimmed_weight > 0.0 && trims.elements.is_empty() {
-            return Err(Error::invalid(
-                &design.path,
-                "fit.trimmed_weight",
-                format!(
-                    "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
-                    catalog.path.display()
-                ),
-            ));
-        }
+        check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         let has_cams = candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_)));
         let mut gram = if has_cams {
@@ -347,6 +338,22 @@ impl Prepared<'_> {
         let tsp = trimmed_spread(chain, &self.training, cands, rows, &rest, &self.trims, &sigma2, omega, &jac)?;
         Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
     }
+}
+
+/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
+/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
+pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
+    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
+        return Err(Error::invalid(
+            &design.path,
+            "fit.trimmed_weight",
+            format!(
+                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
+                catalog.path.display()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The arm a solve describes: the candidates with k > 0 and the trims at their fixed rates (the
