@@ -215,6 +215,36 @@ pub fn solve(
     })
 }
 
+/// The trims' first-order answer to a small change `e` of the Hessian mismatch (ranges ignored:
+/// the interior face of [`solve`]): the rate changes Δt and Δw² with
+/// Σⱼ Δtⱼ aⱼaⱼᵀ − Δw² M = −e as nearly as possible (Frobenius norm) and, among those, the
+/// smallest ‖Δt‖. Linear in `e`: the trim-aware fit's model of how a build's trims respond
+/// (`fit::robust::trimmed_spread`).
+pub fn interior_change(e: &DMatrix<f64>, m: &DMatrix<f64>, couplings: &[Vec<f64>]) -> (Vec<f64>, f64) {
+    let t = couplings.len();
+    let scale = m.norm().max(f64::MIN_POSITIVE);
+    let mut cols: Vec<DVector<f64>> = couplings
+        .iter()
+        .map(|a| {
+            let av = DVector::from_column_slice(a);
+            vech(&(&av * av.transpose())) / scale
+        })
+        .collect();
+    cols.push(-vech(m) / scale);
+    let jac = DMatrix::from_columns(&cols);
+    let c = -vech(e) / scale;
+    let Some((mut z, null)) = min_residual(&jac, &c) else { return (vec![f64::NAN; t], f64::NAN) };
+    if null.ncols() > 0 && t > 0 {
+        // Among the minimisers z + N y, the one with the smallest ‖Δt‖.
+        let sel = null.rows(0, t).into_owned();
+        let target = -z.rows(0, t).into_owned();
+        if let Some((y, _)) = min_residual(&sel, &target) {
+            z += &null * y;
+        }
+    }
+    (z.rows(0, t).iter().copied().collect(), z[t])
+}
+
 /// The least-squares solution of J z ≈ c with the smallest norm, and a basis of J's null space
 /// (columns). None if J has non-finite entries.
 pub(crate) fn min_residual(jac: &DMatrix<f64>, c: &DVector<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
@@ -301,6 +331,36 @@ mod tests {
         // Without errors nothing moves.
         let same = solve(&designed_rest, &m, &a, &[[0.0, 4.0]; 3], &nominal);
         assert!(same.rates.iter().all(|k| (k - 2.0).abs() < 1e-9) && (same.w2 - omega2).abs() < 1e-9);
+    }
+
+    /// The first-order answer of the trims (`interior_change`) is the derivative of `solve`
+    /// (ranges wide, interior face): a small change ε E of the rest's Hessian moves the solved
+    /// rates and w² by ε times it, to second order in ε.
+    #[test]
+    fn interior_change_is_the_derivative_of_the_solve() {
+        let chain = Chain::paper_double_pendulum();
+        let q = DVector::from_vec(vec![0.03, 1.55]);
+        let m = chain.mass_matrix(&q);
+        let a = couplings();
+        let nominal = [2.0, 2.0, 2.0];
+        let rest = &m * 16.0 - hessian(&DMatrix::zeros(2, 2), &a, &nominal)
+            + DMatrix::from_row_slice(2, 2, &[0.3, 0.1, 0.1, -0.2]);
+        let e = DMatrix::from_row_slice(2, 2, &[1.0, -0.6, -0.6, 0.4]);
+        let (dt, dw2) = interior_change(&e, &m, &a);
+        let ranges = [[-100.0, 100.0]; 3];
+        let eps = 1e-4;
+        let plus = solve(&(&rest + &e * eps), &m, &a, &ranges, &nominal);
+        let minus = solve(&(&rest - &e * eps), &m, &a, &ranges, &nominal);
+        for j in 0..3 {
+            let fd = (plus.rates[j] - minus.rates[j]) / (2.0 * eps);
+            assert!((fd - dt[j]).abs() < 1e-6 * (1.0 + dt[j].abs()), "trim {j}: {fd} vs {}", dt[j]);
+        }
+        let fd = (plus.w2 - minus.w2) / (2.0 * eps);
+        assert!((fd - dw2).abs() < 1e-6 * (1.0 + dw2.abs()), "w²: {fd} vs {dw2}");
+        // The answer cancels the change: Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −E (three trims span 2×2).
+        let back = hessian(&DMatrix::zeros(2, 2), &a, &dt) - &m * dw2 + &e;
+        assert!(back.amax() < 1e-10, "{back}");
+        assert!(dt.iter().any(|t| t.abs() > 0.1));
     }
 
     /// Ranges too narrow for the error: the mismatch stays, and the trims at an end of their

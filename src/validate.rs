@@ -58,6 +58,9 @@ pub fn validate(design: &Design) -> Result<Validated> {
         Some(path) => Some(load_catalog(design, path)?),
         None => None,
     };
+    if let Some(c) = &catalog {
+        crate::fit::run::check_trimmed_weight(design, c, &design.fit)?;
+    }
     for (i, sc) in design.file.scenario.iter().enumerate() {
         sc.check(i, design)?;
     }

@@ -110,6 +110,12 @@ fn check_rejects_what_later_commands_would() {
             good.replace("radius = 2.0 ", "radius = 1e300 "),
             vec!["radius.toml", "region.radius", "1e300", "geodesics.max_arc"],
         ),
+        (
+            // Trimmed builds weighed with a catalogue that has no trim springs.
+            "trimmed.toml",
+            good.replace("paper_trim.toml", "paper.toml").replace("tolerance_weight = 0.2", "trimmed_weight = 0.3"),
+            vec!["trimmed.toml", "fit.trimmed_weight", "paper.toml", "no trim springs"],
+        ),
     ];
     for (name, text, needles) in cases {
         assert_ne!(text, good, "case {name} did not change the design");

@@ -4,13 +4,15 @@
 use std::path::Path;
 
 use nalgebra::DVector;
+use springfit::asbuilt::trim_build;
 use springfit::bom;
 use springfit::catalog::{Candidate, Catalog};
 use springfit::design::Design;
 use springfit::fit::problem::{Requirements, assemble};
-use springfit::fit::robust::{BuildPenalty, retrace, rows_of, spread};
+use springfit::fit::robust::{BuildPenalty, base_jacobian, retrace, rows_of, spread, spread_with, trimmed_spread};
 use springfit::fit::run::fit;
 use springfit::fit::settings::{FitSettings, SolverKind};
+use springfit::potential::SpringSet;
 use springfit::rng::SplitMix64;
 use springfit::tolerance::{Distribution, ToleranceSpec};
 
@@ -287,4 +289,218 @@ fn the_tolerance_aware_fit_keeps_the_equalities_and_is_deterministic() {
     assert!(a.metrics.hessian_rel_error < 1e-8);
     let spread = a.solve.expected_build_spread.unwrap();
     assert!(spread.is_finite() && spread > 0.0);
+}
+
+/// The trim-aware model (`robust::trimmed_spread`): a trimmed build — its trims re-relaxed at
+/// the equilibrium q′ of the other built springs and re-set so that ∇²U = w² M at q′, as
+/// `asbuilt::trim_build` does — changes the training rows about q′ by Σᵢ δᵢ kᵢ uᵢ to first order,
+/// so E‖ΔR‖² = Σᵢ σᵢ² kᵢ² ‖uᵢ‖². Checked against Monte Carlo trimmed builds at a small
+/// tolerance; the untrimmed model's prediction (`spread`, the build's trims left relaxed at q_eq
+/// at their drawn rates) is far off for them, so the test tells the two apart.
+#[test]
+fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
+    let (design, catalog) = load("double_pendulum");
+    let settings = FitSettings {
+        tolerance: ToleranceSpec::None,
+        max_elements: 8,
+        restarts: 0,
+        pair_swaps: false,
+        builds: 0,
+        ..quick(&design)
+    };
+    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
+    assert_eq!(is_trim.iter().filter(|t| **t).count(), 3, "the catalogue's three trims");
+    let springs = &o.springs;
+    let pick = |trim: bool| SpringSet {
+        elements: (0..is_trim.len()).filter(|&j| is_trim[j] == trim).map(|j| springs.elements[j].clone()).collect(),
+        stiffness: (0..is_trim.len()).filter(|&j| is_trim[j] == trim).map(|j| springs.stiffness[j]).collect(),
+    };
+    let (rest, trims) = (pick(false), pick(true));
+    let chain = &design.chain;
+    let ode = design.geodesics.ode;
+    let omega = settings.frequency;
+    let spacing = o.region.extent / settings.training_samples as f64;
+    let candidates: Vec<Candidate> = rest
+        .elements
+        .iter()
+        .map(|e| Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: vec![], tolerance: 0.0 })
+        .collect();
+    let req = Requirements { omega, hessian_match: settings.hessian_match, monotone: false };
+    let problem = assemble(chain, &design.q_eq, &o.training, &candidates, req);
+    let k = DVector::from_column_slice(&rest.stiffness);
+
+    let t = 0.01;
+    let dist = Distribution::Uniform;
+    let sigma2 = vec![dist.variance(t); candidates.len()];
+    let jac = base_jacobian(chain, &o.training, spacing, springs, omega, ode).unwrap();
+    let trimmed =
+        trimmed_spread(chain, &o.training, &candidates, &problem.rows, &rest, &trims, &sigma2, omega, &jac).unwrap();
+    let untrimmed = spread_with(chain, &o.training, &candidates, &problem.rows, springs, &sigma2, &jac).unwrap();
+    let predicted = BuildPenalty::of(&trimmed, 1.0, 0.0).value(k.as_slice());
+    let untrimmed_predicted = BuildPenalty::of(&untrimmed, 1.0, 0.0).value(k.as_slice());
+
+    // The drawing trimmed (δ = 0): the reference the builds change from.
+    let (set0, q0, sol0) = trim_build(&design, &o.bom, springs).unwrap();
+    assert!(sol0.restored() && (&q0 - &design.q_eq).amax() < 1e-9);
+    let r1 = rows_of(chain, &retrace(chain, &q0, &o.training, spacing, ode).unwrap(), &set0, omega);
+    let builds = 300;
+    let mut change = Vec::new();
+    for b in 0..builds {
+        let mut rng = SplitMix64::stream(7, b);
+        // Trims draw too (as `asbuilt::draw` does), though the trim resets their rates.
+        let scale: Vec<f64> = (0..is_trim.len()).map(|_| 1.0 + t * dist.draw_unit(&mut rng)).collect();
+        let built = springs.scaled(&scale);
+        let (set, q_b, sol) = trim_build(&design, &o.bom, &built).expect("a build near the design trims");
+        assert!(sol.restored(), "build {b}: mismatch {}", sol.mismatch);
+        let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
+        change.push((rows_of(chain, &fan, &set, omega) - &r1).norm_squared());
+    }
+    let n = change.len() as f64;
+    let m_change = change.iter().sum::<f64>() / n;
+    let se = (change.iter().map(|x| (x - m_change).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    eprintln!(
+        "trimmed builds: rows change predicted {predicted:.4e}, measured {m_change:.4e} ± {se:.1e}; untrimmed model \
+         {untrimmed_predicted:.4e}"
+    );
+    assert!(predicted > 0.0);
+    assert!((m_change - predicted).abs() <= 4.0 * se, "{m_change} vs {predicted} ± {se}");
+    assert!((m_change - untrimmed_predicted).abs() > 4.0 * se, "the untrimmed model {untrimmed_predicted} fits too");
+}
+
+/// `trimmed_weight = 0` (the default) leaves the tolerance-aware fit as it was: the default
+/// design, fitted for ±5 % with its trims at quick settings, writes the bill of materials
+/// springfit wrote before the trimmed penalty existed (`tests/data/double_pendulum_quick_tolerance_bom.csv`,
+/// `springfit fit` at e501dd2 on designs/double_pendulum.toml with 24 × 12 training and
+/// evaluation samples), byte for byte; a positive weight changes it; without trim springs in the
+/// catalogue a positive weight is refused, naming the field.
+#[test]
+fn trimmed_weight_zero_leaves_the_bill_of_materials_unchanged() {
+    let (design, catalog) = load("double_pendulum");
+    let settings = quick(&design);
+    assert_eq!(settings.trimmed_weight, 0.0);
+    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let before = std::fs::read_to_string(repo("tests/data/double_pendulum_quick_tolerance_bom.csv")).unwrap();
+    assert_eq!(bom::to_csv(&o.bom), before);
+    let weighted = fit(&design, &catalog, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap();
+    assert_ne!(bom::to_csv(&weighted.bom), before);
+    assert!(weighted.solve.expected_build_spread.unwrap() > 0.0);
+    let plain = Catalog::load(&repo("catalogs/paper.toml"), design.dof()).unwrap();
+    let err = fit(&design, &plain, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap_err().to_string();
+    assert!(err.contains("fit.trimmed_weight") && err.contains("trim"), "{err}");
+}
+
+/// The trim-aware model with a cam: its columns share one δ, so the trimmed spread is a block
+/// σ² U_gᵀ U_g over them. One cam on (1, 1), five linear springs and three trims, fitted
+/// nominally; Monte Carlo builds with only the cam deviating (one δ per cam, as
+/// `asbuilt::factors` draws), each trimmed as `asbuilt::trim_build` trims: the block's prediction
+/// matches their mean change of the rows, the untrimmed block's does not.
+#[test]
+fn trimmed_expected_spread_with_a_cam_matches_monte_carlo_trimmed_builds() {
+    let (design, _) = load("double_pendulum");
+    let dir = std::env::temp_dir().join(format!("springfit-robust-trimcam-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cat_path = dir.join("one_cam_trims.toml");
+    std::fs::write(
+        &cat_path,
+        r#"name = "one_cam_trims"
+description = "one cam, five linear springs and three trims"
+
+[[family]]
+name = "disc cam"
+profile = "cam"
+unit = "J"
+couplings = [[1, 1]]
+knots = 8
+smoothing = 1e-5
+tolerance = 0.05
+
+[[family]]
+name = "torsion spring"
+profile = "linear"
+unit = "N*m/rad"
+couplings = [[1, 0], [0, 1], [1, 1], [1, -1], [2, 1]]
+offsets = "equilibrium"
+tolerance = 0.05
+
+[[family]]
+name = "trim spring"
+profile = "linear"
+unit = "N*m/rad"
+couplings = [[1, 0], [0, 1], [1, 1]]
+offsets = "equilibrium"
+trim = true
+trim_range = [0.0, 4.0]
+"#,
+    )
+    .unwrap();
+    let catalog = Catalog::load(&cat_path, design.dof()).unwrap();
+    let settings = FitSettings {
+        tolerance: ToleranceSpec::None,
+        solver: SolverKind::Nnls,
+        max_elements: 0,
+        monotone: false,
+        builds: 0,
+        ..quick(&design)
+    };
+    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
+    assert_eq!(is_trim.iter().filter(|t| **t).count(), 3);
+    let springs = &o.springs;
+    let pick = |trim: bool| SpringSet {
+        elements: (0..is_trim.len()).filter(|&j| is_trim[j] == trim).map(|j| springs.elements[j].clone()).collect(),
+        stiffness: (0..is_trim.len()).filter(|&j| is_trim[j] == trim).map(|j| springs.stiffness[j]).collect(),
+    };
+    let (rest, trims) = (pick(false), pick(true));
+    let groups = springfit::asbuilt::bom_cam_groups(&o.bom);
+    // The trims come last in the bill of materials: the rest's rows are its first rows.
+    let cam: Vec<bool> = groups.iter().take(rest.elements.len()).map(|g| g.is_some()).collect();
+    assert!(cam.iter().filter(|c| **c).count() >= 4, "the cam's basis columns: {groups:?}");
+    let chain = &design.chain;
+    let ode = design.geodesics.ode;
+    let omega = settings.frequency;
+    let spacing = o.region.extent / settings.training_samples as f64;
+    let candidates: Vec<Candidate> = rest
+        .elements
+        .iter()
+        .map(|e| Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: vec![], tolerance: 0.0 })
+        .collect();
+    let req = Requirements { omega, hessian_match: settings.hessian_match, monotone: false };
+    let problem = assemble(chain, &design.q_eq, &o.training, &candidates, req);
+    let k = DVector::from_column_slice(&rest.stiffness);
+    let t = 0.01;
+    let dist = Distribution::Uniform;
+    let sigma2: Vec<f64> = cam.iter().map(|&c| if c { dist.variance(t) } else { 0.0 }).collect();
+    let jac = base_jacobian(chain, &o.training, spacing, springs, omega, ode).unwrap();
+    let trimmed =
+        trimmed_spread(chain, &o.training, &candidates, &problem.rows, &rest, &trims, &sigma2, omega, &jac).unwrap();
+    let untrimmed = spread_with(chain, &o.training, &candidates, &problem.rows, springs, &sigma2, &jac).unwrap();
+    assert_eq!(trimmed.blocks.len(), 1);
+    let predicted = BuildPenalty::of(&trimmed, 1.0, 0.0).value(k.as_slice());
+    let untrimmed_predicted = BuildPenalty::of(&untrimmed, 1.0, 0.0).value(k.as_slice());
+
+    let (set0, q0, _) = trim_build(&design, &o.bom, springs).unwrap();
+    let r1 = rows_of(chain, &retrace(chain, &q0, &o.training, spacing, ode).unwrap(), &set0, omega);
+    let mut change = Vec::new();
+    for b in 0..300 {
+        let mut rng = SplitMix64::stream(42, b);
+        let scale =
+            springfit::asbuilt::factors(&o.bom, |r| if r.id.starts_with('C') { t } else { 0.0 }, dist, &mut rng);
+        let built = springs.scaled(&scale);
+        let (set, q_b, sol) = trim_build(&design, &o.bom, &built).expect("a build near the design trims");
+        assert!(sol.restored(), "build {b}: mismatch {}", sol.mismatch);
+        let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
+        change.push((rows_of(chain, &fan, &set, omega) - &r1).norm_squared());
+    }
+    let n = change.len() as f64;
+    let m_change = change.iter().sum::<f64>() / n;
+    let se = (change.iter().map(|x| (x - m_change).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    eprintln!(
+        "trimmed builds with a cam: rows change predicted {predicted:.4e}, measured {m_change:.4e} ± {se:.1e}; \
+         untrimmed model {untrimmed_predicted:.4e}"
+    );
+    assert!(predicted > 0.0);
+    assert!((m_change - predicted).abs() <= 4.0 * se, "{m_change} vs {predicted} ± {se}");
+    assert!((m_change - untrimmed_predicted).abs() > 4.0 * se, "the untrimmed model {untrimmed_predicted} fits too");
+    let _ = std::fs::remove_dir_all(&dir);
 }

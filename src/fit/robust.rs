@@ -34,6 +34,30 @@
 //! underrate the spread: the columns of a fitted cam largely cancel, so their independent errors
 //! average out where one shared error does not. Only the training rows count: rows appended
 //! after them (the cams' smoothing penalty) are no residual of a build.
+//!
+//! **Trimmed builds.** With trim springs (see [`crate::trim`]) a builder re-sets the trims on
+//! every build, and the figures that count are the trimmed ones: weighting the spread above
+//! spends nominal accuracy on Hessian errors the trims remove anyway. A trimmed build
+//! (`asbuilt::trim_build`) rests where the gradient of the *rest* (everything but the trims)
+//! vanishes — the trims are relaxed there — so its equilibrium moves by Δqᵢ = −H_rest⁻¹ gᵢ per
+//! unit δᵢ kᵢ (H_rest = ∇²U_rest(q_eq), the Hessian without the trims: not H). Its rows about
+//! the moved equilibrium change by
+//!
+//! uᵢ = Aᵢ + J_t Δqᵢ + Σⱼ Δtᵢⱼ A_trim,j,
+//!
+//! * J_t = J + Σⱼ t⁰ⱼ Dⱼ aⱼᵀ: J moves the base point with every element fixed (trims relaxed at
+//!   q_eq); the trims are re-relaxed at the build's equilibrium, x₀ⱼ → x₀ⱼ + aⱼ·Δq, and
+//!   Dⱼ = ∂(rows of trim j)/∂x₀ⱼ (exact by a difference: a linear spring's rows are linear in x₀);
+//! * Δtᵢ: the trims re-set so that ∇²U_rest(q′) + Σⱼ tⱼ aⱼaⱼᵀ = w² M(q′) again. To first order
+//!   the mismatch they answer is Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l] (Hᵢ = ∇²uᵢ(q_eq),
+//!   derivatives by central differences), and the answer is linear in it: Δtᵢ =
+//!   [`crate::trim::interior_change`] (Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −Eᵢ with the least ‖Δt‖, w² free;
+//!   the ranges are ignored at first order); A_trim,j is trim j's column of the rows.
+//!
+//! The trimmed spread is then Σ σᵢ² kᵢ² ‖uᵢ‖² over springs plus σ_g² k_gᵀ U_gᵀ U_g k_g per cam: the
+//! same diagonal and blocks with other vectors ([`trimmed_spread`]), weighted by `trimmed_weight`
+//! and added to the untrimmed term. Monte Carlo trimmed builds at ±1 % confirm it (the
+//! untrimmed model overstates their spread eightfold; Δq with H instead of H_rest tenfold).
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -97,6 +121,13 @@ impl BuildPenalty {
                 .map(|b| (b.columns.clone(), &b.rows * rows_weight + &b.shift * shift_weight))
                 .collect(),
         }
+    }
+
+    /// The sum of two penalties over the same candidates.
+    pub fn plus(mut self, other: BuildPenalty) -> BuildPenalty {
+        self.diagonal += other.diagonal;
+        self.blocks.extend(other.blocks);
+        self
     }
 
     /// Adds the penalty to a Gram matrix G (p × p over all candidates).
@@ -224,6 +255,21 @@ pub fn spread(
     omega: f64,
     ode: OdeSettings,
 ) -> Result<Spread> {
+    let jac = base_jacobian(chain, training, spacing, nominal, omega, ode)?;
+    spread_with(chain, training, candidates, rows, nominal, sigma2, &jac)
+}
+
+/// [`spread`] with J = [`base_jacobian`] of `nominal` already computed (the trimmed model shares
+/// it).
+pub fn spread_with(
+    chain: &Chain,
+    training: &Fan,
+    candidates: &[Candidate],
+    rows: &DMatrix<f64>,
+    nominal: &SpringSet,
+    sigma2: &[f64],
+    jac: &DMatrix<f64>,
+) -> Result<Spread> {
     let q_eq = training.q_eq.as_slice();
     let hess = nominal.hessian(q_eq)? + chain.gravity_hessian(q_eq);
     let h_inv = hess.clone().cholesky().map(|c| c.inverse()).ok_or_else(|| {
@@ -232,15 +278,8 @@ pub fn spread(
             "the nominal fit's Hessian at q_eq is not positive definite: a build has no nearby equilibrium to judge it about",
         )
     })?;
-    let jac = base_jacobian(chain, training, spacing, nominal, omega, ode)?;
-    if jac.nrows() > rows.nrows() {
-        return Err(Error::numerical(
-            "tolerance-aware fit",
-            format!("{} retraced rows against {} training rows", jac.nrows(), rows.nrows()),
-        ));
-    }
-    let training_rows = rows.rows(0, jac.nrows());
-    let jh = &jac * &h_inv;
+    let training_rows = training_rows(rows, jac)?;
+    let jh = jac * &h_inv;
     let m_eq = chain.mass_matrix(&training.q_eq);
     // vᵢ = Aᵢ − J H⁻¹ gᵢ (Aᵢ alone when the element exerts no torque at q_eq) and hᵢ = H⁻¹ gᵢ.
     let column = |i: usize| -> (DVector<f64>, DVector<f64>) {
@@ -251,6 +290,29 @@ pub fn spread(
         }
         (col - &jh * &g, &h_inv * &g)
     };
+    Ok(assemble_spread(candidates, sigma2, &m_eq, column))
+}
+
+/// The training rows of the fit's weighted rows (the rows J was taken of; later rows, such as
+/// the cams' smoothing penalty, are no residual of a build).
+fn training_rows(rows: &DMatrix<f64>, jac: &DMatrix<f64>) -> Result<DMatrix<f64>> {
+    if jac.nrows() > rows.nrows() {
+        return Err(Error::numerical(
+            "tolerance-aware fit",
+            format!("{} retraced rows against {} training rows", jac.nrows(), rows.nrows()),
+        ));
+    }
+    Ok(rows.rows(0, jac.nrows()).into_owned())
+}
+
+/// The diagonal and the cam blocks from each candidate's change of the rows per unit δᵢ kᵢ and
+/// its shift of the equilibrium, `column(i)` = (uᵢ, H⁻¹ gᵢ).
+fn assemble_spread(
+    candidates: &[Candidate],
+    sigma2: &[f64],
+    m_eq: &DMatrix<f64>,
+    column: impl Fn(usize) -> (DVector<f64>, DVector<f64>),
+) -> Spread {
     let groups = super::run::cam_groups(candidates);
     let mut d_rows = DVector::zeros(candidates.len());
     let mut d_shift = DVector::zeros(candidates.len());
@@ -260,7 +322,7 @@ pub fn spread(
         }
         let (v, h) = column(i);
         d_rows[i] = sigma2[i] * v.norm_squared();
-        d_shift[i] = sigma2[i] * h.dot(&(&m_eq * &h));
+        d_shift[i] = sigma2[i] * h.dot(&(m_eq * &h));
     }
     let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
     let mut blocks = Vec::new();
@@ -273,7 +335,102 @@ pub fn spread(
         let (vs, hs): (Vec<DVector<f64>>, Vec<DVector<f64>>) = columns.iter().map(|&j| column(j)).unzip();
         let v = DMatrix::from_columns(&vs);
         let h = DMatrix::from_columns(&hs);
-        blocks.push(Block { rows: v.transpose() * &v * s2, shift: h.transpose() * &m_eq * &h * s2, columns });
+        blocks.push(Block { rows: v.transpose() * &v * s2, shift: h.transpose() * m_eq * &h * s2, columns });
     }
-    Ok(Spread { rows: d_rows, shift: d_shift, blocks })
+    Spread { rows: d_rows, shift: d_shift, blocks }
+}
+
+/// Step of the central differences of the rest's Hessian and of M in q, rad (third derivatives
+/// of smooth elements; a cubic B-spline's curvature is piecewise linear, so the difference is
+/// exact between knots).
+pub const HESSIAN_STEP: f64 = 1e-5;
+
+/// The first-order spread of every candidate in *trimmed* builds (see the module docs, "Trimmed
+/// builds"). `rest` is the nominal fit's spring set without the trims (used candidates only),
+/// `trims` the trim springs at their mid-range rates relaxed at q_eq, and `jac` the
+/// [`base_jacobian`] of rest and trims together (trims relaxed at q_eq, not following the base).
+/// The other arguments are those of [`spread`]; `omega` is the design's ω (the frequency the
+/// nominal trimmed arm is solved for). The shift is the trimmed build's, −H_rest⁻¹ gᵢ.
+#[allow(clippy::too_many_arguments)]
+pub fn trimmed_spread(
+    chain: &Chain,
+    training: &Fan,
+    candidates: &[Candidate],
+    rows: &DMatrix<f64>,
+    rest: &SpringSet,
+    trims: &SpringSet,
+    sigma2: &[f64],
+    omega: f64,
+    jac: &DMatrix<f64>,
+) -> Result<Spread> {
+    let q0 = &training.q_eq;
+    let q_eq = q0.as_slice();
+    let n = chain.dof();
+    let rest_hessian = |q: &DVector<f64>| -> Result<DMatrix<f64>> {
+        Ok(rest.hessian(q.as_slice())? + chain.gravity_hessian(q.as_slice()))
+    };
+    let h_rest = rest_hessian(q0)?;
+    let h_inv = h_rest.clone().cholesky().map(|c| c.inverse()).ok_or_else(|| {
+        Error::numerical(
+            "trim-aware fit",
+            "the nominal fit without its trims has no positive definite Hessian at q_eq: a trimmed build has no nearby equilibrium of the untrimmed springs",
+        )
+    })?;
+    let training_rows = training_rows(rows, jac)?;
+    let m_eq = chain.mass_matrix(q0);
+    let couplings: Vec<Vec<f64>> = trims.elements.iter().map(|e| e.coupling.clone()).collect();
+    // w² of the nominal trimmed arm: ω² when the fit matches the Hessian exactly, else the trims'
+    // answer to the nominal mismatch.
+    let mut h_nom = h_rest.clone();
+    for (a, t) in couplings.iter().zip(&trims.stiffness) {
+        let av = DVector::from_column_slice(a);
+        h_nom += &av * av.transpose() * *t;
+    }
+    let w2 = omega * omega + crate::trim::interior_change(&(&h_nom - &m_eq * (omega * omega)), &m_eq, &couplings).1;
+    // ∂H_rest/∂q_l − w² ∂M/∂q_l by central differences.
+    let mut d_mismatch = Vec::with_capacity(n);
+    for l in 0..n {
+        let (mut qp, mut qm) = (q0.clone(), q0.clone());
+        qp[l] += HESSIAN_STEP;
+        qm[l] -= HESSIAN_STEP;
+        let dh = (rest_hessian(&qp)? - rest_hessian(&qm)?) / (2.0 * HESSIAN_STEP);
+        let dm = (chain.mass_matrix(&qp) - chain.mass_matrix(&qm)) / (2.0 * HESSIAN_STEP);
+        d_mismatch.push(dh - dm * w2);
+    }
+    // Each trim's unit rows A_trim_j and D_j = ∂(its unit rows)/∂x₀ (exact: linear in x₀).
+    let unit = |e: &crate::elements::Element| -> DVector<f64> {
+        let c =
+            [Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: Vec::new(), tolerance: 0.0 }];
+        let req = Requirements { omega, hessian_match: false, monotone: false };
+        assemble(chain, q0, training, &c, req).rows.column(0).rows(0, jac.nrows()).into_owned()
+    };
+    let mut a_trim = Vec::with_capacity(trims.elements.len());
+    // J_t = J + Σⱼ t⁰ⱼ Dⱼ aⱼᵀ: the rows' change with the base point when the trims follow it.
+    let mut jac_t = jac.clone();
+    for (e, t) in trims.elements.iter().zip(&trims.stiffness) {
+        a_trim.push(unit(e));
+        let (mut ep, mut em) = (e.clone(), e.clone());
+        ep.offset += 0.5;
+        em.offset -= 0.5;
+        let d = unit(&ep) - unit(&em);
+        jac_t += d * DVector::from_column_slice(&e.coupling).transpose() * *t;
+    }
+    // uᵢ = Aᵢ + J_t Δqᵢ + Σⱼ Δtᵢⱼ A_trim_j, Δqᵢ = −H_rest⁻¹ gᵢ, Δtᵢ the trims' answer to
+    // Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l].
+    let column = |i: usize| -> (DVector<f64>, DVector<f64>) {
+        let e = &candidates[i].element;
+        let h = &h_inv * e.gradient(q_eq);
+        let dq = -&h;
+        let mut mismatch = e.hessian(q_eq);
+        for (l, d) in d_mismatch.iter().enumerate() {
+            mismatch += d * dq[l];
+        }
+        let (dt, _) = crate::trim::interior_change(&mismatch, &m_eq, &couplings);
+        let mut u = training_rows.column(i) + &jac_t * &dq;
+        for (a, t) in a_trim.iter().zip(&dt) {
+            u += a * *t;
+        }
+        (u, h)
+    };
+    Ok(assemble_spread(candidates, sigma2, &m_eq, column))
 }

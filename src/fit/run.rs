@@ -16,7 +16,7 @@ use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls, nnls_signed};
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed};
 use super::qp::{QpSettings, QpStatus, qp_signed};
-use super::robust::{BuildPenalty, spread};
+use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
 use super::selection::{
     Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
     subset_nnls_warm,
@@ -213,6 +213,7 @@ impl<'a> Prepared<'a> {
         let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
         let (_, trims) = crate::trim::mid_range(catalog, q_eq);
+        check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         let has_cams = candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_)));
         let mut gram = if has_cams {
@@ -329,20 +330,37 @@ impl Prepared<'_> {
             .map(|c| settings.distribution.variance(settings.tolerance.for_element(c.tolerance)))
             .collect();
         let spacing = self.region.extent / settings.training_samples as f64;
-        let sp = spread(
-            &design.chain,
-            &self.training,
-            spacing,
-            &self.candidates,
-            &self.problem.rows,
-            &nominal,
-            &sigma2,
-            settings.frequency,
-            design.geodesics.ode,
-        )?;
-        let m = self.problem.rows.nrows() as f64;
-        Ok(BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m))
+        let (chain, ode) = (&design.chain, design.geodesics.ode);
+        let jac = base_jacobian(chain, &self.training, spacing, &nominal, settings.frequency, ode)?;
+        let rows = &self.problem.rows;
+        let sp = spread_with(chain, &self.training, &self.candidates, rows, &nominal, &sigma2, &jac)?;
+        let m = rows.nrows() as f64;
+        let untrimmed = BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m);
+        if settings.trimmed_weight == 0.0 {
+            return Ok(untrimmed);
+        }
+        // Trimmed builds: the trims follow each build's equilibrium and are re-set there.
+        let rest = arm(&self.candidates, k, &SpringSet { elements: Vec::new(), stiffness: Vec::new() });
+        let (cands, omega) = (&self.candidates, settings.frequency);
+        let tsp = trimmed_spread(chain, &self.training, cands, rows, &rest, &self.trims, &sigma2, omega, &jac)?;
+        Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
     }
+}
+
+/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
+/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
+pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
+    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
+        return Err(Error::invalid(
+            &design.path,
+            "fit.trimmed_weight",
+            format!(
+                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
+                catalog.path.display()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The arm a solve describes: the candidates with k > 0 and the trims at their fixed rates (the

@@ -85,6 +85,10 @@ pub struct FitSettings {
     /// (1: the expected residual over builds; less trades as-built accuracy for nominal
     /// accuracy).
     pub tolerance_weight: f64,
+    /// With a tolerance and trim springs in the catalogue: weight of the expected spread of the
+    /// *trimmed* builds (each build's trims re-relaxed at its equilibrium and re-set so that
+    /// ∇²U = w² M there), added to `tolerance_weight`'s untrimmed term. 0: off.
+    pub trimmed_weight: f64,
     /// With a tolerance: weight w of the expected equilibrium shift, w · m · E‖Δq‖²_M(q_eq) added
     /// to the expected residual (m training rows; a metric shift of 1 costs as much as a residual
     /// of 1 ≈ sin(angle) on every row). 0: off (tuning after the build can restore q_eq).
@@ -119,6 +123,7 @@ impl Default for FitSettings {
             seed: 1,
             accept_p99_deg: 2.0,
             tolerance_weight: 1.0,
+            trimmed_weight: 0.0,
             shift_weight: 0.0,
             max_preload: 0.0,
         }
@@ -179,6 +184,9 @@ impl FitSettings {
         }
         if !(self.tolerance_weight.is_finite() && self.tolerance_weight >= 0.0) {
             return err("tolerance_weight", "must be ≥ 0");
+        }
+        if !(self.trimmed_weight.is_finite() && self.trimmed_weight >= 0.0) {
+            return err("trimmed_weight", "must be ≥ 0");
         }
         if !(self.shift_weight.is_finite() && self.shift_weight >= 0.0) {
             return err("shift_weight", "must be ≥ 0");
