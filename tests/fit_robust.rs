@@ -371,7 +371,7 @@ fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
 /// `trimmed_weight = 0` (the default) leaves the tolerance-aware fit as it was: the default
 /// design, fitted for ±5 % with its trims at quick settings, writes the bill of materials
 /// springfit wrote before the trimmed penalty existed (`tests/data/double_pendulum_quick_tolerance_bom.csv`,
-/// `springfit fit` at e501dd2 on designs/double_pendulum.toml with 24 × 12 training and
+/// `springfit fit` at e501dd2 (its 16 columns extended by the empty `gear_ratio,file` of springs) on designs/double_pendulum.toml with 24 × 12 training and
 /// evaluation samples), byte for byte; a positive weight changes it; without trim springs in the
 /// catalogue a positive weight is refused, naming the field.
 #[test]
