@@ -298,7 +298,7 @@ def fit_figures():
         figs[f"fit.{key}.springs"] = lambda r, s=s: str(s(r)["used"])
         figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
         figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
-    # A cam's bill of materials lists its basis columns, not springs: no count is quoted.
+    # Designs with cams count cams and springs together (`used`): the README quotes no count.
     for key in ("window_cams", "cams4", "cams"):
         del figs[f"fit.{key}.springs"]
     return figs

@@ -64,7 +64,12 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         let outcome = fit(&design, catalog, &design.fit, &|_| {});
         step.finish();
         let outcome = outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(catalog), e))?;
-        progress.say(format!("fitted {} springs (p99 residual {:.4}°)", outcome.used(), outcome.metrics.stats.p99_abs));
+        progress.say(format!(
+            "fitted {} {} (p99 residual {:.4}°)",
+            outcome.used(),
+            outcome.used_noun(),
+            outcome.metrics.stats.p99_abs
+        ));
         (ElasticPotential::Springs(outcome.springs), "springs (fit)".to_string())
     } else {
         return Err(Error::invalid(
