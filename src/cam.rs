@@ -48,15 +48,8 @@ impl SplineBasis {
     /// Bⱼ, Bⱼ′, Bⱼ″ (derivatives in x) at deflection d = x − x_lo, with the sign applied.
     #[inline]
     pub fn eval(self, d: f64) -> (f64, f64, f64) {
-        let h = self.width();
-        let span = f64::from(self.count - 1);
-        let t = d / h;
-        let centre = f64::from(self.index) - 1.0;
-        // Inside the span the basis itself; outside, its Taylor polynomial at the nearest end.
-        let end = t.clamp(0.0, span);
-        let (b, b1, b2) = cardinal(end - centre);
-        let dt = t - end;
-        let (v, s, c) = (b + dt * (b1 + 0.5 * dt * b2), (b1 + dt * b2) / h, b2 / (h * h));
+        let at = SplineAt::new(self.count, self.width(), d);
+        let (v, s, c) = at.basis(usize::from(self.index));
         if self.negative { (-v, -s, -c) } else { (v, s, c) }
     }
 
@@ -87,6 +80,61 @@ impl SplineBasis {
         }
         Ok(SplineBasis { index, count, width_bits: width.to_bits(), negative })
     }
+}
+
+/// Where a deflection d = x − x_lo falls on a cam's knots: what every basis function's value at d
+/// is computed from (shared by one basis element, [`SplineBasis::eval`], and a whole cam,
+/// [`spline_sum`], so both give each Bⱼ(d) with the same arithmetic).
+#[derive(Debug, Clone, Copy)]
+struct SplineAt {
+    /// Knot spacing h.
+    h: f64,
+    /// d in units of h, clamped to the knot span [0, N − 1].
+    end: f64,
+    /// How far d lies beyond the span's nearest end, in units of h (0 inside the span).
+    dt: f64,
+}
+
+impl SplineAt {
+    #[inline]
+    fn new(count: u16, h: f64, d: f64) -> SplineAt {
+        let span = f64::from(count - 1);
+        let t = d / h;
+        // Inside the span the basis itself; outside, its Taylor polynomial at the nearest end.
+        let end = t.clamp(0.0, span);
+        SplineAt { h, end, dt: t - end }
+    }
+
+    /// Bⱼ, Bⱼ′, Bⱼ″ (derivatives in x), unsigned.
+    #[inline]
+    fn basis(self, index: usize) -> (f64, f64, f64) {
+        let (h, dt) = (self.h, self.dt);
+        let centre = index as f64 - 1.0;
+        let (b, b1, b2) = cardinal(self.end - centre);
+        (b + dt * (b1 + 0.5 * dt * b2), (b1 + dt * b2) / h, b2 / (h * h))
+    }
+}
+
+/// V, V′, V″ at deflection d = x − x_lo of the cam V = Σⱼ cⱼ Bⱼ on `count` knots of spacing `h`
+/// (`coef`: one coefficient per basis function, N + 2). Only the four basis functions whose
+/// support holds the clamped point are non-zero there, inside the span and in its continuation
+/// alike: they are summed in increasing j, the others skipped (each term equals that basis
+/// element's [`SplineBasis::eval`] times its coefficient).
+#[inline]
+pub fn spline_sum(coef: &[f64], count: u16, h: f64, d: f64) -> (f64, f64, f64) {
+    let at = SplineAt::new(count, h, d);
+    // Bⱼ is non-zero where |end − (j − 1)| < 2: j in (end − 1, end + 3), i.e. j = i0 … i0 + 3
+    // with i0 = ⌊end⌋ (⌊end⌋ − 1 at the last knot, where the fourth is zero anyway).
+    let last = usize::from(count) + 1;
+    let i0 = if at.end.is_nan() { 0 } else { (at.end.floor() as usize).min(usize::from(count) - 2) };
+    let mut out = (0.0, 0.0, 0.0);
+    for (j, c) in coef.iter().enumerate().take((i0 + 4).min(last + 1)).skip(i0) {
+        let (v, s, k) = at.basis(j);
+        out.0 += c * v;
+        out.1 += c * s;
+        out.2 += c * k;
+    }
+    out
 }
 
 /// The cardinal cubic B-spline B(t) (support [−2, 2], centred at 0) and its first two
