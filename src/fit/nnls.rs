@@ -115,7 +115,15 @@ pub fn nnls_signed(
     }
     loop {
         let j = {
-            let w = &c - &g * &x;
+            // w = c − G x. G x adds G_·j x_j column by column in increasing j, as nalgebra's
+            // product does, skipping the zero entries of x (about half: they only add zeros).
+            let mut gx = DVector::zeros(p);
+            for (j, &xj) in x.iter().enumerate().filter(|(_, xj)| **xj != 0.0) {
+                for (y, gij) in gx.iter_mut().zip(g.column(j).iter()) {
+                    *y += gij * xj;
+                }
+            }
+            let w = &c - gx;
             let next = (0..p)
                 .filter(|&j| !passive[j] && !forbidden[j] && d[j] > 0.0 && w[j] > tol)
                 .max_by(|&a, &b| w[a].total_cmp(&w[b]).then(b.cmp(&a)));
@@ -231,31 +239,47 @@ impl PassiveFactor {
         let mut l = std::mem::take(&mut self.spare);
         l.clear();
         l.resize(n * n, 0.0);
-        // Where each row of the new set was in the stored one (None: a new row).
-        let old_row: Vec<Option<usize>> =
-            idx.iter().map(|i| if r > 0 { self.idx.binary_search(i).ok() } else { None }).collect();
         let a = |i: usize, j: usize| {
             let v = g[(idx[i], idx[j])];
             if i == j { v + ridge } else { v }
         };
         let mut ok = true;
-        for j in 0..r {
-            let (done, rest) = l.split_at_mut(j * n);
-            let col = &mut rest[..n];
-            {
-                // A shared column: stored rows are copied, new rows (only past the shared
-                // prefix) computed entry by entry in the same order as below.
-                for i in j..n {
-                    col[i] = match old_row[i] {
-                        Some(o) => self.l[j * old_n + o],
-                        None => {
-                            let mut acc = a(i, j);
-                            for k in 0..j {
-                                acc += -done[k * n + j] * done[k * n + i];
-                            }
-                            acc / self.l[j * old_n + j]
-                        }
-                    };
+        if r > 0 {
+            // Rows past the shared prefix: runs of rows the stored factor has (copied column by
+            // column), and new rows.
+            let mut runs: Vec<(usize, usize, usize)> = Vec::new(); // (new row, old row, length)
+            let mut fresh: Vec<usize> = Vec::new();
+            for (i, row) in idx.iter().enumerate().skip(r) {
+                match self.idx.binary_search(row) {
+                    Ok(o) => match runs.last_mut() {
+                        Some((ni, oi, len)) if *ni + *len == i && *oi + *len == o => *len += 1,
+                        _ => runs.push((i, o, 1)),
+                    },
+                    Err(_) => fresh.push(i),
+                }
+            }
+            for j in 0..r {
+                // The shared column: its prefix rows and the runs, as stored.
+                let (old, new) = (&self.l[j * old_n..(j + 1) * old_n], &mut l[j * n..(j + 1) * n]);
+                new[j..r].copy_from_slice(&old[j..r]);
+                for &(ni, oi, len) in &runs {
+                    new[ni..ni + len].copy_from_slice(&old[oi..oi + len]);
+                }
+            }
+            // A new row i of the shared columns: L_ij = (A_ij − Σ_{k<j} L_jk L_ik) / L_jj, the
+            // terms of each entry added in increasing k as the column update adds them, here
+            // spread from each finished L_ik over the later entries at once.
+            let mut acc = vec![0.0; r];
+            for &i in &fresh {
+                for (j, v) in acc.iter_mut().enumerate() {
+                    *v = a(i, j);
+                }
+                for k in 0..r {
+                    let lik = acc[k] / l[k * n + k];
+                    l[k * n + i] = lik;
+                    for (v, ljk) in acc[k + 1..].iter_mut().zip(&l[k * n + k + 1..k * n + r]) {
+                        *v += -ljk * lik;
+                    }
                 }
             }
         }
