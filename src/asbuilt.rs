@@ -92,8 +92,8 @@ pub fn residual_about(
         FanSpec { count: directions, phase: 0.5, stop, spacing: extent / samples as f64 },
         design.geodesics.ode,
     )?;
-    let angles = crate::residual::fan_angles(&design.chain, &fan, &springs.grouped())?;
-    let st = crate::residual::stats(&angles);
+    let angles = crate::residual::fan_angle_values(&design.chain, &fan, &springs.grouped())?;
+    let st = crate::residual::stats_of(&angles);
     Ok((st.p99_abs, st.max_abs))
 }
 
