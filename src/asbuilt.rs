@@ -53,9 +53,10 @@ pub fn stationary_point(
     let chain = &design.chain;
     let mut q = design.q_eq.clone();
     let scale = 1.0 + springs.stiffness.iter().fold(0.0f64, |a, k| a.max(*k));
+    let grouped = springs.grouped();
     for _ in 0..50 {
-        let g = springs.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
-        let mut h = springs.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
+        let g = grouped.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
+        let mut h = grouped.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
         if let Some(s) = stiffening {
             h += s;
         }
@@ -91,8 +92,8 @@ pub fn residual_about(
         FanSpec { count: directions, phase: 0.5, stop, spacing: extent / samples as f64 },
         design.geodesics.ode,
     )?;
-    let angles = crate::residual::fan_angles(&design.chain, &fan, springs)?;
-    let st = crate::residual::stats(&angles);
+    let angles = crate::residual::fan_angle_values(&design.chain, &fan, &springs.grouped())?;
+    let st = crate::residual::stats_of(&angles);
     Ok((st.p99_abs, st.max_abs))
 }
 

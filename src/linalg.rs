@@ -6,7 +6,21 @@
 
 /// Cholesky factorisation A = L Lᵀ in place (column-major, lower triangle used and overwritten;
 /// the strict upper triangle is left untouched). Returns `false` if A is not positive definite.
+///
+/// Two and three joints get their own copies of the loops with n a constant (the compiler
+/// unrolls them): the same operations in the same order, so the same bits, without the loop
+/// overhead that dominated the 2 × 2 factorisations of every geodesic step.
+#[inline]
 pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    match n {
+        2 => cholesky_in_place_n(a, 2),
+        3 => cholesky_in_place_n(a, 3),
+        _ => cholesky_in_place_n(a, n),
+    }
+}
+
+#[inline(always)]
+fn cholesky_in_place_n(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let mut d = a[j + n * j];
         for k in 0..j {
@@ -28,8 +42,19 @@ pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// Solves L Lᵀ x = b in place given the factor from [`cholesky_in_place`].
+/// Solves L Lᵀ x = b in place given the factor from [`cholesky_in_place`] (n = 2 and 3 unrolled
+/// as there).
+#[inline]
 pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    match n {
+        2 => cholesky_solve_n(l, 2, b),
+        3 => cholesky_solve_n(l, 3, b),
+        _ => cholesky_solve_n(l, n, b),
+    }
+}
+
+#[inline(always)]
+fn cholesky_solve_n(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {

@@ -6,7 +6,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::elements::Element;
+use crate::cam::{SplineBasis, spline_sum};
+use crate::elements::{Element, Profile};
 use crate::error::Result;
 use crate::geodesic::logmap::{LogMap, LogSettings};
 use crate::model::Chain;
@@ -42,6 +43,12 @@ impl SpringSet {
     /// Joint torques of each element at q (the spring torque a·k·u′, N·m): one row per element.
     pub fn element_torques(&self, q: &[f64]) -> Vec<DVector<f64>> {
         self.elements.iter().zip(&self.stiffness).map(|(e, k)| e.gradient(q) * *k).collect()
+    }
+
+    /// The evaluation form of the set: each cam's basis elements summed into one term (see
+    /// [`GroupedSet`]). Build it once per set wherever the set is evaluated at many points.
+    pub fn grouped(&self) -> GroupedSet {
+        GroupedSet::new(self)
     }
 
     /// The same springs with each stiffness scaled by a factor (manufacturing deviations).
@@ -115,6 +122,209 @@ impl Potential for SpringSet {
     fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let n = q.len();
         Ok(self.elements.iter().zip(&self.stiffness).fold(DMatrix::zeros(n, n), |acc, (e, k)| acc + e.hessian(q) * *k))
+    }
+}
+
+/// A spring set in evaluation form: each cam's basis elements summed into one term.
+///
+/// A fitted cam is N + 2 elements (one per B-spline coefficient, a ± column pair each in the
+/// fit), all on one coupling with one offset and knot spacing, and at any x only four of its
+/// basis functions are non-zero. Evaluated element by element, eight cams on 30 knots cost 256
+/// deflections a·q and spline evaluations at every sample; grouped, eight deflections and 32
+/// basis evaluations, from the signed coefficients cⱼ = Σ ±kⱼ summed once here. Elements that
+/// are not cam basis functions stay as they are, in their order, and a cam's term takes the
+/// place of its first element: a set without cams is evaluated with exactly the arithmetic of
+/// [`SpringSet`], one with cams equals the per-element sums to rounding.
+///
+/// [`SpringSet`] stays the data form (files, the bill of materials, fingerprints); this is how
+/// it is evaluated on hot paths (residual angles, equilibria, the simulation's right-hand side).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupedSet {
+    dof: usize,
+    terms: Vec<Term>,
+}
+
+/// One term of a [`GroupedSet`].
+#[derive(Debug, Clone, PartialEq)]
+enum Term {
+    /// An element with its stiffness, evaluated as in [`SpringSet`].
+    Element(Element, f64),
+    /// A cam: V(x) = Σⱼ cⱼ Bⱼ(x − x₀) on x = a·q.
+    Cam {
+        coupling: Vec<f64>,
+        /// x₀, the first knot.
+        offset: f64,
+        /// Knot count N.
+        count: u16,
+        /// Knot spacing h, as bits (with `count` and the coupling, what makes basis elements
+        /// one cam).
+        width_bits: u64,
+        /// cⱼ, j = 0 … N + 1.
+        coef: Vec<f64>,
+    },
+}
+
+impl GroupedSet {
+    /// Groups the cam basis elements of `set` by coupling, offset and knots.
+    pub fn new(set: &SpringSet) -> GroupedSet {
+        let mut terms: Vec<Term> = Vec::new();
+        for (e, &k) in set.elements.iter().zip(&set.stiffness) {
+            let Profile::Spline(b) = e.profile else {
+                terms.push(Term::Element(e.clone(), k));
+                continue;
+            };
+            let same = |t: &Term| match t {
+                Term::Cam { coupling, offset, count, width_bits, .. } => {
+                    *count == b.count
+                        && *width_bits == b.width_bits
+                        && offset.to_bits() == e.offset.to_bits()
+                        && coupling.len() == e.coupling.len()
+                        && coupling.iter().zip(&e.coupling).all(|(x, y)| x.to_bits() == y.to_bits())
+                }
+                Term::Element(..) => false,
+            };
+            let at = match terms.iter().position(same) {
+                Some(at) => at,
+                None => {
+                    terms.push(Term::Cam {
+                        coupling: e.coupling.clone(),
+                        offset: e.offset,
+                        count: b.count,
+                        width_bits: b.width_bits,
+                        coef: vec![0.0; usize::from(b.count) + 2],
+                    });
+                    terms.len() - 1
+                }
+            };
+            if let Term::Cam { coef, .. } = &mut terms[at] {
+                let SplineBasis { index, negative, .. } = b;
+                if let Some(c) = coef.get_mut(usize::from(index)) {
+                    *c += if negative { -k } else { k };
+                }
+            }
+        }
+        GroupedSet { dof: set.elements.first().map_or(0, |e| e.coupling.len()), terms }
+    }
+
+    /// Number of terms: one per spring, one per cam.
+    pub fn len(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// Whether the set has no terms.
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
+    /// U_e and its gradient in one pass, the gradient into `out` (as
+    /// [`SpringSet::value_gradient_into`]).
+    pub fn value_gradient_into(&self, q: &[f64], out: &mut [f64]) -> f64 {
+        out.fill(0.0);
+        let mut u = 0.0;
+        for t in &self.terms {
+            match t {
+                Term::Element(e, k) => {
+                    if *k == 0.0 {
+                        continue;
+                    }
+                    let (v, slope, _) = e.profile.eval(e.deflection(q));
+                    u += k * v;
+                    for (o, a) in out.iter_mut().zip(&e.coupling) {
+                        *o += k * slope * a;
+                    }
+                }
+                Term::Cam { coupling, offset, count, width_bits, coef } => {
+                    let (v, slope, _) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
+                    u += v;
+                    for (o, a) in out.iter_mut().zip(coupling) {
+                        *o += slope * a;
+                    }
+                }
+            }
+        }
+        u
+    }
+
+    /// ∂U_e/∂q into `out` (as [`SpringSet::gradient_into`]).
+    pub fn gradient_into(&self, q: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for t in &self.terms {
+            match t {
+                Term::Element(e, k) => {
+                    if *k == 0.0 {
+                        continue;
+                    }
+                    let slope = k * e.profile.slope(e.deflection(q));
+                    for (o, a) in out.iter_mut().zip(&e.coupling) {
+                        *o += slope * a;
+                    }
+                }
+                Term::Cam { coupling, offset, count, width_bits, coef } => {
+                    let (_, slope, _) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
+                    for (o, a) in out.iter_mut().zip(coupling) {
+                        *o += slope * a;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// x = a·q, summed as [`Element::deflection`] does.
+#[inline]
+fn x(coupling: &[f64], q: &[f64]) -> f64 {
+    coupling.iter().zip(q).map(|(a, q)| a * q).sum::<f64>()
+}
+
+impl Potential for GroupedSet {
+    fn dof(&self) -> usize {
+        self.dof
+    }
+
+    fn value(&self, q: &[f64]) -> Result<f64> {
+        Ok(self
+            .terms
+            .iter()
+            .map(|t| match t {
+                Term::Element(e, k) => k * e.value(q),
+                Term::Cam { coupling, offset, count, width_bits, coef } => {
+                    spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset).0
+                }
+            })
+            .sum())
+    }
+
+    fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
+        let mut g = DVector::zeros(q.len());
+        GroupedSet::gradient_into(self, q, g.as_mut_slice());
+        Ok(g)
+    }
+
+    fn gradient_into(&self, q: &[f64], out: &mut [f64]) -> Result<()> {
+        GroupedSet::gradient_into(self, q, out);
+        Ok(())
+    }
+
+    /// Σ k u″ a aᵀ; each entry ((aᵢ aⱼ) u″) k added in term order, as [`SpringSet`]'s sum of
+    /// element Hessians computes it, without a matrix per element.
+    fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+        let n = q.len();
+        let mut h = DMatrix::zeros(n, n);
+        for t in &self.terms {
+            let (coupling, curv, k) = match t {
+                Term::Element(e, k) => (&e.coupling, e.profile.eval(e.deflection(q)).2, *k),
+                Term::Cam { coupling, offset, count, width_bits, coef } => {
+                    let (_, _, c) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
+                    (coupling, c, 1.0)
+                }
+            };
+            for j in 0..n.min(coupling.len()) {
+                for i in 0..n.min(coupling.len()) {
+                    h[(i, j)] += coupling[i] * coupling[j] * curv * k;
+                }
+            }
+        }
+        Ok(h)
     }
 }
 
@@ -222,6 +432,114 @@ mod tests {
             qm[j] -= h;
             let fd = (set.gradient(&qp).unwrap() - set.gradient(&qm).unwrap()) / (2.0 * h);
             assert!((hess.column(j) - fd).amax() < 1e-6);
+        }
+    }
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    /// Springs and two cams (± basis elements as the fit leaves them, some stiffnesses zero, a
+    /// crank between each cam's elements) on `n` joints.
+    fn springs_and_cams(n: usize, seed: &mut u64) -> SpringSet {
+        let mut elements = Vec::new();
+        let mut stiffness = Vec::new();
+        let coupling = |j: usize| -> Vec<f64> { (0..n).map(|i| [1.0, -2.0, 1.0, 3.0][(i + j) % 4]).collect() };
+        elements.push(Element { profile: Profile::Linear, coupling: coupling(1), offset: 0.2 });
+        stiffness.push(3.0);
+        for (cam, count) in [(0usize, 30u16), (2, 7)] {
+            let knots = crate::cam::Knots::over(-1.5, 2.0 + cam as f64, count, 0.05);
+            for j in 0..knots.basis_count() {
+                for negative in [false, true] {
+                    elements.push(Element {
+                        profile: Profile::Spline(knots.basis(j, negative)),
+                        coupling: coupling(cam),
+                        offset: knots.lo,
+                    });
+                    let k = 40.0 * (lcg(seed) + 1.0);
+                    stiffness.push(if lcg(seed) < -0.5 { 0.0 } else { k });
+                }
+                if j == 5 {
+                    elements.push(Element { profile: Profile::Crank, coupling: coupling(3), offset: -0.4 });
+                    stiffness.push(0.7);
+                }
+            }
+        }
+        SpringSet { elements, stiffness }
+    }
+
+    #[test]
+    fn grouped_cams_equal_the_sum_of_their_basis_elements() {
+        let mut seed = 23;
+        for n in [2, 3] {
+            let set = springs_and_cams(n, &mut seed);
+            let grouped = set.grouped();
+            // Three springs (one inside each cam's run of elements) and two cams.
+            assert_eq!(grouped.len(), 5);
+            let (mut inside, mut outside) = (0, 0);
+            for _ in 0..300 {
+                // Up to twice the knot spans' reach: inside the span and in its continuation.
+                let q: Vec<f64> = (0..n).map(|_| 2.5 * lcg(&mut seed)).collect();
+                // Per element, and the sum of |terms| that bounds the rounding of either sum.
+                let (mut u, mut g, mut h) = (0.0, DVector::zeros(n), DMatrix::zeros(n, n));
+                let (mut su, mut sg, mut sh) = (0.0, 0.0, 0.0);
+                for (e, k) in set.elements.iter().zip(&set.stiffness) {
+                    let (v, s, c) = e.profile.eval(e.deflection(&q));
+                    u += k * v;
+                    g += e.gradient(&q) * *k;
+                    h += e.hessian(&q) * *k;
+                    let a2 = e.coupling.iter().map(|a| a * a).sum::<f64>();
+                    (su, sg, sh) = (su + (k * v).abs(), sg + (k * s).abs() * a2.sqrt(), sh + (k * c).abs() * a2);
+                    if let Profile::Spline(b) = e.profile {
+                        let t = e.deflection(&q) / b.width();
+                        if (0.0..=f64::from(b.count - 1)).contains(&t) { inside += 1 } else { outside += 1 }
+                    }
+                }
+                let tol = 1e-13 * set.elements.len() as f64;
+                assert!((grouped.value(&q).unwrap() - u).abs() <= tol * su.max(1e-300), "U at {q:?}");
+                let mut buf = vec![0.0; n];
+                let u2 = grouped.value_gradient_into(&q, &mut buf);
+                assert!((u2 - u).abs() <= tol * su.max(1e-300));
+                let gg = grouped.gradient(&q).unwrap();
+                assert!((&gg - &g).amax() <= tol * sg.max(1e-300), "∇U at {q:?}: {gg} vs {g}");
+                assert!((DVector::from_vec(buf) - &g).amax() <= tol * sg.max(1e-300));
+                let hh = grouped.hessian(&q).unwrap();
+                assert!((&hh - &h).amax() <= tol * sh.max(1e-300), "∇²U at {q:?}: {hh} vs {h}");
+                // The per-element sums themselves (SpringSet) agree with these.
+                assert!((set.gradient(&q).unwrap() - &g).amax() <= tol * sg.max(1e-300));
+            }
+            // Both regimes were exercised.
+            assert!(inside > 1000 && outside > 1000, "{inside} inside, {outside} outside");
+        }
+    }
+
+    #[test]
+    fn grouping_a_set_without_cams_changes_no_bit() {
+        let set = SpringSet {
+            elements: vec![
+                Element { profile: Profile::Linear, coupling: vec![1.0, 0.0], offset: 0.1 },
+                Element { profile: Profile::Cubic, coupling: vec![1.0, 2.0], offset: -0.2 },
+                Element { profile: Profile::Crank, coupling: vec![1.0, -1.0], offset: 0.3 },
+                Element { profile: Profile::Compression(Side::Minus), coupling: vec![0.0, 2.0], offset: 0.5 },
+                Element { profile: Profile::Compression(Side::Plus), coupling: vec![0.0, 1.0], offset: 0.0 },
+            ],
+            stiffness: vec![2.0, 0.3, 3.0, 0.5, 0.0],
+        };
+        let grouped = set.grouped();
+        let mut seed = 29;
+        for _ in 0..100 {
+            let q = [lcg(&mut seed), 2.0 * lcg(&mut seed)];
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(grouped.value(&q).unwrap().to_bits(), set.value(&q).unwrap().to_bits());
+            assert_eq!(bits(grouped.gradient(&q).unwrap().as_slice()), bits(set.gradient(&q).unwrap().as_slice()));
+            assert_eq!(bits(grouped.hessian(&q).unwrap().as_slice()), bits(set.hessian(&q).unwrap().as_slice()));
+            let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+            assert_eq!(
+                grouped.value_gradient_into(&q, &mut a).to_bits(),
+                set.value_gradient_into(&q, &mut b).to_bits()
+            );
+            assert_eq!(bits(&a), bits(&b));
         }
     }
 

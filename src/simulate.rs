@@ -19,7 +19,7 @@ use crate::geodesic::logmap::wrap_angle;
 use crate::label::{LogField, LogValue, angle_label, sphere_distance};
 use crate::model::{Chain, Workspace};
 use crate::ode::{Dopri5, OdeSettings};
-use crate::potential::SpringSet;
+use crate::potential::{GroupedSet, Potential, SpringSet};
 
 /// The torque sources, in the order of the output columns.
 pub const SOURCES: [&str; 6] = ["spring", "gravity", "damping", "mode", "energy", "compensation"];
@@ -281,6 +281,10 @@ pub struct Dynamics<'a> {
     q_eq: Vec<f64>,
     frame: MetricFrame,
     potential: &'a ElasticPotential,
+    /// A spring-set potential grouped for evaluation ([`GroupedSet`]): the nominal springs, and
+    /// the springs the arm actually has when they differ (built or scaled).
+    nominal: Option<GroupedSet>,
+    actual: Option<GroupedSet>,
     /// U(q_eq) with the nominal potential (energies are measured from it).
     u0: f64,
     omega2_m_eq: Vec<f64>,
@@ -317,11 +321,24 @@ impl<'a> Dynamics<'a> {
             ElasticPotential::Exact { omega } => omega * omega,
             ElasticPotential::Springs(_) => 0.0,
         };
+        let (nominal, actual) = match potential {
+            ElasticPotential::Springs(s) => {
+                let actual = match (&spec.built, &spec.stiffness_scale) {
+                    (Some(b), _) => Some(b.grouped()),
+                    (None, Some(scale)) => Some(s.scaled(scale).grouped()),
+                    (None, None) => None,
+                };
+                (Some(s.grouped()), actual)
+            }
+            ElasticPotential::Exact { .. } => (None, None),
+        };
         let mut d = Dynamics {
             chain,
             q_eq: q_eq.as_slice().to_vec(),
             frame,
             potential,
+            nominal,
+            actual,
             u0: 0.0,
             omega2_m_eq: m_eq.iter().map(|m| m * omega2).collect(),
             controllers,
@@ -352,9 +369,7 @@ impl<'a> Dynamics<'a> {
     /// U_e + U_g at q (nominal: without parasitic springs).
     fn nominal_potential(&mut self, q: &[f64]) -> Result<f64> {
         let ue = match self.potential {
-            ElasticPotential::Springs(s) => {
-                s.elements.iter().zip(&s.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
-            }
+            ElasticPotential::Springs(_) => self.nominal.as_ref().expect("set in new").value(q)?,
             ElasticPotential::Exact { .. } => {
                 let field = self.field.as_mut().expect("checked in new");
                 field.eval(q, &mut self.lv)?;
@@ -443,14 +458,12 @@ impl<'a> Dynamics<'a> {
         // springs are as designed.
         let mut nominal_u = None;
         match self.potential {
-            ElasticPotential::Springs(s) => {
-                if let Some(b) = &self.spec.built {
-                    b.gradient_scaled_into(q, None, &mut self.buf);
-                } else if self.spec.stiffness_scale.is_none() {
-                    let ue = s.value_gradient_into(q, &mut self.buf);
-                    nominal_u = Some(ue + self.chain.gravity_potential(q));
+            ElasticPotential::Springs(_) => {
+                if let Some(actual) = &self.actual {
+                    actual.gradient_into(q, &mut self.buf);
                 } else {
-                    s.gradient_scaled_into(q, self.spec.stiffness_scale.as_deref(), &mut self.buf);
+                    let ue = self.nominal.as_ref().expect("set in new").value_gradient_into(q, &mut self.buf);
+                    nominal_u = Some(ue + self.chain.gravity_potential(q));
                 }
                 for i in 0..n {
                     self.tau[SPRING][i] = -self.buf[i];

@@ -217,6 +217,7 @@ pub fn kappa(design: &Design, springs: &SpringSet, fit: &FitOutcome) -> Vec<f64>
     let n = design.dof();
     let (mut tau, mut dq) = (vec![0.0f64; n], vec![0.0f64; n]);
     let mut g = vec![0.0; n];
+    let springs = springs.grouped();
     for geo in &fit.evaluation.geodesics {
         for k in 0..geo.len() {
             let q = geo.q(k);

@@ -223,7 +223,7 @@ impl Problem<'_> {
     /// Residual angles (rad) on the training fan from q_eq.
     fn residual(&self, z: &[f64]) -> Result<DVector<f64>> {
         let s = self.springs(z);
-        let a = crate::residual::fan_angles(&self.design.chain, &self.fan, &s)?;
+        let a = crate::residual::fan_angles(&self.design.chain, &self.fan, &s.grouped())?;
         Ok(DVector::from_iterator(a.len(), a.iter().map(|x| x.angle_deg.to_radians())))
     }
 

@@ -223,7 +223,8 @@ impl<'a> Prepared<'a> {
         };
         if has_cams {
             stage("choosing the cams' smoothing");
-            let penalty = cam_smoothing(design, catalog, settings, &candidates, &problem, &gram, &trims)?;
+            let penalty =
+                cam_smoothing(design, catalog, settings, &candidates, &problem, &gram, &trims, region.extent)?;
             gram.add_weighted(&penalty.0, &penalty.1, 1.0);
             append_rows(&mut problem, &penalty);
         }
@@ -927,7 +928,9 @@ pub fn nearest(rates: &[f64], k: f64) -> Option<f64> {
 pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, fan: &Fan) -> Result<Evaluation> {
     let chain = &design.chain;
     let q0 = design.q_eq.as_slice();
-    let residuals = fan_angles(chain, fan, springs)?;
+    // Grouped for the thousands of samples; the checks at q_eq element by element, as before.
+    let grouped = springs.grouped();
+    let residuals = fan_angles(chain, fan, &grouped)?;
     let grad = springs.gradient(q0)? + chain.gravity_gradient(q0);
     let hess = springs.hessian(q0)? + chain.gravity_hessian(q0);
     let target = chain.mass_matrix(&design.q_eq) * omega.powi(2);
@@ -935,7 +938,7 @@ pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, 
     for g in &fan.geodesics {
         for i in 0..g.len() {
             let q = g.q(i);
-            let grad = springs.gradient(q)? + chain.gravity_gradient(q);
+            let grad = grouped.gradient(q)? + chain.gravity_gradient(q);
             let rate: f64 = grad.iter().zip(g.qd(i)).map(|(a, b)| a * b).sum();
             if rate < -1e-12 * grad.norm() {
                 monotone_violations += 1;
@@ -1022,7 +1025,9 @@ pub const AUTO_SMOOTHING: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
 /// the rows together. Families with `smoothing = "auto"` share one weight, the one of
 /// [`AUTO_SMOOTHING`] with the smallest p99 residual on a *validation* fan (directions at a
 /// quarter of the training spacing, apart from both the training and the held-out fans), judged
-/// on the dense fit (without `max_elements`).
+/// on the dense fit (without `max_elements`). `extent` is the region's arc length from q_eq (the
+/// region check's, which the fit has already made).
+#[allow(clippy::too_many_arguments)]
 fn cam_smoothing(
     design: &Design,
     catalog: &Catalog,
@@ -1031,6 +1036,7 @@ fn cam_smoothing(
     problem: &FitProblem,
     gram: &Gram,
     trims: &SpringSet,
+    extent: f64,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let groups = cam_groups(candidates);
     let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
@@ -1090,7 +1096,6 @@ fn cam_smoothing(
         return Ok(build(0.0));
     }
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
-    let extent = design.valid_region()?.extent;
     let validation = Fan::trace(
         &design.chain,
         &design.q_eq,
@@ -1118,7 +1123,7 @@ fn cam_smoothing(
         };
         // The problem was solved around the trims at mid-range: judge the arm with them.
         let springs = arm(candidates, &k, trims);
-        let p99 = stats(&fan_angles(&design.chain, &validation, &springs)?).p99_abs;
+        let p99 = stats(&fan_angles(&design.chain, &validation, &springs.grouped())?).p99_abs;
         if best.is_none_or(|(_, b)| p99 < b) {
             best = Some((w, p99));
         }
