@@ -255,7 +255,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> std:
     let e = |x: DrawingAreaErrorKind<DB::ErrorType>| format!("{x:?}");
     root.fill(&WHITE).map_err(e)?;
     let area = match &fig.title {
-        Some(t) => root.titled(t, (FONT, 22)).map_err(e)?,
+        Some(t) => root.titled(t, (FONT, title_size(root, t, fig.width))).map_err(e)?,
         None => root.clone(),
     };
     let cells = area.split_evenly((fig.rows.max(1), fig.cols.max(1)));
@@ -263,6 +263,19 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> std:
         draw_panel(cell, panel)?;
     }
     Ok(())
+}
+
+/// The largest title size, 22 px at most and 12 px at least, whose text fits the figure's width:
+/// titles carry the design's and catalogue's names, and a long pair ran off both edges.
+fn title_size<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, width: u32) -> f64 {
+    let mut size = 22.0;
+    while size > 12.0 {
+        match root.estimate_text_size(title, &TextStyle::from((FONT, size).into_font())) {
+            Ok((w, _)) if w + 24 > width => size -= 1.0,
+            _ => break,
+        }
+    }
+    size
 }
 
 /// Finite (min, max) over every coordinate a panel draws.
