@@ -332,6 +332,14 @@ pub struct Candidate {
     pub tolerance: f64,
 }
 
+impl Candidate {
+    /// An element taken as it is, outside any catalogue choice (a spring already fitted, a trim
+    /// held at mid-range): only its rows are wanted, so no family, limit, stock rate or tolerance.
+    pub fn bare(element: Element) -> Candidate {
+        Candidate { element, family: 0, max_stiffness: None, stock_rates: Vec::new(), tolerance: 0.0 }
+    }
+}
+
 impl Catalog {
     /// Reads and validates a catalogue for a robot with `dof` joints.
     pub fn load(path: &Path, dof: usize) -> Result<Catalog> {

@@ -230,16 +230,7 @@ pub fn fold_fixed(
     if elements.is_empty() {
         return;
     }
-    let fixed: Vec<Candidate> = elements
-        .iter()
-        .map(|e| Candidate {
-            element: e.clone(),
-            family: 0,
-            max_stiffness: None,
-            stock_rates: Vec::new(),
-            tolerance: 0.0,
-        })
-        .collect();
+    let fixed: Vec<Candidate> = elements.iter().map(|e| Candidate::bare(e.clone())).collect();
     let f = assemble(chain, q_eq, fan, &fixed, req);
     let k = DVector::from_column_slice(stiffness);
     problem.rhs -= &f.rows * &k;

@@ -308,22 +308,29 @@ fn active_set(
             }
         } else {
             let xmax = x.amax().max(1e-300);
-            let mut alpha: f64 = 1.0;
-            for (a, &j) in idx.iter().enumerate() {
-                if !free[j] && z[a] <= 0.0 {
-                    alpha = alpha.min(x[j] / (x[j] - z[a]));
-                }
-            }
-            for (a, &j) in idx.iter().enumerate() {
-                x[j] += alpha * (z[a] - x[j]);
-                if !free[j] && (x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax)) {
-                    x[j] = 0.0;
-                    passive[j] = false;
-                }
-            }
+            step_back(&mut x, &z, &idx, free, &mut passive, xmax);
         }
     }
     None
+}
+
+/// Lawson–Hanson's step back: from x towards the passive subproblem's solution z (over `idx`)
+/// until the first bounded unknown reaches zero; unknowns left at zero (to rounding, relative to
+/// `xmax`) leave the passive set.
+fn step_back(x: &mut DVector<f64>, z: &DVector<f64>, idx: &[usize], free: &[bool], passive: &mut [bool], xmax: f64) {
+    let mut alpha: f64 = 1.0;
+    for (a, &j) in idx.iter().enumerate() {
+        if !free[j] && z[a] <= 0.0 {
+            alpha = alpha.min(x[j] / (x[j] - z[a]));
+        }
+    }
+    for (a, &j) in idx.iter().enumerate() {
+        x[j] += alpha * (z[a] - x[j]);
+        if !free[j] && (x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax)) {
+            x[j] = 0.0;
+            passive[j] = false;
+        }
+    }
 }
 
 /// Solution polishing by an active-set method started from the interior-point solution.
@@ -406,19 +413,7 @@ fn polish(
             }
         } else {
             // Step towards z until the first passive element reaches zero; drop it.
-            let mut alpha: f64 = 1.0;
-            for (a, &j) in idx.iter().enumerate() {
-                if !free[j] && z[a] <= 0.0 {
-                    alpha = alpha.min(x[j] / (x[j] - z[a]));
-                }
-            }
-            for (a, &j) in idx.iter().enumerate() {
-                x[j] += alpha * (z[a] - x[j]);
-                if !free[j] && (x[j] <= 1e-15 * xmax || (z[a] <= 0.0 && x[j] <= 1e-12 * xmax)) {
-                    x[j] = 0.0;
-                    passive[j] = false;
-                }
-            }
+            step_back(&mut x, &z, &idx, free, &mut passive, xmax);
             if idx.iter().all(|&j| !passive[j] || free[j]) && ne > 0 {
                 return x_ipm;
             }

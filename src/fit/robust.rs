@@ -195,17 +195,7 @@ pub fn retrace(chain: &Chain, base: &DVector<f64>, nominal: &Fan, spacing: f64, 
 
 /// The training rows R = A k − b of a spring set on a fan (weighted as in the fit).
 pub fn rows_of(chain: &Chain, fan: &Fan, springs: &SpringSet, omega: f64) -> DVector<f64> {
-    let candidates: Vec<Candidate> = springs
-        .elements
-        .iter()
-        .map(|e| Candidate {
-            element: e.clone(),
-            family: 0,
-            max_stiffness: None,
-            stock_rates: Vec::new(),
-            tolerance: 0.0,
-        })
-        .collect();
+    let candidates: Vec<Candidate> = springs.elements.iter().map(|e| Candidate::bare(e.clone())).collect();
     let req = Requirements { omega, hessian_match: false, monotone: false };
     let problem = assemble(chain, &fan.q_eq, fan, &candidates, req);
     &problem.rows * DVector::from_column_slice(&springs.stiffness) - problem.rhs
@@ -399,8 +389,7 @@ pub fn trimmed_spread(
     }
     // Each trim's unit rows A_trim_j and D_j = ∂(its unit rows)/∂x₀ (exact: linear in x₀).
     let unit = |e: &crate::elements::Element| -> DVector<f64> {
-        let c =
-            [Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: Vec::new(), tolerance: 0.0 }];
+        let c = [Candidate::bare(e.clone())];
         let req = Requirements { omega, hessian_match: false, monotone: false };
         assemble(chain, q0, training, &c, req).rows.column(0).rows(0, jac.nrows()).into_owned()
     };

@@ -966,16 +966,7 @@ pub fn refit_with_fixed(
     elements: &[crate::elements::Element],
     fixed: &[Option<f64>],
 ) -> Result<Vec<f64>> {
-    let candidates: Vec<Candidate> = elements
-        .iter()
-        .map(|e| Candidate {
-            element: e.clone(),
-            family: 0,
-            max_stiffness: None,
-            stock_rates: Vec::new(),
-            tolerance: 0.0,
-        })
-        .collect();
+    let candidates: Vec<Candidate> = elements.iter().map(|e| Candidate::bare(e.clone())).collect();
     let req = Requirements { omega: settings.frequency, hessian_match: settings.hessian_match, monotone: false };
     let problem = assemble(&design.chain, &design.q_eq, training, &candidates, req);
     let mut weighted = Gram::from_rows(&problem.rows, &problem.rhs);
