@@ -149,3 +149,105 @@ fn compare_names_the_command_that_wrote_a_folder_and_suggests_no_overwrite() {
         .fails(2, &["sw", "not an output folder of `springfit fit`", "`springfit sweep`"]);
     assert!(!run.stderr().contains("--out sw"), "must not suggest fitting into the sweep folder\n{}", run.report());
 }
+
+/// The bill of materials `fit` wrote, with a measured rate filled in for the first spring, as
+/// `tune` asks a builder to do.
+fn with_measured_rate(bom: &str) -> String {
+    let mut lines = bom.lines();
+    let mut s = format!("{},measured_stiffness\n", lines.next().unwrap());
+    for (i, l) in lines.enumerate() {
+        let rate = if i == 0 {
+            format!("{}", l.split(',').nth(6).unwrap().parse::<f64>().unwrap() * 1.03)
+        } else {
+            String::new()
+        };
+        s.push_str(&format!("{l},{rate}\n"));
+    }
+    s
+}
+
+#[test]
+fn a_users_edits_to_springfits_files_survive_a_rerun_of_fit_tune_and_sweep() {
+    let dir = temp_dir("safety-edits");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["fit", d, "--out", "A", "--threads", "2"]).ok();
+    let fitted = std::fs::read_to_string(dir.join("A/bom.csv")).unwrap();
+    let measured = with_measured_rate(&fitted);
+    std::fs::write(dir.join("A/bom.csv"), &measured).unwrap();
+    // The same fit again would replace the edited bill: refused before any work, the edits kept.
+    let run = springfit(&dir, &["fit", d, "--out", "A", "--threads", "2"])
+        .fails(2, &["A", "`bom.csv` changed since `springfit fit` wrote it", "another --out", "--overwrite-edits"]);
+    assert!(run.stdout().is_empty(), "refused before any work\n{}", run.report());
+    assert_eq!(std::fs::read_to_string(dir.join("A/bom.csv")).unwrap(), measured);
+    no_leftovers(&dir);
+
+    // tune reads the edited bill from the fit's folder and writes its own; an edit there is kept too.
+    springfit(&dir, &["tune", d, "--measured", "A/bom.csv", "--out", "T"]).ok();
+    let note = "\n\nbuilt 2026-12-01, trims set by hand\n";
+    let tuned = std::fs::read_to_string(dir.join("T/tune.md")).unwrap() + note;
+    std::fs::write(dir.join("T/tune.md"), &tuned).unwrap();
+    let run = springfit(&dir, &["tune", d, "--measured", "A/bom.csv", "--out", "T"])
+        .fails(2, &["`tune.md` changed since `springfit tune` wrote it", "--overwrite-edits"]);
+    assert!(run.stdout().is_empty(), "{}", run.report());
+    assert_eq!(std::fs::read_to_string(dir.join("T/tune.md")).unwrap(), tuned);
+    springfit(&dir, &["--overwrite-edits", "tune", d, "--measured", "A/bom.csv", "--out", "T"]).ok();
+    assert!(!std::fs::read_to_string(dir.join("T/tune.md")).unwrap().contains("trims set by hand"));
+
+    // sweep: an edited table is refused before the builds, and kept.
+    springfit(&dir, &["sweep", d, "--builds", "1", "--out", "S", "--threads", "2"]).ok();
+    let table = std::fs::read_to_string(dir.join("S/tolerance.md")).unwrap().replace("tolerance", "TOLERANCE");
+    std::fs::write(dir.join("S/tolerance.md"), &table).unwrap();
+    let run = springfit(&dir, &["sweep", d, "--builds", "1", "--out", "S"])
+        .fails(2, &["`tolerance.md` changed since `springfit sweep` wrote it"]);
+    assert!(run.stdout().is_empty(), "{}", run.report());
+    assert_eq!(std::fs::read_to_string(dir.join("S/tolerance.md")).unwrap(), table);
+
+    // Removing a file of springfit's loses nothing: the rerun goes ahead. With the flag, the
+    // edited bill is replaced by the fit's own.
+    std::fs::remove_file(dir.join("S/tolerance.md")).unwrap();
+    springfit(&dir, &["--overwrite-edits", "fit", d, "--out", "A", "--threads", "2"]).ok();
+    assert_eq!(std::fs::read_to_string(dir.join("A/bom.csv")).unwrap(), fitted);
+    no_leftovers(&dir);
+}
+
+#[test]
+fn every_command_refuses_a_users_file_in_the_way_before_any_work() {
+    let dir = temp_dir("safety-in-the-way");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    let bom = repo().join("tests/data/double_pendulum_nominal_bom.csv");
+    let b = bom.to_str().unwrap();
+    // (command line, the command's name, a file the run would write)
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (vec!["fit", d], "fit", "bom.csv"),
+        (vec!["fit", d, "--exact"], "fit", "summary.json"),
+        (vec!["geodesics", d], "geodesics", "region.json"),
+        (vec!["simulate", d, "--exact"], "simulate", "sim_switch_q.png"),
+        (vec!["simulate", d, "--bom", b, "--scenario", "free"], "simulate", "sim_free.json"),
+        (vec!["sweep", d, "--builds", "1"], "sweep", "sweep.csv"),
+        (vec!["sweep", d, "--shard", "1/2"], "sweep", "sweep_shard.json"),
+        (vec!["compare", d], "compare", "compare.md"),
+        (vec!["pareto", d, "--k-max", "3", "--radii", "1"], "pareto", "pareto.csv"),
+        (vec!["tune", d, "--measured", b], "tune", "tune.md"),
+        (vec!["export", d, "--bom", b, "--mujoco"], "export", "double_pendulum.xml"),
+    ];
+    for (i, (args, command, file)) in cases.into_iter().enumerate() {
+        let out = format!("out{i}");
+        // An output folder of the command (its manifest lists nothing yet) with the user's file
+        // where the run would write.
+        write(
+            &dir,
+            &format!("{out}/{MANIFEST}"),
+            &format!(r#"{{"springfit": "0.1.0", "command": "{command}", "files": []}}"#),
+        );
+        write(&dir, &format!("{out}/{file}"), "the user's own file");
+        let mut args = args.clone();
+        args.extend(["--out", out.as_str()]);
+        let run = springfit(&dir, &args)
+            .fails(2, &[&out, &format!("`{file}`"), "did not write", "move that file away first"]);
+        assert!(run.stdout().is_empty(), "refused before any work\n{}", run.report());
+        assert_eq!(std::fs::read_to_string(dir.join(&out).join(file)).unwrap(), "the user's own file");
+        no_leftovers(&dir);
+    }
+}

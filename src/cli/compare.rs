@@ -10,6 +10,7 @@ use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
 use springfit::report::output::OutputDir;
 
+use super::Session;
 use super::progress::Progress;
 
 /// A design with its catalogue, validated before any work.
@@ -27,7 +28,8 @@ enum Input {
     Design(PathBuf, Box<(Design, Catalog)>),
 }
 
-pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: &Progress) -> Result<()> {
+pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     if inputs.is_empty() {
         return Err(Error::Setting {
             field: "inputs".into(),
@@ -36,7 +38,8 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
         .into());
     }
     let target = out.unwrap_or_else(|| PathBuf::from("out").join("compare"));
-    springfit::report::output::check(&target, "compare")?;
+    let plan = session.plan("compare", springfit::report::compare::COMPARE_FILES.iter().copied());
+    springfit::report::output::check(&target, &plan)?;
     // Every input is read and validated first, so a bad last input costs no fit of the first.
     let mut read = Vec::new();
     for input in inputs {
@@ -93,7 +96,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, progress: 
         records.push(r);
     }
     disambiguate(&mut records);
-    let dir = OutputDir::create(&target, "compare")?;
+    let dir = OutputDir::create(&target, &plan)?;
     // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
     let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
     springfit::report::compare::write_compare(&dir, &records, signed)?;
@@ -127,11 +130,13 @@ pub fn pareto(
     out: Option<PathBuf>,
     k_max: Option<usize>,
     radii: Option<Vec<f64>>,
-    progress: &Progress,
+    session: &Session,
 ) -> Result<()> {
+    let progress = &session.progress;
     let (design, catalog) = load_design_catalog(path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
-    springfit::report::output::check(&target, "pareto")?;
+    let plan = session.plan("pareto", springfit::report::compare::PARETO_FILES.iter().copied());
+    springfit::report::output::check(&target, &plan)?;
     let k_max = k_max.unwrap_or(design.fit.max_elements.max(16));
     if k_max < 2 {
         return Err(Error::Setting { field: "--k-max".into(), reason: "must be at least 2".into() }.into());
@@ -168,7 +173,7 @@ pub fn pareto(
         }
         .into());
     }
-    let dir = OutputDir::create(&target, "pareto")?;
+    let dir = OutputDir::create(&target, &plan)?;
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
     springfit::report::html::write_pareto(&dir, &design)?;
     let written = dir.commit()?;

@@ -11,7 +11,7 @@ use springfit::export::mujoco;
 use springfit::fit::run::fit;
 use springfit::report::output::OutputDir;
 
-use super::progress::Progress;
+use super::Session;
 
 pub struct ExportArgs {
     pub design: PathBuf,
@@ -19,11 +19,14 @@ pub struct ExportArgs {
     pub out: Option<PathBuf>,
 }
 
-pub fn run(args: ExportArgs, progress: &Progress) -> Result<()> {
+pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     let design = Design::load(&args.design)?;
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_mujoco", design.name)));
     // Refuse a folder springfit may not write into before fitting anything.
-    springfit::report::output::check(&target, "export")?;
+    let xml_name = format!("{}.xml", design.name);
+    let plan = session.plan("export", [xml_name.as_str(), "elements.md", "bom.csv", "cams/*"]);
+    springfit::report::output::check(&target, &plan)?;
     let (rows, from) = match &args.bom {
         Some(path) => {
             let rows = bom::read(path)?;
@@ -60,8 +63,7 @@ pub fn run(args: ExportArgs, progress: &Progress) -> Result<()> {
         }
     };
     let model = mujoco::export(&design, &rows, 1.0 / design.simulate.rate)?;
-    let xml_name = format!("{}.xml", design.name);
-    let dir = OutputDir::create(&target, "export")?;
+    let dir = OutputDir::create(&target, &plan)?;
     dir.write(&xml_name, &model.xml)?;
     dir.write("elements.md", mujoco::elements_md(&design, &model, &from, &xml_name))?;
     bom::write(&dir, "bom.csv", &rows)?;

@@ -8,7 +8,7 @@ use springfit::fit::run::{exact_reference, fit};
 use springfit::fit::settings::SolverKind;
 use springfit::report::output::OutputDir;
 
-use super::progress::Progress;
+use super::Session;
 
 pub struct FitArgs {
     pub design: PathBuf,
@@ -18,7 +18,8 @@ pub struct FitArgs {
     pub max_elements: Option<usize>,
 }
 
-pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
+pub fn run(args: FitArgs, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     let (design, validated) = super::load_design(&args.design, progress)?;
     let mut settings = design.fit;
     if let Some(s) = args.solver {
@@ -30,7 +31,8 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
     settings.validate().map_err(|(field, reason)| Error::Setting { field, reason })?;
     let default_name = if args.exact { format!("{}_exact", design.name) } else { design.name.clone() };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
-    springfit::report::output::check(&target, "fit")?;
+    let plan = session.plan("fit", springfit::report::fit::files(!args.exact));
+    springfit::report::output::check(&target, &plan)?;
     let catalog = match (&validated.catalog, args.exact) {
         (_, true) => None,
         (Some(c), false) => Some(c),
@@ -72,7 +74,7 @@ pub fn run(args: FitArgs, progress: &Progress) -> Result<()> {
         Some((ab, t.elapsed().as_secs_f64()))
     };
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, "fit")?;
+    let dir = OutputDir::create(&target, &plan)?;
     springfit::report::fit::write_with_as_built(&dir, &design, &outcome, as_built.as_ref().and_then(|a| a.0.as_ref()))?;
     springfit::report::html::write_fit(&dir, &design)?;
     let written = dir.commit();

@@ -6,12 +6,14 @@ use anyhow::Result;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::report::output::OutputDir;
 
-use super::progress::Progress;
+use super::Session;
 
-pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
+pub fn run(path: &Path, out: Option<PathBuf>, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     let (design, _) = super::load_design(path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
-    springfit::report::output::check(&target, "geodesics")?;
+    let plan = session.plan("geodesics", springfit::report::geodesics::FILES.iter().copied());
+    springfit::report::output::check(&target, &plan)?;
     let step = progress.step("checking the region");
     let region = design.valid_region();
     step.finish();
@@ -27,7 +29,7 @@ pub fn run(path: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()>
     step.finish();
     let fan = fan?;
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, "geodesics")?;
+    let dir = OutputDir::create(&target, &plan)?;
     springfit::report::geodesics::write(&dir, &design, &fan, &region)?;
     let written = dir.commit();
     step.finish();

@@ -17,6 +17,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use springfit::design::Design;
 use springfit::fit::settings::SolverKind;
+use springfit::report::output::{Edits, Plan};
 use springfit::validate::Validated;
 use springfit::{Error, ErrorKind};
 
@@ -41,6 +42,10 @@ pub struct Cli {
     /// Worker threads for parallel steps (default: all cores). Results do not depend on it.
     #[arg(long, global = true, value_name = "N")]
     pub threads: Option<usize>,
+    /// Let a run replace files of its earlier output that you edited since (a bom.csv with
+    /// measured rates filled in); without it such a run is refused before any work.
+    #[arg(long, global = true)]
+    pub overwrite_edits: bool,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -244,29 +249,44 @@ pub fn run() -> Result<()> {
         }
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
     }
-    let progress = progress::Progress::new(cli.quiet);
+    let edits = if cli.overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
+    let session = Session { progress: progress::Progress::new(cli.quiet), edits };
     match cli.command {
-        Command::Check { design, json } => check::run(&design, json, &progress),
-        Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &progress),
-        Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &progress),
+        Command::Check { design, json } => check::run(&design, json, &session.progress),
+        Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &session),
+        Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &session),
         Command::Sweep { design, out, shard, merge, builds, seed } => {
-            sweep::run(sweep::SweepArgs { design, out, shard, merge, builds, seed }, &progress)
+            sweep::run(sweep::SweepArgs { design, out, shard, merge, builds, seed }, &session)
         }
         Command::Simulate { design, scenario, out, exact, bom, exact_label } => {
-            simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &progress)
+            simulate::run(simulate::SimArgs { design, scenario, out, exact, bom, exact_label }, &session)
         }
         Command::Export { design, bom, mujoco: _, out } => {
-            export::run(export::ExportArgs { design, bom, out }, &progress)
+            export::run(export::ExportArgs { design, bom, out }, &session)
         }
-        Command::Geodesics { design, out } => geodesics::run(&design, out, &progress),
-        Command::Tune { design, measured, out } => tune::run(&design, &measured, out, &progress),
+        Command::Geodesics { design, out } => geodesics::run(&design, out, &session),
+        Command::Tune { design, measured, out } => tune::run(&design, &measured, out, &session),
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {
                 SolverArg::Nnls => SolverKind::Nnls,
                 SolverArg::Qp => SolverKind::Qp,
             });
-            fit::run(fit::FitArgs { design, out, exact, solver, max_elements }, &progress)
+            fit::run(fit::FitArgs { design, out, exact, solver, max_elements }, &session)
         }
+    }
+}
+
+/// What every command gets: where to report progress, and what the user allows it to replace.
+pub struct Session {
+    pub progress: progress::Progress,
+    /// What to do with output files the user edited since springfit wrote them (`--overwrite-edits`).
+    pub edits: Edits,
+}
+
+impl Session {
+    /// The plan of `command` writing files named like `patterns`, under the user's edits policy.
+    pub fn plan<S: Into<String>>(&self, command: &str, patterns: impl IntoIterator<Item = S>) -> Plan {
+        Plan::new(command, patterns).with_edits(self.edits)
     }
 }
 

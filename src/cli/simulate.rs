@@ -11,7 +11,7 @@ use springfit::report::output::OutputDir;
 use springfit::scenario::{label_source, run_scenario};
 use springfit::simulate::{ElasticPotential, LabelKind};
 
-use super::progress::Progress;
+use super::Session;
 
 pub struct SimArgs {
     pub design: PathBuf,
@@ -22,7 +22,8 @@ pub struct SimArgs {
     pub exact_label: bool,
 }
 
-pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
+pub fn run(args: SimArgs, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     let (design, validated) = super::load_design(&args.design, progress)?;
     if design.file.scenario.is_empty() {
         return Err(Error::invalid(&design.path, "scenario", "the design declares no [[scenario]] to simulate").into());
@@ -41,7 +42,11 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         None => (0..design.file.scenario.len()).collect(),
     };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_simulate", design.name)));
-    springfit::report::output::check(&target, "simulate")?;
+    let plan = session.plan(
+        "simulate",
+        springfit::report::simulate::files(indices.iter().map(|&i| design.file.scenario[i].name.as_str())),
+    );
+    springfit::report::output::check(&target, &plan)?;
     let (potential, potential_name) = if args.exact {
         (ElasticPotential::Exact { omega: design.fit.frequency }, "exact ½ω²r²".to_string())
     } else if let Some(path) = &args.bom {
@@ -114,7 +119,7 @@ pub fn run(args: SimArgs, progress: &Progress) -> Result<()> {
         },
         design.geodesics.ode,
     )?;
-    let dir = OutputDir::create(&target, "simulate")?;
+    let mut dir = OutputDir::create(&target, &plan)?;
     if let Some(only) = &args.scenario {
         // A rerun of one scenario keeps the other scenarios' files of the previous run.
         let own = format!("sim_{only}");

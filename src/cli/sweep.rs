@@ -12,6 +12,7 @@ use springfit::scenario::label_source;
 use springfit::simulate::ElasticPotential;
 use springfit::sweep::{ItemResult, SweepContext, kappa, parse_shard, plan, shard_indices, tables};
 
+use super::Session;
 use super::progress::Progress;
 
 pub struct SweepArgs {
@@ -46,7 +47,8 @@ fn fingerprint(parts: &[&str]) -> String {
     format!("{h:016x}")
 }
 
-pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
+pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     let (design, validated) = super::load_design(&args.design, progress)?;
     let mut settings = design.file.sweep.clone();
     if let Some(b) = args.builds {
@@ -105,7 +107,9 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         };
         PathBuf::from("out").join(name)
     });
-    springfit::report::output::check(&target, "sweep")?;
+    let files = if shard.is_some() { springfit::report::sweep::SHARD_FILES } else { springfit::report::sweep::FILES };
+    let outputs = session.plan("sweep", files.iter().copied());
+    springfit::report::output::check(&target, &outputs)?;
 
     let step = progress.step("fitting the springs");
     let outcome = fit(&design, catalog, &design.fit, &|_| {});
@@ -177,7 +181,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
             }
             .into());
         }
-        return finish(&design, &outcome, &settings, &results, &target, progress);
+        return finish(&design, &outcome, &settings, &results, &target, &outputs, progress);
     }
 
     let step = progress.step("preparing the mode label");
@@ -223,7 +227,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
     let results = results?;
     progress.say(format!("{} items in {secs:.1} s", results.len()));
     if let Some((i, n)) = shard {
-        let dir = OutputDir::create(&target, "sweep")?;
+        let dir = OutputDir::create(&target, &outputs)?;
         let file =
             ShardFile { design: design.name.clone(), fingerprint: fp, shard: (i, n), items: items.len(), results };
         dir.write("sweep_shard.json", serde_json::to_string(&file)?)?;
@@ -238,7 +242,7 @@ pub fn run(args: SweepArgs, progress: &Progress) -> Result<()> {
         ));
         return Ok(());
     }
-    finish(&design, &outcome, &settings, &results, &target, progress)
+    finish(&design, &outcome, &settings, &results, &target, &outputs, progress)
 }
 
 fn builds_note(s: &springfit::sweep::SweepSettings) -> String {
@@ -251,10 +255,11 @@ fn finish(
     settings: &springfit::sweep::SweepSettings,
     results: &[ItemResult],
     target: &Path,
+    plan: &springfit::report::output::Plan,
     progress: &Progress,
 ) -> Result<()> {
     let t = tables(settings, results);
-    let dir = OutputDir::create(target, "sweep")?;
+    let dir = OutputDir::create(target, plan)?;
     springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
     springfit::report::html::write_sweep(&dir, design)?;
     let written = dir.commit()?;

@@ -6,13 +6,18 @@ use anyhow::Result;
 use springfit::report::output::OutputDir;
 use springfit::tune::{State, TuneOutcome, load_measured, tune};
 
-use super::progress::Progress;
+use super::Session;
 
-pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Progress) -> Result<()> {
+/// The names `springfit tune` may write: the tuned bill (with its cams' files) and the reports.
+const FILES: &[&str] = &["bom_tuned.csv", "cams/*", "tune.json", "tune.md"];
+
+pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, session: &Session) -> Result<()> {
+    let progress = &session.progress;
     // The same validation every command runs first, and the output folder checked before any work.
     let (design, _) = super::load_design(design, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_tune", design.name)));
-    springfit::report::output::check(&target, "tune")?;
+    let plan = session.plan("tune", FILES.iter().copied());
+    springfit::report::output::check(&target, &plan)?;
     let (bom, rates) = load_measured(measured)?;
     if bom.first().is_some_and(|r| r.element.coupling.len() != design.dof()) {
         return Err(springfit::Error::invalid(
@@ -27,7 +32,7 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, progress: &Prog
     step.finish();
     let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, "tune")?;
+    let dir = OutputDir::create(&target, &plan)?;
     springfit::bom::write(&dir, "bom_tuned.csv", &outcome.bom)?;
     dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
     dir.write("tune.md", markdown(&design.name, &outcome))?;

@@ -28,6 +28,12 @@ pub fn log_edges(records: &[FitRecord], bins: usize) -> Vec<f64> {
     (0..=bins).map(|k| 10f64.powf(bottom + (top - bottom) * k as f64 / bins as f64)).collect()
 }
 
+/// The names `springfit compare` may write (see [`super::output::Plan`]), `report.html` included.
+pub const COMPARE_FILES: &[&str] = &["compare.csv", "compare.md", "compare.svg", "compare.png", super::html::FILE];
+
+/// The names `springfit pareto` may write, `report.html` included.
+pub const PARETO_FILES: &[&str] = &["pareto.csv", "pareto.md", "pareto.svg", "pareto.png", super::html::FILE];
+
 /// Writes `compare.csv`, `compare.md` and `compare.svg/.png`: the histograms of |residual angle|
 /// of every record on shared logarithmic bins, and a box plot of |angle| per record on a log axis.
 /// Two-joint angles are signed and three-joint ones are not, so the figure compares magnitudes

@@ -116,6 +116,26 @@ pub fn residuals_csv(dof: usize, residuals: &[AngleSample]) -> String {
     s
 }
 
+/// The names `springfit fit` may write (see [`super::output::Plan`]), `report.html` included;
+/// the bill of materials and its cams' files only when springs are fitted (not for `--exact`).
+pub fn files(springs: bool) -> Vec<&'static str> {
+    let bill = if springs { BILL_FILES } else { &[] };
+    bill.iter().chain(FILES).copied().collect()
+}
+
+const BILL_FILES: &[&str] = &["bom.csv", "bom.md", "cams/*"];
+
+const FILES: &[&str] = &[
+    "summary.json",
+    "residuals.csv",
+    "histogram.svg",
+    "histogram.png",
+    "potential.svg",
+    "potential.png",
+    "report.md",
+    super::html::FILE,
+];
+
 /// Writes every output of a fit (or of the exact reference) into `out`.
 pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
     write_with_as_built(out, design, o, None)

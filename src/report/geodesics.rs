@@ -31,6 +31,9 @@ pub fn geodesics_csv(fan: &Fan) -> String {
 }
 
 /// Writes the geodesics outputs.
+/// The names `springfit geodesics` may write (see [`super::output::Plan`]).
+pub const FILES: &[&str] = &["geodesics.csv", "region.json", "geodesics.svg", "geodesics.png"];
+
 pub fn write(out: &OutputDir, design: &Design, fan: &Fan, region: &RegionReport) -> Result<()> {
     out.write("geodesics.csv", geodesics_csv(fan))?;
     let json = serde_json::to_string_pretty(region).expect("the region report serialises");

@@ -12,6 +12,14 @@
 //!   folder of another command): that is refused, before any work, with a message saying what to
 //!   do.
 //!
+//! The manifest also records what springfit wrote into each file (its size and a 64-bit FNV-1a
+//! hash of its bytes), so a file a user edited since (a `bom.csv` with `measured_stiffness`
+//! filled in) is told apart from springfit's own: a run that would replace or remove it is
+//! refused before any work, naming the file, unless the caller says the edits may go
+//! ([`Edits::Overwrite`]). A command announces the names it may write ([`Plan`]) before it starts,
+//! so a file of the user's that sits where the run would write is refused before any work too,
+//! not after it.
+//!
 //! Files are first written into a hidden staging folder next to the target (same parent, so the
 //! renames stay on one file system). On commit the previous files are moved into a hidden backup
 //! folder, the new ones moved in, and only then is the backup deleted; if a step fails, the new
@@ -19,7 +27,7 @@
 //! [`OutputDir`] (an error, a panic) removes the staging folder, so a failed run leaves the
 //! previous results intact.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Component, Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -42,6 +50,94 @@ pub struct Manifest {
     /// Subfolders springfit created for its files (removed again once empty).
     #[serde(default)]
     pub folders: Vec<String>,
+    /// What springfit wrote into each file, so a file edited since is recognised. Manifests of
+    /// springfit versions before this field have none: their files count as edited when they are
+    /// newer than the manifest.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub stamps: BTreeMap<String, Stamp>,
+}
+
+/// What springfit wrote into one file: enough to tell whether anyone changed it since.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stamp {
+    /// Size in bytes.
+    pub bytes: u64,
+    /// FNV-1a (64-bit) of the bytes, 16 hexadecimal digits. Not a cryptographic hash: it guards
+    /// against edits, not against someone forging a file.
+    pub fnv1a64: String,
+}
+
+impl Stamp {
+    /// The stamp of `bytes`.
+    pub fn of(bytes: &[u8]) -> Stamp {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        Stamp { bytes: bytes.len() as u64, fnv1a64: format!("{h:016x}") }
+    }
+
+    fn of_file(path: &Path) -> Result<Stamp> {
+        std::fs::read(path).map(|b| Stamp::of(&b)).map_err(|e| Error::io(path, e))
+    }
+}
+
+/// What to do with a file springfit wrote that has been changed since.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Edits {
+    /// Refuse the run before any work, naming the edited files (the default).
+    #[default]
+    Refuse,
+    /// Replace or remove edited files like any other file of the previous run.
+    Overwrite,
+}
+
+/// What a command is about to write into an output folder, known before it does any work: its
+/// name, the file names it may write (exact, or with `*` standing for any run of characters,
+/// `/` included) and what to do with files a user edited.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    command: String,
+    patterns: Vec<String>,
+    edits: Edits,
+}
+
+impl Plan {
+    /// The plan of `command` writing files whose names match `patterns`.
+    pub fn new<S: Into<String>>(command: &str, patterns: impl IntoIterator<Item = S>) -> Plan {
+        Plan {
+            command: command.to_string(),
+            patterns: patterns.into_iter().map(Into::into).collect(),
+            edits: Edits::Refuse,
+        }
+    }
+
+    /// The same plan with another policy for edited files.
+    pub fn with_edits(mut self, edits: Edits) -> Plan {
+        self.edits = edits;
+        self
+    }
+
+    /// The command (`fit`, `simulate`, …).
+    pub fn command(&self) -> &str {
+        &self.command
+    }
+
+    /// Whether the run may write a file of this name.
+    pub fn covers(&self, name: &str) -> bool {
+        self.patterns.iter().any(|p| glob(p.as_bytes(), name.as_bytes()))
+    }
+}
+
+/// `*` matches any run of bytes; everything else matches itself.
+fn glob(pattern: &[u8], name: &[u8]) -> bool {
+    match pattern.split_first() {
+        None => name.is_empty(),
+        Some((b'*', rest)) => (0..=name.len()).any(|i| glob(rest, &name[i..])),
+        Some((c, rest)) => name.split_first().is_some_and(|(n, tail)| n == c && glob(rest, tail)),
+    }
 }
 
 impl Manifest {
@@ -51,7 +147,35 @@ impl Manifest {
             command: command.to_string(),
             files: Vec::new(),
             folders: Vec::new(),
+            stamps: BTreeMap::new(),
         }
+    }
+
+    /// The files of this manifest in `folder` whose contents differ from what springfit wrote
+    /// (files that are gone are not edits: nothing of the user's would be lost).
+    fn edited(&self, folder: &Path) -> Result<Vec<String>> {
+        let written_at = std::fs::metadata(folder.join(MANIFEST)).and_then(|m| m.modified()).ok();
+        let mut edited = Vec::new();
+        for f in &self.files {
+            let path = folder.join(f);
+            let Ok(meta) = path.symlink_metadata() else { continue };
+            if !meta.is_file() {
+                edited.push(f.clone());
+                continue;
+            }
+            let changed = match self.stamps.get(f) {
+                Some(stamp) => meta.len() != stamp.bytes || Stamp::of_file(&path)? != *stamp,
+                // No record of the contents: newer than the manifest means changed after the run.
+                None => match (meta.modified().ok(), written_at) {
+                    (Some(m), Some(w)) => m > w,
+                    _ => true,
+                },
+            };
+            if changed {
+                edited.push(f.clone());
+            }
+        }
+        Ok(edited)
     }
 
     /// Reads the manifest of `folder`, if it has one.
@@ -103,13 +227,14 @@ enum Previous {
     Managed(Manifest),
 }
 
-/// Checks that `command` may write its outputs to `target` (see the module documentation), without
-/// writing anything. Commands call it before any work so a refusal costs nothing.
-pub fn check(target: &Path, command: &str) -> Result<()> {
-    inspect(target, command).map(|_| ())
+/// Checks that the run of `plan` may write its outputs to `target` (see the module documentation),
+/// without writing anything. Commands call it before any work so a refusal costs nothing.
+pub fn check(target: &Path, plan: &Plan) -> Result<()> {
+    inspect(target, plan).map(|_| ())
 }
 
-fn inspect(target: &Path, command: &str) -> Result<Previous> {
+fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
+    let command = plan.command();
     let parent = parent_of(target);
     // A file where a folder must be: say so instead of the system's "File exists".
     if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
@@ -129,23 +254,64 @@ fn inspect(target: &Path, command: &str) -> Result<Previous> {
     if !target.is_dir() {
         return Err(Error::io(target, std::io::Error::other("exists and is not a folder")));
     }
-    match Manifest::read(target)? {
-        Some(m) if m.command == command => Ok(Previous::Managed(m)),
-        Some(m) => Err(refusal(
-            target,
-            &format!(
-                "this is an output folder of `springfit {}`, and `springfit {command}` does not replace another command's files",
-                m.command
-            ),
-        )),
+    let previous = match Manifest::read(target)? {
+        Some(m) if m.command == command => m,
+        Some(m) => {
+            return Err(refusal(
+                target,
+                &format!(
+                    "this is an output folder of `springfit {}`, and `springfit {command}` does not replace another command's files",
+                    m.command
+                ),
+            ));
+        }
         None => {
             let mut entries = std::fs::read_dir(target).map_err(|e| Error::io(target, e))?;
             if entries.next().is_some() {
-                Err(refusal(target, &format!("the folder is not empty and has no springfit manifest ({MANIFEST})")))
-            } else {
-                Ok(Previous::Managed(Manifest::empty(command)))
+                return Err(refusal(
+                    target,
+                    &format!("the folder is not empty and has no springfit manifest ({MANIFEST})"),
+                ));
             }
+            Manifest::empty(command)
         }
+    };
+    if plan.edits == Edits::Refuse {
+        let edited = previous.edited(target)?;
+        if !edited.is_empty() {
+            return Err(Error::io(
+                target,
+                std::io::Error::other(format!(
+                    "{} changed since `springfit {command}` wrote {} (edited by hand?), and this run would replace or remove {}; springfit does not overwrite your edits: copy {} elsewhere first, choose another --out, or pass --overwrite-edits to let the run replace {}",
+                    list(&edited),
+                    if edited.len() == 1 { "it" } else { "them" },
+                    if edited.len() == 1 { "it" } else { "them" },
+                    if edited.len() == 1 { "it" } else { "them" },
+                    if edited.len() == 1 { "it" } else { "them" },
+                )),
+            ));
+        }
+    }
+    let listed: BTreeSet<&str> = previous.files.iter().map(String::as_str).collect();
+    let (present, _) = listing(target)?;
+    let in_the_way: Vec<String> =
+        present.into_iter().filter(|f| !listed.contains(f.as_str()) && plan.covers(f)).collect();
+    if let Some(f) = in_the_way.first() {
+        return Err(refusal(
+            target,
+            &format!("it holds `{f}`, which springfit did not write but this run may write; move that file away first"),
+        ));
+    }
+    Ok(Previous::Managed(previous))
+}
+
+/// `a`, `a` and `b`, `a`, `b` and `c` (each in backquotes).
+fn list(names: &[String]) -> String {
+    let q: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+    match q.len() {
+        0 => String::new(),
+        1 => q[0].clone(),
+        n => format!("{} and {}", q[..n - 1].join(", "), q[n - 1]),
     }
 }
 
@@ -161,22 +327,24 @@ fn parent_of(target: &Path) -> PathBuf {
 pub struct OutputDir {
     target: PathBuf,
     staging: PathBuf,
-    command: String,
+    plan: Plan,
     previous: Previous,
+    /// Files of the previous run copied back by [`OutputDir::keep_previous`]: written, though
+    /// not by this run's plan.
+    kept: BTreeSet<String>,
     committed: bool,
 }
 
 impl OutputDir {
-    /// Creates the staging folder for the outputs of `command` (`fit`, `simulate`, …) in `target`,
-    /// creating the parent folders as needed. Refuses a target that is not new, empty or an
-    /// output folder of the same command.
-    pub fn create(target: &Path, command: &str) -> Result<OutputDir> {
+    /// Creates the staging folder for the outputs of `plan` in `target`, creating the parent
+    /// folders as needed. Refuses what [`check`] refuses.
+    pub fn create(target: &Path, plan: &Plan) -> Result<OutputDir> {
         let name = target
             .file_name()
             .ok_or_else(|| Error::io(target, std::io::Error::other("an output folder needs a name")))?
             .to_string_lossy()
             .into_owned();
-        let previous = inspect(target, command)?;
+        let previous = inspect(target, plan)?;
         let parent = parent_of(target);
         std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         let staging = parent.join(format!(".{name}.springfit-tmp-{}", std::process::id()));
@@ -187,8 +355,9 @@ impl OutputDir {
         Ok(OutputDir {
             target: target.to_path_buf(),
             staging,
-            command: command.to_string(),
+            plan: plan.clone(),
             previous,
+            kept: BTreeSet::new(),
             committed: false,
         })
     }
@@ -215,7 +384,7 @@ impl OutputDir {
     /// Keeps the previous run's files (those its manifest lists) whose names `keep` accepts, so a
     /// partial rerun (one scenario of several) replaces only its own files. Files springfit did
     /// not write are never touched anyway.
-    pub fn keep_previous(&self, keep: impl Fn(&str) -> bool) -> Result<()> {
+    pub fn keep_previous(&mut self, keep: impl Fn(&str) -> bool) -> Result<()> {
         let Previous::Managed(m) = &self.previous else { return Ok(()) };
         for name in &m.files {
             let from = self.target.join(name);
@@ -225,6 +394,7 @@ impl OutputDir {
                     std::fs::create_dir_all(parent).map_err(|e| Error::io(&to, e))?;
                 }
                 std::fs::copy(&from, &to).map_err(|err| Error::io(&from, err))?;
+                self.kept.insert(name.clone());
             }
         }
         Ok(())
@@ -232,15 +402,30 @@ impl OutputDir {
 
     /// Moves the staged files into place (see the module documentation) and returns the folder.
     pub fn commit(mut self) -> Result<PathBuf> {
-        let (files, folders) = staged_listing(&self.staging)?;
+        let (files, folders) = listing(&self.staging)?;
+        // The refusals before the work relied on the plan: a file outside it is springfit's bug.
+        if let Some(f) = files.iter().find(|f| !self.plan.covers(f) && !self.kept.contains(*f)) {
+            return Err(Error::io(
+                self.target.join(f),
+                std::io::Error::other(format!(
+                    "`springfit {}` would write this file without having announced it before its work (a bug in springfit: please report it); nothing was written",
+                    self.plan.command()
+                )),
+            ));
+        }
+        let mut stamps = BTreeMap::new();
+        for f in &files {
+            stamps.insert(f.clone(), Stamp::of_file(&self.staging.join(f))?);
+        }
         let manifest = Manifest {
             springfit: env!("CARGO_PKG_VERSION").to_string(),
-            command: self.command.clone(),
+            command: self.plan.command().to_string(),
             files,
             folders,
+            stamps,
         };
         // Inspect again: the folder may have changed while the command ran.
-        match inspect(&self.target, &self.command)? {
+        match inspect(&self.target, &self.plan)? {
             Previous::Absent => {
                 write_manifest(&self.staging, &manifest)?;
                 std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
@@ -263,15 +448,16 @@ impl Drop for OutputDir {
     }
 }
 
-/// The files and subfolders staged under `root` (relative, `/`-separated, sorted).
-fn staged_listing(root: &Path) -> Result<(Vec<String>, Vec<String>)> {
+/// The files and subfolders under `root` (relative, `/`-separated, sorted), the manifest left out.
+fn listing(root: &Path) -> Result<(Vec<String>, Vec<String>)> {
     fn walk(root: &Path, dir: &Path, files: &mut Vec<String>, folders: &mut Vec<String>) -> Result<()> {
         for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
             let e = e.map_err(|err| Error::io(dir, err))?;
             let p = e.path();
             let rel = p.strip_prefix(root).unwrap_or(&p);
             let rel = rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
-            if p.is_dir() {
+            // Symbolic links are listed, not followed.
+            if e.file_type().map_err(|err| Error::io(&p, err))?.is_dir() {
                 folders.push(rel);
                 walk(root, &p, files, folders)?;
             } else if rel != MANIFEST {
@@ -323,6 +509,9 @@ fn swap_in(target: &Path, staging: &Path, old: &Manifest, new: &Manifest) -> Res
     union.folders.extend(new.folders.iter().cloned());
     union.folders.sort();
     union.folders.dedup();
+    // While files are being swapped a listed file may hold the old or the new bytes: the stamps of
+    // files about to be replaced are dropped, so an interrupted swap is judged by modification time.
+    union.stamps.retain(|f, _| !new.files.contains(f));
     write_manifest(target, &union)?;
 
     let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -384,6 +573,11 @@ fn swap_in(target: &Path, staging: &Path, old: &Manifest, new: &Manifest) -> Res
 mod tests {
     use super::*;
 
+    /// A plan that may write any file.
+    fn any(command: &str) -> Plan {
+        Plan::new(command, ["*"])
+    }
+
     fn scratch(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("springfit-output-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
@@ -402,7 +596,7 @@ mod tests {
     fn a_new_folder_is_created_whole_with_its_manifest() {
         let root = scratch("new");
         let target = root.join("out");
-        let out = OutputDir::create(&target, "fit").unwrap();
+        let out = OutputDir::create(&target, &any("fit")).unwrap();
         out.write("new.txt", "new").unwrap();
         assert!(!target.exists(), "nothing visible before commit");
         out.commit().unwrap();
@@ -417,14 +611,14 @@ mod tests {
     fn a_rerun_replaces_only_its_own_files() {
         let root = scratch("rerun");
         let target = root.join("out");
-        let out = OutputDir::create(&target, "fit").unwrap();
+        let out = OutputDir::create(&target, &any("fit")).unwrap();
         out.write("a.txt", "1").unwrap();
         out.write("stale.txt", "1").unwrap();
         out.commit().unwrap();
         std::fs::write(target.join("mine.txt"), "user").unwrap();
         std::fs::create_dir(target.join("notes")).unwrap();
         std::fs::write(target.join("notes/n.txt"), "user").unwrap();
-        let out = OutputDir::create(&target, "fit").unwrap();
+        let out = OutputDir::create(&target, &Plan::new("fit", ["a.txt", "stale.txt"])).unwrap();
         out.write("a.txt", "2").unwrap();
         out.commit().unwrap();
         assert_eq!(std::fs::read_to_string(target.join("a.txt")).unwrap(), "2");
@@ -442,14 +636,14 @@ mod tests {
         let user = root.join("documents");
         std::fs::create_dir(&user).unwrap();
         std::fs::write(user.join("thesis.tex"), "precious").unwrap();
-        let err = OutputDir::create(&user, "fit").unwrap_err().to_string();
+        let err = OutputDir::create(&user, &any("fit")).unwrap_err().to_string();
         assert!(err.contains("not empty") && err.contains("choose another --out"), "{err}");
         let sim = root.join("sim");
-        OutputDir::create(&sim, "simulate").unwrap().commit().unwrap();
-        let err = check(&sim, "fit").unwrap_err().to_string();
+        OutputDir::create(&sim, &any("simulate")).unwrap().commit().unwrap();
+        let err = check(&sim, &any("fit")).unwrap_err().to_string();
         assert!(err.contains("`springfit simulate`"), "{err}");
         std::fs::write(sim.join(MANIFEST), r#"{"springfit":"0","command":"simulate","files":["../x"]}"#).unwrap();
-        let err = check(&sim, "simulate").unwrap_err().to_string();
+        let err = check(&sim, &any("simulate")).unwrap_err().to_string();
         assert!(err.contains("not a path inside"), "{err}");
         assert_eq!(listing(&root), vec!["documents", "sim"]);
         assert_eq!(listing(&user), vec!["thesis.tex"]);
@@ -461,14 +655,14 @@ mod tests {
         let root = scratch("empty");
         let target = root.join("out");
         std::fs::create_dir(&target).unwrap();
-        let out = OutputDir::create(&target, "sweep").unwrap();
+        let out = OutputDir::create(&target, &any("sweep")).unwrap();
         out.write("sub/x.txt", "x").unwrap();
         out.commit().unwrap();
         assert_eq!(std::fs::read_to_string(target.join("sub/x.txt")).unwrap(), "x");
         let m = Manifest::read(&target).unwrap().unwrap();
         assert_eq!((m.files, m.folders), (vec!["sub/x.txt".to_string()], vec!["sub".to_string()]));
         // A rerun that no longer writes the subfolder removes it (it is springfit's and empty).
-        let out = OutputDir::create(&target, "sweep").unwrap();
+        let out = OutputDir::create(&target, &any("sweep")).unwrap();
         out.write("y.txt", "y").unwrap();
         out.commit().unwrap();
         assert_eq!(listing(&target), vec![MANIFEST, "y.txt"]);
@@ -476,17 +670,102 @@ mod tests {
     }
 
     #[test]
-    fn a_file_the_user_put_where_springfit_writes_is_not_overwritten() {
+    fn a_file_the_user_put_where_springfit_writes_is_refused_before_the_run() {
         let root = scratch("clash");
         let target = root.join("out");
-        OutputDir::create(&target, "fit").unwrap().commit().unwrap();
+        let plan = Plan::new("fit", ["bom.csv", "cams/*"]);
+        OutputDir::create(&target, &plan).unwrap().commit().unwrap();
         std::fs::write(target.join("bom.csv"), "user's").unwrap();
-        let out = OutputDir::create(&target, "fit").unwrap();
+        std::fs::write(target.join("notes.csv"), "user's, not in the plan").unwrap();
+        let err = check(&target, &plan).unwrap_err().to_string();
+        assert!(err.contains("`bom.csv`") && err.contains("did not write"), "{err}");
+        std::fs::remove_file(target.join("bom.csv")).unwrap();
+        std::fs::create_dir(target.join("cams")).unwrap();
+        std::fs::write(target.join("cams/C01.toml"), "user's").unwrap();
+        let err = check(&target, &plan).unwrap_err().to_string();
+        assert!(err.contains("`cams/C01.toml`"), "{err}");
+        std::fs::remove_dir_all(target.join("cams")).unwrap();
+        check(&target, &plan).unwrap();
+        // A file that appears while the command works is still caught when the files are swapped in.
+        let out = OutputDir::create(&target, &plan).unwrap();
+        std::fs::write(target.join("bom.csv"), "user's, written during the run").unwrap();
         out.write("bom.csv", "ours").unwrap();
         let err = out.commit().unwrap_err().to_string();
         assert!(err.contains("bom.csv") && err.contains("did not write"), "{err}");
-        assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "user's");
+        assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "user's, written during the run");
+        assert_eq!(std::fs::read_to_string(target.join("notes.csv")).unwrap(), "user's, not in the plan");
         assert_eq!(listing(&root), vec!["out"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn an_edited_file_is_refused_unless_the_edits_may_go() {
+        let root = scratch("edited");
+        let target = root.join("out");
+        let plan = Plan::new("fit", ["bom.csv", "summary.json", "stale.txt"]);
+        let out = OutputDir::create(&target, &plan).unwrap();
+        out.write("bom.csv", "id,stiffness\nS01,3\n").unwrap();
+        out.write("summary.json", "{}").unwrap();
+        out.write("stale.txt", "old").unwrap();
+        out.commit().unwrap();
+        let m = Manifest::read(&target).unwrap().unwrap();
+        assert_eq!(m.stamps["bom.csv"], Stamp::of(b"id,stiffness\nS01,3\n"));
+        // Rewriting a file with the same bytes is no edit; the same size with other bytes is one.
+        std::fs::write(target.join("bom.csv"), "id,stiffness\nS01,3\n").unwrap();
+        check(&target, &plan).unwrap();
+        std::fs::write(target.join("bom.csv"), "id,stiffness\nS01,4\n").unwrap();
+        std::fs::write(target.join("stale.txt"), "mine now").unwrap();
+        let err = check(&target, &plan).unwrap_err().to_string();
+        assert!(
+            err.contains("`bom.csv` and `stale.txt` changed since `springfit fit` wrote them")
+                && err.contains("--overwrite-edits"),
+            "{err}"
+        );
+        let err = OutputDir::create(&target, &plan).unwrap_err().to_string();
+        assert!(err.contains("--overwrite-edits"), "{err}");
+        assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "id,stiffness\nS01,4\n");
+        // A removed file is no loss.
+        std::fs::remove_file(target.join("stale.txt")).unwrap();
+        assert!(check(&target, &plan).unwrap_err().to_string().contains("`bom.csv` changed"));
+        // With the edits given up, the run replaces them.
+        let out = OutputDir::create(&target, &plan.clone().with_edits(Edits::Overwrite)).unwrap();
+        out.write("bom.csv", "id,stiffness\nS01,5\n").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "id,stiffness\nS01,5\n");
+        check(&target, &plan).unwrap();
+        assert_eq!(listing(&root), vec!["out"]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_manifest_without_stamps_judges_files_by_their_time() {
+        let root = scratch("legacy");
+        let target = root.join("out");
+        std::fs::create_dir_all(&target).unwrap();
+        std::fs::write(target.join("bom.csv"), "old").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        std::fs::write(target.join(MANIFEST), r#"{"springfit":"0.1.0","command":"fit","files":["bom.csv"]}"#).unwrap();
+        let plan = Plan::new("fit", ["bom.csv"]);
+        check(&target, &plan).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        std::fs::write(target.join("bom.csv"), "edited after the manifest").unwrap();
+        assert!(check(&target, &plan).unwrap_err().to_string().contains("`bom.csv` changed"));
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_file_outside_the_plan_is_not_committed() {
+        let root = scratch("unplanned");
+        let target = root.join("out");
+        let out = OutputDir::create(&target, &Plan::new("fit", ["bom.csv"])).unwrap();
+        out.write("bom.csv", "x").unwrap();
+        out.write("surprise.csv", "x").unwrap();
+        let err = out.commit().unwrap_err().to_string();
+        assert!(err.contains("surprise.csv") && err.contains("without having announced it"), "{err}");
+        assert_eq!(listing(&root), Vec::<String>::new());
+        assert!(
+            glob(b"sim_a_*", b"sim_a_q.png") && glob(b"cams/*", b"cams/C01.toml") && !glob(b"sim_a_*", b"sim_ab.csv")
+        );
         let _ = std::fs::remove_dir_all(&root);
     }
 
@@ -494,11 +773,11 @@ mod tests {
     fn a_failed_run_leaves_the_previous_results() {
         let root = scratch("fail");
         let target = root.join("out");
-        let out = OutputDir::create(&target, "fit").unwrap();
+        let out = OutputDir::create(&target, &any("fit")).unwrap();
         out.write("bom.csv", "previous").unwrap();
         out.commit().unwrap();
         {
-            let out = OutputDir::create(&target, "fit").unwrap();
+            let out = OutputDir::create(&target, &any("fit")).unwrap();
             out.write("bom.csv", "half").unwrap();
             // Dropped without commit: the run failed.
         }
@@ -511,12 +790,12 @@ mod tests {
     fn keep_previous_copies_only_listed_files() {
         let root = scratch("keep");
         let target = root.join("out");
-        let out = OutputDir::create(&target, "simulate").unwrap();
+        let out = OutputDir::create(&target, &any("simulate")).unwrap();
         out.write("sim_a.csv", "a1").unwrap();
         out.write("sim_b.csv", "b1").unwrap();
         out.commit().unwrap();
         std::fs::write(target.join("sim_user.csv"), "user").unwrap();
-        let out = OutputDir::create(&target, "simulate").unwrap();
+        let mut out = OutputDir::create(&target, &Plan::new("simulate", ["sim_a.csv"])).unwrap();
         out.keep_previous(|n| n != "sim_a.csv").unwrap();
         out.write("sim_a.csv", "a2").unwrap();
         out.commit().unwrap();
@@ -532,9 +811,9 @@ mod tests {
         let root = scratch("unwritable");
         let file = root.join("plain-file");
         std::fs::write(&file, "x").unwrap();
-        let err = OutputDir::create(&file.join("out"), "fit").unwrap_err().to_string();
+        let err = OutputDir::create(&file.join("out"), &any("fit")).unwrap_err().to_string();
         assert!(err.contains("plain-file"), "{err}");
-        let err = OutputDir::create(&file, "fit").unwrap_err().to_string();
+        let err = OutputDir::create(&file, &any("fit")).unwrap_err().to_string();
         assert!(err.contains("not a folder"), "{err}");
         let _ = std::fs::remove_dir_all(&root);
     }

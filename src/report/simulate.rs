@@ -86,6 +86,16 @@ fn run_colour(i: usize) -> (u8, u8, u8) {
     palette([0, 1, 2, 3, 5, 6][i % 6])
 }
 
+/// The names `springfit simulate` may write when it runs these scenarios (see
+/// [`super::output::Plan`]), `report.html` included.
+pub fn files<'a>(scenarios: impl IntoIterator<Item = &'a str>) -> Vec<String> {
+    let mut files = vec![super::html::FILE.to_string()];
+    for name in scenarios {
+        files.extend([format!("sim_{name}.csv"), format!("sim_{name}.json"), format!("sim_{name}_*")]);
+    }
+    files
+}
+
 /// Writes a scenario's outputs.
 #[allow(clippy::too_many_arguments)]
 pub fn write(

@@ -112,6 +112,21 @@ pub fn tables_md(design: &str, t: &SweepTables) -> String {
     s
 }
 
+/// The names `springfit sweep` may write (see [`super::output::Plan`]), `report.html` included.
+pub const FILES: &[&str] = &[
+    "sweep.csv",
+    "sweep.json",
+    "tolerance.md",
+    "bom_stock.csv",
+    "cams/*",
+    "sweep_*.svg",
+    "sweep_*.png",
+    super::html::FILE,
+];
+
+/// The name a shard of `springfit sweep --shard i/N` writes.
+pub const SHARD_FILES: &[&str] = &["sweep_shard.json"];
+
 /// Writes the sweep's outputs. `bom` is the nominal bill of materials (for `bom_stock.csv`).
 pub fn write(
     out: &OutputDir,
