@@ -11,12 +11,12 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use nalgebra::DVector;
+use springfit::geodesic::label::{LogTable, LogValue};
 use springfit::geodesic::logmap::LogSettings;
 use springfit::geodesic::region::check_region;
 use springfit::geodesic::{Fan, FanSpec, GeodesicSettings, LogMap, Region, Stop};
-use springfit::label::{LogTable, LogValue};
 use springfit::model::Chain;
-use springfit::ode::OdeSettings;
+use springfit::numerics::ode::OdeSettings;
 
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()

@@ -26,9 +26,9 @@ use crate::bom::BomRow;
 use crate::design::Design;
 use crate::error::Result;
 use crate::geodesic::{Fan, FanSpec, Region, Stop};
+use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
 use crate::residual::percentile;
-use crate::rng::SplitMix64;
 use crate::tolerance::{Distribution, ToleranceSpec};
 
 /// Held-out geodesics per build (traced from the build's own equilibrium).

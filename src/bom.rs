@@ -27,9 +27,10 @@
 use std::path::Path;
 
 use crate::cam::{CamBuild, CamFile, Knots};
-use crate::design::{MAX_LINKS, read_text};
 use crate::elements::{Element, Profile, fmt_number};
 use crate::error::{Error, Result};
+use crate::input::read_text;
+use crate::model::MAX_LINKS;
 use crate::potential::SpringSet;
 
 /// The CSV header.

@@ -636,20 +636,20 @@ impl CamFile {
 
     /// Reads and checks a cam file: every problem names the file and the key.
     pub fn read(path: &std::path::Path) -> crate::error::Result<CamFile> {
-        CamFile::parse(path, &crate::design::read_text(path)?)
+        CamFile::parse(path, &crate::input::read_text(path)?)
     }
 
     /// Parses and checks the text of [`CamFile::read`].
     pub fn parse(path: &std::path::Path, text: &str) -> crate::error::Result<CamFile> {
-        let f: CamFile = crate::design::parse_toml(path, text)?;
+        let f: CamFile = crate::input::parse_toml(path, text)?;
         let bad = |field: &str, reason: String| crate::error::Error::invalid(path, field, reason);
         let finite = |field: &str, x: f64| {
             if x.is_finite() { Ok(()) } else { Err(bad(field, format!("must be a finite number, got {x}"))) }
         };
-        if f.coupling.is_empty() || f.coupling.len() > crate::design::MAX_LINKS {
+        if f.coupling.is_empty() || f.coupling.len() > crate::model::MAX_LINKS {
             return Err(bad(
                 "coupling",
-                format!("has {} entries: one per joint, at most {}", f.coupling.len(), crate::design::MAX_LINKS),
+                format!("has {} entries: one per joint, at most {}", f.coupling.len(), crate::model::MAX_LINKS),
             ));
         }
         for a in &f.coupling {
@@ -818,8 +818,8 @@ mod tests {
     /// and NNLS (k ≥ 0) as the fit does: the coefficients come back up to the free constant.
     #[test]
     fn known_coefficients_are_recovered_with_signed_columns() {
-        use crate::fit::lsq::Gram;
-        use crate::fit::nnls::{NnlsSettings, nnls};
+        use crate::solve::lsq::Gram;
+        use crate::solve::nnls::{NnlsSettings, nnls};
         use nalgebra::{DMatrix, DVector};
         let k = Knots::over(-1.0, 2.0, 10, 0.0);
         let n = k.basis_count();

@@ -34,9 +34,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::cam::Knots;
-use crate::design::{parse_toml, read_text};
 use crate::elements::{Element, Profile, Side};
 use crate::error::{Error, Result};
+use crate::input::{parse_toml, read_text};
 use crate::units::Angle;
 
 /// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).

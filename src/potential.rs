@@ -11,7 +11,7 @@ use crate::elements::{Element, Profile};
 use crate::error::Result;
 use crate::geodesic::logmap::{LogMap, LogSettings};
 use crate::model::Chain;
-use crate::ode::OdeSettings;
+use crate::numerics::ode::OdeSettings;
 
 /// An elastic potential U_e(q).
 pub trait Potential: Sync {

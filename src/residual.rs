@@ -208,7 +208,7 @@ mod tests {
     #[test]
     fn the_exact_potential_has_zero_residual_angles() {
         use crate::geodesic::{FanSpec, Stop};
-        use crate::ode::OdeSettings;
+        use crate::numerics::ode::OdeSettings;
         use crate::potential::ExactPotential;
         let chain = Chain::paper_double_pendulum();
         let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);

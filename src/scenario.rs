@@ -733,7 +733,7 @@ struct ModeGeodesic {
 
 impl ModeGeodesic {
     fn trace(design: &Design, q0: &[f64]) -> Result<(ModeGeodesic, f64)> {
-        use crate::label::{ExactLog, LogField, LogValue};
+        use crate::geodesic::label::{ExactLog, LogField, LogValue};
         let n = design.dof();
         let mut log = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
         let mut lv = LogValue::zeros(n);
@@ -860,14 +860,14 @@ pub fn geodesic_deviation(design: &Design, trace: &crate::simulate::Trace) -> Re
 #[derive(Clone)]
 pub enum LabelSource<'a> {
     /// The tabulated log map (two joints).
-    Table(crate::label::LogTable<'a>),
+    Table(crate::geodesic::label::LogTable<'a>),
     /// The exact log map.
-    Exact(crate::label::ExactLog<'a>),
+    Exact(crate::geodesic::label::ExactLog<'a>),
 }
 
 impl<'a> LabelSource<'a> {
     /// A fresh field for one run (each run owns its warm-start state).
-    pub fn field(&self) -> Box<dyn crate::label::LogField + 'a> {
+    pub fn field(&self) -> Box<dyn crate::geodesic::label::LogField + 'a> {
         match self {
             LabelSource::Table(t) => Box::new(t.clone()),
             LabelSource::Exact(e) => Box::new(e.clone()),
@@ -881,8 +881,8 @@ pub fn label_source<'a>(
     design: &'a Design,
     settings: &crate::simulate::SimSettings,
 ) -> Result<(LabelSource<'a>, Option<(f64, usize)>)> {
+    use crate::geodesic::label::{ExactLog, LogTable};
     use crate::geodesic::{Fan, FanSpec};
-    use crate::label::{ExactLog, LogTable};
     use crate::simulate::LabelKind;
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
     if settings.label == LabelKind::Exact || design.dof() != 2 {
@@ -930,7 +930,7 @@ pub fn run_scenario<'a>(
     use rayon::prelude::*;
     let spec = &design.file.scenario[index];
     let mut energy_field = label.field();
-    let mut lv = crate::label::LogValue::zeros(design.dof());
+    let mut lv = crate::geodesic::label::LogValue::zeros(design.dof());
     let q0 = design.q_eq.as_slice().to_vec();
     let chain = &design.chain;
     let mut nominal = |q: &[f64]| -> Result<f64> {

@@ -15,10 +15,10 @@ use serde::{Deserialize, Serialize};
 use crate::control::{ControllerSettings, EnergyLaw, LabelGradient, blend_weight, dot, energy_torque, mode_torque};
 use crate::error::{Error, Result};
 use crate::geodesic::MetricFrame;
+use crate::geodesic::label::{LogField, LogValue, angle_label, sphere_distance};
 use crate::geodesic::logmap::wrap_angle;
-use crate::label::{LogField, LogValue, angle_label, sphere_distance};
 use crate::model::{Chain, Workspace};
-use crate::ode::{Dopri5, OdeSettings};
+use crate::numerics::ode::{Dopri5, OdeSettings};
 use crate::potential::{GroupedSet, Potential, SpringSet};
 
 /// The torque sources, in the order of the output columns.

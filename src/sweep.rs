@@ -24,9 +24,9 @@ use crate::control::ControllerSettings;
 use crate::design::Design;
 use crate::error::{Error, Result};
 use crate::fit::run::{FitOutcome, nearest, refit_with_fixed};
+use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
 use crate::residual::percentile;
-use crate::rng::SplitMix64;
 use crate::scenario::{LabelSource, ScenarioKind, metrics};
 use crate::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, SimSettings, run};
 

@@ -29,7 +29,7 @@ impl Distribution {
     }
 
     /// One deviation δ/t in [−1, 1] drawn from `rng`.
-    pub fn draw_unit(self, rng: &mut crate::rng::SplitMix64) -> f64 {
+    pub fn draw_unit(self, rng: &mut crate::numerics::rng::SplitMix64) -> f64 {
         match self {
             Distribution::Uniform => 2.0 * rng.uniform() - 1.0,
             Distribution::Normal => (rng.normal() / 3.0).clamp(-1.0, 1.0),
@@ -139,7 +139,7 @@ impl<'de> Deserialize<'de> for ToleranceSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SplitMix64;
+    use crate::numerics::rng::SplitMix64;
 
     /// The variances used by the tolerance-aware fit match the sample variance of the draws.
     #[test]

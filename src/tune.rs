@@ -463,7 +463,7 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
 
 /// Reads the file of [`read_measured`].
 pub fn load_measured(path: &std::path::Path) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
-    read_measured(path, &crate::design::read_text(path)?)
+    read_measured(path, &crate::input::read_text(path)?)
 }
 
 /// Reads a bill of materials with a `measured_stiffness` column (anywhere; blank = as designed):

@@ -10,8 +10,8 @@ use springfit::catalog::Catalog;
 use springfit::design::Design;
 use springfit::fit::run::{FitOutcome, fit};
 use springfit::fit::settings::FitSettings;
+use springfit::numerics::rng::SplitMix64;
 use springfit::potential::Potential;
-use springfit::rng::SplitMix64;
 use springfit::tolerance::{Distribution, ToleranceSpec};
 
 fn fitted() -> (Design, FitOutcome) {

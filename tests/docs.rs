@@ -13,7 +13,7 @@ use springfit::control::ControllerSettings;
 use springfit::design::DesignFile;
 use springfit::fit::settings::FitSettings;
 use springfit::geodesic::GeodesicSettings;
-use springfit::ode::OdeSettings;
+use springfit::numerics::ode::OdeSettings;
 use springfit::scenario::ScenarioSpec;
 use springfit::simulate::SimSettings;
 use springfit::sweep::SweepSettings;

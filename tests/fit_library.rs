@@ -9,15 +9,15 @@ use springfit::bom;
 use springfit::catalog::{Candidate, Catalog};
 use springfit::design::Design;
 use springfit::elements::{Element, Profile, Side};
-use springfit::fit::lsq::Gram;
-use springfit::fit::nnls::{NnlsSettings, nnls};
 use springfit::fit::problem::{Requirements, assemble};
-use springfit::fit::qp::{QpSettings, qp};
 use springfit::fit::run::{evaluate, fit};
 use springfit::fit::settings::FitSettings;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::model::Chain;
-use springfit::ode::OdeSettings;
+use springfit::numerics::ode::OdeSettings;
+use springfit::solve::lsq::Gram;
+use springfit::solve::nnls::{NnlsSettings, nnls};
+use springfit::solve::qp::{QpSettings, qp};
 
 fn repo(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)

@@ -12,8 +12,8 @@ use springfit::fit::problem::{Requirements, assemble};
 use springfit::fit::robust::{BuildPenalty, base_jacobian, retrace, rows_of, spread, spread_with, trimmed_spread};
 use springfit::fit::run::fit;
 use springfit::fit::settings::{FitSettings, SolverKind};
+use springfit::numerics::rng::SplitMix64;
 use springfit::potential::SpringSet;
-use springfit::rng::SplitMix64;
 use springfit::tolerance::{Distribution, ToleranceSpec};
 
 fn repo(p: &str) -> std::path::PathBuf {

@@ -9,7 +9,7 @@ use springfit::control::{Blend, ControllerSettings};
 use springfit::design::Design;
 use springfit::fit::run::fit;
 use springfit::geodesic::MetricFrame;
-use springfit::label::ExactLog;
+use springfit::geodesic::label::ExactLog;
 use springfit::scenario::{EnergyTarget, ScenarioKind, label_source, metrics, run_scenario, start_on_mode};
 use springfit::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, SimSettings, run};
 
@@ -137,11 +137,11 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
     };
     let (u0, u1) = (unit([1.0, -1.0, 0.5]), unit([1.0, -0.6, 0.9]));
     let mut exact = ExactLog::new(&d.chain, &d.q_eq, d.geodesics.ode);
-    let mut lv = springfit::label::LogValue::zeros(3);
+    let mut lv = springfit::geodesic::label::LogValue::zeros(3);
     let m_eq = d.chain.mass_matrix(&d.q_eq);
     let omega = d.fit.frequency;
     let mut energy_at = |q: &[f64]| -> springfit::Result<f64> {
-        use springfit::label::LogField;
+        use springfit::geodesic::label::LogField;
         exact.eval(q, &mut lv)?;
         let v = DVector::from_column_slice(&lv.v);
         Ok(0.5 * omega * omega * v.dot(&(&m_eq * &v)))
@@ -175,7 +175,7 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
 
 #[test]
 fn the_adaptive_integrator_agrees_with_rk4_and_reports_underflow() {
-    use springfit::ode::OdeSettings;
+    use springfit::numerics::ode::OdeSettings;
     use springfit::simulate::Integrator;
     let d = design("double_pendulum_workshop.toml");
     let pot = fitted(&d);

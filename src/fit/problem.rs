@@ -22,19 +22,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::catalog::Candidate;
 use crate::geodesic::Fan;
 use crate::model::Chain;
-
-/// A group of linear equations or inequalities in k with a name for messages.
-#[derive(Debug, Clone)]
-pub struct LinearGroup {
-    /// Name used in messages ("equilibrium gradient", …).
-    pub name: String,
-    /// What the group asks for, in words (for infeasibility messages).
-    pub description: String,
-    /// Coefficients (rows × candidates).
-    pub matrix: DMatrix<f64>,
-    /// Right-hand side.
-    pub rhs: DVector<f64>,
-}
+pub use crate::solve::LinearGroup;
 
 /// The assembled fit problem.
 #[derive(Debug, Clone)]

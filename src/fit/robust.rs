@@ -67,7 +67,7 @@ use crate::catalog::Candidate;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, MetricFrame, Shooter, Stop};
 use crate::model::Chain;
-use crate::ode::OdeSettings;
+use crate::numerics::ode::OdeSettings;
 use crate::potential::{Potential, SpringSet};
 
 /// Step of the central differences in the base point, rad. The rows are smooth in the base

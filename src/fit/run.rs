@@ -12,15 +12,8 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::lsq::Gram;
-use super::nnls::{NnlsSettings, nnls, nnls_signed};
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed};
-use super::qp::{QpSettings, QpStatus, qp_signed};
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
-use super::selection::{
-    Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
-    subset_nnls_warm,
-};
 use super::settings::{FitSettings, SolverKind};
 use crate::bom::BomRow;
 use crate::catalog::{Candidate, Catalog};
@@ -30,6 +23,13 @@ use crate::error::{Error, Result};
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::{ExactPotential, Potential, SpringSet};
 use crate::residual::{AngleSample, AngleStats, BandStats, band_stats, fan_angles, stats};
+use crate::solve::lsq::Gram;
+use crate::solve::nnls::{NnlsSettings, nnls, nnls_signed};
+use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
+use crate::solve::selection::{
+    Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
+    subset_nnls_warm,
+};
 
 /// Wall-clock seconds per step.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -1151,7 +1151,7 @@ mod tests {
     use crate::fit::robust::rows_of;
     use crate::geodesic::{FanSpec, Stop};
     use crate::model::Chain;
-    use crate::ode::OdeSettings;
+    use crate::numerics::ode::OdeSettings;
 
     /// The trims folded into the fit equal the problem with the trims as extra columns whose
     /// contribution (column × mid-range rate) is subtracted by hand from every right-hand side:

@@ -8,7 +8,7 @@ use super::directions::{MetricFrame, unit_vectors};
 use super::shoot::{Shooter, Stop};
 use crate::error::Result;
 use crate::model::Chain;
-use crate::ode::OdeSettings;
+use crate::numerics::ode::OdeSettings;
 
 /// What fan to trace.
 #[derive(Debug, Clone, Copy)]

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::shoot::Shooter;
 use crate::error::{Error, Result};
 use crate::model::Chain;
-use crate::ode::OdeSettings;
+use crate::numerics::ode::OdeSettings;
 
 /// Settings of the Newton shooting.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

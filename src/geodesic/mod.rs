@@ -7,6 +7,7 @@
 
 pub mod directions;
 pub mod fan;
+pub mod label;
 pub mod logmap;
 pub mod region;
 pub mod shoot;
@@ -14,7 +15,7 @@ pub mod shoot;
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
-use crate::ode::{Dopri5, OdeSettings, find_root};
+use crate::numerics::ode::{Dopri5, OdeSettings, find_root};
 
 pub use directions::{MetricFrame, unit_vectors};
 pub use fan::{Fan, FanSpec};

@@ -5,8 +5,8 @@ use nalgebra::{DMatrix, DVector};
 use super::{Geodesic, GeodesicEnd, Region};
 use crate::error::{Error, Result};
 use crate::model::{Chain, Workspace};
-use crate::ode::{Dopri5, OdeFailure, OdeSettings, find_root};
-use crate::ode853::Dop853;
+use crate::numerics::ode::{Dopri5, OdeFailure, OdeSettings, find_root};
+use crate::numerics::ode853::Dop853;
 
 /// How far a trace goes.
 #[derive(Debug, Clone, Copy)]

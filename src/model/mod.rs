@@ -23,7 +23,10 @@ use nalgebra::{DMatrix, DVector};
 pub use planar::{Link, PlanarChain};
 pub use spatial::{Body, MAX_BODIES, SpatialChain};
 
-use crate::linalg;
+use crate::numerics::linalg;
+
+/// The longest chain springfit handles (design files; couplings in bills of materials).
+pub const MAX_LINKS: usize = 8;
 
 /// A serial chain of revolute joints: the robot springfit designs for.
 #[derive(Debug, Clone)]

@@ -17,7 +17,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::Workspace;
-use crate::linalg;
+use crate::numerics::linalg;
 
 /// One rigid link of the chain.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -31,7 +31,7 @@ use std::ops::{Add, Mul, Neg, Sub};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::Workspace;
-use crate::linalg;
+use crate::numerics::linalg;
 
 /// The longest spatial chain (the RNEA keeps its per-body state on the stack).
 pub const MAX_BODIES: usize = 8;

@@ -44,7 +44,7 @@ use rayon::prelude::*;
 use super::lsq::Gram;
 use super::nnls::{NnlsSettings, nnls, nnls_warm};
 use crate::error::{Error, Result};
-use crate::rng::SplitMix64;
+use crate::numerics::rng::SplitMix64;
 
 /// Stream offset of the restarts (the as-built builds use small stream indices of the same seed).
 const RESTART_STREAM: u64 = 0x5e1e_c700_0000;

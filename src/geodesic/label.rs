@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::geodesic::logmap::{LogMap, LogSettings, wrap_angle};
 use crate::geodesic::{Fan, MetricFrame, Shooter};
 use crate::model::Chain;
-use crate::ode::OdeSettings;
+use crate::numerics::ode::OdeSettings;
 
 /// v = log(q) and ∂v/∂q (row-major n × n: dvdq[i·n + j] = ∂vᵢ/∂qⱼ).
 #[derive(Debug, Clone, PartialEq)]

@@ -5,14 +5,14 @@
 //! per Newton solve, at rtol = atol = 1e-10. At that tolerance the eighth-order method takes
 //! roughly a fifth of the steps of Dormand–Prince 5(4) and about half its right-hand-side
 //! evaluations. No dense output is needed there, so this integrator has none (the fans, which
-//! sample and locate events, use [`crate::ode::Dopri5`]). Coefficients: Hairer, Nørsett & Wanner,
+//! sample and locate events, use [`crate::numerics::ode::Dopri5`]). Coefficients: Hairer, Nørsett & Wanner,
 //! *Solving ODEs I*, §II.10 (as tabulated in the Fortran DOP853 and in SciPy); error estimate
 //! with the combined fifth- and third-order embedded formulas of the same reference.
 
 // The tableau is kept with the published digits so it can be checked against the reference.
 #![allow(clippy::excessive_precision)]
 
-use crate::ode::{OdeFailure, OdeSettings};
+use crate::numerics::ode::{OdeFailure, OdeSettings};
 
 const S: usize = 12;
 
@@ -155,7 +155,7 @@ impl Dop853 {
     }
 
     /// Restricts step-size control to the first `k` components (see
-    /// [`crate::ode::Dopri5::with_error_components`]).
+    /// [`crate::numerics::ode::Dopri5::with_error_components`]).
     pub fn with_error_components(mut self, k: usize) -> Self {
         self.error_dim = k.clamp(1, self.dim);
         self

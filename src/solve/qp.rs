@@ -11,8 +11,8 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector};
 
+use super::constraint::LinearGroup;
 use super::lsq::Gram;
-use super::problem::LinearGroup;
 use crate::error::{Error, Result};
 
 /// Settings of the QP solve.
@@ -703,7 +703,7 @@ fn diagnose(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::nnls::{NnlsSettings, nnls};
+    use crate::solve::nnls::{NnlsSettings, nnls};
 
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);

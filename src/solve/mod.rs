@@ -1,0 +1,12 @@
+//! Least-squares solvers that know columns, groups of columns, equalities and inequalities, and
+//! nothing of springs, cams or catalogues: normal equations ([`lsq`]), non-negative least
+//! squares ([`nnls`]), the Clarabel QP with exact constraints ([`qp`]) and the choice of at most K
+//! items ([`selection`]). The fit turns candidates into these columns.
+
+pub mod constraint;
+pub mod lsq;
+pub mod nnls;
+pub mod qp;
+pub mod selection;
+
+pub use constraint::LinearGroup;
