@@ -9,8 +9,8 @@ use std::hint::black_box;
 use std::path::Path;
 use std::process::Command;
 
-use springfit::catalog::Catalog;
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::fit::run::fit;
 
 use common::{ms, time};

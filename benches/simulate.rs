@@ -6,8 +6,8 @@ mod common;
 use std::hint::black_box;
 use std::path::Path;
 
-use springfit::catalog::Catalog;
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::fit::run::fit;
 use springfit::scenario::{label_source, run_scenario};
 use springfit::simulate::ElasticPotential;

@@ -7,7 +7,7 @@
 //! and how far q′ is from q_eq — Euclidean |q′ − q_eq|₂ in rad, and the metric distance
 //! sqrt(Δqᵀ M(q_eq) Δq) (√(kg·m²)·rad, the arc length a small shift takes in the inertia metric).
 //!
-//! With trim springs in the design (see [`crate::trim`]) each build is also trimmed as a builder
+//! With trim springs in the design (see [`crate::elements::trim`]) each build is also trimmed as a builder
 //! would: the trims are re-relaxed at the equilibrium of the other built springs and their rates
 //! set so that ∇²U = w² M holds there again; the trimmed build is judged the same way.
 //!
@@ -22,9 +22,9 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::bom::BomRow;
 use crate::design::Design;
 use crate::error::Result;
+use crate::files::bom::BomRow;
 use crate::geodesic::{Fan, FanSpec, Region, Stop};
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
@@ -221,14 +221,14 @@ pub fn draw(bom: &[BomRow], s: &BuildSettings, index: usize) -> Vec<f64> {
 /// of one family on one coupling with one knot spacing ([`crate::fit::run::cam_groups`]).
 pub fn bom_cam_groups(bom: &[BomRow]) -> Vec<Option<usize>> {
     let mut families: Vec<&str> = Vec::new();
-    let candidates: Vec<crate::catalog::Candidate> = bom
+    let candidates: Vec<crate::elements::catalog::Candidate> = bom
         .iter()
         .map(|r| {
             let family = families.iter().position(|f| *f == r.family).unwrap_or_else(|| {
                 families.push(&r.family);
                 families.len() - 1
             });
-            crate::catalog::Candidate {
+            crate::elements::catalog::Candidate {
                 element: r.element.clone(),
                 family,
                 max_stiffness: None,
@@ -270,14 +270,14 @@ pub fn factors(
 }
 
 /// Trims a built spring set: the trims (rows with a trim range) are re-relaxed at the
-/// equilibrium of the other built springs and their rates set by [`crate::trim::solve`] against
+/// equilibrium of the other built springs and their rates set by [`crate::elements::trim::solve`] against
 /// the design's ω. Returns the trimmed set, the equilibrium and the trim solution; None if the
 /// other springs hold no equilibrium near q_eq.
 pub fn trim_build(
     design: &Design,
     bom: &[BomRow],
     built: &SpringSet,
-) -> Option<(SpringSet, DVector<f64>, crate::trim::TrimSolution)> {
+) -> Option<(SpringSet, DVector<f64>, crate::elements::trim::TrimSolution)> {
     let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
     if trims.is_empty() {
         return None;
@@ -298,7 +298,7 @@ pub fn trim_build(
     let q = stationary_point(design, &rest, Some(&stiff))?;
     let h_rest = rest.hessian(q.as_slice()).ok()? + design.chain.gravity_hessian(q.as_slice());
     let m = design.chain.mass_matrix(&q);
-    let sol = crate::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
+    let sol = crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
     let mut trimmed = built.clone();
     for (i, &j) in trims.iter().enumerate() {
         let e = &mut trimmed.elements[j];

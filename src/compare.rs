@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::bom;
-use crate::catalog::Catalog;
 use crate::design::Design;
+use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
+use crate::files::bom;
 use crate::fit::run::{FitOutcome, Prepared, fit};
 use crate::fit::settings::FitSettings;
 use crate::geodesic::Region;

@@ -10,7 +10,7 @@
 //!    the torque change −kⱼ Δx₀ⱼ aⱼ is linear in Δx₀ⱼ; cranks and the others are linearised and
 //!    iterated (Gauss–Newton with the smallest step, bounded: an offset that reaches the end of
 //!    its range is held there and the others take over).
-//! 2. **Hessian**: the trims' rates from [`crate::trim::solve`] at q_eq, with the Hessian of the
+//! 2. **Hessian**: the trims' rates from [`crate::elements::trim::solve`] at q_eq, with the Hessian of the
 //!    tuned, measured elements (an offset change alters a crank's curvature).
 //! 3. **Residual**: Levenberg–Marquardt steps on the residual angles of a training fan from q_eq,
 //!    restricted to the null space of (1) and (2) linearised, each step followed by (1) and (2)
@@ -20,9 +20,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::bom::BomRow;
 use crate::design::Design;
 use crate::error::Result;
+use crate::files::bom::BomRow;
 use crate::geodesic::{Fan, FanSpec, Stop};
 use crate::potential::{Potential, SpringSet};
 
@@ -67,7 +67,7 @@ pub struct TuneOutcome {
     pub settings: Vec<Setting>,
     /// Whether the equilibrium is back at q_eq (|∇U(q_eq)| within tolerance).
     pub equilibrium_restored: bool,
-    /// Whether ∇²U(q_eq) = w² M(q_eq) holds again (trims; to [`crate::trim::RESTORED`]).
+    /// Whether ∇²U(q_eq) = w² M(q_eq) holds again (trims; to [`crate::elements::trim::RESTORED`]).
     pub hessian_restored: bool,
     /// w² of the tuned arm, (rad/s)².
     pub w2: f64,
@@ -155,7 +155,7 @@ impl Problem<'_> {
                     break;
                 }
                 let sub = DMatrix::from_fn(n, cols.len(), |i, c| jac[(i, cols[c])]);
-                let Some((dz, _)) = crate::trim::min_residual(&sub, &(-&g)) else { break };
+                let Some((dz, _)) = crate::elements::trim::min_residual(&sub, &(-&g)) else { break };
                 step.fill(0.0);
                 for (c, &a) in cols.iter().enumerate() {
                     step[a] = dz[c];
@@ -197,7 +197,7 @@ impl Problem<'_> {
     }
 
     /// Step 2: trim rates for ∇²U(q_eq) = w² M(q_eq).
-    fn restore_hessian(&self, z: &mut [f64]) -> Result<crate::trim::TrimSolution> {
+    fn restore_hessian(&self, z: &mut [f64]) -> Result<crate::elements::trim::TrimSolution> {
         let q = self.design.q_eq.as_slice();
         let na = self.adjustable.len();
         let s = self.springs(z);
@@ -213,7 +213,7 @@ impl Problem<'_> {
         let couplings: Vec<Vec<f64>> = self.trims.iter().map(|&j| self.bom[j].element.coupling.clone()).collect();
         let ranges: Vec<[f64; 2]> = (0..self.trims.len()).map(|i| self.bounds(na + i)).collect();
         let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
-        let sol = crate::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
+        let sol = crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
         if !self.trims.is_empty() {
             z[na..].copy_from_slice(&sol.rates);
         }
@@ -332,7 +332,7 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
         // w² enters the Hessian constraints only.
         let h = 1e-6 * (1.0 + sol.w2.abs());
         jc.set_column(free.len(), &((p.constraints(&z, sol.w2 + h)? - &c0) / h));
-        let Some((_, null)) = crate::trim::min_residual(&jc, &c0) else { break };
+        let Some((_, null)) = crate::elements::trim::min_residual(&jc, &c0) else { break };
         if null.ncols() == 0 {
             break;
         }
@@ -470,8 +470,8 @@ pub fn load_measured(path: &std::path::Path) -> Result<(Vec<BomRow>, Vec<Option<
 /// the rows and the measured rates. On a cam's line the measured value is its follower spring's
 /// rate (N/mm); each of its coefficient rows gets its stiffness scaled by measured / designed.
 pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
-    use crate::bom::{csv_field, split_csv_line};
     use crate::error::Error;
+    use crate::files::bom::{csv_field, split_csv_line};
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let Some((_, header)) = lines.next() else {
         return Err(Error::invalid(path, "line 1: header", "the file is empty"));
@@ -520,7 +520,7 @@ pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>,
         rest.push_str(&strip(f));
         rest.push('\n');
     }
-    let (rows, origin) = crate::bom::parse_lines(path, &rest)?;
+    let (rows, origin) = crate::files::bom::parse_lines(path, &rest)?;
     // A cam's line gives its follower spring's rate: measured / designed scales the whole cam,
     // every coefficient row, as the build does (one δ per cam).
     let measured = rows
@@ -543,7 +543,7 @@ mod tests {
 
     #[test]
     fn measured_column_is_found_anywhere_and_checked() {
-        let h = crate::bom::HEADER;
+        let h = crate::files::bom::HEADER;
         let text = format!(
             "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,,,\n"
         );
@@ -554,7 +554,8 @@ mod tests {
         let bad = text.replace("10.4", "-1");
         let err = read_measured(std::path::Path::new("m.csv"), &bad).unwrap_err().to_string();
         assert!(err.contains("m.csv") && err.contains("line 2: measured_stiffness"), "{err}");
-        let none = read_measured(std::path::Path::new("m.csv"), &crate::bom::to_csv(&rows)).unwrap_err().to_string();
+        let none =
+            read_measured(std::path::Path::new("m.csv"), &crate::files::bom::to_csv(&rows)).unwrap_err().to_string();
         assert!(none.contains("no measured_stiffness column"), "{none}");
     }
 }

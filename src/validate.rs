@@ -16,8 +16,8 @@
 
 use std::path::Path;
 
-use crate::catalog::Catalog;
 use crate::design::Design;
+use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::geodesic::Region;
 use crate::scenario::ModeSpec;

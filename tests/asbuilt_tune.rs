@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use springfit::asbuilt::{self, BuildSettings};
-use springfit::catalog::Catalog;
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::fit::run::{FitOutcome, fit};
 use springfit::fit::settings::FitSettings;
 use springfit::numerics::rng::SplitMix64;
@@ -123,7 +123,7 @@ fn tuning_a_build_with_known_errors_restores_the_equilibrium() {
         }
     }
     // The tuned bill of materials holds the arm at q_eq.
-    let tuned = springfit::bom::spring_set(&t.bom);
+    let tuned = springfit::files::bom::spring_set(&t.bom);
     let q = design.q_eq.as_slice();
     assert!((tuned.gradient(q).unwrap() + design.chain.gravity_gradient(q)).amax() < 1e-8);
 }

@@ -8,9 +8,9 @@
 
 use std::path::{Path, PathBuf};
 
-use springfit::catalog::CatalogFile;
 use springfit::control::ControllerSettings;
 use springfit::design::DesignFile;
+use springfit::elements::catalog::CatalogFile;
 use springfit::fit::settings::FitSettings;
 use springfit::geodesic::GeodesicSettings;
 use springfit::numerics::ode::OdeSettings;

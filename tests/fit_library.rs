@@ -5,10 +5,10 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 use nalgebra::DVector;
-use springfit::bom;
-use springfit::catalog::{Candidate, Catalog};
 use springfit::design::Design;
+use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::elements::{Element, Profile, Side};
+use springfit::files::bom;
 use springfit::fit::problem::{Requirements, assemble};
 use springfit::fit::run::{evaluate, fit};
 use springfit::fit::settings::FitSettings;
@@ -115,7 +115,7 @@ fn the_fit_is_deterministic_across_thread_counts() {
 /// geodesic rows by NNLS on the ± columns (k ≥ 0), up to each cam's free constant.
 #[test]
 fn known_cam_coefficients_are_recovered_from_geodesic_rows() {
-    use springfit::cam::Knots;
+    use springfit::elements::spline::Knots;
     let chain = Chain::paper_double_pendulum();
     let q_eq = DVector::from_vec(vec![0.0, PI / 2.0]);
     let fan = Fan::trace(
@@ -210,11 +210,11 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
     let again = evaluate(&design, settings.frequency, settings.bands, &rebuilt, &outcome.evaluation).unwrap();
     assert_eq!(again.residuals, outcome.metrics.residuals);
     // The cams regrouped from the read-back rows are the same cams.
-    assert_eq!(springfit::cam::fitted_cams(&catalog, &rows), outcome.cams);
+    assert_eq!(springfit::files::bom::fitted_cams(&catalog, &rows), outcome.cams);
     for cam in &outcome.cams {
         assert!(cam.realisation.points.len() >= 1000);
-        let csv = springfit::cam::csv(cam);
+        let csv = springfit::files::cam::csv(cam);
         assert!(csv.starts_with("x_rad,potential_j,torque_nm,follower_mm,radius_mm"));
-        assert!(springfit::cam::svg(&cam.realisation, &cam.id).contains("<path"));
+        assert!(springfit::realise::cam::svg(&cam.realisation, &cam.id).contains("<path"));
     }
 }

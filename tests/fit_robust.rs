@@ -5,9 +5,9 @@ use std::path::Path;
 
 use nalgebra::DVector;
 use springfit::asbuilt::trim_build;
-use springfit::bom;
-use springfit::catalog::{Candidate, Catalog};
 use springfit::design::Design;
+use springfit::elements::catalog::{Candidate, Catalog};
+use springfit::files::bom;
 use springfit::fit::problem::{Requirements, assemble};
 use springfit::fit::robust::{BuildPenalty, base_jacobian, retrace, rows_of, spread, spread_with, trimmed_spread};
 use springfit::fit::run::fit;

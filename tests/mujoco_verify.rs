@@ -143,7 +143,7 @@ fn export_refuses_a_bill_for_another_arm_and_needs_a_format() {
     util::write(
         &dir,
         "bom3.csv",
-        &format!("{}\nS01,f,linear,,1;0;0,0,1,N*m/rad,0,0,,0,,,,,,\n", springfit::bom::HEADER),
+        &format!("{}\nS01,f,linear,,1;0;0,0,1,N*m/rad,0,0,,0,,,,,,\n", springfit::files::bom::HEADER),
     );
     let d = repo().join("designs/double_pendulum.toml");
     let d = d.to_str().unwrap();

@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use nalgebra::DVector;
-use springfit::catalog::Catalog;
 use springfit::control::{Blend, ControllerSettings};
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::fit::run::fit;
 use springfit::geodesic::MetricFrame;
 use springfit::geodesic::label::ExactLog;

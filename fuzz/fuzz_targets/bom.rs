@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use libfuzzer_sys::fuzz_target;
-use springfit::bom;
+use springfit::files::bom;
 use springfit::potential::Potential;
 
 fuzz_target!(|data: &[u8]| {

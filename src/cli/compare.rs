@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::catalog::Catalog;
 use springfit::compare::{FitRecord, budget_curve, disambiguate, load_fit_dir, radius_curve, record_of};
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
 use springfit::report::output::OutputDir;

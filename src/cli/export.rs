@@ -3,11 +3,11 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use springfit::bom;
-use springfit::catalog::Catalog;
 use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
 use springfit::export::mujoco;
+use springfit::files::bom;
 use springfit::fit::run::fit;
 use springfit::report::output::OutputDir;
 

@@ -306,7 +306,7 @@ pub fn load_design(path: &Path, progress: &progress::Progress) -> springfit::Res
 pub fn fit_failed(
     design: &Design,
     settings: &springfit::fit::settings::FitSettings,
-    catalog: Option<&springfit::catalog::Catalog>,
+    catalog: Option<&springfit::elements::catalog::Catalog>,
     e: Error,
 ) -> anyhow::Error {
     let e = match catalog {

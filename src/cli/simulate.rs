@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use springfit::bom;
 use springfit::error::Error;
+use springfit::files::bom;
 use springfit::fit::run::fit;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::report::output::OutputDir;

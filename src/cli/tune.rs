@@ -33,7 +33,7 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, session: &Sessi
     let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
     let step = progress.step("writing outputs");
     let dir = OutputDir::create(&target, &plan)?;
-    springfit::bom::write(&dir, "bom_tuned.csv", &outcome.bom)?;
+    springfit::files::bom::write(&dir, "bom_tuned.csv", &outcome.bom)?;
     dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
     dir.write("tune.md", markdown(&design.name, &outcome))?;
     let written = dir.commit();

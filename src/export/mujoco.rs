@@ -27,10 +27,10 @@
 
 use std::fmt::Write as _;
 
-use crate::bom::BomRow;
 use crate::design::Design;
 use crate::elements::{Profile, Side};
 use crate::error::{Error, Result};
+use crate::files::bom::BomRow;
 
 /// Prefix of the `<numeric>` entries that describe callback elements.
 pub const CALLBACK_PREFIX: &str = "springfit_callback_";
@@ -453,7 +453,7 @@ mod tests {
             stock_rate: None,
             tolerance: 0.0,
             preload_nm: None,
-            adjust: crate::bom::Adjustment::default(),
+            adjust: crate::files::bom::Adjustment::default(),
             cam: None,
         }
     }

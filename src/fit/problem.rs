@@ -19,7 +19,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::catalog::Candidate;
+use crate::elements::catalog::Candidate;
 use crate::geodesic::Fan;
 use crate::model::Chain;
 pub use crate::solve::LinearGroup;

@@ -35,7 +35,7 @@
 //! average out where one shared error does not. Only the training rows count: rows appended
 //! after them (the cams' smoothing penalty) are no residual of a build.
 //!
-//! **Trimmed builds.** With trim springs (see [`crate::trim`]) a builder re-sets the trims on
+//! **Trimmed builds.** With trim springs (see [`crate::elements::trim`]) a builder re-sets the trims on
 //! every build, and the figures that count are the trimmed ones: weighting the spread above
 //! spends nominal accuracy on Hessian errors the trims remove anyway. A trimmed build
 //! (`asbuilt::trim_build`) rests where the gradient of the *rest* (everything but the trims)
@@ -51,7 +51,7 @@
 //! * Δtᵢ: the trims re-set so that ∇²U_rest(q′) + Σⱼ tⱼ aⱼaⱼᵀ = w² M(q′) again. To first order
 //!   the mismatch they answer is Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l] (Hᵢ = ∇²uᵢ(q_eq),
 //!   derivatives by central differences), and the answer is linear in it: Δtᵢ =
-//!   [`crate::trim::interior_change`] (Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −Eᵢ with the least ‖Δt‖, w² free;
+//!   [`crate::elements::trim::interior_change`] (Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −Eᵢ with the least ‖Δt‖, w² free;
 //!   the ranges are ignored at first order); A_trim,j is trim j's column of the rows.
 //!
 //! The trimmed spread is then Σ σᵢ² kᵢ² ‖uᵢ‖² over springs plus σ_g² k_gᵀ U_gᵀ U_g k_g per cam: the
@@ -63,7 +63,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::problem::{Requirements, assemble};
-use crate::catalog::Candidate;
+use crate::elements::catalog::Candidate;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, MetricFrame, Shooter, Stop};
 use crate::model::Chain;
@@ -376,7 +376,8 @@ pub fn trimmed_spread(
         let av = DVector::from_column_slice(a);
         h_nom += &av * av.transpose() * *t;
     }
-    let w2 = omega * omega + crate::trim::interior_change(&(&h_nom - &m_eq * (omega * omega)), &m_eq, &couplings).1;
+    let w2 = omega * omega
+        + crate::elements::trim::interior_change(&(&h_nom - &m_eq * (omega * omega)), &m_eq, &couplings).1;
     // ∂H_rest/∂q_l − w² ∂M/∂q_l by central differences.
     let mut d_mismatch = Vec::with_capacity(n);
     for l in 0..n {
@@ -414,7 +415,7 @@ pub fn trimmed_spread(
         for (l, d) in d_mismatch.iter().enumerate() {
             mismatch += d * dq[l];
         }
-        let (dt, _) = crate::trim::interior_change(&mismatch, &m_eq, &couplings);
+        let (dt, _) = crate::elements::trim::interior_change(&mismatch, &m_eq, &couplings);
         let mut u = training_rows.column(i) + &jac_t * &dq;
         for (a, t) in a_trim.iter().zip(&dt) {
             u += a * *t;

@@ -15,11 +15,11 @@ use serde::Serialize;
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed};
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
 use super::settings::{FitSettings, SolverKind};
-use crate::bom::BomRow;
-use crate::catalog::{Candidate, Catalog};
 use crate::design::Design;
 use crate::elements::Profile;
+use crate::elements::catalog::{Candidate, Catalog};
 use crate::error::{Error, Result};
+use crate::files::bom::BomRow;
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::{ExactPotential, Potential, SpringSet};
 use crate::residual::{AngleSample, AngleStats, BandStats, band_stats, fan_angles, stats};
@@ -105,7 +105,7 @@ pub struct FitOutcome {
     /// The fitted spring set (the BOM's elements and stiffnesses).
     pub springs: SpringSet,
     /// The fitted cams, realised (empty without cams).
-    pub cams: Vec<crate::cam::FittedCam>,
+    pub cams: Vec<crate::realise::cam::FittedCam>,
     /// Residuals and checks on the held-out fan.
     pub metrics: Evaluation,
     /// How the solve went.
@@ -212,7 +212,7 @@ impl<'a> Prepared<'a> {
         };
         let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
-        let (_, trims) = crate::trim::mid_range(catalog, q_eq);
+        let (_, trims) = crate::elements::trim::mid_range(catalog, q_eq);
         check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         let has_cams = candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_)));
@@ -283,11 +283,11 @@ impl<'a> Prepared<'a> {
         let (mut bom, _) =
             bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
         // Trim springs (never candidates) join at mid-range: the fit was solved around them.
-        crate::trim::append(design, catalog, &mut bom, &self.evaluation);
-        let springs = crate::bom::spring_set(&bom);
+        crate::elements::trim::append(design, catalog, &mut bom, &self.evaluation);
+        let springs = crate::files::bom::spring_set(&bom);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
-        let cams = crate::cam::fitted_cams(catalog, &bom);
+        let cams = crate::files::bom::fitted_cams(catalog, &bom);
         summarise_cams(&mut bom, &cams, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),
@@ -703,11 +703,16 @@ fn solve_gram_with(
 /// For each +Bⱼ cam column, the index of its −Bⱼ partner (same family, coupling, knots and
 /// index); `None` for springs, −Bⱼ columns and +Bⱼ columns without a partner.
 fn cam_partners(candidates: &[Candidate]) -> Vec<Option<usize>> {
-    type Key = (usize, Vec<u64>, u64, crate::cam::SplineBasis);
+    type Key = (usize, Vec<u64>, u64, crate::elements::spline::SplineBasis);
     let key = |c: &Candidate| -> Option<Key> {
         let Profile::Spline(b) = c.element.profile else { return None };
         let coupling = c.element.coupling.iter().map(|a| a.to_bits()).collect();
-        Some((c.family, coupling, c.element.offset.to_bits(), crate::cam::SplineBasis { negative: false, ..b }))
+        Some((
+            c.family,
+            coupling,
+            c.element.offset.to_bits(),
+            crate::elements::spline::SplineBasis { negative: false, ..b },
+        ))
     };
     let negatives: std::collections::HashMap<Key, usize> = candidates
         .iter()
@@ -733,7 +738,7 @@ fn cam_partners(candidates: &[Candidate]) -> Vec<Option<usize>> {
 /// biased the fit: 1e-7 relative raised the window's p99 from 0.55° to 0.83°). Signed unknowns remove it, halve the cam columns, and with no springs in
 /// the catalogue NNLS becomes one linear solve.
 ///
-/// The other such direction is the constant: Σⱼ Bⱼ = 1 everywhere (see [`crate::cam`]), so
+/// The other such direction is the constant: Σⱼ Bⱼ = 1 everywhere (see [`crate::elements::spline`]), so
 /// adding t to every coefficient of a cam changes no torque, no smoothing row and no condition.
 /// When a cam's whole basis is in the support its first coefficient is therefore pinned at 0
 /// (dropped from the unknowns): the others still span every torque profile, and no ridge is
@@ -879,7 +884,7 @@ fn bill_of_materials(
                 stock_rate,
                 tolerance: c.tolerance,
                 preload_nm: Some(c.element.preload(k[j], q_eq)),
-                adjust: crate::bom::Adjustment {
+                adjust: crate::files::bom::Adjustment {
                     adjust_range: catalog.families[c.family].adjust_range,
                     trim_range: None,
                 },
@@ -894,9 +899,9 @@ fn bill_of_materials(
     (bom, springs)
 }
 
-/// Gives each cam coefficient row its cam's [`crate::bom::CamSummary`]: the build, the largest
+/// Gives each cam coefficient row its cam's [`crate::files::bom::CamSummary`]: the build, the largest
 /// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
-fn summarise_cams(bom: &mut [BomRow], cams: &[crate::cam::FittedCam], evaluation: &Fan, q_eq: &[f64]) {
+fn summarise_cams(bom: &mut [BomRow], cams: &[crate::realise::cam::FittedCam], evaluation: &Fan, q_eq: &[f64]) {
     for cam in cams {
         let torque = |q: &[f64]| {
             let x: f64 = cam.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
@@ -909,8 +914,11 @@ fn summarise_cams(bom: &mut [BomRow], cams: &[crate::cam::FittedCam], evaluation
                 peak = peak.max(torque(g.q(i)).abs());
             }
         }
-        let summary =
-            crate::bom::CamSummary { build: cam.realisation.build, max_torque_nm: peak, preload_nm: Some(preload) };
+        let summary = crate::files::bom::CamSummary {
+            build: cam.realisation.build,
+            max_torque_nm: peak,
+            preload_nm: Some(preload),
+        };
         for r in bom.iter_mut().filter(|r| {
             matches!(r.element.profile, Profile::Spline(_)) && r.id.split('.').next() == Some(cam.id.as_str())
         }) {
@@ -1040,7 +1048,7 @@ fn cam_smoothing(
         let first = &candidates[members[0]];
         let Profile::Spline(b) = first.element.profile else { continue };
         let spec = catalog.families[first.family].cam.expect("cam candidates come from cam families");
-        let knots = crate::cam::Knots { lo: first.element.offset, width: b.width(), count: b.count };
+        let knots = crate::elements::spline::Knots { lo: first.element.offset, width: b.width(), count: b.count };
         let d = knots.third_derivative_rows();
         let mut block = DMatrix::zeros(d.len(), candidates.len());
         for &j in &members {
@@ -1051,8 +1059,8 @@ fn cam_smoothing(
             }
         }
         let weight = match spec.smoothing {
-            crate::catalog::Smoothing::Weight(w) => Some(w),
-            crate::catalog::Smoothing::Auto => None,
+            crate::elements::catalog::Smoothing::Weight(w) => Some(w),
+            crate::elements::catalog::Smoothing::Auto => None,
         };
         blocks.push((block, weight));
     }
@@ -1146,8 +1154,8 @@ mod tests {
     use std::path::Path;
 
     use super::*;
-    use crate::cam::Knots;
     use crate::elements::Element;
+    use crate::elements::spline::Knots;
     use crate::fit::robust::rows_of;
     use crate::geodesic::{FanSpec, Stop};
     use crate::model::Chain;
@@ -1176,7 +1184,7 @@ mod tests {
         };
         assert!(!settings.tolerance.is_none(), "the shipped design fits for a tolerance");
         let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
-        let (trims, mid) = crate::trim::mid_range(&catalog, design.q_eq.as_slice());
+        let (trims, mid) = crate::elements::trim::mid_range(&catalog, design.q_eq.as_slice());
         assert_eq!(trims.len(), 3);
 
         let mut all = prepared.candidates.clone();

@@ -5,9 +5,9 @@ use serde::Serialize;
 use super::figures::{fmt_q, histogram_figure, potential_figure};
 use super::output::OutputDir;
 use super::plot::render;
-use crate::bom;
 use crate::design::Design;
 use crate::error::Result;
+use crate::files::bom;
 use crate::fit::run::{FitOutcome, Timings};
 use crate::potential::{ExactPotential, Potential};
 use crate::residual::{AngleSample, AngleStats, BandStats};
@@ -93,7 +93,7 @@ impl Summary {
             },
             verdict: crate::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
-            spring_set: (o.solve.solver != "exact").then(|| crate::bom::fingerprint(&o.springs)),
+            spring_set: (o.solve.solver != "exact").then(|| crate::files::bom::fingerprint(&o.springs)),
             as_built: None,
         }
     }
@@ -159,14 +159,14 @@ pub fn write_with_as_built(
         bom::write(out, "bom.csv", &o.bom)?;
         out.write("bom.md", bom::to_markdown(&o.design, &o.bom))?;
         for cam in &o.cams {
-            out.write(&format!("cams/{}.csv", cam.id), crate::cam::csv(cam))?;
+            out.write(&format!("cams/{}.csv", cam.id), crate::files::cam::csv(cam))?;
             let title = format!(
                 "{} {} on ({})",
                 o.design,
                 cam.id,
                 cam.coupling.iter().map(|a| crate::elements::fmt_number(*a)).collect::<Vec<_>>().join(", ")
             );
-            out.write(&format!("cams/{}.svg", cam.id), crate::cam::svg(&cam.realisation, &title))?;
+            out.write(&format!("cams/{}.svg", cam.id), crate::realise::cam::svg(&cam.realisation, &title))?;
         }
     }
     let mut summary = Summary::new(o, &design.path);

@@ -21,8 +21,8 @@ use pulldown_cmark::{Event, Options, Parser, Tag, TagEnd, html};
 use serde_json::Value;
 
 use super::output::OutputDir;
-use crate::catalog::{Catalog, OffsetSpec};
 use crate::design::Design;
+use crate::elements::catalog::{Catalog, OffsetSpec};
 use crate::error::{Error, Result};
 use crate::model::Chain;
 

@@ -128,7 +128,7 @@ pub fn write(
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
         runs,
         spring_set: match potential {
-            ElasticPotential::Springs(s) => Some(crate::bom::fingerprint(s)),
+            ElasticPotential::Springs(s) => Some(crate::files::bom::fingerprint(s)),
             ElasticPotential::Exact { .. } => None,
         },
     };

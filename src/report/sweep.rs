@@ -2,8 +2,8 @@
 
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
-use crate::bom::{self, BomRow};
 use crate::error::Result;
+use crate::files::bom::{self, BomRow};
 use crate::simulate::SOURCES;
 use crate::sweep::{ItemResult, SweepTables, WorkItem};
 

@@ -2,16 +2,18 @@
 //!
 //! Everything downstream of the fit (residual angles, simulation, sweeps) sees a [`Potential`]:
 //! value, gradient and Hessian of the *elastic* potential U_e over q. The total potential the
-//! arm feels is U = U_e + U_g; gravity comes from the [`Chain`].
+//! arm feels is U = U_e + U_g; gravity comes from the [`crate::model::Chain`].
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::cam::{SplineBasis, spline_sum};
-use crate::elements::{Element, Profile};
+use crate::elements::Element;
 use crate::error::Result;
-use crate::geodesic::logmap::{LogMap, LogSettings};
-use crate::model::Chain;
-use crate::numerics::ode::OdeSettings;
+
+mod exact;
+mod grouped;
+
+pub use exact::ExactPotential;
+pub use grouped::GroupedSet;
 
 /// An elastic potential U_e(q).
 pub trait Potential: Sync {
@@ -125,285 +127,14 @@ impl Potential for SpringSet {
     }
 }
 
-/// A spring set in evaluation form: each cam's basis elements summed into one term.
-///
-/// A fitted cam is N + 2 elements (one per B-spline coefficient, a ± column pair each in the
-/// fit), all on one coupling with one offset and knot spacing, and at any x only four of its
-/// basis functions are non-zero. Evaluated element by element, eight cams on 30 knots cost 256
-/// deflections a·q and spline evaluations at every sample; grouped, eight deflections and 32
-/// basis evaluations, from the signed coefficients cⱼ = Σ ±kⱼ summed once here. Elements that
-/// are not cam basis functions stay as they are, in their order, and a cam's term takes the
-/// place of its first element: a set without cams is evaluated with exactly the arithmetic of
-/// [`SpringSet`], one with cams equals the per-element sums to rounding.
-///
-/// [`SpringSet`] stays the data form (files, the bill of materials, fingerprints); this is how
-/// it is evaluated on hot paths (residual angles, equilibria, the simulation's right-hand side).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GroupedSet {
-    dof: usize,
-    terms: Vec<Term>,
-}
-
-/// One term of a [`GroupedSet`].
-#[derive(Debug, Clone, PartialEq)]
-enum Term {
-    /// An element with its stiffness, evaluated as in [`SpringSet`].
-    Element(Element, f64),
-    /// A cam: V(x) = Σⱼ cⱼ Bⱼ(x − x₀) on x = a·q.
-    Cam {
-        coupling: Vec<f64>,
-        /// x₀, the first knot.
-        offset: f64,
-        /// Knot count N.
-        count: u16,
-        /// Knot spacing h, as bits (with `count` and the coupling, what makes basis elements
-        /// one cam).
-        width_bits: u64,
-        /// cⱼ, j = 0 … N + 1.
-        coef: Vec<f64>,
-    },
-}
-
-impl GroupedSet {
-    /// Groups the cam basis elements of `set` by coupling, offset and knots.
-    pub fn new(set: &SpringSet) -> GroupedSet {
-        let mut terms: Vec<Term> = Vec::new();
-        for (e, &k) in set.elements.iter().zip(&set.stiffness) {
-            let Profile::Spline(b) = e.profile else {
-                terms.push(Term::Element(e.clone(), k));
-                continue;
-            };
-            let same = |t: &Term| match t {
-                Term::Cam { coupling, offset, count, width_bits, .. } => {
-                    *count == b.count
-                        && *width_bits == b.width_bits
-                        && offset.to_bits() == e.offset.to_bits()
-                        && coupling.len() == e.coupling.len()
-                        && coupling.iter().zip(&e.coupling).all(|(x, y)| x.to_bits() == y.to_bits())
-                }
-                Term::Element(..) => false,
-            };
-            let at = match terms.iter().position(same) {
-                Some(at) => at,
-                None => {
-                    terms.push(Term::Cam {
-                        coupling: e.coupling.clone(),
-                        offset: e.offset,
-                        count: b.count,
-                        width_bits: b.width_bits,
-                        coef: vec![0.0; usize::from(b.count) + 2],
-                    });
-                    terms.len() - 1
-                }
-            };
-            if let Term::Cam { coef, .. } = &mut terms[at] {
-                let SplineBasis { index, negative, .. } = b;
-                if let Some(c) = coef.get_mut(usize::from(index)) {
-                    *c += if negative { -k } else { k };
-                }
-            }
-        }
-        GroupedSet { dof: set.elements.first().map_or(0, |e| e.coupling.len()), terms }
-    }
-
-    /// Number of terms: one per spring, one per cam.
-    pub fn len(&self) -> usize {
-        self.terms.len()
-    }
-
-    /// Whether the set has no terms.
-    pub fn is_empty(&self) -> bool {
-        self.terms.is_empty()
-    }
-
-    /// U_e and its gradient in one pass, the gradient into `out` (as
-    /// [`SpringSet::value_gradient_into`]).
-    pub fn value_gradient_into(&self, q: &[f64], out: &mut [f64]) -> f64 {
-        out.fill(0.0);
-        let mut u = 0.0;
-        for t in &self.terms {
-            match t {
-                Term::Element(e, k) => {
-                    if *k == 0.0 {
-                        continue;
-                    }
-                    let (v, slope, _) = e.profile.eval(e.deflection(q));
-                    u += k * v;
-                    for (o, a) in out.iter_mut().zip(&e.coupling) {
-                        *o += k * slope * a;
-                    }
-                }
-                Term::Cam { coupling, offset, count, width_bits, coef } => {
-                    let (v, slope, _) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
-                    u += v;
-                    for (o, a) in out.iter_mut().zip(coupling) {
-                        *o += slope * a;
-                    }
-                }
-            }
-        }
-        u
-    }
-
-    /// ∂U_e/∂q into `out` (as [`SpringSet::gradient_into`]).
-    pub fn gradient_into(&self, q: &[f64], out: &mut [f64]) {
-        out.fill(0.0);
-        for t in &self.terms {
-            match t {
-                Term::Element(e, k) => {
-                    if *k == 0.0 {
-                        continue;
-                    }
-                    let slope = k * e.profile.slope(e.deflection(q));
-                    for (o, a) in out.iter_mut().zip(&e.coupling) {
-                        *o += slope * a;
-                    }
-                }
-                Term::Cam { coupling, offset, count, width_bits, coef } => {
-                    let (_, slope, _) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
-                    for (o, a) in out.iter_mut().zip(coupling) {
-                        *o += slope * a;
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// x = a·q, summed as [`Element::deflection`] does.
-#[inline]
-fn x(coupling: &[f64], q: &[f64]) -> f64 {
-    coupling.iter().zip(q).map(|(a, q)| a * q).sum::<f64>()
-}
-
-impl Potential for GroupedSet {
-    fn dof(&self) -> usize {
-        self.dof
-    }
-
-    fn value(&self, q: &[f64]) -> Result<f64> {
-        Ok(self
-            .terms
-            .iter()
-            .map(|t| match t {
-                Term::Element(e, k) => k * e.value(q),
-                Term::Cam { coupling, offset, count, width_bits, coef } => {
-                    spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset).0
-                }
-            })
-            .sum())
-    }
-
-    fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
-        let mut g = DVector::zeros(q.len());
-        GroupedSet::gradient_into(self, q, g.as_mut_slice());
-        Ok(g)
-    }
-
-    fn gradient_into(&self, q: &[f64], out: &mut [f64]) -> Result<()> {
-        GroupedSet::gradient_into(self, q, out);
-        Ok(())
-    }
-
-    /// Σ k u″ a aᵀ; each entry ((aᵢ aⱼ) u″) k added in term order, as [`SpringSet`]'s sum of
-    /// element Hessians computes it, without a matrix per element.
-    fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let n = q.len();
-        let mut h = DMatrix::zeros(n, n);
-        for t in &self.terms {
-            let (coupling, curv, k) = match t {
-                Term::Element(e, k) => (&e.coupling, e.profile.eval(e.deflection(q)).2, *k),
-                Term::Cam { coupling, offset, count, width_bits, coef } => {
-                    let (_, _, c) = spline_sum(coef, *count, f64::from_bits(*width_bits), x(coupling, q) - offset);
-                    (coupling, c, 1.0)
-                }
-            };
-            for j in 0..n.min(coupling.len()) {
-                for i in 0..n.min(coupling.len()) {
-                    h[(i, j)] += coupling[i] * coupling[j] * curv * k;
-                }
-            }
-        }
-        Ok(h)
-    }
-}
-
-/// The exact potential U* = ½ ω² r(q)², less gravity: U_e = U* − U_g.
-///
-/// By the Gauss lemma every geodesic from q_eq is a strict mode of U*: its gradient is
-/// ω² r M(q) γ̇ with γ̇ the unit tangent of the geodesic through q, tangent to it by construction.
-/// It is the physical limit a spring set approaches; evaluating it costs one log map per point.
-#[derive(Debug, Clone)]
-pub struct ExactPotential<'a> {
-    log: LogMap<'a>,
-    chain: &'a Chain,
-    omega: f64,
-}
-
-impl<'a> ExactPotential<'a> {
-    /// U* for the arm `chain` around `q_eq` with small-oscillation frequency `omega` (rad/s).
-    pub fn new(chain: &'a Chain, q_eq: &DVector<f64>, omega: f64, ode: OdeSettings) -> Self {
-        ExactPotential { log: LogMap::new(chain, q_eq, ode, LogSettings::default()), chain, omega }
-    }
-
-    /// The frequency ω.
-    pub fn omega(&self) -> f64 {
-        self.omega
-    }
-
-    fn total_gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
-        let q = DVector::from_column_slice(q);
-        let mut shooter = self.log.shooter();
-        let p = self.log.solve(&mut shooter, &q, None)?;
-        if p.r == 0.0 {
-            return Ok(DVector::zeros(q.len()));
-        }
-        let (_, tangent) = shooter.exp_state(&p.v)?;
-        Ok(self.chain.mass_matrix(&q) * tangent * (self.omega * self.omega * p.r))
-    }
-}
-
-impl Potential for ExactPotential<'_> {
-    fn dof(&self) -> usize {
-        self.chain.dof()
-    }
-
-    fn value(&self, q: &[f64]) -> Result<f64> {
-        let p = self.log.log(&DVector::from_column_slice(q))?;
-        Ok(0.5 * self.omega * self.omega * p.r * p.r - self.chain.gravity_potential(q))
-    }
-
-    fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
-        Ok(self.total_gradient(q)? - self.chain.gravity_gradient(q))
-    }
-
-    /// At q_eq exactly ω² M(q_eq) − ∇²U_g; elsewhere central differences of the gradient
-    /// (step 1e-5 rad), which is what the checks that use it need.
-    fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
-        let n = q.len();
-        let qv = DVector::from_column_slice(q);
-        if (&qv - self.log.q_eq()).amax() == 0.0 {
-            return Ok(self.chain.mass_matrix(&qv) * (self.omega * self.omega) - self.chain.gravity_hessian(q));
-        }
-        let h = 1e-5;
-        let mut out = DMatrix::zeros(n, n);
-        for j in 0..n {
-            let mut qp = q.to_vec();
-            let mut qm = q.to_vec();
-            qp[j] += h;
-            qm[j] -= h;
-            let col = (self.gradient(&qp)? - self.gradient(&qm)?) / (2.0 * h);
-            out.set_column(j, &col);
-        }
-        Ok(0.5 * (&out + out.transpose()))
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::PI;
+
     use super::*;
     use crate::elements::{Profile, Side};
-    use std::f64::consts::PI;
+    use crate::model::Chain;
+    use crate::numerics::ode::OdeSettings;
 
     #[test]
     fn spring_set_sums_its_elements() {
@@ -449,7 +180,7 @@ mod tests {
         elements.push(Element { profile: Profile::Linear, coupling: coupling(1), offset: 0.2 });
         stiffness.push(3.0);
         for (cam, count) in [(0usize, 30u16), (2, 7)] {
-            let knots = crate::cam::Knots::over(-1.5, 2.0 + cam as f64, count, 0.05);
+            let knots = crate::elements::spline::Knots::over(-1.5, 2.0 + cam as f64, count, 0.05);
             for j in 0..knots.basis_count() {
                 for negative in [false, true] {
                     elements.push(Element {

@@ -19,7 +19,11 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use crate::cam::SplineBasis;
+pub mod catalog;
+pub mod spline;
+pub mod trim;
+
+use spline::SplineBasis;
 
 /// Which side a one-sided compression spring engages on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -43,7 +47,7 @@ pub enum Profile {
     Crank,
     /// A one-sided compression spring (ReLU-like torque).
     Compression(Side),
-    /// One signed cubic B-spline basis function of a cam (see [`crate::cam`]): a fitted cam is
+    /// One signed cubic B-spline basis function of a cam (see [`crate::elements::spline`]): a fitted cam is
     /// the sum of its basis elements, each with its coefficient as the stiffness.
     Spline(SplineBasis),
 }

@@ -22,9 +22,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::bom::{Adjustment, BomRow};
-use crate::catalog::{Catalog, TrimSpring};
 use crate::design::Design;
+use crate::elements::catalog::{Catalog, TrimSpring};
+use crate::files::bom::{Adjustment, BomRow};
 use crate::geodesic::Fan;
 use crate::potential::SpringSet;
 

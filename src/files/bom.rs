@@ -7,13 +7,13 @@
 //! `-` or empty, `preload_nm` the element's torque on its coordinate at the equilibrium (signed;
 //! empty when unknown). `adjust_range_rad`, `trim_min`, `trim_max` say what can be set after
 //! assembly (empty when nothing): an adjustable offset's ± range and a trim spring's rate range
-//! (see [`crate::trim`]).
+//! (see [`crate::elements::trim`]).
 //!
 //! **Cams.** A cam is one row: profile `cam`, side empty, `offset_rad` its first knot,
 //! `stiffness` its follower spring rate in N/mm (the rate the tolerance applies to: one δ per
 //! cam), `max_torque_nm` the largest |V′| over the region, `max_deflection_rad` the knot span,
 //! `preload_nm` V′ at the equilibrium, `gear_ratio` the cam's gearing and `file` its
-//! `cams/<id>.toml` ([`crate::cam::CamFile`], relative to the bill of materials' folder) with the
+//! `cams/<id>.toml` ([`crate::files::cam::CamFile`], relative to the bill of materials' folder) with the
 //! coefficients. Inside springfit a cam stays what the fit solved for: one row per non-zero
 //! signed B-spline coefficient (`C01.07+`, profile [`Profile::Spline`], stiffness |cⱼ|, the basis
 //! negated when cⱼ < 0); [`parse`] expands a cam row into those rows and [`to_csv`] collapses
@@ -26,12 +26,14 @@
 
 use std::path::Path;
 
-use crate::cam::{CamBuild, CamFile, Knots};
+use crate::elements::spline::Knots;
 use crate::elements::{Element, Profile, fmt_number};
 use crate::error::{Error, Result};
+use crate::files::cam::CamFile;
 use crate::input::read_text;
 use crate::model::MAX_LINKS;
 use crate::potential::SpringSet;
+use crate::realise::cam::{CamBuild, DEFAULT_REALISATION, FittedCam, Realisation, realise};
 
 /// The CSV header.
 pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max,gear_ratio,file";
@@ -179,7 +181,7 @@ struct Line {
 /// summed with their signs and the build of its [`CamSummary`] (a default realisation when the
 /// rows carry none, as rows of an older file).
 fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
-    let cams = crate::cam::grouped(rows);
+    let cams = crate::files::bom::grouped(rows);
     let mut done = vec![false; cams.len()];
     let mut out = Vec::new();
     for r in rows {
@@ -211,7 +213,7 @@ fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
         }
         let c = &cams[ci];
         let summary = r.cam.unwrap_or_else(|| {
-            let real = crate::cam::realise_default(&c.knots, &c.coefficients);
+            let real = crate::realise::cam::realise_default(&c.knots, &c.coefficients);
             let max_torque = real.points.iter().map(|p| p.torque.abs()).fold(0.0, f64::max);
             CamSummary { build: real.build, max_torque_nm: max_torque, preload_nm: None }
         });
@@ -939,4 +941,60 @@ mod tests {
         assert_eq!(split_csv_line("a,\"b,c\",\"d\"\"e\",").unwrap(), vec!["a", "b,c", "d\"e", ""]);
         assert!(split_csv_line("\"open").is_err());
     }
+}
+/// The cams of a bill of materials: rows `Cnn.jj±` grouped by `Cnn`, coefficients summed with
+/// their signs, realised with their family's settings (defaults when the family is unknown, as
+/// for a bill of materials read back without its catalogue).
+pub fn fitted_cams(catalog: &crate::elements::catalog::Catalog, rows: &[crate::files::bom::BomRow]) -> Vec<FittedCam> {
+    let mut cams = grouped(rows);
+    for c in &mut cams {
+        let spec = catalog.families.iter().find(|f| f.name == c.family).and_then(|f| f.cam);
+        let (rate, stroke, rb, rr, alpha) = spec.map_or(DEFAULT_REALISATION, |s| {
+            (s.follower_rate, s.max_stroke, s.base_radius, s.roller_radius, s.max_pressure_angle)
+        });
+        c.realisation = realise(&c.knots, &c.coefficients, rate, stroke, rb, rr, alpha, 1000);
+    }
+    cams
+}
+
+/// The cams of a bill of materials grouped as in [`fitted_cams`], in order of first appearance,
+/// not yet realised (`realisation.points` empty).
+pub fn grouped(rows: &[crate::files::bom::BomRow]) -> Vec<FittedCam> {
+    let mut cams: Vec<FittedCam> = Vec::new();
+    for r in rows {
+        let crate::elements::Profile::Spline(b) = r.element.profile else { continue };
+        let id = r.id.split('.').next().unwrap_or(&r.id).to_string();
+        let pos = match cams.iter().position(|c| c.id == id) {
+            Some(p) => p,
+            None => {
+                let knots = Knots { lo: r.element.offset, width: b.width(), count: b.count };
+                cams.push(FittedCam {
+                    id,
+                    family: r.family.clone(),
+                    coupling: r.element.coupling.clone(),
+                    knots,
+                    coefficients: vec![0.0; knots.basis_count()],
+                    realisation: Realisation {
+                        build: CamBuild {
+                            follower_rate: 0.0,
+                            preload: 0.0,
+                            gear_ratio: 1.0,
+                            base_radius: 0.0,
+                            roller_radius: 0.0,
+                        },
+                        points: Vec::new(),
+                        max_pressure_angle: 0.0,
+                        min_convex_curvature: 0.0,
+                        violations: Vec::new(),
+                    },
+                });
+                cams.len() - 1
+            }
+        };
+        let c = &mut cams[pos];
+        if let Some(cj) = c.coefficients.get_mut(usize::from(b.index)) {
+            *cj += if b.negative { -r.stiffness } else { r.stiffness };
+        }
+    }
+    cams
 }

@@ -24,7 +24,7 @@
 //! Compression springs also take `side = "+"`, `"-"` or `"both"`.
 //!
 //! A **trim** family (`trim = true`, `trim_range = [lo, hi]` in N·m/rad) lists linear springs
-//! relaxed at the equilibrium whose rate is set after assembly (see [`crate::trim`]). Trims are
+//! relaxed at the equilibrium whose rate is set after assembly (see [`crate::elements::trim`]). Trims are
 //! not fit candidates: every listed coupling carries one, placed at the mid-range rate, and the
 //! fit fits the other elements around them.
 
@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::cam::Knots;
+use crate::elements::spline::Knots;
 use crate::elements::{Element, Profile, Side};
 use crate::error::{Error, Result};
 use crate::input::{parse_toml, read_text};
@@ -151,7 +151,7 @@ impl<'de> Deserialize<'de> for Smoothing {
     }
 }
 
-/// A validated cam family's settings (see [`crate::cam`]).
+/// A validated cam family's settings (see [`crate::elements::spline`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CamSpec {
     /// Knots N.
@@ -582,10 +582,10 @@ impl Catalog {
             };
             if trim_range.is_some() {
                 trims += couplings.len();
-                if trims > crate::trim::MAX_TRIMS {
+                if trims > crate::elements::trim::MAX_TRIMS {
                     return Err(invalid(
                         field("couplings"),
-                        format!("the catalogue lists more than {} trim springs", crate::trim::MAX_TRIMS),
+                        format!("the catalogue lists more than {} trim springs", crate::elements::trim::MAX_TRIMS),
                     ));
                 }
             }

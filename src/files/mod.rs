@@ -1,0 +1,5 @@
+//! The files springfit reads and writes beside its reports: the bill of materials (`bom.csv`)
+//! and the cams' files it names.
+
+pub mod bom;
+pub mod cam;
