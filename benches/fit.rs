@@ -62,12 +62,12 @@ fn main() {
         if !want("selection") {
             break;
         }
-        let restarts_default = springfit::fit::settings::FitSettings::default().restarts;
+        let restarts_default = springfit::design::fit::FitSettings::default().restarts;
         for (label, restarts, pair_swaps) in
             [("single exchange search", 0, false), ("restarts + pair swaps", restarts_default, true)]
         {
-            let settings = springfit::fit::settings::FitSettings {
-                tolerance: springfit::tolerance::ToleranceSpec::None,
+            let settings = springfit::design::fit::FitSettings {
+                tolerance: springfit::design::tolerance::ToleranceSpec::None,
                 max_elements: k,
                 restarts,
                 pair_swaps,

@@ -7,10 +7,10 @@ use std::hint::black_box;
 use std::path::Path;
 
 use springfit::design::Design;
+use springfit::dynamics::scenario::{label_source, run_scenario};
+use springfit::dynamics::simulate::ElasticPotential;
 use springfit::elements::catalog::Catalog;
 use springfit::fit::run::fit;
-use springfit::scenario::{label_source, run_scenario};
-use springfit::simulate::ElasticPotential;
 
 use common::{ms, time};
 

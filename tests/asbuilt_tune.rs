@@ -7,12 +7,12 @@ use std::path::Path;
 
 use springfit::asbuilt::{self, BuildSettings};
 use springfit::design::Design;
+use springfit::design::fit::FitSettings;
+use springfit::design::tolerance::{Distribution, ToleranceSpec};
 use springfit::elements::catalog::Catalog;
 use springfit::fit::run::{FitOutcome, fit};
-use springfit::fit::settings::FitSettings;
 use springfit::numerics::rng::SplitMix64;
 use springfit::potential::Potential;
-use springfit::tolerance::{Distribution, ToleranceSpec};
 
 fn fitted() -> (Design, FitOutcome) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum_trim.toml");
@@ -107,7 +107,7 @@ fn tuning_a_build_with_known_errors_restores_the_equilibrium() {
     let mut rng = SplitMix64::stream(11, 0);
     let measured: Vec<Option<f64>> =
         o.bom.iter().map(|r| Some(r.stiffness * (1.0 + 0.05 * (2.0 * rng.uniform() - 1.0)))).collect();
-    let t = springfit::tune::tune(&design, &o.bom, &measured).unwrap();
+    let t = springfit::asbuilt::tune::tune(&design, &o.bom, &measured).unwrap();
     assert!(t.equilibrium_restored && t.hessian_restored, "{:?}", t.binding);
     assert!(t.after.shift_rad <= 1e-6, "shift {}", t.after.shift_rad);
     assert!(t.before.shift_rad > 1e-3, "the build was off: {}", t.before.shift_rad);
@@ -138,7 +138,7 @@ fn tune_says_when_nothing_can_restore_the_equilibrium() {
     }
     let measured: Vec<Option<f64>> =
         bom.iter().enumerate().map(|(j, r)| Some(r.stiffness * if j % 2 == 0 { 1.04 } else { 0.97 })).collect();
-    let t = springfit::tune::tune(&design, &bom, &measured).unwrap();
+    let t = springfit::asbuilt::tune::tune(&design, &bom, &measured).unwrap();
     assert!(!t.equilibrium_restored);
     assert!(t.binding.iter().any(|b| b.contains("no adjustable element")), "{:?}", t.binding);
     // Narrow offset ranges bind and are named.
@@ -148,7 +148,7 @@ fn tune_says_when_nothing_can_restore_the_equilibrium() {
             r.adjust.adjust_range = Some(1e-5);
         }
     }
-    let t = springfit::tune::tune(&design, &narrow, &measured).unwrap();
+    let t = springfit::asbuilt::tune::tune(&design, &narrow, &measured).unwrap();
     assert!(!t.equilibrium_restored);
     assert!(t.binding.iter().any(|b| b.contains("offset ranges of") && b.contains("bind")), "{:?}", t.binding);
 }

@@ -8,15 +8,15 @@
 
 use std::path::{Path, PathBuf};
 
-use springfit::control::ControllerSettings;
 use springfit::design::DesignFile;
+use springfit::design::controllers::ControllerSettings;
+use springfit::design::fit::FitSettings;
+use springfit::design::scenario::ScenarioSpec;
+use springfit::design::simulate::SimSettings;
+use springfit::design::sweep::SweepSettings;
 use springfit::elements::catalog::CatalogFile;
-use springfit::fit::settings::FitSettings;
 use springfit::geodesic::GeodesicSettings;
 use springfit::numerics::ode::OdeSettings;
-use springfit::scenario::ScenarioSpec;
-use springfit::simulate::SimSettings;
-use springfit::sweep::SweepSettings;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

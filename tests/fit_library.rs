@@ -6,12 +6,12 @@ use std::path::Path;
 
 use nalgebra::DVector;
 use springfit::design::Design;
+use springfit::design::fit::FitSettings;
 use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::elements::{Element, Profile, Side};
 use springfit::files::bom;
 use springfit::fit::problem::{Requirements, assemble};
 use springfit::fit::run::{evaluate, fit};
-use springfit::fit::settings::FitSettings;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::model::Chain;
 use springfit::numerics::ode::OdeSettings;
@@ -185,7 +185,7 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
     let mut design = Design::load(&repo("designs/double_pendulum_paper_window_cams.toml")).unwrap();
     let text = "[[family]]\nname = \"disc cam\"\nprofile = \"cam\"\ncouplings = [[1, 0], [0, 1], [1, -1]]\nknots = 10\nsmoothing = 1e-5\n";
     let catalog = Catalog::parse(Path::new("cams.toml"), text, 2).unwrap();
-    design.fit.solver = springfit::fit::settings::SolverKind::Nnls;
+    design.fit.solver = springfit::design::fit::SolverKind::Nnls;
     let settings = quick(&design);
     let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
     assert_eq!(outcome.cams.len(), 3);

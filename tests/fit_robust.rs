@@ -6,15 +6,15 @@ use std::path::Path;
 use nalgebra::DVector;
 use springfit::asbuilt::trim_build;
 use springfit::design::Design;
+use springfit::design::fit::{FitSettings, SolverKind};
+use springfit::design::tolerance::{Distribution, ToleranceSpec};
 use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::files::bom;
 use springfit::fit::problem::{Requirements, assemble};
 use springfit::fit::robust::{BuildPenalty, base_jacobian, retrace, rows_of, spread, spread_with, trimmed_spread};
 use springfit::fit::run::fit;
-use springfit::fit::settings::{FitSettings, SolverKind};
 use springfit::numerics::rng::SplitMix64;
 use springfit::potential::SpringSet;
-use springfit::tolerance::{Distribution, ToleranceSpec};
 
 fn repo(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
@@ -105,7 +105,8 @@ fn expected_objective_matches_monte_carlo_builds() {
         let mut rng = SplitMix64::stream(42, b);
         let scale: Vec<f64> = (0..k.len()).map(|_| 1.0 + t * dist.draw_unit(&mut rng)).collect();
         let built = springs.scaled(&scale);
-        let q_b = springfit::sweep::equilibrium(&design, &built).expect("a build near the design has an equilibrium");
+        let q_b = springfit::studies::sweep::equilibrium(&design, &built)
+            .expect("a build near the design has an equilibrium");
         let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
         let r = rows_of(chain, &fan, &built, omega);
         total.push(r.norm_squared());
@@ -222,7 +223,8 @@ tolerance = 0.05
             assert_eq!(scale[j], scale[b.columns[a - 1]], "one δ per cam");
         }
         let built = springs.scaled(&scale);
-        let q_b = springfit::sweep::equilibrium(&design, &built).expect("a build near the design has an equilibrium");
+        let q_b = springfit::studies::sweep::equilibrium(&design, &built)
+            .expect("a build near the design has an equilibrium");
         let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
         let r = rows_of(chain, &fan, &built, omega);
         total.push(r.norm_squared());

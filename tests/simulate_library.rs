@@ -4,14 +4,16 @@
 use std::path::Path;
 
 use nalgebra::DVector;
-use springfit::control::{Blend, ControllerSettings};
 use springfit::design::Design;
+use springfit::design::controllers::{Blend, ControllerSettings};
+use springfit::design::scenario::{EnergyTarget, ScenarioKind};
+use springfit::design::simulate::SimSettings;
+use springfit::dynamics::scenario::{label_source, metrics, run_scenario, start_on_mode};
+use springfit::dynamics::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, run};
 use springfit::elements::catalog::Catalog;
 use springfit::fit::run::fit;
 use springfit::geodesic::MetricFrame;
 use springfit::geodesic::label::ExactLog;
-use springfit::scenario::{EnergyTarget, ScenarioKind, label_source, metrics, run_scenario, start_on_mode};
-use springfit::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, SimSettings, run};
 
 fn design(name: &str) -> Design {
     Design::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("designs").join(name)).unwrap()
@@ -175,8 +177,8 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
 
 #[test]
 fn the_adaptive_integrator_agrees_with_rk4_and_reports_underflow() {
+    use springfit::design::simulate::Integrator;
     use springfit::numerics::ode::OdeSettings;
-    use springfit::simulate::Integrator;
     let d = design("double_pendulum_workshop.toml");
     let pot = fitted(&d);
     let (label, _) = label_source(&d, &d.simulate).unwrap();

@@ -3,12 +3,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::compare::{FitRecord, budget_curve, disambiguate, load_fit_dir, radius_curve, record_of};
 use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
 use springfit::report::output::OutputDir;
+use springfit::studies::compare::{FitRecord, budget_curve, disambiguate, load_fit_dir, radius_curve, record_of};
 
 use super::Session;
 use super::progress::Progress;
@@ -114,9 +114,9 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
         if let Some(b) = &r.as_built {
             progress.say(format!(
                 "  as built p99 (p50 / p95 over builds): {}{}",
-                springfit::compare::spread_md(Some(b.p99_deg)),
+                springfit::studies::compare::spread_md(Some(b.p99_deg)),
                 b.trimmed_p99_deg
-                    .map(|t| format!("; trimmed {}", springfit::compare::spread_md(Some(t))))
+                    .map(|t| format!("; trimmed {}", springfit::studies::compare::spread_md(Some(t))))
                     .unwrap_or_default()
             ));
         }
@@ -186,16 +186,16 @@ pub fn pareto(
                 b.used,
                 b.stats.p99_abs,
                 b.stats.max_abs,
-                springfit::compare::spread_md(b.as_built.map(|a| a.p99_deg)),
+                springfit::studies::compare::spread_md(b.as_built.map(|a| a.p99_deg)),
                 b.as_built
                     .and_then(|a| a.trimmed_p99_deg)
-                    .map(|t| format!("; {}", springfit::compare::spread_md(Some(t))))
+                    .map(|t| format!("; {}", springfit::studies::compare::spread_md(Some(t))))
                     .unwrap_or_default()
             )),
             Some(why) => progress.say(format!("  {:>3}: infeasible ({why})", b.budget)),
         }
     }
-    if let Some(best) = springfit::compare::best_as_built(&curve) {
+    if let Some(best) = springfit::studies::compare::best_as_built(&curve) {
         progress.say(format!(
             "best as built: K = {} (as-built p95 of the p99 {:.3}°{})",
             best.budget,

@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use springfit::design::fit::SolverKind;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
-use springfit::fit::settings::SolverKind;
 use springfit::report::output::OutputDir;
 
 use super::Session;
@@ -108,7 +108,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
-    let verdict = springfit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
+    let verdict = springfit::fit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
     progress.say(if verdict == "acceptable" {
         format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
     } else {
@@ -119,7 +119,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         )
     });
     if let Some(c) = catalog {
-        for w in springfit::hints::bom_warnings(c, &outcome.bom) {
+        for w in springfit::fit::hints::bom_warnings(c, &outcome.bom) {
             progress.warn(w);
         }
     }

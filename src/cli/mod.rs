@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use springfit::design::Design;
-use springfit::fit::settings::SolverKind;
+use springfit::design::fit::SolverKind;
+use springfit::design::validate::Validated;
 use springfit::report::output::{Edits, Plan};
-use springfit::validate::Validated;
 use springfit::{Error, ErrorKind};
 
 /// The design used when none is given: the paper's double pendulum.
@@ -294,7 +294,7 @@ impl Session {
 /// scenarios, the sweep settings) before any work; prints the warnings on stderr.
 pub fn load_design(path: &Path, progress: &progress::Progress) -> springfit::Result<(Design, Validated)> {
     let design = Design::load(path)?;
-    let validated = springfit::validate::validate(&design)?;
+    let validated = springfit::design::validate::validate(&design)?;
     for w in &validated.warnings {
         progress.warn(w);
     }
@@ -305,12 +305,12 @@ pub fn load_design(path: &Path, progress: &progress::Progress) -> springfit::Res
 /// no file of their own (infeasible, numerical) are prefixed with the design's path.
 pub fn fit_failed(
     design: &Design,
-    settings: &springfit::fit::settings::FitSettings,
+    settings: &springfit::design::fit::FitSettings,
     catalog: Option<&springfit::elements::catalog::Catalog>,
     e: Error,
 ) -> anyhow::Error {
     let e = match catalog {
-        Some(c) => springfit::hints::explain(design, settings, c, settings.max_elements, e),
+        Some(c) => springfit::fit::hints::explain(design, settings, c, settings.max_elements, e),
         None => e,
     };
     match e {

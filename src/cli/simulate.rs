@@ -3,13 +3,14 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
+use springfit::design::simulate::LabelKind;
+use springfit::dynamics::scenario::{label_source, run_scenario};
+use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
 use springfit::files::bom;
 use springfit::fit::run::fit;
 use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::report::output::OutputDir;
-use springfit::scenario::{label_source, run_scenario};
-use springfit::simulate::{ElasticPotential, LabelKind};
 
 use super::Session;
 
@@ -90,12 +91,14 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
     }
     let c = &design.controllers;
     progress.say(match c.blend {
-        springfit::control::Blend::Smooth => format!(
+        springfit::design::controllers::Blend::Smooth => format!(
             "mode controller: blended in smoothly between ε = {} and 2ε = {} rad from q_eq",
             c.epsilon,
             2.0 * c.epsilon
         ),
-        springfit::control::Blend::Hard => format!("mode controller: hard switch at ε = {} rad from q_eq", c.epsilon),
+        springfit::design::controllers::Blend::Hard => {
+            format!("mode controller: hard switch at ε = {} rad from q_eq", c.epsilon)
+        }
     });
     let step = progress.step("preparing the mode label");
     let label = label_source(&design, &settings);
@@ -144,7 +147,7 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             &fan,
         )?;
         progress.say(format!("scenario {name} ({} run(s), {secs:.2} s):", outcome.runs.len()));
-        if outcome.scenario.kind == springfit::scenario::ScenarioKind::Switch {
+        if outcome.scenario.kind == springfit::design::scenario::ScenarioKind::Switch {
             progress.say(format!("  energy: {}", outcome.scenario.energy_handling));
         }
         for (r, m) in &outcome.runs {

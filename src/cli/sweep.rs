@@ -5,12 +5,12 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
 use springfit::design::Design;
+use springfit::dynamics::scenario::label_source;
+use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
 use springfit::fit::run::{FitOutcome, fit};
 use springfit::report::output::OutputDir;
-use springfit::scenario::label_source;
-use springfit::simulate::ElasticPotential;
-use springfit::sweep::{ItemResult, SweepContext, kappa, parse_shard, plan, shard_indices, tables};
+use springfit::studies::sweep::{ItemResult, SweepContext, kappa, parse_shard, plan, shard_indices, tables};
 
 use super::Session;
 use super::progress::Progress;
@@ -77,7 +77,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
         )
         .into());
     }
-    let index = springfit::validate::sweep_scenario(&design)?;
+    let index = springfit::design::validate::sweep_scenario(&design)?;
     // Say which tolerances the builds use: the design's levels replace the catalogue's own.
     let stated: Vec<String> = catalog
         .families
@@ -245,14 +245,14 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
     finish(&design, &outcome, &settings, &results, &target, &outputs, progress)
 }
 
-fn builds_note(s: &springfit::sweep::SweepSettings) -> String {
+fn builds_note(s: &springfit::design::sweep::SweepSettings) -> String {
     format!("{}:{}", s.builds, s.seed)
 }
 
 fn finish(
     design: &Design,
     outcome: &FitOutcome,
-    settings: &springfit::sweep::SweepSettings,
+    settings: &springfit::design::sweep::SweepSettings,
     results: &[ItemResult],
     target: &Path,
     plan: &springfit::report::output::Plan,

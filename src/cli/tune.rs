@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use springfit::asbuilt::tune::{State, TuneOutcome, load_measured, tune};
 use springfit::report::output::OutputDir;
-use springfit::tune::{State, TuneOutcome, load_measured, tune};
 
 use super::Session;
 

@@ -426,7 +426,7 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
         far = DEAD_BAND_FAR,
         prefix = CALLBACK_PREFIX,
     );
-    if design.simulate.integrator != crate::simulate::Integrator::Rk4 {
+    if design.simulate.integrator != crate::design::simulate::Integrator::Rk4 {
         s.push_str("\nNote: this design simulates with the adaptive integrator; MuJoCo uses RK4 at the step above, so trajectories agree only to that step's accuracy.\n");
     }
     s

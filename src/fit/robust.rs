@@ -1,7 +1,7 @@
 //! Designing for the build: the expected residual over manufacturing deviations.
 //!
 //! A build scales each stiffness, kᵢ → kᵢ (1 + δᵢ), with δᵢ independent, mean 0 and variance
-//! σᵢ² (see [`crate::tolerance`]), and it is judged about its *own* equilibrium: that is where
+//! σᵢ² (see [`crate::design::tolerance`]), and it is judged about its *own* equilibrium: that is where
 //! it rests and how `sweep` and the as-built figures judge it. To first order the build's
 //! gradient at q_eq changes by Δg = Σᵢ δᵢ kᵢ gᵢ (gᵢ = ∇uᵢ(q_eq)), so its equilibrium moves by
 //! Δq = −H⁻¹ Δg (H = ∇²U(q_eq), = ω² M(q_eq) with the Hessian match), and the training rows taken

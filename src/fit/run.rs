@@ -14,8 +14,8 @@ use serde::Serialize;
 
 use super::problem::{FitProblem, LinearGroup, Requirements, assemble, fold_fixed};
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
-use super::settings::{FitSettings, SolverKind};
 use crate::design::Design;
+use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::Profile;
 use crate::elements::catalog::{Candidate, Catalog};
 use crate::error::{Error, Result};

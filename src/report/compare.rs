@@ -2,8 +2,8 @@
 
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
-use crate::compare::{BudgetPoint, FitRecord, RadiusPoint, table_csv, table_md};
 use crate::error::Result;
+use crate::studies::compare::{BudgetPoint, FitRecord, RadiusPoint, table_csv, table_md};
 
 /// Edges of `bins` bins even in log₁₀ from a decade at or under the smallest record's 1st
 /// percentile of |angle| to a round value over the largest |angle| (at most 8 decades): fits whose
@@ -149,11 +149,11 @@ pub fn write_pareto(
             "| {} | {} | {} | {} |\n",
             b.budget,
             cells(b.used, &b.stats, &b.infeasible),
-            crate::compare::spread_md(ab.map(|a| a.p99_deg)),
-            crate::compare::spread_md(tr)
+            crate::studies::compare::spread_md(ab.map(|a| a.p99_deg)),
+            crate::studies::compare::spread_md(tr)
         ));
     }
-    if let Some(best) = crate::compare::best_as_built(budgets) {
+    if let Some(best) = crate::studies::compare::best_as_built(budgets) {
         md.push_str(&format!(
             "\n**Best as built: K = {}** (smallest as-built p95 of the p99{}): the budget to buy.\n",
             best.budget,

@@ -91,7 +91,7 @@ impl Summary {
                 largest_radius: o.region.largest_radius,
                 largest_radius_is_lower_bound: o.region.largest_radius_is_lower_bound,
             },
-            verdict: crate::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
+            verdict: crate::fit::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
             spring_set: (o.solve.solver != "exact").then(|| crate::files::bom::fingerprint(&o.springs)),
             as_built: None,

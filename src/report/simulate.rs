@@ -11,12 +11,13 @@ use super::figures::{
 };
 use super::output::OutputDir;
 use super::plot::{Figure, Layer, Panel, Style, palette, render};
-use crate::control::Blend;
 use crate::design::Design;
+use crate::design::controllers::Blend;
+use crate::design::scenario::ScenarioKind;
+use crate::dynamics::scenario::{RunMetrics, ScenarioOutcome, unwrap_angles};
+use crate::dynamics::simulate::{ElasticPotential, SOURCES};
 use crate::error::Result;
 use crate::geodesic::Fan;
-use crate::scenario::{RunMetrics, ScenarioKind, ScenarioOutcome, unwrap_angles};
-use crate::simulate::{ElasticPotential, SOURCES};
 
 /// `sim_<name>.json`.
 #[derive(Debug, Clone, Serialize)]

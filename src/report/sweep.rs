@@ -2,10 +2,10 @@
 
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
+use crate::dynamics::simulate::SOURCES;
 use crate::error::Result;
 use crate::files::bom::{self, BomRow};
-use crate::simulate::SOURCES;
-use crate::sweep::{ItemResult, SweepTables, WorkItem};
+use crate::studies::sweep::{ItemResult, SweepTables, WorkItem};
 
 /// `sweep.csv`: one row per item.
 pub fn items_csv(results: &[ItemResult]) -> String {

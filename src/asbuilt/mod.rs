@@ -1,7 +1,7 @@
 //! As-built figures: how a design does once it is built, not as drawn.
 //!
 //! A build scales each stiffness, k_j → k_j (1 + δ_j), δ_j drawn at the design's tolerance
-//! (`[fit] tolerance`, `distribution`; see [`crate::tolerance`]). The built springs no longer
+//! (`[fit] tolerance`, `distribution`; see [`crate::design::tolerance`]). The built springs no longer
 //! cancel their preloads at q_eq, so the arm rests at its own equilibrium q′; a build is judged
 //! about q′, as it behaves: residual angles on held-out geodesics traced from q′ (p99 and max),
 //! and how far q′ is from q_eq — Euclidean |q′ − q_eq|₂ in rad, and the metric distance
@@ -18,18 +18,20 @@
 //! parallel with results collected in build order, so the figures do not depend on the thread
 //! count. The sweep judges its tolerance builds with the same functions.
 
+pub mod tune;
+
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::design::Design;
+use crate::design::tolerance::{Distribution, ToleranceSpec};
 use crate::error::Result;
 use crate::files::bom::BomRow;
 use crate::geodesic::{Fan, FanSpec, Region, Stop};
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
 use crate::residual::percentile;
-use crate::tolerance::{Distribution, ToleranceSpec};
 
 /// Held-out geodesics per build (traced from the build's own equilibrium).
 pub const DIRECTIONS: usize = 120;

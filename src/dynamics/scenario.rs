@@ -1,176 +1,17 @@
-//! Scenarios: named simulation set-ups declared in the design file, and their metrics.
-//!
-//! ```toml
-//! [[scenario]]
-//! name = "free"            # releases from rest, no control (the paper's Fig. 5)
-//! kind = "free"
-//! releases = [{ mode = 0.0, energy = 10.0 }, { mode = "pi/3", energy = 10.0 }]
-//! starts = [[0.3, 1.9]]    # and/or explicit configurations
-//!
-//! [[scenario]]
-//! name = "switch"          # θ_d raised by `step` every `every` seconds (Fig. 6)
-//! kind = "switch"
-//! mode = 0.0
-//! energy = 10.0
-//! energy_target = "hold"   # τ_E holds the start energy (default); "none": no energy control
-//!
-//! [[scenario]]
-//! name = "swingup"         # from E0 to E_d against joint damping (Fig. 7)
-//! kind = "swingup"
-//! mode = "pi/4"
-//! ```
-//!
-//! A mode is an angle θ (two joints; the initial joint velocity direction (cos θ/2, sin θ/2), as
-//! the paper's label) or a direction vector of joint velocities (any number of joints). Starting
-//! points "on a mode at energy E" are found by the tool: at rest on the geodesic of that mode where
-//! U − U(q_eq) = E.
+//! Scenarios in motion: a scenario of the design file resolved into runs (start points on a
+//! mode at an energy, the controllers' schedules), run in closed loop, and the metrics of each
+//! run (geodesic deviation, label drift, settling, energy error, fluxes, actuator share).
 
+use crate::design::scenario::{EnergySpec, EnergyTarget, ModeSpec, ScenarioKind, ScenarioSpec};
 use nalgebra::DVector;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use crate::control::{ControllerSettings, EnergyLaw};
 use crate::design::Design;
+use crate::design::controllers::{ControllerSettings, EnergyLaw};
+use crate::dynamics::simulate::{EnergyControl, ModeControl, ModeTarget, RunResult, RunSpec};
 use crate::error::{Error, Result};
 use crate::geodesic::logmap::wrap_angle;
 use crate::geodesic::{MetricFrame, Shooter, Stop};
-use crate::simulate::{EnergyControl, ModeControl, ModeTarget, RunResult, RunSpec};
-use crate::units::Angle;
-
-/// The kind of scenario.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ScenarioKind {
-    /// Releases from rest without control.
-    Free,
-    /// Mode switching with the mode controller.
-    Switch,
-    /// Swing-up against damping with energy regulation, in several controller variants.
-    Swingup,
-}
-
-/// A mode as written: an angle θ or a direction of joint velocities.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum ModeSpec {
-    /// θ (two joints).
-    Angle(f64),
-    /// A direction of joint velocities.
-    Vector(Vec<f64>),
-}
-
-impl<'de> Deserialize<'de> for ModeSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Raw {
-            Vector(Vec<f64>),
-            Angle(Angle),
-        }
-        match Raw::deserialize(d).map_err(|_| {
-            serde::de::Error::custom(
-                "a mode is an angle θ (\"pi/4\", 0.5) or a direction of joint velocities ([1.0, 0.0, -0.5])",
-            )
-        })? {
-            Raw::Vector(v) => Ok(ModeSpec::Vector(v)),
-            Raw::Angle(a) => Ok(ModeSpec::Angle(a.0)),
-        }
-    }
-}
-
-/// A target energy as written: one value or steps `[[t, E], …]`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum EnergySpec {
-    /// A constant E_d.
-    Value(f64),
-    /// (start time, E_d) steps.
-    Steps(Vec<[f64; 2]>),
-}
-
-impl<'de> Deserialize<'de> for EnergySpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Raw {
-            Value(f64),
-            Steps(Vec<[f64; 2]>),
-        }
-        match Raw::deserialize(d).map_err(|_| {
-            serde::de::Error::custom("an energy target is a number of joules or steps [[t, E], …] from t = 0")
-        })? {
-            Raw::Value(v) => Ok(EnergySpec::Value(v)),
-            Raw::Steps(s) => Ok(EnergySpec::Steps(s)),
-        }
-    }
-}
-
-/// Energy handling of a switch scenario.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum EnergyTarget {
-    /// τ_E holds the start energy (E_d = the scenario's `energy`): the mode controller's damping
-    /// term takes energy out at every step, and without a target the swing would fade.
-    #[default]
-    Hold,
-    /// No energy regulation (the mode controller alone).
-    None,
-}
-
-/// A release: at rest on a mode where the potential has risen by `energy`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Release {
-    /// The mode.
-    pub mode: ModeSpec,
-    /// U − U(q_eq) at the release point, J.
-    pub energy: f64,
-}
-
-/// `[[scenario]]` as written. Fields a kind does not use are errors.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ScenarioSpec {
-    /// Name (outputs are `sim_<name>.*`).
-    pub name: String,
-    /// `free`, `switch` or `swingup`.
-    pub kind: ScenarioKind,
-    /// Duration, s (default: free 20, switch 100, swingup 20).
-    #[serde(default)]
-    pub duration: Option<f64>,
-    /// Joint damping D = d·I, N·m·s/rad (default: 0; swingup 0.3).
-    #[serde(default)]
-    pub damping: Option<f64>,
-    /// free: explicit start configurations (rad).
-    #[serde(default)]
-    pub starts: Vec<Vec<Angle>>,
-    /// free: releases on modes at energies.
-    #[serde(default)]
-    pub releases: Vec<Release>,
-    /// switch, swingup: the (first) desired mode, also where the arm starts (default θ = 0).
-    #[serde(default)]
-    pub mode: Option<ModeSpec>,
-    /// switch: energy of the start point, J (default 10).
-    #[serde(default)]
-    pub energy: Option<f64>,
-    /// switch: increment of θ_d (default π/6).
-    #[serde(default)]
-    pub step: Option<Angle>,
-    /// switch: seconds between increments (default 15).
-    #[serde(default)]
-    pub every: Option<f64>,
-    /// switch: `hold` (τ_E holds the start energy, default) or `none`.
-    #[serde(default)]
-    pub energy_target: Option<EnergyTarget>,
-    /// swingup: start energy E0, J (default 5).
-    #[serde(default)]
-    pub e0: Option<f64>,
-    /// swingup: target energy E_d, J (default 20), or a schedule of steps `[[t, E_d], …]`
-    /// starting at t = 0.
-    #[serde(default)]
-    pub ed: Option<EnergySpec>,
-    /// swingup: variants to run among `energy`, `negative_damping`, `energy_compensated`
-    /// (default all three).
-    #[serde(default)]
-    pub variants: Vec<String>,
-}
 
 /// A scenario resolved into runs.
 #[derive(Debug, Clone)]
@@ -260,155 +101,6 @@ pub struct PeakTorques {
 }
 
 impl ScenarioSpec {
-    /// Every check of the scenario that needs no springs: names, kinds and the keys each kind
-    /// takes, durations, damping, step times, energy schedules, modes and variants. `check`
-    /// (through [`crate::validate::validate`]) runs it before any work and [`ScenarioSpec::resolve`]
-    /// runs it first, so the two cannot drift apart; what needs the fitted potential (an energy
-    /// reachable inside the region) is left to `resolve`. Errors name `scenario[index].field`.
-    pub fn check(&self, index: usize, design: &Design) -> Result<()> {
-        let sc = self;
-        let n = design.dof();
-        let bad = |f: &str, r: String| Error::invalid(&design.path, format!("scenario[{index}].{f}"), r);
-        if sc.name.trim().is_empty() || sc.name.contains(['/', '\\']) {
-            return Err(bad("name", format!("`{}` cannot name an output file", sc.name)));
-        }
-        let kind = kind_name(sc.kind);
-        let unused = |f: &str, present: bool| -> Result<()> {
-            if present { Err(bad(f, format!("does not apply to kind = \"{kind}\""))) } else { Ok(()) }
-        };
-        let duration = sc.duration.unwrap_or(if sc.kind == ScenarioKind::Switch { 100.0 } else { 20.0 });
-        if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
-            return Err(bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
-        }
-        if let Some(d) = sc.damping {
-            if !(d.is_finite() && d >= 0.0) {
-                return Err(bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
-            }
-        }
-        let energy = |f: &str, e: f64| -> Result<()> {
-            if e.is_finite() && e > 0.0 {
-                Ok(())
-            } else {
-                Err(bad(f, format!("must be a positive energy (J), got {e}")))
-            }
-        };
-        let mode = |f: &str, m: &ModeSpec| -> Result<()> {
-            match m {
-                ModeSpec::Angle(a) if n != 2 => Err(bad(
-                    f,
-                    format!("an angle ({a}) names a mode of a two-joint arm; give a direction of {n} joint velocities"),
-                )),
-                ModeSpec::Angle(a) if !a.is_finite() => Err(bad(f, format!("must be finite, got {a}"))),
-                ModeSpec::Angle(_) => Ok(()),
-                ModeSpec::Vector(v) if v.len() != n => {
-                    Err(bad(f, format!("has {} entries but the robot has {n} joints", v.len())))
-                }
-                ModeSpec::Vector(v) if v.iter().any(|x| !x.is_finite()) || v.iter().all(|x| *x == 0.0) => {
-                    Err(bad(f, "must be a finite, non-zero direction".into()))
-                }
-                ModeSpec::Vector(_) => Ok(()),
-            }
-        };
-        match sc.kind {
-            ScenarioKind::Free => {
-                unused("mode", sc.mode.is_some())?;
-                unused("energy", sc.energy.is_some())?;
-                unused("step", sc.step.is_some())?;
-                unused("every", sc.every.is_some())?;
-                unused("energy_target", sc.energy_target.is_some())?;
-                unused("e0", sc.e0.is_some())?;
-                unused("ed", sc.ed.is_some())?;
-                unused("variants", !sc.variants.is_empty())?;
-                if sc.starts.is_empty() && sc.releases.is_empty() {
-                    return Err(bad(
-                        "releases",
-                        "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into(),
-                    ));
-                }
-                for (k, s) in sc.starts.iter().enumerate() {
-                    if s.len() != n {
-                        return Err(bad(
-                            &format!("starts[{k}]"),
-                            format!("has {} angles but the robot has {n} joints", s.len()),
-                        ));
-                    }
-                    if let Some(a) = s.iter().find(|a| !a.0.is_finite()) {
-                        return Err(bad(&format!("starts[{k}]"), format!("angles must be finite, got {}", a.0)));
-                    }
-                }
-                for (k, r) in sc.releases.iter().enumerate() {
-                    mode(&format!("releases[{k}].mode"), &r.mode)?;
-                    energy(&format!("releases[{k}].energy"), r.energy)?;
-                }
-            }
-            ScenarioKind::Switch => {
-                unused("starts", !sc.starts.is_empty())?;
-                unused("releases", !sc.releases.is_empty())?;
-                unused("e0", sc.e0.is_some())?;
-                unused("ed", sc.ed.is_some())?;
-                unused("variants", !sc.variants.is_empty())?;
-                if n != 2 {
-                    return Err(bad("kind", format!("mode switching by θ steps needs two joints; this arm has {n}")));
-                }
-                if let Some(m) = &sc.mode {
-                    if matches!(m, ModeSpec::Vector(_)) {
-                        return Err(bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
-                    }
-                    mode("mode", m)?;
-                }
-                if let Some(s) = sc.step {
-                    if !s.0.is_finite() {
-                        return Err(bad("step", format!("must be finite, got {}", s.0)));
-                    }
-                }
-                let every = sc.every.unwrap_or(15.0);
-                if !(every.is_finite() && every > 0.0) {
-                    return Err(bad("every", format!("must be positive (s), got {every}")));
-                }
-                if duration / every > 10_000.0 {
-                    return Err(bad(
-                        "every",
-                        format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
-                    ));
-                }
-                energy("energy", sc.energy.unwrap_or(10.0))?;
-            }
-            ScenarioKind::Swingup => {
-                unused("starts", !sc.starts.is_empty())?;
-                unused("releases", !sc.releases.is_empty())?;
-                unused("energy", sc.energy.is_some())?;
-                unused("step", sc.step.is_some())?;
-                unused("every", sc.every.is_some())?;
-                unused("energy_target", sc.energy_target.is_some())?;
-                energy("e0", sc.e0.unwrap_or(5.0))?;
-                let schedule: Vec<(f64, f64)> = match sc.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
-                    EnergySpec::Value(v) => vec![(0.0, v)],
-                    EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
-                };
-                if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
-                    return Err(bad("ed", "steps must start at t = 0 and increase in time".into()));
-                }
-                for (t, e) in &schedule {
-                    if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
-                        return Err(bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
-                    }
-                }
-                if let Some(m) = &sc.mode {
-                    mode("mode", m)?;
-                }
-                for (k, v) in sc.variants.iter().enumerate() {
-                    if !["energy", "negative_damping", "energy_compensated"].contains(&v.as_str()) {
-                        return Err(bad(
-                            &format!("variants[{k}]"),
-                            format!("unknown variant `{v}`: expected energy, negative_damping or energy_compensated"),
-                        ));
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
     /// Resolves the scenario into runs for `design`; errors name `scenario[index].field`.
     pub fn resolve(
         &self,
@@ -527,14 +219,6 @@ impl ScenarioSpec {
             ScenarioKind::Swingup => "τ_E, τ_nD or τ_E + compensation towards E_d (per variant)".to_string(),
         };
         Ok(Scenario { name: self.name.clone(), kind: self.kind, runs, energy_handling })
-    }
-}
-
-fn kind_name(k: ScenarioKind) -> &'static str {
-    match k {
-        ScenarioKind::Free => "free",
-        ScenarioKind::Switch => "switch",
-        ScenarioKind::Swingup => "swingup",
     }
 }
 
@@ -824,7 +508,10 @@ impl ModeGeodesic {
 
 /// The deviation of a run from the geodesic of its start's mode (see [`GeodesicDeviation`]) and
 /// the distance per sample.
-pub fn geodesic_deviation(design: &Design, trace: &crate::simulate::Trace) -> Result<(GeodesicDeviation, Vec<f64>)> {
+pub fn geodesic_deviation(
+    design: &Design,
+    trace: &crate::dynamics::simulate::Trace,
+) -> Result<(GeodesicDeviation, Vec<f64>)> {
     let n = trace.n;
     let samples = trace.t.len();
     if samples == 0 {
@@ -879,11 +566,11 @@ impl<'a> LabelSource<'a> {
 /// held-out geodesics (degrees) and the number of samples compared.
 pub fn label_source<'a>(
     design: &'a Design,
-    settings: &crate::simulate::SimSettings,
+    settings: &crate::design::simulate::SimSettings,
 ) -> Result<(LabelSource<'a>, Option<(f64, usize)>)> {
+    use crate::design::simulate::LabelKind;
     use crate::geodesic::label::{ExactLog, LogTable};
     use crate::geodesic::{Fan, FanSpec};
-    use crate::simulate::LabelKind;
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
     if settings.label == LabelKind::Exact || design.dof() != 2 {
         return Ok((LabelSource::Exact(exact), None));
@@ -921,9 +608,9 @@ pub struct ScenarioOutcome {
 /// Runs go in parallel; each owns its label field, so results do not depend on the thread count.
 pub fn run_scenario<'a>(
     design: &'a Design,
-    potential: &'a crate::simulate::ElasticPotential,
+    potential: &'a crate::dynamics::simulate::ElasticPotential,
     label: &LabelSource<'a>,
-    settings: &crate::simulate::SimSettings,
+    settings: &crate::design::simulate::SimSettings,
     controllers: &ControllerSettings,
     index: usize,
 ) -> Result<ScenarioOutcome> {
@@ -935,11 +622,11 @@ pub fn run_scenario<'a>(
     let chain = &design.chain;
     let mut nominal = |q: &[f64]| -> Result<f64> {
         Ok(match potential {
-            crate::simulate::ElasticPotential::Springs(s) => {
+            crate::dynamics::simulate::ElasticPotential::Springs(s) => {
                 s.elements.iter().zip(&s.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
                     + chain.gravity_potential(q)
             }
-            crate::simulate::ElasticPotential::Exact { omega } => {
+            crate::dynamics::simulate::ElasticPotential::Exact { omega } => {
                 energy_field.eval(q, &mut lv)?;
                 let v = DVector::from_column_slice(&lv.v);
                 0.5 * omega * omega * v.dot(&(chain.mass_matrix(&design.q_eq) * &v))
@@ -953,9 +640,15 @@ pub fn run_scenario<'a>(
         .runs
         .par_iter()
         .map(|run| {
-            let mut dynamics =
-                crate::simulate::Dynamics::new(chain, &design.q_eq, potential, *controllers, run, Some(label.field()))?;
-            let result = crate::simulate::run(&mut dynamics, settings).map_err(|e| match e {
+            let mut dynamics = crate::dynamics::simulate::Dynamics::new(
+                chain,
+                &design.q_eq,
+                potential,
+                *controllers,
+                run,
+                Some(label.field()),
+            )?;
+            let result = crate::dynamics::simulate::run(&mut dynamics, settings).map_err(|e| match e {
                 Error::Numerical { context, reason } => {
                     Error::Numerical { context: format!("scenario {} run {}: {context}", spec.name, run.name), reason }
                 }

@@ -5,9 +5,9 @@
 //! that no element can match, a spring budget below the number of conditions).
 
 use crate::design::Design;
+use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::Error;
-use crate::fit::settings::FitSettings;
 
 /// The advice for an infeasible fit, or `None` for other errors.
 ///

@@ -1,7 +1,7 @@
 //! Closed-loop simulation: the arm with its springs, damping and controllers.
 //!
 //! M q̈ + C q̇ + ∂U_g/∂q + D q̇ + ∂U_e/∂q = τ_c, with τ_c the sum of the active controllers
-//! ([`crate::control`]). The state carries, besides (q, q̇), one quadrature per torque source
+//! ([`crate::dynamics::control`]). The state carries, besides (q, q̇), one quadrature per torque source
 //! accumulating ∫|τᵀq̇| dt, so the energy fluxes of the paper's Table II come out of the same
 //! integration at the same order (the paper's Σ|τᵀq̇|δt is its rectangle-rule version). Fixed-step
 //! RK4 at a given rate is the default; the adaptive option uses Dormand–Prince with error control
@@ -9,10 +9,12 @@
 //!
 //! The right-hand side allocates nothing; a run is sequential, runs go in parallel.
 
+use crate::design::simulate::{Integrator, SimSettings};
 use nalgebra::DVector;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use crate::control::{ControllerSettings, EnergyLaw, LabelGradient, blend_weight, dot, energy_torque, mode_torque};
+use crate::design::controllers::{ControllerSettings, EnergyLaw, LabelGradient};
+use crate::dynamics::control::{blend_weight, dot, energy_torque, mode_torque};
 use crate::error::{Error, Result};
 use crate::geodesic::MetricFrame;
 use crate::geodesic::label::{LogField, LogValue, angle_label, sphere_distance};
@@ -30,75 +32,6 @@ const MODE: usize = 3;
 const ENERGY: usize = 4;
 const COMPENSATION: usize = 5;
 const NSRC: usize = 6;
-
-/// Time integration scheme.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum Integrator {
-    /// Classical Runge–Kutta with a fixed step 1/rate.
-    #[default]
-    Rk4,
-    /// Dormand–Prince 5(4) with error control on (q, q̇).
-    Adaptive,
-}
-
-/// Which label the mode controller uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum LabelKind {
-    /// The log map tabulated on a grid (two joints; its error is measured and reported).
-    #[default]
-    Table,
-    /// Newton shooting at every evaluation (slow; any number of joints).
-    Exact,
-}
-
-/// `[simulate]`: integration settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SimSettings {
-    /// Steps per second of RK4 (and outputs are never denser than this).
-    pub rate: f64,
-    /// `rk4` or `adaptive`.
-    pub integrator: Integrator,
-    /// Tolerances of the adaptive integrator.
-    pub ode: OdeSettings,
-    /// `table` (two joints) or `exact`.
-    pub label: LabelKind,
-    /// Nodes per axis of the label table.
-    pub table_nodes: usize,
-    /// Time between output samples, s.
-    pub output_interval: f64,
-}
-
-impl Default for SimSettings {
-    fn default() -> Self {
-        SimSettings {
-            rate: 1000.0,
-            integrator: Integrator::Rk4,
-            ode: OdeSettings { rtol: 1e-8, atol: 1e-10, ..OdeSettings::default() },
-            label: LabelKind::Table,
-            table_nodes: 121,
-            output_interval: 0.01,
-        }
-    }
-}
-
-impl SimSettings {
-    /// Checks the settings, naming the bad field.
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        if !(self.rate.is_finite() && self.rate >= 10.0 && self.rate <= 1e6) {
-            return Err(("simulate.rate".into(), format!("must be 10 to 1e6 Hz, got {}", self.rate)));
-        }
-        if !(self.output_interval.is_finite() && self.output_interval > 0.0) {
-            return Err(("simulate.output_interval".into(), "must be positive".into()));
-        }
-        if self.table_nodes < 8 || self.table_nodes > 2000 {
-            return Err(("simulate.table_nodes".into(), "must be 8 to 2000".into()));
-        }
-        self.ode.validate("simulate.ode")
-    }
-}
 
 /// A desired mode: an angle θ (two joints) or a direction u in the metric frame (any number).
 #[derive(Debug, Clone, PartialEq)]
@@ -219,7 +152,7 @@ pub struct Trace {
     /// Whether the sample is inside the ε-ball.
     pub in_ball: Vec<bool>,
     /// Metric distance from q to the geodesic of the start's mode per sample, √(kg·m²)·rad
-    /// (free runs, filled in by [`crate::scenario::run_scenario`]; empty otherwise).
+    /// (free runs, filled in by [`crate::dynamics::scenario::run_scenario`]; empty otherwise).
     pub geodesic_deviation: Vec<f64>,
 }
 

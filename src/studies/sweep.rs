@@ -18,86 +18,22 @@
 //! stream, so any subset of items (a shard) gives the same numbers as in a full run, and merged
 //! shards give the same tables bit for bit.
 
+use crate::design::sweep::SweepSettings;
 use serde::{Deserialize, Serialize};
 
-use crate::control::ControllerSettings;
 use crate::design::Design;
+use crate::design::controllers::ControllerSettings;
+use crate::design::scenario::ScenarioKind;
+use crate::design::simulate::SimSettings;
+use crate::dynamics::scenario::{LabelSource, metrics};
+use crate::dynamics::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, run};
 use crate::error::{Error, Result};
 use crate::fit::run::{FitOutcome, nearest, refit_with_fixed};
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
 use crate::residual::percentile;
-use crate::scenario::{LabelSource, ScenarioKind, metrics};
-use crate::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, SimSettings, run};
 
-pub use crate::tolerance::Distribution;
-
-/// `[sweep]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SweepSettings {
-    /// The scenario run for every item (a run with both controllers, e.g. a swing-up from E_d to
-    /// E_d without damping; its first run is used).
-    pub scenario: String,
-    /// Parasitic scales ε.
-    pub epsilons: Vec<f64>,
-    /// Monte Carlo builds per tolerance level.
-    pub builds: usize,
-    /// Seed of the builds.
-    pub seed: u64,
-    /// `uniform` or `normal`.
-    pub distribution: Distribution,
-    /// Tolerance levels applied to every element (fractions); empty: each element's catalogue
-    /// tolerance.
-    pub tolerances: Vec<f64>,
-    /// Held-out geodesics per build (from the build's own equilibrium).
-    pub evaluation_directions: usize,
-    /// Samples per geodesic per build.
-    pub evaluation_samples: usize,
-    /// Also run every build tuned as `springfit tune` would tune it (designs with trim springs
-    /// or adjustable elements). Tuning costs one residual evaluation per adjustable offset per
-    /// Gauss–Newton step, so a design with hundreds of adjustable elements may turn it off.
-    pub tune_builds: bool,
-}
-
-impl Default for SweepSettings {
-    fn default() -> Self {
-        SweepSettings {
-            scenario: "sensitivity".into(),
-            epsilons: vec![0.0, 0.01, 0.05, 0.1, 0.5, 1.0],
-            builds: 200,
-            seed: 1,
-            distribution: Distribution::Uniform,
-            tolerances: Vec::new(),
-            evaluation_directions: 120,
-            evaluation_samples: 50,
-            tune_builds: true,
-        }
-    }
-}
-
-impl SweepSettings {
-    /// Checks the settings, naming the bad field.
-    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
-        for (i, e) in self.epsilons.iter().enumerate() {
-            if !(e.is_finite() && *e >= 0.0) {
-                return Err((format!("sweep.epsilons[{i}]"), format!("must be ≥ 0, got {e}")));
-            }
-        }
-        for (i, t) in self.tolerances.iter().enumerate() {
-            if !(t.is_finite() && (0.0..1.0).contains(t)) {
-                return Err((format!("sweep.tolerances[{i}]"), format!("must be a fraction in [0, 1), got {t}")));
-            }
-        }
-        if self.evaluation_directions < 4 || self.evaluation_samples < 2 {
-            return Err(("sweep.evaluation_directions".into(), "needs at least 4 directions of 2 samples".into()));
-        }
-        if self.builds > 1_000_000 {
-            return Err(("sweep.builds".into(), "at most 1 000 000".into()));
-        }
-        Ok(())
-    }
-}
+pub use crate::design::tolerance::Distribution;
 
 /// One unit of work.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -268,7 +204,7 @@ impl<'a> SweepContext<'a> {
         &self,
         potential: &ElasticPotential,
         spec: &RunSpec,
-    ) -> Result<(crate::simulate::RunResult, crate::scenario::RunMetrics)> {
+    ) -> Result<(crate::dynamics::simulate::RunResult, crate::dynamics::scenario::RunMetrics)> {
         let mut dynamics = Dynamics::new(
             &self.design.chain,
             &self.design.q_eq,
@@ -333,7 +269,7 @@ impl<'a> SweepContext<'a> {
         let failed =
             TunedBuild { actuator_share: f64::NAN, residual_p99_deg: f64::NAN, equilibrium_shift_rad: f64::NAN };
         let measured: Vec<Option<f64>> = built.stiffness.iter().map(|k| Some(*k)).collect();
-        let Ok(t) = crate::tune::tune(self.design, bom, &measured) else { return Ok(Some(failed)) };
+        let Ok(t) = crate::asbuilt::tune::tune(self.design, bom, &measured) else { return Ok(Some(failed)) };
         let tuned = crate::files::bom::spring_set(&t.bom);
         let (p99, shift) = self.residual_about_own_equilibrium(&tuned)?;
         let mut spec = spec.clone();
@@ -361,7 +297,7 @@ impl<'a> SweepContext<'a> {
             stock_stiffness: None,
             series: None,
         };
-        let fill = |r: &mut ItemResult, m: &crate::scenario::RunMetrics| {
+        let fill = |r: &mut ItemResult, m: &crate::dynamics::scenario::RunMetrics| {
             r.flux_potential = m.flux.potential;
             r.flux_mode = m.flux.mode;
             r.flux_energy = m.flux.energy;

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::tolerance::{Distribution, ToleranceSpec};
+use crate::design::tolerance::{Distribution, ToleranceSpec};
 
 /// Which solver computes the stiffnesses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -17,10 +17,10 @@
 use std::path::Path;
 
 use crate::design::Design;
+use crate::design::scenario::ModeSpec;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::geodesic::Region;
-use crate::scenario::ModeSpec;
 
 /// Angles beyond this many radians (two full turns) are probably degrees or a typo.
 pub const MANY_TURNS_RAD: f64 = 4.0 * std::f64::consts::PI;

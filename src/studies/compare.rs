@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::design::Design;
+use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::files::bom;
 use crate::fit::run::{FitOutcome, Prepared, fit};
-use crate::fit::settings::FitSettings;
 use crate::geodesic::Region;
 use crate::residual::{AngleStats, stats};
 
@@ -359,7 +359,7 @@ pub fn budget_curve(
                 let reason = format!(
                     "{}: no set of at most {k} springs: {}",
                     design.path.display(),
-                    crate::hints::explain_infeasible(design, settings, catalog, k, e)
+                    crate::fit::hints::explain_infeasible(design, settings, catalog, k, e)
                 );
                 BudgetPoint { budget: k, used: 0, stats: no_stats(), infeasible: Some(reason), as_built: None }
             }
@@ -412,7 +412,7 @@ pub fn radius_curve(
                     infeasible: Some(format!(
                         "{}: radius {r}: {}",
                         design.path.display(),
-                        crate::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
+                        crate::fit::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
                     )),
                 }),
                 Err(e) => Err(e),

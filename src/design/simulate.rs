@@ -1,0 +1,74 @@
+//! `[simulate]`: how a closed-loop run is integrated and which mode label it uses.
+
+use serde::{Deserialize, Serialize};
+
+use crate::numerics::ode::OdeSettings;
+
+/// Time integration scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Classical Runge–Kutta with a fixed step 1/rate.
+    #[default]
+    Rk4,
+    /// Dormand–Prince 5(4) with error control on (q, q̇).
+    Adaptive,
+}
+
+/// Which label the mode controller uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LabelKind {
+    /// The log map tabulated on a grid (two joints; its error is measured and reported).
+    #[default]
+    Table,
+    /// Newton shooting at every evaluation (slow; any number of joints).
+    Exact,
+}
+
+/// `[simulate]`: integration settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimSettings {
+    /// Steps per second of RK4 (and outputs are never denser than this).
+    pub rate: f64,
+    /// `rk4` or `adaptive`.
+    pub integrator: Integrator,
+    /// Tolerances of the adaptive integrator.
+    pub ode: OdeSettings,
+    /// `table` (two joints) or `exact`.
+    pub label: LabelKind,
+    /// Nodes per axis of the label table.
+    pub table_nodes: usize,
+    /// Time between output samples, s.
+    pub output_interval: f64,
+}
+
+impl Default for SimSettings {
+    fn default() -> Self {
+        SimSettings {
+            rate: 1000.0,
+            integrator: Integrator::Rk4,
+            ode: OdeSettings { rtol: 1e-8, atol: 1e-10, ..OdeSettings::default() },
+            label: LabelKind::Table,
+            table_nodes: 121,
+            output_interval: 0.01,
+        }
+    }
+}
+
+impl SimSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.rate.is_finite() && self.rate >= 10.0 && self.rate <= 1e6) {
+            return Err(("simulate.rate".into(), format!("must be 10 to 1e6 Hz, got {}", self.rate)));
+        }
+        if !(self.output_interval.is_finite() && self.output_interval > 0.0) {
+            return Err(("simulate.output_interval".into(), "must be positive".into()));
+        }
+        if self.table_nodes < 8 || self.table_nodes > 2000 {
+            return Err(("simulate.table_nodes".into(), "must be 8 to 2000".into()));
+        }
+        self.ode.validate("simulate.ode")
+    }
+}

@@ -1,0 +1,72 @@
+//! `[sweep]`: what a sensitivity sweep runs (parasitic levels, tolerance levels, builds).
+
+use serde::{Deserialize, Serialize};
+
+use super::tolerance::Distribution;
+
+/// `[sweep]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SweepSettings {
+    /// The scenario run for every item (a run with both controllers, e.g. a swing-up from E_d to
+    /// E_d without damping; its first run is used).
+    pub scenario: String,
+    /// Parasitic scales ε.
+    pub epsilons: Vec<f64>,
+    /// Monte Carlo builds per tolerance level.
+    pub builds: usize,
+    /// Seed of the builds.
+    pub seed: u64,
+    /// `uniform` or `normal`.
+    pub distribution: Distribution,
+    /// Tolerance levels applied to every element (fractions); empty: each element's catalogue
+    /// tolerance.
+    pub tolerances: Vec<f64>,
+    /// Held-out geodesics per build (from the build's own equilibrium).
+    pub evaluation_directions: usize,
+    /// Samples per geodesic per build.
+    pub evaluation_samples: usize,
+    /// Also run every build tuned as `springfit tune` would tune it (designs with trim springs
+    /// or adjustable elements). Tuning costs one residual evaluation per adjustable offset per
+    /// Gauss–Newton step, so a design with hundreds of adjustable elements may turn it off.
+    pub tune_builds: bool,
+}
+
+impl Default for SweepSettings {
+    fn default() -> Self {
+        SweepSettings {
+            scenario: "sensitivity".into(),
+            epsilons: vec![0.0, 0.01, 0.05, 0.1, 0.5, 1.0],
+            builds: 200,
+            seed: 1,
+            distribution: Distribution::Uniform,
+            tolerances: Vec::new(),
+            evaluation_directions: 120,
+            evaluation_samples: 50,
+            tune_builds: true,
+        }
+    }
+}
+
+impl SweepSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
+        for (i, e) in self.epsilons.iter().enumerate() {
+            if !(e.is_finite() && *e >= 0.0) {
+                return Err((format!("sweep.epsilons[{i}]"), format!("must be ≥ 0, got {e}")));
+            }
+        }
+        for (i, t) in self.tolerances.iter().enumerate() {
+            if !(t.is_finite() && (0.0..1.0).contains(t)) {
+                return Err((format!("sweep.tolerances[{i}]"), format!("must be a fraction in [0, 1), got {t}")));
+            }
+        }
+        if self.evaluation_directions < 4 || self.evaluation_samples < 2 {
+            return Err(("sweep.evaluation_directions".into(), "needs at least 4 directions of 2 samples".into()));
+        }
+        if self.builds > 1_000_000 {
+            return Err(("sweep.builds".into(), "at most 1 000 000".into()));
+        }
+        Ok(())
+    }
+}
