@@ -123,7 +123,7 @@ fn tuning_a_build_with_known_errors_restores_the_equilibrium() {
         }
     }
     // The tuned bill of materials holds the arm at q_eq.
-    let tuned = springfit::files::bom::spring_set(&t.bom);
+    let tuned = springfit::fit::bill::spring_set(&t.bom);
     let q = design.q_eq.as_slice();
     assert!((tuned.gradient(q).unwrap() + design.chain.gravity_gradient(q)).amax() < 1e-8);
 }

@@ -90,7 +90,7 @@ fn the_bill_of_materials_rebuilds_the_same_potential() {
     let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
     let text = bom::to_csv(&outcome.bom);
     let rows = bom::parse(Path::new("bom.csv"), &text).unwrap();
-    let rebuilt = bom::spring_set(&rows);
+    let rebuilt = springfit::fit::bill::spring_set(&rows);
     assert_eq!(rebuilt, outcome.springs);
     let again = evaluate(&design, settings.frequency, settings.bands, &rebuilt, &outcome.evaluation).unwrap();
     assert_eq!(again.residuals, outcome.metrics.residuals);
@@ -201,16 +201,16 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
     }
     assert_eq!(files[0].1.lines().count(), 1 + 3, "{}", files[0].1);
     let rows = bom::read(&dir.join("bom.csv")).unwrap();
-    let rebuilt = bom::spring_set(&rows);
+    let rebuilt = springfit::fit::bill::spring_set(&rows);
     assert_eq!(rebuilt, outcome.springs);
-    assert_eq!(bom::fingerprint(&rebuilt), bom::fingerprint(&outcome.springs));
+    assert_eq!(springfit::fit::bill::fingerprint(&rebuilt), springfit::fit::bill::fingerprint(&outcome.springs));
     // Written again, the rows read back give the same files.
     assert_eq!(bom::files("bom.csv", &rows), files);
     let _ = std::fs::remove_dir_all(&dir);
     let again = evaluate(&design, settings.frequency, settings.bands, &rebuilt, &outcome.evaluation).unwrap();
     assert_eq!(again.residuals, outcome.metrics.residuals);
     // The cams regrouped from the read-back rows are the same cams.
-    assert_eq!(springfit::files::bom::fitted_cams(&catalog, &rows), outcome.cams);
+    assert_eq!(springfit::fit::bill::fitted_cams(&catalog, &rows), outcome.cams);
     for cam in &outcome.cams {
         assert!(cam.realisation.points.len() >= 1000);
         let csv = springfit::files::cam::csv(cam);

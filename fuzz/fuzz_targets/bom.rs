@@ -14,7 +14,7 @@ fuzz_target!(|data: &[u8]| {
     match bom::parse(path, text) {
         Ok(rows) => {
             assert!(!rows.is_empty());
-            let set = bom::spring_set(&rows);
+            let set = springfit::fit::bill::spring_set(&rows);
             let n = set.dof();
             assert!(n >= 1);
             for q in [vec![0.0; n], vec![0.5; n], (0..n).map(|i| (i as f64 - 1.0) * 1.3).collect()] {

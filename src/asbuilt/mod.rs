@@ -27,7 +27,7 @@ use serde::Serialize;
 use crate::design::Design;
 use crate::design::tolerance::{Distribution, ToleranceSpec};
 use crate::error::Result;
-use crate::files::bom::BomRow;
+use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, Region, Stop};
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};

@@ -22,7 +22,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::design::Design;
 use crate::error::Result;
-use crate::files::bom::BomRow;
+use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, Stop};
 use crate::potential::{Potential, SpringSet};
 

@@ -64,7 +64,7 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             )
             .into());
         }
-        (ElasticPotential::Springs(bom::spring_set(&rows)), format!("springs ({})", path.display()))
+        (ElasticPotential::Springs(springfit::fit::bill::spring_set(&rows)), format!("springs ({})", path.display()))
     } else if let Some(catalog) = &validated.catalog {
         let step = progress.step("fitting the springs");
         let outcome = fit(&design, catalog, &design.fit, &|_| {});

@@ -42,6 +42,9 @@ use crate::units::Angle;
 /// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).
 pub const MAX_OFFSETS: usize = 1000;
 
+/// Most trim springs one design may carry (the trim solve enumerates 3^m faces).
+pub const MAX_TRIMS: usize = 9;
+
 /// Most candidate elements a catalogue may expand into (the shipped catalogues have about 500).
 pub const MAX_CANDIDATES: usize = 20_000;
 
@@ -582,10 +585,10 @@ impl Catalog {
             };
             if trim_range.is_some() {
                 trims += couplings.len();
-                if trims > crate::elements::trim::MAX_TRIMS {
+                if trims > crate::elements::catalog::MAX_TRIMS {
                     return Err(invalid(
                         field("couplings"),
-                        format!("the catalogue lists more than {} trim springs", crate::elements::trim::MAX_TRIMS),
+                        format!("the catalogue lists more than {} trim springs", crate::elements::catalog::MAX_TRIMS),
                     ));
                 }
             }

@@ -22,15 +22,6 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::design::Design;
-use crate::elements::catalog::{Catalog, TrimSpring};
-use crate::files::bom::{Adjustment, BomRow};
-use crate::geodesic::Fan;
-use crate::potential::SpringSet;
-
-/// Most trim springs one design may carry (the solve enumerates 3^m faces).
-pub const MAX_TRIMS: usize = 9;
-
 /// Hessian mismatch (relative to ‖M‖_F) below which the trim counts as restoring ∇²U = w² M.
 pub const RESTORED: f64 = 1e-9;
 
@@ -52,62 +43,6 @@ impl TrimSolution {
     /// Whether ∇²U = w² M holds again (to [`RESTORED`]).
     pub fn restored(&self) -> bool {
         self.mismatch <= RESTORED
-    }
-}
-
-/// The catalogue's trim springs at their mid-range rates (room to trim both ways), relaxed at
-/// q_eq: the part of the potential the fit holds fixed (see `fit::problem::fold_fixed`).
-pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet) {
-    let trims = catalog.trims(q_eq);
-    let springs = SpringSet {
-        elements: trims.iter().map(|t| t.element.clone()).collect(),
-        stiffness: trims.iter().map(|t| 0.5 * (t.range[0] + t.range[1])).collect(),
-    };
-    (trims, springs)
-}
-
-/// Appends the catalogue's trim springs, at mid-range, to a fitted bill of materials.
-///
-/// Trims are not fit candidates (their rate is set after assembly, so the fit must not choose
-/// it), and the element budget counts the fitted elements, not the trims. The fit has already
-/// been solved *around* them: their contribution at mid-range was moved to the right-hand sides
-/// of the rows, the equalities and the inequalities before both the nominal and the
-/// tolerance-aware solve (`fit::problem::fold_fixed`), so the other rows need no change here.
-/// Peak torque and deflection are taken over the held-out fan `evaluation`, as the fit's.
-pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluation: &Fan) {
-    let (trims, springs) = mid_range(catalog, design.q_eq.as_slice());
-    // Trims are numbered after the springs (a cam's rows keep their `Cnn.jj±` ids).
-    let first = bom.iter().filter(|r| !matches!(r.element.profile, crate::elements::Profile::Spline(_))).count();
-    for (i, t) in trims.iter().enumerate() {
-        let f = &catalog.families[t.family];
-        let stiffness = springs.stiffness[i];
-        let e = &t.element;
-        let (mut torque, mut defl) = (0.0f64, 0.0f64);
-        let mut visit = |q: &[f64]| {
-            let d = e.deflection(q);
-            torque = torque.max((stiffness * e.profile.slope(d)).abs());
-            defl = defl.max(d.abs());
-        };
-        visit(design.q_eq.as_slice());
-        for g in &evaluation.geodesics {
-            for s in 0..g.len() {
-                visit(g.q(s));
-            }
-        }
-        bom.push(BomRow {
-            id: format!("S{:02}", first + i + 1),
-            family: f.name.clone(),
-            element: e.clone(),
-            stiffness,
-            max_torque_nm: torque,
-            max_deflection_rad: defl,
-            stock_rate: None,
-            tolerance: f.tolerance,
-            adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
-            // Relaxed at q_eq: no torque there.
-            preload_nm: Some(e.preload(stiffness, design.q_eq.as_slice())),
-            cam: None,
-        });
     }
 }
 

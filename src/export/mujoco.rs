@@ -30,7 +30,7 @@ use std::fmt::Write as _;
 use crate::design::Design;
 use crate::elements::{Profile, Side};
 use crate::error::{Error, Result};
-use crate::files::bom::BomRow;
+use crate::fit::bill::BomRow;
 
 /// Prefix of the `<numeric>` entries that describe callback elements.
 pub const CALLBACK_PREFIX: &str = "springfit_callback_";
@@ -453,7 +453,7 @@ mod tests {
             stock_rate: None,
             tolerance: 0.0,
             preload_nm: None,
-            adjust: crate::files::bom::Adjustment::default(),
+            adjust: crate::fit::bill::Adjustment::default(),
             cam: None,
         }
     }

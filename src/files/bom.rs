@@ -24,6 +24,9 @@
 //! signed coefficient (side `+j/N/h`, stiffness in J). Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
+use crate::fit::bill::Adjustment;
+use crate::fit::bill::BomRow;
+use crate::fit::bill::CamSummary;
 use std::path::Path;
 
 use crate::elements::spline::Knots;
@@ -32,8 +35,6 @@ use crate::error::{Error, Result};
 use crate::files::cam::CamFile;
 use crate::input::read_text;
 use crate::model::MAX_LINKS;
-use crate::potential::SpringSet;
-use crate::realise::cam::{CamBuild, DEFAULT_REALISATION, FittedCam, Realisation, realise};
 
 /// The CSV header.
 pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max,gear_ratio,file";
@@ -50,57 +51,6 @@ pub const HEADER_WITHOUT_PRELOAD: &str =
 
 /// The unit of a cam row's `stiffness` (its follower spring rate).
 pub const CAM_UNIT: &str = "N/mm";
-
-/// What can be set on an element after assembly.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Adjustment {
-    /// ± rad the offset x₀ can be moved (an adjustable family), None if fixed.
-    pub adjust_range: Option<f64>,
-    /// The rate range [lo, hi] of a trim spring, N·m/rad; None if not a trim.
-    pub trim_range: Option<[f64; 2]>,
-}
-
-/// What the bill of materials says about a whole cam, carried by each of its coefficient rows
-/// (the figures of its one row in `bom.csv`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CamSummary {
-    /// How it is built (follower rate, preload, gear ratio, radii).
-    pub build: CamBuild,
-    /// Largest |V′(x)| over the region, N·m.
-    pub max_torque_nm: f64,
-    /// V′ at the equilibrium, N·m (signed; None when unknown).
-    pub preload_nm: Option<f64>,
-}
-
-/// One row of the bill of materials.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BomRow {
-    /// `S01`, `S02`, …; `C01.07+` for a cam's coefficient.
-    pub id: String,
-    /// The catalogue family's name.
-    pub family: String,
-    /// The element.
-    pub element: Element,
-    /// Fitted stiffness in the profile's unit.
-    pub stiffness: f64,
-    /// Largest torque on the element's transmission coordinate over the region, N·m (a cam
-    /// coefficient read from a file: the cam's).
-    pub max_torque_nm: f64,
-    /// Largest deflection |x − x₀| while engaged over the region, rad (a cam coefficient read
-    /// from a file: the knot span).
-    pub max_deflection_rad: f64,
-    /// The nearest stock rate the catalogue offers, if it lists any.
-    pub stock_rate: Option<f64>,
-    /// ± fraction the built element may deviate.
-    pub tolerance: f64,
-    /// Torque on the element's coordinate at the equilibrium, k·u′(a·q_eq − x₀), N·m (signed).
-    /// None when read from a file without the column (and for a cam's coefficients read back).
-    pub preload_nm: Option<f64>,
-    /// What can be set after assembly.
-    pub adjust: Adjustment,
-    /// The cam this coefficient belongs to (None for springs and for cams of older files).
-    pub cam: Option<CamSummary>,
-}
 
 /// Quotes a CSV field if it needs it.
 pub fn csv_field(s: &str) -> String {
@@ -181,7 +131,7 @@ struct Line {
 /// summed with their signs and the build of its [`CamSummary`] (a default realisation when the
 /// rows carry none, as rows of an older file).
 fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
-    let cams = crate::files::bom::grouped(rows);
+    let cams = crate::fit::bill::grouped(rows);
     let mut done = vec![false; cams.len()];
     let mut out = Vec::new();
     for r in rows {
@@ -590,38 +540,6 @@ impl CamRowText<'_> {
     }
 }
 
-/// The spring set a bill of materials describes.
-pub fn spring_set(rows: &[BomRow]) -> SpringSet {
-    SpringSet {
-        elements: rows.iter().map(|r| r.element.clone()).collect(),
-        stiffness: rows.iter().map(|r| r.stiffness).collect(),
-    }
-}
-
-/// A fingerprint of a spring set: FNV-1a over every element's profile, coupling, offset and
-/// stiffness, bit for bit, in order. A fit's `summary.json` and a simulation's `sim_<name>.json`
-/// both carry it (`spring_set`), so `compare` can tell whether a simulation used the springs of
-/// a fit (reading `bom.csv` back gives the same set bit for bit, hence the same fingerprint).
-pub fn fingerprint(set: &SpringSet) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |bytes: &[u8]| {
-        for b in bytes {
-            h ^= *b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    };
-    for (e, k) in set.elements.iter().zip(&set.stiffness) {
-        eat(format!("{:?}", e.profile).as_bytes());
-        for a in &e.coupling {
-            eat(&a.to_bits().to_le_bytes());
-        }
-        eat(&e.offset.to_bits().to_le_bytes());
-        eat(&k.to_bits().to_le_bytes());
-        eat(&[0xff]);
-    }
-    format!("{h:016x}")
-}
-
 /// What a builder sets on an element after assembly, in words.
 fn after_assembly(a: &Adjustment) -> String {
     match (a.trim_range, a.adjust_range) {
@@ -687,6 +605,9 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
 mod tests {
     use super::*;
     use crate::elements::Side;
+    use crate::fit::bill::fingerprint;
+    use crate::fit::bill::spring_set;
+    use crate::realise::cam::CamBuild;
 
     fn rows() -> Vec<BomRow> {
         vec![
@@ -941,60 +862,4 @@ mod tests {
         assert_eq!(split_csv_line("a,\"b,c\",\"d\"\"e\",").unwrap(), vec!["a", "b,c", "d\"e", ""]);
         assert!(split_csv_line("\"open").is_err());
     }
-}
-/// The cams of a bill of materials: rows `Cnn.jj±` grouped by `Cnn`, coefficients summed with
-/// their signs, realised with their family's settings (defaults when the family is unknown, as
-/// for a bill of materials read back without its catalogue).
-pub fn fitted_cams(catalog: &crate::elements::catalog::Catalog, rows: &[crate::files::bom::BomRow]) -> Vec<FittedCam> {
-    let mut cams = grouped(rows);
-    for c in &mut cams {
-        let spec = catalog.families.iter().find(|f| f.name == c.family).and_then(|f| f.cam);
-        let (rate, stroke, rb, rr, alpha) = spec.map_or(DEFAULT_REALISATION, |s| {
-            (s.follower_rate, s.max_stroke, s.base_radius, s.roller_radius, s.max_pressure_angle)
-        });
-        c.realisation = realise(&c.knots, &c.coefficients, rate, stroke, rb, rr, alpha, 1000);
-    }
-    cams
-}
-
-/// The cams of a bill of materials grouped as in [`fitted_cams`], in order of first appearance,
-/// not yet realised (`realisation.points` empty).
-pub fn grouped(rows: &[crate::files::bom::BomRow]) -> Vec<FittedCam> {
-    let mut cams: Vec<FittedCam> = Vec::new();
-    for r in rows {
-        let crate::elements::Profile::Spline(b) = r.element.profile else { continue };
-        let id = r.id.split('.').next().unwrap_or(&r.id).to_string();
-        let pos = match cams.iter().position(|c| c.id == id) {
-            Some(p) => p,
-            None => {
-                let knots = Knots { lo: r.element.offset, width: b.width(), count: b.count };
-                cams.push(FittedCam {
-                    id,
-                    family: r.family.clone(),
-                    coupling: r.element.coupling.clone(),
-                    knots,
-                    coefficients: vec![0.0; knots.basis_count()],
-                    realisation: Realisation {
-                        build: CamBuild {
-                            follower_rate: 0.0,
-                            preload: 0.0,
-                            gear_ratio: 1.0,
-                            base_radius: 0.0,
-                            roller_radius: 0.0,
-                        },
-                        points: Vec::new(),
-                        max_pressure_angle: 0.0,
-                        min_convex_curvature: 0.0,
-                        violations: Vec::new(),
-                    },
-                });
-                cams.len() - 1
-            }
-        };
-        let c = &mut cams[pos];
-        if let Some(cj) = c.coefficients.get_mut(usize::from(b.index)) {
-            *cj += if b.negative { -r.stiffness } else { r.stiffness };
-        }
-    }
-    cams
 }

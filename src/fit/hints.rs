@@ -78,7 +78,7 @@ pub fn verdict(p99_deg: f64, accept_p99_deg: f64) -> &'static str {
 /// Warnings about a fitted bill of materials: a stiffness above the largest stock rate of its
 /// family (snapping to stock will cap it and the residual grows) or above its `max_stiffness`
 /// (the solvers enforce it as a bound, so this only flags a bound met to rounding).
-pub fn bom_warnings(catalog: &Catalog, rows: &[crate::files::bom::BomRow]) -> Vec<String> {
+pub fn bom_warnings(catalog: &Catalog, rows: &[crate::fit::bill::BomRow]) -> Vec<String> {
     let mut out = Vec::new();
     for r in rows {
         let Some(f) = catalog.families.iter().find(|f| f.name == r.family) else { continue };

@@ -19,7 +19,7 @@ use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::Profile;
 use crate::elements::catalog::{Candidate, Catalog};
 use crate::error::{Error, Result};
-use crate::files::bom::BomRow;
+use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::{ExactPotential, Potential, SpringSet};
 use crate::residual::{AngleSample, AngleStats, BandStats, band_stats, fan_angles, stats};
@@ -212,7 +212,7 @@ impl<'a> Prepared<'a> {
         };
         let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
-        let (_, trims) = crate::elements::trim::mid_range(catalog, q_eq);
+        let (_, trims) = crate::fit::bill::mid_range(catalog, q_eq);
         check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         let has_cams = candidates.iter().any(|c| matches!(c.element.profile, Profile::Spline(_)));
@@ -283,11 +283,11 @@ impl<'a> Prepared<'a> {
         let (mut bom, _) =
             bill_of_materials(catalog, &self.candidates, &k, &self.evaluation, q_eq, settings.used_threshold);
         // Trim springs (never candidates) join at mid-range: the fit was solved around them.
-        crate::elements::trim::append(design, catalog, &mut bom, &self.evaluation);
-        let springs = crate::files::bom::spring_set(&bom);
+        crate::fit::bill::append(design, catalog, &mut bom, &self.evaluation);
+        let springs = crate::fit::bill::spring_set(&bom);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
-        let cams = crate::files::bom::fitted_cams(catalog, &bom);
+        let cams = crate::fit::bill::fitted_cams(catalog, &bom);
         summarise_cams(&mut bom, &cams, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),
@@ -884,7 +884,7 @@ fn bill_of_materials(
                 stock_rate,
                 tolerance: c.tolerance,
                 preload_nm: Some(c.element.preload(k[j], q_eq)),
-                adjust: crate::files::bom::Adjustment {
+                adjust: crate::fit::bill::Adjustment {
                     adjust_range: catalog.families[c.family].adjust_range,
                     trim_range: None,
                 },
@@ -899,7 +899,7 @@ fn bill_of_materials(
     (bom, springs)
 }
 
-/// Gives each cam coefficient row its cam's [`crate::files::bom::CamSummary`]: the build, the largest
+/// Gives each cam coefficient row its cam's [`crate::fit::bill::CamSummary`]: the build, the largest
 /// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
 fn summarise_cams(bom: &mut [BomRow], cams: &[crate::realise::cam::FittedCam], evaluation: &Fan, q_eq: &[f64]) {
     for cam in cams {
@@ -914,7 +914,7 @@ fn summarise_cams(bom: &mut [BomRow], cams: &[crate::realise::cam::FittedCam], e
                 peak = peak.max(torque(g.q(i)).abs());
             }
         }
-        let summary = crate::files::bom::CamSummary {
+        let summary = crate::fit::bill::CamSummary {
             build: cam.realisation.build,
             max_torque_nm: peak,
             preload_nm: Some(preload),
@@ -1184,7 +1184,7 @@ mod tests {
         };
         assert!(!settings.tolerance.is_none(), "the shipped design fits for a tolerance");
         let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
-        let (trims, mid) = crate::elements::trim::mid_range(&catalog, design.q_eq.as_slice());
+        let (trims, mid) = crate::fit::bill::mid_range(&catalog, design.q_eq.as_slice());
         assert_eq!(trims.len(), 3);
 
         let mut all = prepared.candidates.clone();

@@ -43,7 +43,7 @@ pub struct Summary {
     pub verdict: String,
     /// The verdict's threshold, degrees (`fit.accept_p99_deg`).
     pub accept_p99_deg: f64,
-    /// Fingerprint of the fitted spring set (`bom::fingerprint`; null for the exact reference).
+    /// Fingerprint of the fitted spring set (`fit::bill::fingerprint`; null for the exact reference).
     pub spring_set: Option<String>,
     /// Monte Carlo builds at the design's tolerance: p50 and p95 over builds (null when the
     /// fit is for the drawing only and no element states a tolerance, or `builds = 0`).
@@ -93,7 +93,7 @@ impl Summary {
             },
             verdict: crate::fit::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
-            spring_set: (o.solve.solver != "exact").then(|| crate::files::bom::fingerprint(&o.springs)),
+            spring_set: (o.solve.solver != "exact").then(|| crate::fit::bill::fingerprint(&o.springs)),
             as_built: None,
         }
     }

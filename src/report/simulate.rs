@@ -42,7 +42,7 @@ pub struct ScenarioSummary {
     pub peak_actuator_torque_nm: f64,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
-    /// Fingerprint of the spring set simulated (`bom::fingerprint`; null for the exact potential).
+    /// Fingerprint of the spring set simulated (`fit::bill::fingerprint`; null for the exact potential).
     pub spring_set: Option<String>,
 }
 
@@ -129,7 +129,7 @@ pub fn write(
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
         runs,
         spring_set: match potential {
-            ElasticPotential::Springs(s) => Some(crate::files::bom::fingerprint(s)),
+            ElasticPotential::Springs(s) => Some(crate::fit::bill::fingerprint(s)),
             ElasticPotential::Exact { .. } => None,
         },
     };

@@ -4,7 +4,8 @@ use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
 use crate::dynamics::simulate::SOURCES;
 use crate::error::Result;
-use crate::files::bom::{self, BomRow};
+use crate::files::bom;
+use crate::fit::bill::BomRow;
 use crate::studies::sweep::{ItemResult, SweepTables, WorkItem};
 
 /// `sweep.csv`: one row per item.

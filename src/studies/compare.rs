@@ -1,6 +1,7 @@
 //! Comparing designs: fit results side by side, and what accuracy a spring budget or a region
 //! size costs.
 
+use crate::fit::bill::BomRow;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
@@ -64,7 +65,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
     }
 }
 
-fn totals(rows: &[bom::BomRow]) -> Vec<(String, f64)> {
+fn totals(rows: &[BomRow]) -> Vec<(String, f64)> {
     let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
     units.sort_unstable();
     units.dedup();

@@ -270,7 +270,7 @@ impl<'a> SweepContext<'a> {
             TunedBuild { actuator_share: f64::NAN, residual_p99_deg: f64::NAN, equilibrium_shift_rad: f64::NAN };
         let measured: Vec<Option<f64>> = built.stiffness.iter().map(|k| Some(*k)).collect();
         let Ok(t) = crate::asbuilt::tune::tune(self.design, bom, &measured) else { return Ok(Some(failed)) };
-        let tuned = crate::files::bom::spring_set(&t.bom);
+        let tuned = crate::fit::bill::spring_set(&t.bom);
         let (p99, shift) = self.residual_about_own_equilibrium(&tuned)?;
         let mut spec = spec.clone();
         spec.name = format!("{}_tuned", spec.name);

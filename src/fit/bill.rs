@@ -1,0 +1,209 @@
+//! The bill of materials as springfit computes with it: one row per element the fit uses (a
+//! cam as one row per non-zero signed B-spline coefficient, `C01.07+`, each carrying its cam's
+//! summary), with what the builder needs (peak torque, deflection, tolerance, preload, what can be
+//! set after assembly). `files::bom` writes it as `bom.csv` (a cam collapsed into one row and its
+//! file) and reads it back bit for bit.
+
+use crate::design::Design;
+use crate::elements::Element;
+use crate::elements::catalog::{Catalog, TrimSpring};
+use crate::elements::spline::Knots;
+use crate::geodesic::Fan;
+use crate::potential::SpringSet;
+use crate::realise::cam::{CamBuild, DEFAULT_REALISATION, FittedCam, Realisation, realise};
+
+/// What can be set on an element after assembly.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Adjustment {
+    /// ± rad the offset x₀ can be moved (an adjustable family), None if fixed.
+    pub adjust_range: Option<f64>,
+    /// The rate range [lo, hi] of a trim spring, N·m/rad; None if not a trim.
+    pub trim_range: Option<[f64; 2]>,
+}
+
+/// What the bill of materials says about a whole cam, carried by each of its coefficient rows
+/// (the figures of its one row in `bom.csv`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CamSummary {
+    /// How it is built (follower rate, preload, gear ratio, radii).
+    pub build: CamBuild,
+    /// Largest |V′(x)| over the region, N·m.
+    pub max_torque_nm: f64,
+    /// V′ at the equilibrium, N·m (signed; None when unknown).
+    pub preload_nm: Option<f64>,
+}
+
+/// One row of the bill of materials.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BomRow {
+    /// `S01`, `S02`, …; `C01.07+` for a cam's coefficient.
+    pub id: String,
+    /// The catalogue family's name.
+    pub family: String,
+    /// The element.
+    pub element: Element,
+    /// Fitted stiffness in the profile's unit.
+    pub stiffness: f64,
+    /// Largest torque on the element's transmission coordinate over the region, N·m (a cam
+    /// coefficient read from a file: the cam's).
+    pub max_torque_nm: f64,
+    /// Largest deflection |x − x₀| while engaged over the region, rad (a cam coefficient read
+    /// from a file: the knot span).
+    pub max_deflection_rad: f64,
+    /// The nearest stock rate the catalogue offers, if it lists any.
+    pub stock_rate: Option<f64>,
+    /// ± fraction the built element may deviate.
+    pub tolerance: f64,
+    /// Torque on the element's coordinate at the equilibrium, k·u′(a·q_eq − x₀), N·m (signed).
+    /// None when read from a file without the column (and for a cam's coefficients read back).
+    pub preload_nm: Option<f64>,
+    /// What can be set after assembly.
+    pub adjust: Adjustment,
+    /// The cam this coefficient belongs to (None for springs and for cams of older files).
+    pub cam: Option<CamSummary>,
+}
+
+/// The spring set a bill of materials describes.
+pub fn spring_set(rows: &[BomRow]) -> SpringSet {
+    SpringSet {
+        elements: rows.iter().map(|r| r.element.clone()).collect(),
+        stiffness: rows.iter().map(|r| r.stiffness).collect(),
+    }
+}
+
+/// A fingerprint of a spring set: FNV-1a over every element's profile, coupling, offset and
+/// stiffness, bit for bit, in order. A fit's `summary.json` and a simulation's `sim_<name>.json`
+/// both carry it (`spring_set`), so `compare` can tell whether a simulation used the springs of
+/// a fit (reading `bom.csv` back gives the same set bit for bit, hence the same fingerprint).
+pub fn fingerprint(set: &SpringSet) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for b in bytes {
+            h ^= *b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    for (e, k) in set.elements.iter().zip(&set.stiffness) {
+        eat(format!("{:?}", e.profile).as_bytes());
+        for a in &e.coupling {
+            eat(&a.to_bits().to_le_bytes());
+        }
+        eat(&e.offset.to_bits().to_le_bytes());
+        eat(&k.to_bits().to_le_bytes());
+        eat(&[0xff]);
+    }
+    format!("{h:016x}")
+}
+
+/// The cams of a bill of materials: rows `Cnn.jj±` grouped by `Cnn`, coefficients summed with
+/// their signs, realised with their family's settings (defaults when the family is unknown, as
+/// for a bill of materials read back without its catalogue).
+pub fn fitted_cams(catalog: &crate::elements::catalog::Catalog, rows: &[crate::fit::bill::BomRow]) -> Vec<FittedCam> {
+    let mut cams = grouped(rows);
+    for c in &mut cams {
+        let spec = catalog.families.iter().find(|f| f.name == c.family).and_then(|f| f.cam);
+        let (rate, stroke, rb, rr, alpha) = spec.map_or(DEFAULT_REALISATION, |s| {
+            (s.follower_rate, s.max_stroke, s.base_radius, s.roller_radius, s.max_pressure_angle)
+        });
+        c.realisation = realise(&c.knots, &c.coefficients, rate, stroke, rb, rr, alpha, 1000);
+    }
+    cams
+}
+
+/// The cams of a bill of materials grouped as in [`fitted_cams`], in order of first appearance,
+/// not yet realised (`realisation.points` empty).
+pub fn grouped(rows: &[crate::fit::bill::BomRow]) -> Vec<FittedCam> {
+    let mut cams: Vec<FittedCam> = Vec::new();
+    for r in rows {
+        let crate::elements::Profile::Spline(b) = r.element.profile else { continue };
+        let id = r.id.split('.').next().unwrap_or(&r.id).to_string();
+        let pos = match cams.iter().position(|c| c.id == id) {
+            Some(p) => p,
+            None => {
+                let knots = Knots { lo: r.element.offset, width: b.width(), count: b.count };
+                cams.push(FittedCam {
+                    id,
+                    family: r.family.clone(),
+                    coupling: r.element.coupling.clone(),
+                    knots,
+                    coefficients: vec![0.0; knots.basis_count()],
+                    realisation: Realisation {
+                        build: CamBuild {
+                            follower_rate: 0.0,
+                            preload: 0.0,
+                            gear_ratio: 1.0,
+                            base_radius: 0.0,
+                            roller_radius: 0.0,
+                        },
+                        points: Vec::new(),
+                        max_pressure_angle: 0.0,
+                        min_convex_curvature: 0.0,
+                        violations: Vec::new(),
+                    },
+                });
+                cams.len() - 1
+            }
+        };
+        let c = &mut cams[pos];
+        if let Some(cj) = c.coefficients.get_mut(usize::from(b.index)) {
+            *cj += if b.negative { -r.stiffness } else { r.stiffness };
+        }
+    }
+    cams
+}
+
+/// The catalogue's trim springs at their mid-range rates (room to trim both ways), relaxed at
+/// q_eq: the part of the potential the fit holds fixed (see `fit::problem::fold_fixed`).
+pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet) {
+    let trims = catalog.trims(q_eq);
+    let springs = SpringSet {
+        elements: trims.iter().map(|t| t.element.clone()).collect(),
+        stiffness: trims.iter().map(|t| 0.5 * (t.range[0] + t.range[1])).collect(),
+    };
+    (trims, springs)
+}
+
+/// Appends the catalogue's trim springs, at mid-range, to a fitted bill of materials.
+///
+/// Trims are not fit candidates (their rate is set after assembly, so the fit must not choose
+/// it), and the element budget counts the fitted elements, not the trims. The fit has already
+/// been solved *around* them: their contribution at mid-range was moved to the right-hand sides
+/// of the rows, the equalities and the inequalities before both the nominal and the
+/// tolerance-aware solve (`fit::problem::fold_fixed`), so the other rows need no change here.
+/// Peak torque and deflection are taken over the held-out fan `evaluation`, as the fit's.
+pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluation: &Fan) {
+    let (trims, springs) = mid_range(catalog, design.q_eq.as_slice());
+    // Trims are numbered after the springs (a cam's rows keep their `Cnn.jj±` ids).
+    let first = bom.iter().filter(|r| !matches!(r.element.profile, crate::elements::Profile::Spline(_))).count();
+    for (i, t) in trims.iter().enumerate() {
+        let f = &catalog.families[t.family];
+        let stiffness = springs.stiffness[i];
+        let e = &t.element;
+        let (mut torque, mut defl) = (0.0f64, 0.0f64);
+        let mut visit = |q: &[f64]| {
+            let d = e.deflection(q);
+            torque = torque.max((stiffness * e.profile.slope(d)).abs());
+            defl = defl.max(d.abs());
+        };
+        visit(design.q_eq.as_slice());
+        for g in &evaluation.geodesics {
+            for s in 0..g.len() {
+                visit(g.q(s));
+            }
+        }
+        bom.push(BomRow {
+            id: format!("S{:02}", first + i + 1),
+            family: f.name.clone(),
+            element: e.clone(),
+            stiffness,
+            max_torque_nm: torque,
+            max_deflection_rad: defl,
+            stock_rate: None,
+            tolerance: f.tolerance,
+            adjust: Adjustment { adjust_range: None, trim_range: Some(t.range) },
+            // Relaxed at q_eq: no torque there.
+            preload_nm: Some(e.preload(stiffness, design.q_eq.as_slice())),
+            cam: None,
+        });
+    }
+}
