@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Regenerate every figure README.md quotes from springfit's own output files.
+"""Regenerate every figure README.md and docs/*.md quote from springfit's own output files.
 
-The README marks each figure it quotes:
+README.md and every page under docs/ mark each figure they quote:
 
     inline:  <!-- fig:NAME -->0.329°<!-- /fig -->
     block:   <!-- block:NAME -->            (a whole fenced block, e.g. what a command prints)
@@ -16,13 +16,17 @@ reads the JSON and CSV files those commands write and rewrites the text between 
 Only the quote of what `springfit fit` prints is taken from stdout, because that quote *is*
 the printed text.
 
-    python3 scripts/readme_figures.py                 # rewrite README.md in place
-    python3 scripts/readme_figures.py --check         # exit 1 and list the figures that differ
+    python3 scripts/readme_figures.py                 # rewrite README.md and docs/*.md in place
+    python3 scripts/readme_figures.py --check         # exit 1 and list the figures that differ, with their files
     python3 scripts/readme_figures.py --threads 2     # passed to springfit (results do not depend on it)
     python3 scripts/readme_figures.py --reuse         # reread the last run's files, run nothing
+    python3 scripts/readme_figures.py --files README.md docs/guide.md   # only these files
 
-Python 3.8+ standard library only. Every figure NAME in the README must be known here and every
-figure known here must appear in the README, so that neither can drift silently.
+Python 3.8+ standard library only. Every figure NAME marked in the files (README.md and
+docs/*.md unless --files names others) must be known here, and every figure known here must be
+marked in at least one of them, so that neither can drift silently: a figure moved from one page
+to another keeps its marker and stays generated. A figure may be quoted in more than one file;
+each quote is rewritten.
 """
 
 import argparse
@@ -298,7 +302,7 @@ def fit_figures():
         figs[f"fit.{key}.springs"] = lambda r, s=s: str(s(r)["used"])
         figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
         figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
-    # Designs with cams count cams and springs together (`used`): the README quotes no count.
+    # Designs with cams count cams and springs together (`used`): the docs quote no count.
     for key in ("window_cams", "cams4", "cams"):
         del figs[f"fit.{key}.springs"]
     return figs
@@ -527,7 +531,7 @@ ERROR_WIDTH = 200
 
 
 def error_table(r):
-    """The README's table of example error messages, from running each bad input."""
+    """The table of example error messages (docs/guide.md), from running each bad input."""
     rows = ["| input | message |", "| --- | --- |"]
     for label, design_edits, catalog_edits, command, code in ERROR_CASES:
         case = r.out / "errors" / re.sub(r"\W+", "_", label).strip("_")
@@ -758,7 +762,7 @@ FIGURES = {
 }
 
 # --------------------------------------------------------------------------------------------
-# README rewriting.
+# Rewriting README.md and docs/*.md.
 # --------------------------------------------------------------------------------------------
 
 INLINE = re.compile(r"<!-- fig:(?P<name>[\w.\-]+) -->(?P<body>.*?)<!-- /fig -->")
@@ -771,31 +775,57 @@ def markers(text):
     ]
 
 
+def default_files():
+    """README.md and every docs/*.md, in a stable order."""
+    return [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
+
+
+def shown(path):
+    """A file's path relative to the repository, for messages."""
+    try:
+        return path.resolve().relative_to(ROOT).as_posix()
+    except ValueError:
+        return str(path)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="do not write; exit 1 if a figure differs")
     ap.add_argument("--threads", type=int, default=None, help="springfit --threads (default: all cores)")
     ap.add_argument("--out", default="out/readme", help="scratch folder for the commands' outputs")
-    ap.add_argument("--readme", default="README.md", help="the file to rewrite or check")
+    ap.add_argument("--files", nargs="+", default=None, metavar="FILE",
+                    help="the files to rewrite or check, together (default: README.md and docs/*.md)")
     ap.add_argument("--bin", default=None, help="springfit binary (default: build target/release/springfit)")
     ap.add_argument("--no-build", action="store_true", help="use the existing target/release/springfit")
     ap.add_argument("--quiet", action="store_true", help="print only differences and errors")
     ap.add_argument("--reuse", action="store_true",
                     help="read the outputs of an earlier run under --out instead of running the commands again "
-                         "(for editing the README; the figures are only as fresh as that run)")
+                         "(for editing the docs; the figures are only as fresh as that run)")
     args = ap.parse_args()
 
-    readme = (ROOT / args.readme) if not Path(args.readme).is_absolute() else Path(args.readme)
-    text = readme.read_text(encoding="utf-8")
-    found = markers(text)
-    names = [n for n, _ in found]
-    unknown = sorted(set(names) - set(FIGURES))
-    unused = sorted(set(FIGURES) - set(names))
+    files = default_files() if args.files is None else [
+        (ROOT / f) if not Path(f).is_absolute() else Path(f) for f in args.files
+    ]
+    texts = {}
+    for path in files:
+        if not path.is_file():
+            sys.exit(f"readme_figures: {shown(path)}: no such file")
+        texts[path] = path.read_text(encoding="utf-8")
+    where = {}  # figure name -> the files that mark it
+    for path, text in texts.items():
+        for name, _ in markers(text):
+            where.setdefault(name, [])
+            if path not in where[name]:
+                where[name].append(path)
+    names = set(where)
+    unknown = sorted(names - set(FIGURES))
+    unused = sorted(set(FIGURES) - names)
     if unknown:
-        sys.exit(f"readme_figures: {readme.name} marks figures this script does not know: {', '.join(unknown)}")
+        sys.exit("readme_figures: figures marked but unknown to this script: "
+                 + ", ".join(f"{n} ({', '.join(shown(p) for p in where[n])})" for n in unknown))
     if unused:
-        sys.exit(f"readme_figures: figures missing from {readme.name} (remove them here or mark them there): "
-                 f"{', '.join(unused)}")
+        sys.exit(f"readme_figures: figures marked in none of {', '.join(shown(p) for p in files)} "
+                 f"(remove them here or mark them there): {', '.join(unused)}")
 
     t0 = time.monotonic()
     if args.bin:
@@ -809,40 +839,46 @@ def main():
     out = (ROOT / args.out) if not Path(args.out).is_absolute() else Path(args.out)
     runner = Runner(binary, out, args.threads, verbose=not args.quiet, reuse=args.reuse)
 
-    values = {name: FIGURES[name](runner) for name in sorted(set(names))}
+    values = {name: FIGURES[name](runner) for name in sorted(names)}
 
-    differ = []
+    differ = []  # (file, name, old, new)
+    new_texts = {}
+    for path, text in texts.items():
 
-    def replace_inline(m):
-        new = values[m.group("name")]
-        if m.group("body") != new:
-            differ.append((m.group("name"), m.group("body"), new))
-        return f"<!-- fig:{m.group('name')} -->{new}<!-- /fig -->"
+        def replace_inline(m, path=path):
+            new = values[m.group("name")]
+            if m.group("body") != new:
+                differ.append((path, m.group("name"), m.group("body"), new))
+            return f"<!-- fig:{m.group('name')} -->{new}<!-- /fig -->"
 
-    def replace_block(m):
-        new = values[m.group("name")]
-        if m.group("body") != new:
-            differ.append((m.group("name"), m.group("body"), new))
-        return f"<!-- block:{m.group('name')} -->\n{new}\n<!-- /block -->"
+        def replace_block(m, path=path):
+            new = values[m.group("name")]
+            if m.group("body") != new:
+                differ.append((path, m.group("name"), m.group("body"), new))
+            return f"<!-- block:{m.group('name')} -->\n{new}\n<!-- /block -->"
 
-    new_text = BLOCK.sub(replace_block, INLINE.sub(replace_inline, text))
+        new_texts[path] = BLOCK.sub(replace_block, INLINE.sub(replace_inline, text))
     elapsed = time.monotonic() - t0
     if not args.quiet:
         for job, secs in runner.timings.items():
             print(f"  {job}: {secs:.1f} s", file=sys.stderr)
-        print(f"{len(values)} figures from {len(runner.done)} commands in {elapsed:.0f} s", file=sys.stderr)
-    for name, old, new in differ:
-        print(f"{name}: {old!r} -> {new!r}")
+        print(f"{len(values)} figures in {len(files)} files from {len(runner.done)} commands in {elapsed:.0f} s",
+              file=sys.stderr)
+    for path, name, old, new in differ:
+        print(f"{shown(path)}: {name}: {old!r} -> {new!r}")
     if args.check:
         if differ:
-            print(f"readme_figures: {len(differ)} figure(s) in {readme.name} differ from what springfit prints now; "
-                  f"run `python3 scripts/readme_figures.py` to update them", file=sys.stderr)
+            changed = sorted({shown(p) for p, *_ in differ})
+            print(f"readme_figures: {len(differ)} figure(s) in {', '.join(changed)} differ from what springfit "
+                  f"prints now; run `python3 scripts/readme_figures.py` to update them", file=sys.stderr)
             return 1
         return 0
-    if new_text != text:
-        readme.write_text(new_text, encoding="utf-8")
-        if not args.quiet:
-            print(f"rewrote {len(differ)} figure(s) in {readme.name}", file=sys.stderr)
+    for path, text in texts.items():
+        if new_texts[path] != text:
+            path.write_text(new_texts[path], encoding="utf-8")
+            if not args.quiet:
+                n = sum(1 for p, *_ in differ if p == path)
+                print(f"rewrote {n} figure(s) in {shown(path)}", file=sys.stderr)
     return 0
 
 

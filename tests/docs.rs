@@ -1,6 +1,7 @@
 //! The documentation stands alone and keeps up with the code: every key a design file or a
 //! catalogue accepts is documented in its section of `docs/design-file.md` or
-//! `docs/catalogue.md`, and nothing points outside the repository.
+//! `docs/catalogue.md`, and nothing points outside the repository: the links of README.md and
+//! every `docs/*.md` resolve, anchors included.
 //!
 //! The keys are read from the settings types themselves (serialising their defaults, or a
 //! minimal parsed example), so a field added to a settings struct without a line in the docs
@@ -102,21 +103,66 @@ fn every_catalogue_key_is_documented_in_its_section() {
     }
 }
 
+/// README.md and every page under docs/ (read from the directory, so a new page is covered).
+fn documentation_files() -> Vec<String> {
+    let mut pages: Vec<String> = std::fs::read_dir(repo().join("docs"))
+        .expect("docs/ is readable")
+        .map(|entry| entry.expect("a docs/ entry").path())
+        .filter(|path| path.extension().is_some_and(|e| e == "md"))
+        .map(|path| format!("docs/{}", path.file_name().expect("a file name").to_string_lossy()))
+        .collect();
+    pages.sort();
+    assert!(pages.len() >= 7, "docs/ has only {pages:?}");
+    std::iter::once("README.md".to_string()).chain(pages).collect()
+}
+
+/// The anchors GitHub gives a page's headings: lower case, spaces to hyphens, punctuation other
+/// than `-` and `_` dropped (`## What \`fit\` does` is `#what-fit-does`). Headings inside fenced
+/// blocks do not count.
+fn anchors(text: &str) -> Vec<String> {
+    let mut fenced = false;
+    let mut out = Vec::new();
+    for line in text.lines() {
+        if line.starts_with("```") {
+            fenced = !fenced;
+        }
+        let level = line.chars().take_while(|&c| c == '#').count();
+        if fenced || level == 0 || level > 6 || !line[level..].starts_with(' ') {
+            continue;
+        }
+        let slug: String = line[level..]
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter(|&c| c.is_alphanumeric() || c == '-' || c == '_' || c == ' ')
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect();
+        out.push(slug);
+    }
+    out
+}
+
 #[test]
 fn documentation_stands_alone() {
-    for file in ["README.md", "docs/theory.md", "docs/design-file.md", "docs/catalogue.md", "docs/outputs.md"] {
+    for file in documentation_files() {
+        let file = file.as_str();
         let text = read(file);
         assert!(!text.contains("../shared") && !text.contains("DESIGN.md"), "{file} points outside the repository");
-        // Relative Markdown links resolve inside the repository.
+        // Relative Markdown links resolve inside the repository, and so do their anchors.
         let base = repo().join(file).parent().map(Path::to_path_buf).unwrap_or_else(repo);
         for (i, _) in text.match_indices("](") {
             let target = &text[i + 2..];
             let Some(end) = target.find(')') else { continue };
-            let link = target[..end].split('#').next().unwrap_or("");
-            if link.is_empty() || link.contains("://") {
+            let (link, anchor) = target[..end].split_once('#').unwrap_or((&target[..end], ""));
+            if link.contains("://") {
                 continue;
             }
-            assert!(base.join(link).exists(), "{file}: link `{link}` does not resolve");
+            let page = if link.is_empty() { repo().join(file) } else { base.join(link) };
+            assert!(page.exists(), "{file}: link `{link}` does not resolve");
+            if !anchor.is_empty() && page.extension().is_some_and(|e| e == "md") {
+                let headings = anchors(&std::fs::read_to_string(&page).expect("a linked page"));
+                assert!(headings.iter().any(|a| a == anchor), "{file}: link `{link}#{anchor}`: no such heading");
+            }
         }
     }
 }
