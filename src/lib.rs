@@ -12,6 +12,7 @@ pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
 pub mod asbuilt;
+pub mod csv;
 pub mod design;
 pub mod dynamics;
 pub mod elements;

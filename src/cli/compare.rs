@@ -6,9 +6,10 @@ use anyhow::Result;
 use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
+use springfit::files::fit_folder::load_fit_dir;
 use springfit::fit::run::{exact_reference, fit};
 use springfit::report::output::OutputDir;
-use springfit::studies::compare::{FitRecord, budget_curve, disambiguate, load_fit_dir, radius_curve, record_of};
+use springfit::studies::compare::{FitRecord, budget_curve, disambiguate, radius_curve, record_of};
 
 use super::Session;
 use super::progress::Progress;

@@ -3,7 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::asbuilt::tune::{State, TuneOutcome, load_measured, tune};
+use springfit::asbuilt::tune::{State, TuneOutcome, tune};
+use springfit::files::bom::load_measured;
 use springfit::report::output::OutputDir;
 
 use super::Session;

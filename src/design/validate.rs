@@ -14,6 +14,7 @@
 //! many turns, a centre of mass beyond the link's end). The library never prints them; the CLI
 //! shows them as `springfit: warning: …`.
 
+use crate::design::FitSettings;
 use std::path::Path;
 
 use crate::design::Design;
@@ -59,7 +60,7 @@ pub fn validate(design: &Design) -> Result<Validated> {
         None => None,
     };
     if let Some(c) = &catalog {
-        crate::fit::run::check_trimmed_weight(design, c, &design.fit)?;
+        crate::design::validate::check_trimmed_weight(design, c, &design.fit)?;
     }
     for (i, sc) in design.file.scenario.iter().enumerate() {
         sc.check(i, design)?;
@@ -298,4 +299,20 @@ radius = 2.0
         assert!(fields.contains(&"robot.links[1].com"), "{w:?}");
         assert!(validate(&design(BASE).unwrap()).unwrap().warnings.is_empty());
     }
+}
+
+/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
+/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
+pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
+    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
+        return Err(Error::invalid(
+            &design.path,
+            "fit.trimmed_weight",
+            format!(
+                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
+                catalog.path.display()
+            ),
+        ));
+    }
+    Ok(())
 }

@@ -24,9 +24,8 @@
 //! signed coefficient (side `+j/N/h`, stiffness in J). Numbers are written with Rust's shortest
 //! round-trip formatting, so reading the file back gives bit-identical stiffnesses and offsets.
 
-use crate::fit::bill::Adjustment;
-use crate::fit::bill::BomRow;
-use crate::fit::bill::CamSummary;
+use crate::csv::{csv_field, split_csv_line};
+use crate::fit::bill::{Adjustment, BomRow, CamSummary};
 use std::path::Path;
 
 use crate::elements::spline::Knots;
@@ -51,48 +50,6 @@ pub const HEADER_WITHOUT_PRELOAD: &str =
 
 /// The unit of a cam row's `stiffness` (its follower spring rate).
 pub const CAM_UNIT: &str = "N/mm";
-
-/// Quotes a CSV field if it needs it.
-pub fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
-}
-
-/// Splits one CSV line into fields (RFC 4180 quoting).
-pub fn split_csv_line(line: &str) -> std::result::Result<Vec<String>, String> {
-    let mut out = Vec::new();
-    let mut cur = String::new();
-    let mut chars = line.chars().peekable();
-    let mut quoted = false;
-    let mut at_start = true;
-    while let Some(c) = chars.next() {
-        if quoted {
-            if c == '"' {
-                if chars.peek() == Some(&'"') {
-                    cur.push('"');
-                    chars.next();
-                } else {
-                    quoted = false;
-                }
-            } else {
-                cur.push(c);
-            }
-        } else if c == '"' && at_start {
-            quoted = true;
-            at_start = false;
-        } else if c == ',' {
-            out.push(std::mem::take(&mut cur));
-            at_start = true;
-        } else {
-            cur.push(c);
-            at_start = false;
-        }
-    }
-    if quoted {
-        return Err("unterminated quoted field".into());
-    }
-    out.push(cur);
-    Ok(out)
-}
 
 /// The path of cam `id`'s file, relative to the folder of the bill of materials `name`:
 /// `cams/C01.toml` beside `bom.csv`, `cams/C01_bom_tuned.toml` beside `bom_tuned.csv`.
@@ -601,12 +558,86 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     s
 }
 
+/// Reads the file of [`read_measured`].
+pub fn load_measured(path: &std::path::Path) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
+    read_measured(path, &crate::input::read_text(path)?)
+}
+
+/// Reads a bill of materials with a `measured_stiffness` column (anywhere; blank = as designed):
+/// the rows and the measured rates. On a cam's line the measured value is its follower spring's
+/// rate (N/mm); each of its coefficient rows gets its stiffness scaled by measured / designed.
+pub fn read_measured(path: &std::path::Path, text: &str) -> Result<(Vec<BomRow>, Vec<Option<f64>>)> {
+    use crate::error::Error;
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let Some((_, header)) = lines.next() else {
+        return Err(Error::invalid(path, "line 1: header", "the file is empty"));
+    };
+    let names = split_csv_line(header.trim_start_matches('\u{feff}').trim())
+        .map_err(|e| Error::invalid(path, "line 1: header", e))?;
+    let col = names.iter().position(|n| n.trim() == "measured_stiffness").ok_or_else(|| {
+        Error::invalid(
+            path,
+            "line 1: measured_stiffness",
+            "the bill of materials has no measured_stiffness column: add one and fill in the rates from the spring tester (blank = as designed)",
+        )
+    })?;
+    let strip = |f: Vec<String>| {
+        f.into_iter().enumerate().filter(|(i, _)| *i != col).map(|(_, s)| csv_field(&s)).collect::<Vec<_>>().join(",")
+    };
+    let mut rest = strip(names.clone());
+    rest.push('\n');
+    let mut measured = Vec::new();
+    for (idx, line) in lines {
+        let ln = idx + 1;
+        let f = split_csv_line(line).map_err(|e| Error::invalid(path, format!("line {ln}: row"), e))?;
+        if f.len() != names.len() {
+            return Err(Error::invalid(
+                path,
+                format!("line {ln}: row"),
+                format!("has {} fields, the header {}", f.len(), names.len()),
+            ));
+        }
+        let m = f[col].trim();
+        measured.push(if m.is_empty() {
+            None
+        } else {
+            let v: f64 = m.parse().map_err(|_| {
+                Error::invalid(path, format!("line {ln}: measured_stiffness"), format!("`{m}` is not a number"))
+            })?;
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(
+                    path,
+                    format!("line {ln}: measured_stiffness"),
+                    format!("must be a finite rate ≥ 0, got {m}"),
+                ));
+            }
+            Some(v)
+        });
+        rest.push_str(&strip(f));
+        rest.push('\n');
+    }
+    let (rows, origin) = crate::files::bom::parse_lines(path, &rest)?;
+    // A cam's line gives its follower spring's rate: measured / designed scales the whole cam,
+    // every coefficient row, as the build does (one δ per cam).
+    let measured = rows
+        .iter()
+        .zip(&origin)
+        .map(|(r, &line)| {
+            let m = measured[line]?;
+            Some(match r.cam {
+                Some(cam) => r.stiffness * (m / cam.build.follower_rate),
+                None => m,
+            })
+        })
+        .collect();
+    Ok((rows, measured))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::elements::Side;
-    use crate::fit::bill::fingerprint;
-    use crate::fit::bill::spring_set;
+    use crate::fit::bill::{fingerprint, spring_set};
     use crate::realise::cam::CamBuild;
 
     fn rows() -> Vec<BomRow> {
@@ -861,5 +892,22 @@ mod tests {
     fn csv_quoting() {
         assert_eq!(split_csv_line("a,\"b,c\",\"d\"\"e\",").unwrap(), vec!["a", "b,c", "d\"e", ""]);
         assert!(split_csv_line("\"open").is_err());
+    }
+
+    #[test]
+    fn measured_column_is_found_anywhere_and_checked() {
+        let h = HEADER;
+        let text = format!(
+            "{h},measured_stiffness\nS01,a,linear,,1;0,0,10,N*m/rad,1,1,,0,,0.2,,,,,10.4\nS02,b,linear,,0;1,1.5,5,N*m/rad,1,1,,0,,,,,,,\n"
+        );
+        let (rows, m) = read_measured(std::path::Path::new("m.csv"), &text).unwrap();
+        assert_eq!(rows.len(), 2);
+        assert_eq!(m, vec![Some(10.4), None]);
+        assert_eq!(rows[0].adjust.adjust_range, Some(0.2));
+        let bad = text.replace("10.4", "-1");
+        let err = read_measured(std::path::Path::new("m.csv"), &bad).unwrap_err().to_string();
+        assert!(err.contains("m.csv") && err.contains("line 2: measured_stiffness"), "{err}");
+        let none = read_measured(std::path::Path::new("m.csv"), &to_csv(&rows)).unwrap_err().to_string();
+        assert!(none.contains("no measured_stiffness column"), "{none}");
     }
 }

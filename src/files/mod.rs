@@ -3,3 +3,4 @@
 
 pub mod bom;
 pub mod cam;
+pub mod fit_folder;

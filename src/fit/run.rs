@@ -7,6 +7,7 @@
 //! problem is assembled on the training fan and solved (with sparse selection if asked); the
 //! result is evaluated on the evaluation fan only.
 
+use crate::design::validate::check_trimmed_weight;
 use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector};
@@ -346,22 +347,6 @@ impl Prepared<'_> {
         let tsp = trimmed_spread(chain, &self.training, cands, rows, &rest, &self.trims, &sigma2, omega, &jac)?;
         Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
     }
-}
-
-/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
-/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
-pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
-    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
-        return Err(Error::invalid(
-            &design.path,
-            "fit.trimmed_weight",
-            format!(
-                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
-                catalog.path.display()
-            ),
-        ));
-    }
-    Ok(())
 }
 
 /// The arm a solve describes: the candidates with k > 0 and the trims at their fixed rates (the

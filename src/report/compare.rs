@@ -115,7 +115,7 @@ pub fn write_pareto(
         None => format!("{used},{},{},{},{}", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
         Some(_) => ",,,,".to_string(),
     };
-    let reason = |why: &Option<String>| why.as_ref().map(|w| crate::files::bom::csv_field(w)).unwrap_or_default();
+    let reason = |why: &Option<String>| why.as_ref().map(|w| crate::csv::csv_field(w)).unwrap_or_default();
     let cells = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
         None => format!("{used} | {:.4}° | {:.4}° | {:.4}° | {:.4}°", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
         Some(_) => "infeasible | – | – | – | –".to_string(),

@@ -1,6 +1,7 @@
 //! Comparing designs: fit results side by side, and what accuracy a spring budget or a region
 //! size costs.
 
+use crate::csv::csv_field;
 use crate::fit::bill::BomRow;
 use std::path::{Path, PathBuf};
 
@@ -10,10 +11,9 @@ use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
-use crate::files::bom;
 use crate::fit::run::{FitOutcome, Prepared, fit};
 use crate::geodesic::Region;
-use crate::residual::{AngleStats, stats};
+use crate::residual::AngleStats;
 
 /// One fit as the comparison sees it.
 #[derive(Debug, Clone, PartialEq)]
@@ -65,7 +65,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
     }
 }
 
-fn totals(rows: &[BomRow]) -> Vec<(String, f64)> {
+pub fn totals(rows: &[BomRow]) -> Vec<(String, f64)> {
     let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
     units.sort_unstable();
     units.dedup();
@@ -73,129 +73,6 @@ fn totals(rows: &[BomRow]) -> Vec<(String, f64)> {
         .iter()
         .map(|u| (u.to_string(), rows.iter().filter(|r| r.element.profile.unit() == *u).map(|r| r.stiffness).sum()))
         .collect()
-}
-
-/// Reads the output folder of `springfit fit`. A folder without `summary.json` and
-/// `residuals.csv` is refused with a message saying so.
-pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
-    // The hint never suggests fitting into an existing folder: that folder is someone else's.
-    let not_fit = |what: &str| {
-        Error::invalid(
-            dir,
-            "folder",
-            format!(
-                "is not an output folder of `springfit fit`: {what} (give a fit output folder or a design file; \
-                 `springfit fit DESIGN --out NEW_FOLDER` writes one)"
-            ),
-        )
-    };
-    if !dir.is_dir() {
-        return Err(Error::invalid(
-            dir,
-            "folder",
-            format!(
-                "no such folder (give a design file, or fit one first: `springfit fit DESIGN --out {}`)",
-                dir.display()
-            ),
-        ));
-    }
-    if let Some(m) = crate::report::output::Manifest::read(dir)? {
-        if m.command != "fit" {
-            return Err(not_fit(&format!("it was written by `springfit {}`", m.command)));
-        }
-    }
-    let summary_path = dir.join("summary.json");
-    let residuals_path = dir.join("residuals.csv");
-    if !summary_path.is_file() {
-        return Err(not_fit("it has no summary.json"));
-    }
-    if !residuals_path.is_file() {
-        return Err(not_fit("it has no residuals.csv"));
-    }
-    let text = std::fs::read_to_string(&summary_path).map_err(|e| Error::io(&summary_path, e))?;
-    let summary: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
-        path: summary_path.clone(),
-        line: e.line(),
-        column: e.column(),
-        message: e.to_string(),
-    })?;
-    let field = |k: &str| {
-        summary
-            .get(k)
-            .ok_or_else(|| Error::invalid(&summary_path, k, "missing: not a summary written by `springfit fit`"))
-    };
-    let design = field("design")?.as_str().unwrap_or("?").to_string();
-    let text = std::fs::read_to_string(&residuals_path).map_err(|e| Error::io(&residuals_path, e))?;
-    let mut lines = text.lines();
-    let header = lines.next().unwrap_or("");
-    if !header.starts_with("direction,s,") || !header.ends_with(",angle_deg") {
-        return Err(Error::invalid(&residuals_path, "header", "expected `direction,s,q…,angle_deg`"));
-    }
-    let mut angles = Vec::new();
-    for (i, line) in lines.enumerate() {
-        let v = line.rsplit(',').next().and_then(|x| x.trim().parse::<f64>().ok()).ok_or_else(|| {
-            Error::invalid(&residuals_path, format!("line {}", i + 2), "the last field is not a number")
-        })?;
-        angles.push(v);
-    }
-    let samples: Vec<crate::residual::AngleSample> = angles
-        .iter()
-        .map(|&a| crate::residual::AngleSample { direction: 0, s: 0.0, q: Vec::new(), angle_deg: a })
-        .collect();
-    let bom_path = dir.join("bom.csv");
-    let rows = if bom_path.is_file() { bom::read(&bom_path)? } else { Vec::new() };
-    let fingerprint = summary.get("spring_set").and_then(|v| v.as_str()).map(str::to_string);
-    let (actuator_share, share_note) = match simulation_share(dir, fingerprint.as_deref()) {
-        Ok(share) => (Some(share), None),
-        Err(note) => (None, Some(note)),
-    };
-    Ok(FitRecord {
-        label: design.clone(),
-        design,
-        design_file: summary.get("design_file").and_then(|v| v.as_str()).map(PathBuf::from),
-        catalog: field("catalog")?.as_str().unwrap_or("?").to_string(),
-        solver: field("solver")?.as_str().unwrap_or("?").to_string(),
-        used: field("used")?.as_u64().unwrap_or(0) as usize,
-        stats: stats(&samples),
-        angles,
-        totals: totals(&rows),
-        actuator_share,
-        share_note,
-        source: dir.to_path_buf(),
-        as_built: crate::asbuilt::Brief::from_json(&summary),
-    })
-}
-
-/// The actuator share of the design's `sensitivity` (else `switch`) scenario from the
-/// simulation folder next to a fit folder (`<folder>_simulate`), only when that simulation ran
-/// the fit's own springs (the same `spring_set` fingerprint); else why there is none.
-fn simulation_share(dir: &Path, fingerprint: Option<&str>) -> std::result::Result<f64, String> {
-    let Some(fingerprint) = fingerprint else {
-        return Err(
-            "the fit's summary.json has no spring_set fingerprint (the exact reference, or an older springfit)".into(),
-        );
-    };
-    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let sim = dir.with_file_name(format!("{name}_simulate"));
-    let mut other = None;
-    for scenario in ["sensitivity", "switch"] {
-        let path = sim.join(format!("sim_{scenario}.json"));
-        let Ok(text) = std::fs::read_to_string(&path) else { continue };
-        let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { continue };
-        if json["spring_set"].as_str() != Some(fingerprint) {
-            other = Some(path);
-            continue;
-        }
-        if let Some(share) =
-            json["runs"].as_object().and_then(|runs| runs.values().next()).and_then(|r| r["actuator_share"].as_f64())
-        {
-            return Ok(share);
-        }
-    }
-    Err(match other {
-        Some(p) => format!("{} simulated another spring set (--exact, --bom or another fit)", p.display()),
-        None => format!("no simulation of these springs in {}", sim.display()),
-    })
 }
 
 /// Makes labels unique: records of the same design get their catalogue, solver and spring count.
@@ -228,12 +105,12 @@ pub fn table_csv(records: &[FitRecord]) -> String {
         let totals = r.totals.iter().map(|(u, t)| format!("{t} {u}")).collect::<Vec<_>>().join("; ");
         s.push_str(&format!(
             "{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            bom::csv_field(&r.label),
-            bom::csv_field(&r.design),
-            bom::csv_field(&r.catalog),
+            csv_field(&r.label),
+            csv_field(&r.design),
+            csv_field(&r.catalog),
             r.solver,
             r.used,
-            bom::csv_field(&totals),
+            csv_field(&totals),
             r.stats.median_abs,
             r.stats.p95_abs,
             r.stats.p99_abs,
