@@ -207,7 +207,7 @@ fn imports(src: &Path) -> (BTreeMap<Module, PathBuf>, Edges) {
                 let is_use = text[..i].trim_end().ends_with("use");
                 if is_use && rest.starts_with('{') {
                     let end = rest.find(';').unwrap_or(rest.len());
-                    expand_use(base, &rest[1..end].trim_end().trim_end_matches('}'), &mut refs);
+                    expand_use(base, rest[1..end].trim_end().trim_end_matches('}'), &mut refs);
                     continue;
                 }
                 let path: String = rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':').collect();

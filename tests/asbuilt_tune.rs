@@ -10,7 +10,8 @@ use springfit::design::Design;
 use springfit::design::fit::FitSettings;
 use springfit::design::tolerance::{Distribution, ToleranceSpec};
 use springfit::elements::catalog::Catalog;
-use springfit::fit::run::{FitOutcome, fit};
+use springfit::fit::FitOutcome;
+use springfit::fit::run::fit;
 use springfit::numerics::rng::SplitMix64;
 use springfit::potential::Potential;
 

@@ -36,12 +36,18 @@ fn quick(design: &Design) -> FitSettings {
     }
 }
 
+/// The parts among `candidates` (every candidate in one family: a cam's columns are one part).
+fn grouping_of(candidates: &[Candidate]) -> springfit::elements::group::Grouping {
+    springfit::elements::group::Grouping::new(candidates.iter().map(|c| (c.family, &c.element)))
+}
+
 /// `tolerance = "none"` with the single exchange search (`restarts = 0`, `pair_swaps = false`)
 /// is the fit springfit made before the tolerance-aware fit and the restarts existed: the bill of
 /// materials of the default design matches, byte for byte, the one that version wrote
 /// (`tests/data/double_pendulum_nominal_bom.csv`, its first twelve columns: written by `springfit
 /// fit` at 805622f and rewritten once since, when crank offsets were wrapped into (−π, π], which
 /// merged duplicate crank phases and so changed the candidate set).
+
 #[test]
 fn tolerance_none_reproduces_the_nominal_fit() {
     // The reference was fitted with the paper catalogue, before the default design took the
@@ -93,7 +99,18 @@ fn expected_objective_matches_monte_carlo_builds() {
     let t = 0.01;
     let dist = Distribution::Uniform;
     let sigma2 = vec![dist.variance(t); candidates.len()];
-    let sp = spread(chain, &o.training, spacing, &candidates, &problem.rows, springs, &sigma2, omega, ode).unwrap();
+    let sp = spread(
+        chain,
+        &o.training,
+        spacing,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        springs,
+        &sigma2,
+        omega,
+        ode,
+    )
+    .unwrap();
     let predicted: f64 = sp.rows.iter().zip(k.iter()).map(|(d, k)| d * k * k).sum();
     let expected = r0.norm_squared() + predicted;
     // The model the design notes warn against: rows about the old equilibrium.
@@ -178,7 +195,7 @@ tolerance = 0.05
         ..quick(&design)
     };
     let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
-    let groups = springfit::asbuilt::bom_cam_groups(&o.bom);
+    let groups = springfit::asbuilt::bom_groups(&o.bom);
     let cam_rows = groups.iter().filter(|g| g.is_some()).count();
     assert!(cam_rows >= 4, "the cam uses {cam_rows} basis columns");
     assert!(groups.iter().flatten().all(|&g| g == 0), "one cam: {groups:?}");
@@ -203,7 +220,18 @@ tolerance = 0.05
     let dist = Distribution::Uniform;
     // Only the cam deviates, so that its share of the spread is all there is to see.
     let sigma2: Vec<f64> = groups.iter().map(|g| if g.is_some() { dist.variance(t) } else { 0.0 }).collect();
-    let sp = spread(chain, &o.training, spacing, &candidates, &problem.rows, springs, &sigma2, omega, ode).unwrap();
+    let sp = spread(
+        chain,
+        &o.training,
+        spacing,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        springs,
+        &sigma2,
+        omega,
+        ode,
+    )
+    .unwrap();
     assert_eq!(sp.blocks.len(), 1);
     assert_eq!(sp.blocks[0].columns.len(), cam_rows);
     assert!(sp.blocks[0].columns.iter().all(|&j| sp.rows[j] == 0.0 && sp.shift[j] == 0.0));
@@ -256,7 +284,7 @@ fn the_preload_bound_holds() {
     let (design, catalog) = load("double_pendulum");
     let base = FitSettings { tolerance: ToleranceSpec::None, max_elements: 0, ..quick(&design) };
     let free = fit(&design, &catalog, &base, &|_| {}).unwrap();
-    let total = |o: &springfit::fit::run::FitOutcome| o.bom.iter().map(|r| r.preload_nm.unwrap().abs()).sum::<f64>();
+    let total = |o: &springfit::fit::FitOutcome| o.bom.iter().map(|r| r.preload_nm.unwrap().abs()).sum::<f64>();
     let q_eq = design.q_eq.as_slice();
     for r in &free.bom {
         assert_eq!(r.preload_nm, Some(r.element.preload(r.stiffness, q_eq)));
@@ -336,9 +364,28 @@ fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
     let dist = Distribution::Uniform;
     let sigma2 = vec![dist.variance(t); candidates.len()];
     let jac = base_jacobian(chain, &o.training, spacing, springs, omega, ode).unwrap();
-    let trimmed =
-        trimmed_spread(chain, &o.training, &candidates, &problem.rows, &rest, &trims, &sigma2, omega, &jac).unwrap();
-    let untrimmed = spread_with(chain, &o.training, &candidates, &problem.rows, springs, &sigma2, &jac).unwrap();
+    let trimmed = trimmed_spread(
+        chain,
+        &o.training,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        &rest,
+        &trims,
+        &sigma2,
+        omega,
+        &jac,
+    )
+    .unwrap();
+    let untrimmed = spread_with(
+        chain,
+        &o.training,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        springs,
+        &sigma2,
+        &jac,
+    )
+    .unwrap();
     let predicted = BuildPenalty::of(&trimmed, 1.0, 0.0).value(k.as_slice());
     let untrimmed_predicted = BuildPenalty::of(&untrimmed, 1.0, 0.0).value(k.as_slice());
 
@@ -454,7 +501,7 @@ trim_range = [0.0, 4.0]
         stiffness: (0..is_trim.len()).filter(|&j| is_trim[j] == trim).map(|j| springs.stiffness[j]).collect(),
     };
     let (rest, trims) = (pick(false), pick(true));
-    let groups = springfit::asbuilt::bom_cam_groups(&o.bom);
+    let groups = springfit::asbuilt::bom_groups(&o.bom);
     // The trims come last in the bill of materials: the rest's rows are its first rows.
     let cam: Vec<bool> = groups.iter().take(rest.elements.len()).map(|g| g.is_some()).collect();
     assert!(cam.iter().filter(|c| **c).count() >= 4, "the cam's basis columns: {groups:?}");
@@ -474,9 +521,28 @@ trim_range = [0.0, 4.0]
     let dist = Distribution::Uniform;
     let sigma2: Vec<f64> = cam.iter().map(|&c| if c { dist.variance(t) } else { 0.0 }).collect();
     let jac = base_jacobian(chain, &o.training, spacing, springs, omega, ode).unwrap();
-    let trimmed =
-        trimmed_spread(chain, &o.training, &candidates, &problem.rows, &rest, &trims, &sigma2, omega, &jac).unwrap();
-    let untrimmed = spread_with(chain, &o.training, &candidates, &problem.rows, springs, &sigma2, &jac).unwrap();
+    let trimmed = trimmed_spread(
+        chain,
+        &o.training,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        &rest,
+        &trims,
+        &sigma2,
+        omega,
+        &jac,
+    )
+    .unwrap();
+    let untrimmed = spread_with(
+        chain,
+        &o.training,
+        (&candidates, &grouping_of(&candidates)),
+        &problem.rows,
+        springs,
+        &sigma2,
+        &jac,
+    )
+    .unwrap();
     assert_eq!(trimmed.blocks.len(), 1);
     let predicted = BuildPenalty::of(&trimmed, 1.0, 0.0).value(k.as_slice());
     let untrimmed_predicted = BuildPenalty::of(&untrimmed, 1.0, 0.0).value(k.as_slice());

@@ -219,27 +219,11 @@ pub fn draw(bom: &[BomRow], s: &BuildSettings, index: usize) -> Vec<f64> {
     factors(bom, |r| s.tolerance.for_element(r.tolerance), s.distribution, &mut rng)
 }
 
-/// The cam each BOM row belongs to (numbered in order of appearance), None for springs: rows
-/// of one family on one coupling with one knot spacing ([`crate::fit::run::cam_groups`]).
-pub fn bom_cam_groups(bom: &[BomRow]) -> Vec<Option<usize>> {
-    let mut families: Vec<&str> = Vec::new();
-    let candidates: Vec<crate::elements::catalog::Candidate> = bom
-        .iter()
-        .map(|r| {
-            let family = families.iter().position(|f| *f == r.family).unwrap_or_else(|| {
-                families.push(&r.family);
-                families.len() - 1
-            });
-            crate::elements::catalog::Candidate {
-                element: r.element.clone(),
-                family,
-                max_stiffness: None,
-                stock_rates: Vec::new(),
-                tolerance: r.tolerance,
-            }
-        })
-        .collect();
-    crate::fit::run::cam_groups(&candidates)
+/// The part each BOM row belongs to (numbered in order of appearance), None for a row that is a
+/// part of its own: rows of one family on one coupling with one shape
+/// ([`crate::elements::group::Grouping`]), a cam's coefficient rows.
+pub fn bom_groups(bom: &[BomRow]) -> Vec<Option<usize>> {
+    crate::elements::group::Grouping::new(bom.iter().map(|r| (r.family.as_str(), &r.element))).of
 }
 
 /// The stiffness factors 1 + t_j u of one build, rows in order, u ∈ [−1, 1] drawn from `rng` by
@@ -252,7 +236,7 @@ pub fn factors(
     distribution: Distribution,
     rng: &mut SplitMix64,
 ) -> Vec<f64> {
-    let groups = bom_cam_groups(bom);
+    let groups = bom_groups(bom);
     let mut drawn: Vec<Option<f64>> = Vec::new();
     bom.iter()
         .zip(&groups)
@@ -417,7 +401,7 @@ impl Brief {
 /// The as-built figures of a fit at the fit's tolerance settings (`[fit] tolerance`,
 /// `distribution`, `builds`, `seed`); None when there is nothing to draw (tolerance `"none"` and
 /// no catalogue tolerance, or `builds = 0`).
-pub fn of_fit(design: &Design, fit: &crate::fit::run::FitOutcome) -> Result<Option<AsBuilt>> {
+pub fn of_fit(design: &Design, fit: &crate::fit::FitOutcome) -> Result<Option<AsBuilt>> {
     let st = &fit.settings;
     let Some(tolerance) = effective_tolerance(st.tolerance, &fit.bom) else { return Ok(None) };
     if st.builds == 0 || fit.bom.is_empty() {

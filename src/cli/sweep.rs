@@ -8,7 +8,8 @@ use springfit::design::Design;
 use springfit::dynamics::scenario::label_source;
 use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
-use springfit::fit::run::{FitOutcome, fit};
+use springfit::fit::FitOutcome;
+use springfit::fit::run::fit;
 use springfit::report::output::OutputDir;
 use springfit::studies::sweep::{ItemResult, SweepContext, kappa, parse_shard, plan, shard_indices, tables};
 

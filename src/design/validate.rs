@@ -216,6 +216,22 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
     }
 }
 
+/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
+/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
+pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
+    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
+        return Err(Error::invalid(
+            &design.path,
+            "fit.trimmed_weight",
+            format!(
+                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
+                catalog.path.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,20 +315,4 @@ radius = 2.0
         assert!(fields.contains(&"robot.links[1].com"), "{w:?}");
         assert!(validate(&design(BASE).unwrap()).unwrap().warnings.is_empty());
     }
-}
-
-/// `trimmed_weight` weighs trimmed builds: refused (naming the field) when the catalogue has no
-/// trim springs, where there is nothing to trim. `springfit check` refuses it too.
-pub fn check_trimmed_weight(design: &Design, catalog: &Catalog, settings: &FitSettings) -> Result<()> {
-    if settings.trimmed_weight > 0.0 && !catalog.families.iter().any(|f| f.trim_range.is_some()) {
-        return Err(Error::invalid(
-            &design.path,
-            "fit.trimmed_weight",
-            format!(
-                "weighs trimmed builds, but the catalogue {} has no trim springs (`trim = true`): set it to 0 or add trims",
-                catalog.path.display()
-            ),
-        ));
-    }
-    Ok(())
 }

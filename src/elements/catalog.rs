@@ -689,6 +689,14 @@ impl Catalog {
     }
 }
 
+impl Family {
+    /// The smoothing weight of the family's parts (its cams' `smoothing`); `auto` for a family
+    /// without parts (never asked).
+    pub fn smoothing(&self) -> Smoothing {
+        self.cam.map_or(Smoothing::Auto, |c| c.smoothing)
+    }
+}
+
 impl Catalog {
     /// The trim springs of the catalogue's trim families: one per listed coupling, linear,
     /// relaxed at `q_eq`.

@@ -20,6 +20,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 pub mod catalog;
+pub mod group;
 pub mod spline;
 pub mod trim;
 

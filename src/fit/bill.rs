@@ -4,10 +4,12 @@
 //! set after assembly). `files::bom` writes it as `bom.csv` (a cam collapsed into one row and its
 //! file) and reads it back bit for bit.
 
+use super::problem::mid_range;
 use crate::design::Design;
-use crate::elements::Element;
-use crate::elements::catalog::{Catalog, TrimSpring};
+use crate::elements::catalog::{Candidate, Catalog};
+use crate::elements::group::Grouping;
 use crate::elements::spline::Knots;
+use crate::elements::{Element, Profile};
 use crate::geodesic::Fan;
 use crate::potential::SpringSet;
 use crate::realise::cam::{CamBuild, DEFAULT_REALISATION, FittedCam, Realisation, realise};
@@ -98,7 +100,7 @@ pub fn fingerprint(set: &SpringSet) -> String {
 /// The cams of a bill of materials: rows `Cnn.jj±` grouped by `Cnn`, coefficients summed with
 /// their signs, realised with their family's settings (defaults when the family is unknown, as
 /// for a bill of materials read back without its catalogue).
-pub fn fitted_cams(catalog: &crate::elements::catalog::Catalog, rows: &[crate::fit::bill::BomRow]) -> Vec<FittedCam> {
+pub fn fitted_cams(catalog: &Catalog, rows: &[BomRow]) -> Vec<FittedCam> {
     let mut cams = grouped(rows);
     for c in &mut cams {
         let spec = catalog.families.iter().find(|f| f.name == c.family).and_then(|f| f.cam);
@@ -112,7 +114,7 @@ pub fn fitted_cams(catalog: &crate::elements::catalog::Catalog, rows: &[crate::f
 
 /// The cams of a bill of materials grouped as in [`fitted_cams`], in order of first appearance,
 /// not yet realised (`realisation.points` empty).
-pub fn grouped(rows: &[crate::fit::bill::BomRow]) -> Vec<FittedCam> {
+pub fn grouped(rows: &[BomRow]) -> Vec<FittedCam> {
     let mut cams: Vec<FittedCam> = Vec::new();
     for r in rows {
         let crate::elements::Profile::Spline(b) = r.element.profile else { continue };
@@ -150,17 +152,6 @@ pub fn grouped(rows: &[crate::fit::bill::BomRow]) -> Vec<FittedCam> {
         }
     }
     cams
-}
-
-/// The catalogue's trim springs at their mid-range rates (room to trim both ways), relaxed at
-/// q_eq: the part of the potential the fit holds fixed (see `fit::problem::fold_fixed`).
-pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet) {
-    let trims = catalog.trims(q_eq);
-    let springs = SpringSet {
-        elements: trims.iter().map(|t| t.element.clone()).collect(),
-        stiffness: trims.iter().map(|t| 0.5 * (t.range[0] + t.range[1])).collect(),
-    };
-    (trims, springs)
 }
 
 /// Appends the catalogue's trim springs, at mid-range, to a fitted bill of materials.
@@ -206,4 +197,122 @@ pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluat
             cam: None,
         });
     }
+}
+
+/// The used elements as bill-of-materials rows: every element whose peak torque over the region
+/// is above `threshold` × the largest, and every column of a group with k > 0 (a part's
+/// columns only make sense together). Springs are numbered `S01`, …; a group's rows
+/// `C01.07+` (the group's id, the coefficient, the sign).
+pub fn bill_of_materials(
+    catalog: &Catalog,
+    candidates: &[Candidate],
+    grouping: &Grouping,
+    k: &[f64],
+    evaluation: &Fan,
+    q_eq: &[f64],
+    threshold: f64,
+) -> Vec<BomRow> {
+    // A group's + and − columns become one signed coefficient cⱼ = k⁺ − k⁻ on the column of its
+    // sign, as `bom.csv` writes it: the set evaluated below is the one its files rebuild. (The
+    // solve already leaves one of each pair at zero; then this changes no bit.)
+    let mut k = k.to_vec();
+    for (j, n) in grouping.minus_of().into_iter().enumerate() {
+        if let Some(n) = n {
+            if k[j] > 0.0 && k[n] > 0.0 {
+                let c = k[j] - k[n];
+                k[j] = c.max(0.0);
+                k[n] = (-c).max(0.0);
+            }
+        }
+    }
+    let k = k.as_slice();
+    // Peak torque on x and engaged deflection of each candidate over the region.
+    let peaks: Vec<(f64, f64)> = candidates
+        .iter()
+        .zip(k)
+        .map(|(c, &kj)| {
+            let e = &c.element;
+            let mut torque: f64 = 0.0;
+            let mut defl: f64 = 0.0;
+            let mut visit = |q: &[f64]| {
+                let d = e.deflection(q);
+                let slope = e.profile.slope(d);
+                torque = torque.max((kj * slope).abs());
+                if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
+                    defl = defl.max(d.abs());
+                }
+            };
+            visit(q_eq);
+            for g in &evaluation.geodesics {
+                for i in 0..g.len() {
+                    visit(g.q(i));
+                }
+            }
+            (torque, defl)
+        })
+        .collect();
+    let max_peak = peaks.iter().map(|p| p.0).fold(0.0, f64::max);
+    let in_group = |j: usize| grouping.of[j].is_some();
+    let used: Vec<usize> =
+        (0..candidates.len()).filter(|&j| k[j] > 0.0 && (in_group(j) || peaks[j].0 > threshold * max_peak)).collect();
+    let coefficient = grouping.coefficient_of();
+    used.iter()
+        .enumerate()
+        .map(|(i, &j)| {
+            let c = &candidates[j];
+            let stock_rate = nearest(&c.stock_rates, k[j]);
+            let id = match (grouping.of[j], coefficient[j]) {
+                (Some(g), Some((c, negative))) => {
+                    format!("{}.{c:02}{}", grouping.groups[g].id(g), if negative { "-" } else { "+" })
+                }
+                _ => format!("S{:02}", i + 1),
+            };
+            BomRow {
+                id,
+                family: catalog.families[c.family].name.clone(),
+                element: c.element.clone(),
+                stiffness: k[j],
+                max_torque_nm: peaks[j].0,
+                max_deflection_rad: peaks[j].1,
+                stock_rate,
+                tolerance: c.tolerance,
+                preload_nm: Some(c.element.preload(k[j], q_eq)),
+                adjust: Adjustment { adjust_range: catalog.families[c.family].adjust_range, trim_range: None },
+                cam: None,
+            }
+        })
+        .collect()
+}
+
+/// Gives each cam coefficient row its cam's [`CamSummary`]: the build, the largest
+/// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
+pub fn summarise_cams(bom: &mut [BomRow], cams: &[FittedCam], evaluation: &Fan, q_eq: &[f64]) {
+    for cam in cams {
+        let torque = |q: &[f64]| {
+            let x: f64 = cam.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
+            cam.knots.eval(&cam.coefficients, x).1
+        };
+        let preload = torque(q_eq);
+        let mut peak = preload.abs();
+        for g in &evaluation.geodesics {
+            for i in 0..g.len() {
+                peak = peak.max(torque(g.q(i)).abs());
+            }
+        }
+        let summary = crate::fit::bill::CamSummary {
+            build: cam.realisation.build,
+            max_torque_nm: peak,
+            preload_nm: Some(preload),
+        };
+        for r in bom.iter_mut().filter(|r| {
+            matches!(r.element.profile, Profile::Spline(_)) && r.id.split('.').next() == Some(cam.id.as_str())
+        }) {
+            r.cam = Some(summary);
+        }
+    }
+}
+
+/// The stock rate nearest to `k` in ratio (rates are usually geometric series).
+pub fn nearest(rates: &[f64], k: f64) -> Option<f64> {
+    rates.iter().copied().min_by(|a, b| (a / k).ln().abs().total_cmp(&(b / k).ln().abs()))
 }

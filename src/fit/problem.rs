@@ -20,8 +20,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::elements::catalog::Candidate;
+use crate::elements::catalog::{Catalog, TrimSpring};
 use crate::geodesic::Fan;
 use crate::model::Chain;
+use crate::potential::SpringSet;
 pub use crate::solve::LinearGroup;
 
 /// The assembled fit problem.
@@ -228,6 +230,33 @@ pub fn fold_fixed(
     for (g, gf) in problem.inequalities.iter_mut().zip(&f.inequalities) {
         g.rhs -= &gf.matrix * &k;
     }
+}
+
+/// The arm a solve describes: the candidates with k > 0 and the trims at their fixed rates (the
+/// fit was solved around them).
+pub fn arm(candidates: &[Candidate], k: &[f64], trims: &SpringSet) -> SpringSet {
+    let used: Vec<usize> = (0..k.len()).filter(|&j| k[j] > 0.0).collect();
+    SpringSet {
+        elements: used.iter().map(|&j| candidates[j].element.clone()).chain(trims.elements.iter().cloned()).collect(),
+        stiffness: used.iter().map(|&j| k[j]).chain(trims.stiffness.iter().copied()).collect(),
+    }
+}
+
+/// Preload per unit stiffness of each candidate: u′(a·q_eq − x₀), the torque on its coordinate
+/// at the equilibrium (signed). The preload of an element is k times this.
+pub fn unit_preloads(candidates: &[Candidate], q_eq: &[f64]) -> Vec<f64> {
+    candidates.iter().map(|c| c.element.profile.slope(c.element.deflection(q_eq))).collect()
+}
+
+/// The catalogue's trim springs at their mid-range rates (room to trim both ways), relaxed at
+/// q_eq: the part of the potential the fit holds fixed (see `fit::problem::fold_fixed`).
+pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet) {
+    let trims = catalog.trims(q_eq);
+    let springs = SpringSet {
+        elements: trims.iter().map(|t| t.element.clone()).collect(),
+        stiffness: trims.iter().map(|t| 0.5 * (t.range[0] + t.range[1])).collect(),
+    };
+    (trims, springs)
 }
 
 #[cfg(test)]

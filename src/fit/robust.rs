@@ -64,6 +64,7 @@ use rayon::prelude::*;
 
 use super::problem::{Requirements, assemble};
 use crate::elements::catalog::Candidate;
+use crate::elements::group::Columns;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, MetricFrame, Shooter, Stop};
 use crate::model::Chain;
@@ -231,14 +232,13 @@ pub fn base_jacobian(
 /// weighted rows (one column per candidate; rows past the training rows, such as the cams'
 /// smoothing penalty, are ignored), `nominal` the nominal fit's spring set whose rows define J
 /// and whose Hessian at q_eq is H, `sigma2[i]` the variance of candidate i's deviation. The
-/// columns of one cam ([`super::run::cam_groups`]) share one deviation, with the variance of its
-/// first column.
+/// columns of one group (`grouping`) share one deviation, with the variance of its first column.
 #[allow(clippy::too_many_arguments)]
 pub fn spread(
     chain: &Chain,
     training: &Fan,
     spacing: f64,
-    candidates: &[Candidate],
+    (candidates, grouping): Columns<'_>,
     rows: &DMatrix<f64>,
     nominal: &SpringSet,
     sigma2: &[f64],
@@ -246,7 +246,7 @@ pub fn spread(
     ode: OdeSettings,
 ) -> Result<Spread> {
     let jac = base_jacobian(chain, training, spacing, nominal, omega, ode)?;
-    spread_with(chain, training, candidates, rows, nominal, sigma2, &jac)
+    spread_with(chain, training, (candidates, grouping), rows, nominal, sigma2, &jac)
 }
 
 /// [`spread`] with J = [`base_jacobian`] of `nominal` already computed (the trimmed model shares
@@ -254,7 +254,7 @@ pub fn spread(
 pub fn spread_with(
     chain: &Chain,
     training: &Fan,
-    candidates: &[Candidate],
+    (candidates, grouping): Columns<'_>,
     rows: &DMatrix<f64>,
     nominal: &SpringSet,
     sigma2: &[f64],
@@ -280,7 +280,7 @@ pub fn spread_with(
         }
         (col - &jh * &g, &h_inv * &g)
     };
-    Ok(assemble_spread(candidates, sigma2, &m_eq, column))
+    Ok(assemble_spread((candidates, grouping), sigma2, &m_eq, column))
 }
 
 /// The training rows of the fit's weighted rows (the rows J was taken of; later rows, such as
@@ -298,12 +298,12 @@ fn training_rows(rows: &DMatrix<f64>, jac: &DMatrix<f64>) -> Result<DMatrix<f64>
 /// The diagonal and the cam blocks from each candidate's change of the rows per unit δᵢ kᵢ and
 /// its shift of the equilibrium, `column(i)` = (uᵢ, H⁻¹ gᵢ).
 fn assemble_spread(
-    candidates: &[Candidate],
+    (candidates, grouping): Columns<'_>,
     sigma2: &[f64],
     m_eq: &DMatrix<f64>,
     column: impl Fn(usize) -> (DVector<f64>, DVector<f64>),
 ) -> Spread {
-    let groups = super::run::cam_groups(candidates);
+    let groups = &grouping.of;
     let mut d_rows = DVector::zeros(candidates.len());
     let mut d_shift = DVector::zeros(candidates.len());
     for (i, _) in candidates.iter().enumerate() {
@@ -314,10 +314,9 @@ fn assemble_spread(
         d_rows[i] = sigma2[i] * v.norm_squared();
         d_shift[i] = sigma2[i] * h.dot(&(m_eq * &h));
     }
-    let n_groups = groups.iter().flatten().max().map_or(0, |g| g + 1);
     let mut blocks = Vec::new();
-    for g in 0..n_groups {
-        let columns: Vec<usize> = (0..candidates.len()).filter(|&j| groups[j] == Some(g)).collect();
+    for group in &grouping.groups {
+        let columns = group.columns.clone();
         let s2 = sigma2[columns[0]];
         if s2 == 0.0 {
             continue;
@@ -345,7 +344,7 @@ pub const HESSIAN_STEP: f64 = 1e-5;
 pub fn trimmed_spread(
     chain: &Chain,
     training: &Fan,
-    candidates: &[Candidate],
+    (candidates, grouping): Columns<'_>,
     rows: &DMatrix<f64>,
     rest: &SpringSet,
     trims: &SpringSet,
@@ -422,5 +421,5 @@ pub fn trimmed_spread(
         }
         (u, h)
     };
-    Ok(assemble_spread(candidates, sigma2, &m_eq, column))
+    Ok(assemble_spread((candidates, grouping), sigma2, &m_eq, column))
 }

@@ -8,7 +8,7 @@ use super::plot::render;
 use crate::design::Design;
 use crate::error::Result;
 use crate::files::bom;
-use crate::fit::run::{FitOutcome, Timings};
+use crate::fit::{FitOutcome, Timings};
 use crate::potential::{ExactPotential, Potential};
 use crate::residual::{AngleSample, AngleStats, BandStats};
 

@@ -54,8 +54,41 @@ pub fn nnls_warm(gram: &Gram, l1: f64, settings: &NnlsSettings, passive_start: &
     nnls_signed(gram, l1, settings, passive_start, &[])
 }
 
-/// [`nnls_warm`] with some unknowns free of sign (`free[j]`; an empty slice means none): a cam's
-/// B-spline coefficients. Free unknowns are passive from the start and never leave the passive
+/// NNLS with upper bounds by clamp-and-refit: unknowns above their bound are fixed at it and the
+/// rest refitted, until none exceeds its bound. Not the exact bounded optimum in general (the QP
+/// gives that) but it never violates a bound and equals NNLS when no bound is active.
+///
+/// `signed[j]`: unknown j is free of sign (a group's coefficient); its bound u means |k| ≤ u and
+/// it is clamped at ±u.
+pub fn nnls_bounded(gram: &Gram, l1: f64, upper: &[Option<f64>], signed: &[bool]) -> Result<DVector<f64>> {
+    let p = gram.dim();
+    let mut fixed: Vec<usize> = Vec::new();
+    let mut values: Vec<f64> = Vec::new();
+    loop {
+        let free: Vec<usize> = (0..p).filter(|j| !fixed.contains(j)).collect();
+        let free_signed: Vec<bool> = free.iter().map(|&j| signed[j]).collect();
+        let sol = nnls_signed(&gram.fix(&free, &fixed, &values), l1, &NnlsSettings::default(), &[], &free_signed)?;
+        let mut k = DVector::zeros(p);
+        for (a, &j) in free.iter().enumerate() {
+            k[j] = sol.k[a];
+        }
+        for (&j, v) in fixed.iter().zip(&values) {
+            k[j] = *v;
+        }
+        let over: Vec<usize> = free.iter().copied().filter(|&j| upper[j].is_some_and(|u| k[j].abs() > u)).collect();
+        if over.is_empty() {
+            return Ok(k);
+        }
+        let mut pairs: Vec<(usize, f64)> = fixed.iter().copied().zip(values.iter().copied()).collect();
+        pairs.extend(over.iter().map(|&j| (j, upper[j].unwrap_or(0.0).copysign(k[j]))));
+        pairs.sort_unstable_by_key(|&(j, _)| j);
+        fixed = pairs.iter().map(|&(j, _)| j).collect();
+        values = pairs.iter().map(|&(_, v)| v).collect();
+    }
+}
+
+/// [`nnls_warm`] with some unknowns free of sign (`free[j]`; an empty slice means none): a group's
+/// signed coefficients (a cam's B-spline coefficients). Free unknowns are passive from the start and never leave the passive
 /// set, so Lawson–Hanson's steps only ever clamp the sign-constrained ones: with springs absent
 /// this is one linear solve. The L1 weight applies to the sign-constrained unknowns only (on a
 /// free one it would not be linear); cams are regularised by their smoothing penalty instead.

@@ -11,7 +11,8 @@ use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
-use crate::fit::run::{FitOutcome, Prepared, fit};
+use crate::fit::run::fit;
+use crate::fit::{FitOutcome, Prepared};
 use crate::geodesic::Region;
 use crate::residual::AngleStats;
 

@@ -1,0 +1,113 @@
+//! What a fit returns: the bill of materials and spring set, the evaluation on held-out
+//! geodesics, how the solve went and how long each step took.
+
+use serde::Serialize;
+
+use crate::design::fit::FitSettings;
+use crate::elements::group::Grouping;
+use crate::fit::bill::BomRow;
+use crate::geodesic::{Fan, RegionReport};
+use crate::potential::SpringSet;
+use crate::residual::{AngleSample, AngleStats, BandStats};
+/// Wall-clock seconds per step.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Region check and fans.
+    pub geodesics: f64,
+    /// Candidates and problem assembly.
+    pub assemble: f64,
+    /// Solve and selection.
+    pub solve: f64,
+    /// Evaluation on the held-out fan.
+    pub evaluate: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// How the stiffnesses were found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolveReport {
+    /// `nnls`, `qp` or `exact`.
+    pub solver: String,
+    /// `solved`, `almost_solved` (QP at reduced accuracy) or `reference` (exact potential).
+    pub status: String,
+    /// Sparse selection: subset refits performed (0 without a limit).
+    pub selection_evaluations: usize,
+    /// Sparse selection: exchange moves accepted.
+    pub selection_swaps: usize,
+    /// QP: cutting-plane rounds for monotonicity.
+    pub cut_rounds: usize,
+    /// With a tolerance: the term the tolerance-aware fit adds for the final stiffnesses,
+    /// λ (Σᵢ Dᵢᵢ kᵢ² + Σ_cams k_gᵀ B_g k_g) (+ the shift penalty); with λ = 1 and no shift weight, the predicted mean
+    /// squared change of the training rows of a build about its own equilibrium. None without
+    /// a tolerance.
+    pub expected_build_spread: Option<f64>,
+}
+
+/// How well a potential does on the held-out evaluation fan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evaluation {
+    /// Residual angles on the evaluation fan.
+    pub residuals: Vec<AngleSample>,
+    /// Their statistics.
+    pub stats: AngleStats,
+    /// Statistics by distance band.
+    pub bands: Vec<BandStats>,
+    /// |∂U/∂q(q_eq)| in N·m (total potential).
+    pub equilibrium_gradient_norm: f64,
+    /// ‖∇²U(q_eq) − ω² M(q_eq)‖_F / ‖ω² M(q_eq)‖_F.
+    pub hessian_rel_error: f64,
+    /// Evaluation samples where U decreases along the geodesic (∂U/∂q·γ̇ < 0).
+    pub monotone_violations: usize,
+}
+
+/// The outcome of a fit.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// Design name.
+    pub design: String,
+    /// Joints.
+    pub dof: usize,
+    /// Catalogue name (`exact` for the reference).
+    pub catalog: String,
+    /// Settings used.
+    pub settings: FitSettings,
+    /// Candidates after expansion (before dropping).
+    pub candidates: usize,
+    /// Candidates dropped because they never engage in the region.
+    pub dropped: usize,
+    /// The bill of materials (empty for the exact reference).
+    pub bom: Vec<BomRow>,
+    /// Stock rates the catalogue offers, by family name (for snapping).
+    pub stock_rates: std::collections::BTreeMap<String, Vec<f64>>,
+    /// The fitted spring set (the BOM's elements and stiffnesses).
+    pub springs: SpringSet,
+    /// The fitted cams, realised (empty without cams).
+    pub cams: Vec<crate::realise::cam::FittedCam>,
+    /// Residuals and checks on the held-out fan.
+    pub metrics: Evaluation,
+    /// How the solve went.
+    pub solve: SolveReport,
+    /// Time per step.
+    pub timings: Timings,
+    /// The region check.
+    pub region: RegionReport,
+    /// The training fan.
+    pub training: Fan,
+    /// The held-out evaluation fan.
+    pub evaluation: Fan,
+}
+
+impl FitOutcome {
+    /// Number of elements used: the rows of `bom.csv`, a part (a cam) counting as one (as for
+    /// `max_elements`) however many coefficients it has.
+    pub fn used(&self) -> usize {
+        let grouping = Grouping::new(self.bom.iter().map(|r| (r.family.as_str(), &r.element)));
+        grouping.of.iter().filter(|g| g.is_none()).count() + grouping.groups.len()
+    }
+
+    /// What [`FitOutcome::used`] counts, in words: `springs`, or `elements (N cams)` with cams.
+    pub fn used_noun(&self) -> String {
+        if self.cams.is_empty() { "springs".into() } else { format!("elements ({} cams)", self.cams.len()) }
+    }
+}

@@ -1,0 +1,321 @@
+//! The fit up to the solve: the region check, the training and held-out fans, the candidates the
+//! catalogue expands into over the range each coupling sweeps (those that never engage dropped),
+//! their grouping into parts, and the problem assembled on the training fan with the trims folded
+//! in and the groups' smoothing added.
+
+use std::time::Instant;
+
+use super::problem::{FitProblem, Requirements, arm, assemble, fold_fixed, mid_range};
+use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
+use super::smoothing::{append_rows, group_smoothing};
+use crate::design::Design;
+use crate::design::fit::FitSettings;
+use crate::design::validate::check_trimmed_weight;
+use crate::elements::catalog::{Candidate, Catalog};
+use crate::elements::group::Grouping;
+use crate::error::{Error, Result};
+use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
+use crate::potential::SpringSet;
+use crate::solve::lsq::Gram;
+
+/// A fit up to the solve: region, fans, candidates and the assembled problem. One preparation
+/// serves several solves that differ only in solver settings (the spring budgets of a Pareto
+/// sweep).
+pub struct Prepared<'a> {
+    pub(super) design: &'a Design,
+    pub(super) catalog: &'a Catalog,
+    pub(super) region: RegionReport,
+    pub(super) training: Fan,
+    pub(super) evaluation: Fan,
+    /// The candidates that engage somewhere in the region.
+    pub(super) candidates: Vec<Candidate>,
+    /// Which candidates are one part (a cam's basis columns).
+    pub(super) grouping: Grouping,
+    /// Candidates the catalogue expanded into, before dropping those that never engage.
+    pub(super) n_expanded: usize,
+    pub(super) problem: FitProblem,
+    /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
+    pub(super) trims: SpringSet,
+    /// Normal equations of `problem.rows` (built once: every solve and the smoothing choice
+    /// start from it).
+    pub(super) gram: Gram,
+    /// Seconds spent on the region check and the fans, and on the assembly.
+    pub(super) t_geo: f64,
+    pub(super) t_asm: f64,
+}
+
+impl<'a> Prepared<'a> {
+    /// Checks the region, traces the fans, expands the catalogue and assembles the problem.
+    pub fn new(
+        design: &'a Design,
+        catalog: &'a Catalog,
+        settings: &FitSettings,
+        stage: &dyn Fn(&str),
+    ) -> Result<Prepared<'a>> {
+        settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
+        let t0 = Instant::now();
+        stage("checking the region");
+        let (region, training, evaluation) = fans(design, settings)?;
+        let t_geo = t0.elapsed().as_secs_f64();
+
+        stage("assembling the fit");
+        let t1 = Instant::now();
+        let q_eq = design.q_eq.as_slice();
+        let range = |a: &[f64]| {
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+            for g in training.geodesics.iter().chain(&evaluation.geodesics) {
+                for i in 0..g.len() {
+                    let x = at(g.q(i));
+                    lo = lo.min(x);
+                    hi = hi.max(x);
+                }
+            }
+            let x = at(q_eq);
+            (lo.min(x), hi.max(x))
+        };
+        let expanded = catalog.expand(q_eq, range);
+        let n_expanded = expanded.len();
+        let candidates: Vec<Candidate> =
+            expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
+        let grouping = Grouping::new(candidates.iter().map(|c| (c.family, &c.element)));
+        if candidates.is_empty() {
+            return Err(Error::invalid(
+                &catalog.path,
+                "family",
+                format!("none of the {n_expanded} candidate elements engages anywhere in the region: nothing to fit"),
+            ));
+        }
+        let req = Requirements {
+            omega: settings.frequency,
+            hessian_match: settings.hessian_match,
+            monotone: settings.monotone,
+        };
+        let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
+        let (_, trims) = mid_range(catalog, q_eq);
+        check_trimmed_weight(design, catalog, settings)?;
+        fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
+        // A group's columns are zero away from its part's support (a B-spline basis function
+        // spans four knot intervals): the sparse product skips the zeros.
+        let mut gram = if grouping.any() {
+            Gram::from_sparse_rows(&problem.rows, &problem.rhs)
+        } else {
+            Gram::from_rows(&problem.rows, &problem.rhs)
+        };
+        if grouping.any() {
+            stage("choosing the groups' smoothing");
+            let penalty = group_smoothing(
+                design,
+                catalog,
+                settings,
+                &candidates,
+                &grouping,
+                &problem,
+                &gram,
+                &trims,
+                region.extent,
+            )?;
+            gram.add_weighted(&penalty.0, &penalty.1, 1.0);
+            append_rows(&mut problem, &penalty);
+        }
+        let t_asm = t1.elapsed().as_secs_f64();
+        Ok(Prepared {
+            design,
+            catalog,
+            region,
+            training,
+            evaluation,
+            candidates,
+            grouping,
+            n_expanded,
+            problem,
+            trims,
+            gram,
+            t_geo,
+            t_asm,
+        })
+    }
+}
+
+impl Prepared<'_> {
+    /// What the tolerance-aware fit adds to the normal equations, from the nominal stiffnesses
+    /// `k`: the diagonal Dᵢᵢ of the springs and one block per group (one deviation per part),
+    /// plus the optional shift penalty (see `fit::robust`).
+    pub(super) fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<BuildPenalty> {
+        let design = self.design;
+        // The nominal potential includes the trims at mid-range (H and J are the whole arm's);
+        // the trims themselves spread nothing: they are set after the build.
+        let nominal = arm(&self.candidates, k, &self.trims);
+        let sigma2: Vec<f64> = self
+            .candidates
+            .iter()
+            .map(|c| settings.distribution.variance(settings.tolerance.for_element(c.tolerance)))
+            .collect();
+        let spacing = self.region.extent / settings.training_samples as f64;
+        let (chain, ode) = (&design.chain, design.geodesics.ode);
+        let jac = base_jacobian(chain, &self.training, spacing, &nominal, settings.frequency, ode)?;
+        let rows = &self.problem.rows;
+        let grouping = &self.grouping;
+        let sp = spread_with(chain, &self.training, (&self.candidates, grouping), rows, &nominal, &sigma2, &jac)?;
+        let m = rows.nrows() as f64;
+        let untrimmed = BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m);
+        if settings.trimmed_weight == 0.0 {
+            return Ok(untrimmed);
+        }
+        // Trimmed builds: the trims follow each build's equilibrium and are re-set there.
+        let rest = arm(&self.candidates, k, &SpringSet { elements: Vec::new(), stiffness: Vec::new() });
+        let (cands, omega) = (&self.candidates, settings.frequency);
+        let training = &self.training;
+        let tsp = trimmed_spread(chain, training, (cands, grouping), rows, &rest, &self.trims, &sigma2, omega, &jac)?;
+        Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
+    }
+}
+
+/// The region check and the two fans.
+pub(super) fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fan, Fan)> {
+    let region = design.valid_region()?;
+    let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
+    let ode = design.geodesics.ode;
+    let training = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: settings.training_directions,
+            phase: 0.0,
+            stop,
+            spacing: region.extent / settings.training_samples as f64,
+        },
+        ode,
+    )?;
+    // Held out: with the same count, phase ½ puts each direction halfway between two training
+    // ones; with another count, phase ½ of its own spacing never meets a training direction
+    // when the counts are multiples of each other (checked in tests).
+    let evaluation = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: settings.evaluation_directions,
+            phase: 0.5,
+            stop,
+            spacing: region.extent / settings.evaluation_samples as f64,
+        },
+        ode,
+    )?;
+    Ok((region, training, evaluation))
+}
+
+/// Whether a candidate's potential changes anywhere in the region (else it is dropped).
+fn engages(c: &Candidate, q_eq: &[f64], training: &Fan, evaluation: &Fan) -> bool {
+    let e = &c.element;
+    // A part's columns stand or fall together: its smoothing ties every coefficient to its
+    // neighbours, so none is dropped (a cam's knots span the fit's range anyway).
+    if e.profile.member().is_some() {
+        return true;
+    }
+    let (_, slope, curv) = e.profile.eval(e.deflection(q_eq));
+    if slope != 0.0 || curv != 0.0 {
+        return true;
+    }
+    training
+        .geodesics
+        .iter()
+        .chain(&evaluation.geodesics)
+        .any(|g| (0..g.len()).any(|i| e.profile.slope(e.deflection(g.q(i))) != 0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use nalgebra::{DMatrix, DVector};
+
+    use super::*;
+    use crate::fit::robust::rows_of;
+    use crate::potential::Potential;
+
+    /// The trims folded into the fit equal the problem with the trims as extra columns whose
+    /// contribution (column × mid-range rate) is subtracted by hand from every right-hand side:
+    /// rows, equilibrium, Hessian match and monotonicity. The fit solved around them (nominal
+    /// pass, then the tolerance-aware pass) holds ∇U(q_eq) = 0 and ∇²U(q_eq) = ω² M(q_eq) with
+    /// the trims in, and the folded residual is the whole arm's residual.
+    #[test]
+    fn trims_are_subtracted_from_every_right_hand_side_before_the_solve() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml");
+        let design = Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let settings = FitSettings {
+            training_directions: 24,
+            training_samples: 12,
+            evaluation_directions: 24,
+            evaluation_samples: 12,
+            restarts: 0,
+            pair_swaps: false,
+            builds: 0,
+            monotone: true,
+            ..design.fit
+        };
+        assert!(!settings.tolerance.is_none(), "the shipped design fits for a tolerance");
+        let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
+        let (trims, mid) = mid_range(&catalog, design.q_eq.as_slice());
+        assert_eq!(trims.len(), 3);
+
+        let mut all = prepared.candidates.clone();
+        all.extend(trims.iter().map(|t| Candidate {
+            element: t.element.clone(),
+            family: t.family,
+            max_stiffness: None,
+            stock_rates: Vec::new(),
+            tolerance: 0.0,
+        }));
+        let req = Requirements { omega: settings.frequency, hessian_match: true, monotone: true };
+        let full = assemble(&design.chain, &design.q_eq, &prepared.training, &all, req);
+        let p = prepared.candidates.len();
+        let by_hand = |m: &DMatrix<f64>, rhs: &DVector<f64>| -> DVector<f64> {
+            let mut r = rhs.clone();
+            for (i, k) in mid.stiffness.iter().enumerate() {
+                for row in 0..m.nrows() {
+                    r[row] -= m[(row, p + i)] * k;
+                }
+            }
+            r
+        };
+        let same = |a: &DVector<f64>, b: &DVector<f64>| (a - b).amax() <= 1e-12 * (1.0 + b.amax());
+        let prob = &prepared.problem;
+        assert_eq!(prob.rows, full.rows.columns(0, p).into_owned());
+        assert!(same(&prob.rhs, &by_hand(&full.rows, &full.rhs)));
+        assert_eq!(prob.equalities.len(), 2);
+        assert_eq!(prob.inequalities.len(), 1);
+        for (g, f) in
+            prob.equalities.iter().zip(&full.equalities).chain(prob.inequalities.iter().zip(&full.inequalities))
+        {
+            assert_eq!(g.matrix, f.matrix.columns(0, p).into_owned(), "{}", g.name);
+            assert!(same(&g.rhs, &by_hand(&f.matrix, &f.rhs)), "{}", g.name);
+        }
+        // The trims matter: unfolded, the Hessian match would be off by their stiffness.
+        let trims_hessian = full.equalities[1].matrix.columns(p, 3) * DVector::from_column_slice(&mid.stiffness);
+        assert!(trims_hessian.amax() > 0.01, "{trims_hessian}");
+
+        let o = prepared.solve(&settings, &|_| {}).unwrap();
+        assert!(o.solve.expected_build_spread.is_some());
+        assert_eq!(o.bom.iter().filter(|r| r.adjust.trim_range.is_some()).count(), 3);
+        let q = design.q_eq.as_slice();
+        let target = design.chain.mass_matrix(&design.q_eq) * settings.frequency.powi(2);
+        let h = o.springs.hessian(q).unwrap();
+        assert!((h - &target).norm() / target.norm() < 1e-8);
+        assert!(o.springs.gradient(q).unwrap().amax() < 1e-8 * target.norm());
+        let k: Vec<f64> = prepared
+            .candidates
+            .iter()
+            .map(|c| {
+                o.bom
+                    .iter()
+                    .find(|r| r.adjust.trim_range.is_none() && r.element == c.element)
+                    .map_or(0.0, |r| r.stiffness)
+            })
+            .collect();
+        let folded = &prob.rows * DVector::from_vec(k) - &prob.rhs;
+        let whole = rows_of(&design.chain, &prepared.training, &o.springs, settings.frequency);
+        assert!((&folded - &whole).amax() < 1e-6 * (1.0 + whole.amax()), "{}", (&folded - &whole).amax());
+    }
+}
