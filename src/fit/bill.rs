@@ -284,6 +284,14 @@ pub fn bill_of_materials(
         .collect()
 }
 
+/// The parts of a bill of materials realised (its cams: disc cams with their followers, from their
+/// families' settings), each of their rows given its part's summary ([`summarise_cams`]).
+pub fn realise_parts(catalog: &Catalog, bom: &mut [BomRow], evaluation: &Fan, q_eq: &[f64]) -> Vec<FittedCam> {
+    let cams = fitted_cams(catalog, bom);
+    summarise_cams(bom, &cams, evaluation, q_eq);
+    cams
+}
+
 /// Gives each cam coefficient row its cam's [`CamSummary`]: the build, the largest
 /// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
 pub fn summarise_cams(bom: &mut [BomRow], cams: &[FittedCam], evaluation: &Fan, q_eq: &[f64]) {

@@ -13,7 +13,7 @@
 
 use std::time::Instant;
 
-use super::bill::{append, bill_of_materials, fitted_cams, spring_set, summarise_cams};
+use super::bill::{append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::outcome::{Evaluation, FitOutcome, SolveReport, Timings};
 use super::prepare::{Prepared, fans};
@@ -64,8 +64,7 @@ impl Prepared<'_> {
         let springs = spring_set(&bom);
         let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
         let t_eval = t3.elapsed().as_secs_f64();
-        let cams = fitted_cams(catalog, &bom);
-        summarise_cams(&mut bom, &cams, &self.evaluation, q_eq);
+        let cams = realise_parts(catalog, &mut bom, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),
             dof: design.dof(),

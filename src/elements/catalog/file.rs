@@ -1,0 +1,208 @@
+//! The catalogue file as written: [`CatalogFile`] and its `[[family]]` tables mirror the TOML
+//! (`deny_unknown_fields`), with the few values that take more than one form (couplings, offsets,
+//! smoothing) read by hand; [`super::Catalog::from_file`] validates and resolves them.
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+use crate::units::Angle;
+
+/// The catalogue file as written.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CatalogFile {
+    /// Catalogue name (default: the file name without extension).
+    pub name: Option<String>,
+    /// One line about it.
+    pub description: Option<String>,
+    /// The families.
+    pub family: Vec<FamilySpec>,
+}
+
+/// `[[family]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FamilySpec {
+    /// A human name, printed in the bill of materials.
+    pub name: String,
+    /// `linear`, `cubic`, `crank` or `compression`.
+    pub profile: String,
+    /// For compression springs: `+`, `-` or `both` (default `both`).
+    #[serde(default)]
+    pub side: Option<String>,
+    /// Where the element can be mounted.
+    pub couplings: CouplingSpec,
+    /// Where its offset x₀ can be set (not for cams, whose knots follow the region).
+    #[serde(default)]
+    pub offsets: Option<OffsetSpec>,
+    /// The stiffness unit, to make the file self-explaining; checked against the profile.
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// Largest stiffness the family can provide, in the profile's unit.
+    #[serde(default)]
+    pub max_stiffness: Option<f64>,
+    /// Stiffness values a supplier sells, in the profile's unit.
+    #[serde(default)]
+    pub stock_rates: Vec<f64>,
+    /// ± fraction by which a built element's stiffness may deviate (0.1 = ±10 %).
+    #[serde(default)]
+    pub tolerance: f64,
+    /// Cams: number of uniform B-spline knots over the range x takes (default 30).
+    #[serde(default)]
+    pub knots: Option<usize>,
+    /// Cams: weight of the smoothing penalty ∫V‴² dx, a number ≥ 0 or `"auto"` (default).
+    #[serde(default)]
+    pub smoothing: Option<Smoothing>,
+    /// Cams: the knot span reaches this fraction of x's range beyond each end (default 0.05).
+    #[serde(default)]
+    pub margin: Option<f64>,
+    /// Cams: follower spring rate in N/mm (default: chosen so the stroke is `max_stroke`).
+    #[serde(default)]
+    pub follower_rate: Option<f64>,
+    /// Cams: largest follower stroke in mm when the rate is chosen (default 20).
+    #[serde(default)]
+    pub max_stroke: Option<f64>,
+    /// Cams: base-circle radius in mm (default 40).
+    #[serde(default)]
+    pub base_radius: Option<f64>,
+    /// Cams: roller radius in mm (default 8).
+    #[serde(default)]
+    pub roller_radius: Option<f64>,
+    /// Cams: largest pressure angle in degrees (default 30).
+    #[serde(default)]
+    pub max_pressure_angle: Option<f64>,
+    /// Whether the element's offset x₀ can be moved after assembly (needs `adjust_range`).
+    #[serde(default)]
+    pub adjustable: bool,
+    /// ± range in rad by which an adjustable element's offset can be moved.
+    #[serde(default)]
+    pub adjust_range: Option<f64>,
+    /// Whether the family lists trim springs: linear, relaxed at the equilibrium, rate set after
+    /// assembly within `trim_range` (needs `trim_range`).
+    #[serde(default)]
+    pub trim: bool,
+    /// [lo, hi] of a trim spring's rate, N·m/rad.
+    #[serde(default)]
+    pub trim_range: Option<[f64; 2]>,
+}
+
+/// The smoothing weight of a cam family: a number, or chosen on validation geodesics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub enum Smoothing {
+    /// Chosen among a few weights by the residuals on a validation fan (not the held-out one).
+    Auto,
+    /// This weight (relative: 1 weighs ∫(V‴/(ω² m̄))² dx over the span like all the tangentiality
+    /// rows together).
+    Weight(f64),
+}
+
+impl<'de> Deserialize<'de> for Smoothing {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Number(f64),
+        }
+        let msg = "smoothing must be a number ≥ 0 or \"auto\"";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "auto" => Ok(Smoothing::Auto),
+            Raw::Number(x) if x.is_finite() && x >= 0.0 => Ok(Smoothing::Weight(x)),
+            _ => Err(serde::de::Error::custom(msg)),
+        }
+    }
+}
+
+/// Where a family can be mounted.
+#[derive(Debug, Clone, Serialize)]
+pub enum CouplingSpec {
+    /// Every single joint (a = eᵢ).
+    Joints,
+    /// Every pair of adjacent joints (i, i+1) with each gear-ratio pattern (r₁, r₂):
+    /// a = r₁ eᵢ + r₂ eᵢ₊₁.
+    Pairs(Vec<[f64; 2]>),
+    /// Every pair of joints (i < j), adjacent or not, with each ratio pattern.
+    AllPairs(Vec<[f64; 2]>),
+    /// Explicit coupling vectors, one entry per joint.
+    List(Vec<Vec<f64>>),
+}
+
+impl<'de> Deserialize<'de> for CouplingSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PairsTable {
+            pairs: Vec<[f64; 2]>,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct AllPairsTable {
+            all_pairs: Vec<[f64; 2]>,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Pairs(PairsTable),
+            AllPairs(AllPairsTable),
+            List(Vec<Vec<f64>>),
+        }
+        let msg = "couplings must be \"joints\", { pairs = [[r1, r2], ...] } (adjacent joints), \
+                   { all_pairs = [[r1, r2], ...] } (every pair) or a list of coupling vectors such as [[1, 0], [1, -1]]";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "joints" => Ok(CouplingSpec::Joints),
+            Raw::Word(_) => Err(serde::de::Error::custom(msg)),
+            Raw::Pairs(p) => Ok(CouplingSpec::Pairs(p.pairs)),
+            Raw::AllPairs(p) => Ok(CouplingSpec::AllPairs(p.all_pairs)),
+            Raw::List(l) => Ok(CouplingSpec::List(l)),
+        }
+    }
+}
+
+/// Where a family's offsets can be set.
+#[derive(Debug, Clone, Serialize)]
+pub enum OffsetSpec {
+    /// x₀ = a·q_eq: the element is relaxed at the equilibrium.
+    Equilibrium,
+    /// `count` offsets evenly spaced over the range a·q takes in the region (ends included), plus
+    /// the equilibrium's a·q_eq when `equilibrium` is set.
+    Grid { count: usize, equilibrium: bool },
+    /// `count` phases evenly spaced over one turn starting at the equilibrium:
+    /// x₀ = a·q_eq + 2πk/count (for crank mechanisms, whose torque k sin(x − x₀) is periodic).
+    Phases { count: usize },
+    /// Explicit offsets in rad.
+    List(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for OffsetSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct GridTable {
+            grid: usize,
+            #[serde(default)]
+            equilibrium: bool,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct PhasesTable {
+            phases: usize,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Word(String),
+            Grid(GridTable),
+            Phases(PhasesTable),
+            List(Vec<Angle>),
+        }
+        let msg = "offsets must be \"equilibrium\", { grid = N } (optionally with equilibrium = true), \
+                   { phases = N } or a list of angles";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
+            Raw::Word(w) if w == "equilibrium" => Ok(OffsetSpec::Equilibrium),
+            Raw::Word(_) => Err(serde::de::Error::custom(msg)),
+            Raw::Grid(g) => Ok(OffsetSpec::Grid { count: g.grid, equilibrium: g.equilibrium }),
+            Raw::Phases(p) => Ok(OffsetSpec::Phases { count: p.phases }),
+            Raw::List(l) => Ok(OffsetSpec::List(l.into_iter().map(|a| a.0).collect())),
+        }
+    }
+}

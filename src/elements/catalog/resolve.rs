@@ -1,0 +1,343 @@
+//! Reading a catalogue: every family of the file validated (one error naming the file, the
+//! family and the key) and resolved for the robot (couplings for its joints, offsets, cam
+//! settings, trim ranges).
+
+use std::path::Path;
+
+use super::file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
+use super::*;
+use crate::error::{Error, Result};
+use crate::input::{parse_toml, read_text};
+
+impl Catalog {
+    /// Reads and validates a catalogue for a robot with `dof` joints.
+    pub fn load(path: &Path, dof: usize) -> Result<Catalog> {
+        Catalog::parse(path, &read_text(path)?, dof)
+    }
+
+    /// Parses and validates the text of a catalogue for a robot with `dof` joints (what
+    /// [`Catalog::load`] does once the file is read). Never panics: every problem in `text` is
+    /// an [`Error`].
+    pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Catalog> {
+        let file: CatalogFile = parse_toml(path, text)?;
+        Catalog::from_file(path, file, dof)
+    }
+
+    /// Validates a parsed catalogue.
+    pub fn from_file(path: &Path, file: CatalogFile, dof: usize) -> Result<Catalog> {
+        let invalid = |field: String, reason: String| Error::invalid(path, field, reason);
+        if file.family.is_empty() {
+            return Err(invalid(
+                "family".into(),
+                "the catalogue has no [[family]]: it yields no candidate element".into(),
+            ));
+        }
+        let mut families = Vec::new();
+        let mut candidates = 0usize;
+        let mut trims = 0usize;
+        for (i, f) in file.family.iter().enumerate() {
+            let field = |name: &str| format!("family[{i}].{name}");
+            let side = f.side.as_deref();
+            let cam = cam_spec(path, f, &field)?;
+            if cam.is_some() && side.is_some() {
+                return Err(invalid(field("side"), "a cam has no side".into()));
+            }
+            let profiles = match (f.profile.as_str(), side) {
+                ("cam", _) => Vec::new(),
+                ("compression", None | Some("both")) => {
+                    vec![Profile::Compression(Side::Plus), Profile::Compression(Side::Minus)]
+                }
+                ("compression", Some("+")) => vec![Profile::Compression(Side::Plus)],
+                ("compression", Some("-")) => vec![Profile::Compression(Side::Minus)],
+                ("compression", Some(s)) => {
+                    return Err(invalid(field("side"), format!("must be \"+\", \"-\" or \"both\", got \"{s}\"")));
+                }
+                (p, None) => vec![Profile::parse(p, "").map_err(|e| invalid(field("profile"), e))?],
+                (p, Some(_)) => {
+                    let e =
+                        Profile::parse(p, "").err().unwrap_or_else(|| "only compression springs have a side".into());
+                    return Err(invalid(field(if e.contains("unknown profile") { "profile" } else { "side" }), e));
+                }
+            };
+            if let Some(u) = &f.unit {
+                let (expected, name) = profiles.first().map_or(("J", "cam"), |p| (p.unit(), p.name()));
+                if normalise_unit(u) != normalise_unit(expected) {
+                    return Err(invalid(
+                        field("unit"),
+                        format!("a {name} element's stiffness is in {expected}, not {u}"),
+                    ));
+                }
+            }
+            let couplings = match &f.couplings {
+                CouplingSpec::Joints => {
+                    (0..dof).map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect()).collect()
+                }
+                CouplingSpec::Pairs(ratios) | CouplingSpec::AllPairs(ratios) => {
+                    if dof < 2 {
+                        return Err(invalid(field("couplings"), "pairs need at least two joints".into()));
+                    }
+                    let all = matches!(f.couplings, CouplingSpec::AllPairs(_));
+                    let mut out = Vec::new();
+                    for (k, r) in ratios.iter().enumerate() {
+                        if !(r[0].is_finite() && r[1].is_finite()) || r[0] == 0.0 || r[1] == 0.0 {
+                            let key = if all { "all_pairs" } else { "pairs" };
+                            return Err(invalid(
+                                format!("family[{i}].couplings.{key}[{k}]"),
+                                "both gear ratios must be finite and non-zero".into(),
+                            ));
+                        }
+                        for j in 0..dof - 1 {
+                            let last = if all { dof - 1 } else { j + 1 };
+                            for l in j + 1..=last {
+                                let mut a = vec![0.0; dof];
+                                a[j] = r[0];
+                                a[l] = r[1];
+                                out.push(a);
+                            }
+                        }
+                    }
+                    out
+                }
+                CouplingSpec::List(list) => {
+                    for (k, a) in list.iter().enumerate() {
+                        let fld = format!("family[{i}].couplings[{k}]");
+                        if a.len() != dof {
+                            return Err(invalid(
+                                fld,
+                                format!("has {} entries but the robot has {dof} joints", a.len()),
+                            ));
+                        }
+                        if a.iter().any(|x| !x.is_finite()) {
+                            return Err(invalid(fld, "entries must be finite".into()));
+                        }
+                        if a.iter().all(|x| *x == 0.0) {
+                            return Err(invalid(fld, "a coupling of all zeros moves nothing".into()));
+                        }
+                    }
+                    list.clone()
+                }
+            };
+            if couplings.is_empty() {
+                return Err(invalid(field("couplings"), "lists no coupling".into()));
+            }
+            let offset_spec = match (&f.offsets, &cam) {
+                (Some(_), Some(_)) => {
+                    return Err(invalid(
+                        field("offsets"),
+                        "a cam's knots follow the region: it takes no offsets".into(),
+                    ));
+                }
+                (None, None) => {
+                    return Err(invalid(field("offsets"), "missing: every spring family needs offsets".into()));
+                }
+                (Some(o), None) => o.clone(),
+                (None, Some(_)) => OffsetSpec::Equilibrium,
+            };
+            let offsets = match &offset_spec {
+                _ if cam.is_some() => 1,
+                OffsetSpec::Grid { count, .. } if *count < 1 || *count > MAX_OFFSETS => {
+                    return Err(invalid(
+                        field("offsets"),
+                        format!("grid must have 1 to {MAX_OFFSETS} points, got {count}"),
+                    ));
+                }
+                OffsetSpec::Phases { count } if *count < 1 || *count > MAX_OFFSETS => {
+                    return Err(invalid(
+                        field("offsets"),
+                        format!("phases must be 1 to {MAX_OFFSETS} per turn, got {count}"),
+                    ));
+                }
+                OffsetSpec::List(l) if l.is_empty() => {
+                    return Err(invalid(field("offsets"), "the list is empty".into()));
+                }
+                OffsetSpec::Equilibrium => 1,
+                OffsetSpec::Grid { count, equilibrium } => count + usize::from(*equilibrium),
+                OffsetSpec::Phases { count } => *count,
+                OffsetSpec::List(l) => l.len(),
+            };
+            // Each coupling × offset × side is one candidate (a column of the fit): bound the total
+            // before `expand` builds them.
+            candidates = couplings
+                .len()
+                .checked_mul(offsets)
+                .and_then(|c| c.checked_mul(cam.map_or(profiles.len(), |c| 2 * (usize::from(c.knots) + 2))))
+                .and_then(|c| c.checked_add(candidates))
+                .filter(|c| *c <= MAX_CANDIDATES)
+                .ok_or_else(|| {
+                    invalid(
+                        format!("family[{i}]"),
+                        format!(
+                            "the catalogue expands into more than {MAX_CANDIDATES} candidate elements for a robot with \
+                             {dof} joints: list fewer couplings or offsets"
+                        ),
+                    )
+                })?;
+            if let Some(k) = f.max_stiffness {
+                if !(k.is_finite() && k > 0.0) {
+                    return Err(invalid(field("max_stiffness"), format!("must be positive, got {k}")));
+                }
+            }
+            let mut rates = f.stock_rates.clone();
+            for (k, r) in rates.iter().enumerate() {
+                if !(r.is_finite() && *r > 0.0) {
+                    return Err(invalid(format!("family[{i}].stock_rates[{k}]"), format!("must be positive, got {r}")));
+                }
+            }
+            rates.sort_by(f64::total_cmp);
+            rates.dedup();
+            if !(f.tolerance.is_finite() && (0.0..1.0).contains(&f.tolerance)) {
+                return Err(invalid(field("tolerance"), format!("must be a fraction in [0, 1), got {}", f.tolerance)));
+            }
+            if f.name.trim().is_empty() {
+                return Err(invalid(field("name"), "must not be empty".into()));
+            }
+            let adjust_range = match (f.adjustable, f.adjust_range) {
+                (false, None) => None,
+                (true, Some(r)) if r.is_finite() && r > 0.0 && r <= std::f64::consts::PI => Some(r),
+                (true, Some(r)) => {
+                    return Err(invalid(field("adjust_range"), format!("must be in (0, π] rad, got {r}")));
+                }
+                (true, None) => {
+                    return Err(invalid(
+                        field("adjust_range"),
+                        "an adjustable family needs adjust_range (± rad the offset can be moved)".into(),
+                    ));
+                }
+                (false, Some(_)) => {
+                    return Err(invalid(field("adjust_range"), "is only meaningful with adjustable = true".into()));
+                }
+            };
+            let trim_range = match (f.trim, f.trim_range) {
+                (false, None) => None,
+                (false, Some(_)) => {
+                    return Err(invalid(field("trim_range"), "is only meaningful with trim = true".into()));
+                }
+                (true, None) => {
+                    return Err(invalid(
+                        field("trim_range"),
+                        "a trim family needs trim_range = [lo, hi] (N·m/rad the rate can be set to)".into(),
+                    ));
+                }
+                (true, Some([lo, hi])) => {
+                    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+                        return Err(invalid(
+                            field("trim_range"),
+                            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{lo}, {hi}]"),
+                        ));
+                    }
+                    if profiles != [Profile::Linear] {
+                        return Err(invalid(field("profile"), "trim springs are linear".into()));
+                    }
+                    if !matches!(f.offsets, Some(OffsetSpec::Equilibrium)) {
+                        return Err(invalid(
+                            field("offsets"),
+                            "trim springs are relaxed at the equilibrium: offsets = \"equilibrium\"".into(),
+                        ));
+                    }
+                    if adjust_range.is_some() {
+                        return Err(invalid(
+                            field("adjustable"),
+                            "a trim spring is re-relaxed when it is set; it takes no adjust_range".into(),
+                        ));
+                    }
+                    if f.max_stiffness.is_some() || !f.stock_rates.is_empty() {
+                        return Err(invalid(
+                            field("trim_range"),
+                            "a trim family's rates are its trim_range (no max_stiffness or stock_rates)".into(),
+                        ));
+                    }
+                    Some([lo, hi])
+                }
+            };
+            if trim_range.is_some() {
+                trims += couplings.len();
+                if trims > crate::elements::catalog::MAX_TRIMS {
+                    return Err(invalid(
+                        field("couplings"),
+                        format!("the catalogue lists more than {} trim springs", crate::elements::catalog::MAX_TRIMS),
+                    ));
+                }
+            }
+            families.push(Family {
+                name: f.name.clone(),
+                profiles,
+                couplings,
+                offsets: offset_spec,
+                max_stiffness: f.max_stiffness,
+                stock_rates: rates,
+                tolerance: f.tolerance,
+                cam,
+                adjust_range,
+                trim_range,
+            });
+        }
+        let name = file.name.clone().unwrap_or_else(|| {
+            path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "catalog".into())
+        });
+        Ok(Catalog { path: path.to_path_buf(), name, families })
+    }
+}
+
+/// The cam keys of a family: validated for `profile = "cam"`, refused for any other profile.
+fn cam_spec(path: &Path, f: &FamilySpec, field: &dyn Fn(&str) -> String) -> Result<Option<CamSpec>> {
+    let invalid = |name: &str, reason: String| Error::invalid(path, field(name), reason);
+    let keys: [(&str, bool); 8] = [
+        ("knots", f.knots.is_some()),
+        ("smoothing", f.smoothing.is_some()),
+        ("margin", f.margin.is_some()),
+        ("follower_rate", f.follower_rate.is_some()),
+        ("max_stroke", f.max_stroke.is_some()),
+        ("base_radius", f.base_radius.is_some()),
+        ("roller_radius", f.roller_radius.is_some()),
+        ("max_pressure_angle", f.max_pressure_angle.is_some()),
+    ];
+    if f.profile != "cam" {
+        if let Some((k, _)) = keys.iter().find(|(_, set)| *set) {
+            return Err(invalid(k, format!("only cams (profile = \"cam\") take `{k}`")));
+        }
+        return Ok(None);
+    }
+    let knots = f.knots.unwrap_or(30);
+    if !(4..=MAX_KNOTS).contains(&knots) {
+        return Err(invalid("knots", format!("must be 4 to {MAX_KNOTS}, got {knots}")));
+    }
+    let positive = |name: &str, v: Option<f64>, default: f64| -> Result<f64> {
+        let x = v.unwrap_or(default);
+        if x.is_finite() && x > 0.0 { Ok(x) } else { Err(invalid(name, format!("must be positive, got {x}"))) }
+    };
+    let margin = f.margin.unwrap_or(0.05);
+    if !(margin.is_finite() && (0.0..=1.0).contains(&margin)) {
+        return Err(invalid("margin", format!("must be a fraction in [0, 1], got {margin}")));
+    }
+    let follower_rate = match f.follower_rate {
+        Some(r) => Some(positive("follower_rate", Some(r), 1.0)?),
+        None => None,
+    };
+    let angle = positive("max_pressure_angle", f.max_pressure_angle, 30.0)?;
+    if angle >= 90.0 {
+        return Err(invalid("max_pressure_angle", format!("must be below 90°, got {angle}")));
+    }
+    Ok(Some(CamSpec {
+        knots: knots as u16,
+        smoothing: f.smoothing.unwrap_or(Smoothing::Auto),
+        margin,
+        follower_rate,
+        max_stroke: positive("max_stroke", f.max_stroke, 20.0)?,
+        base_radius: positive("base_radius", f.base_radius, 40.0)?,
+        roller_radius: positive("roller_radius", f.roller_radius, 8.0)?,
+        max_pressure_angle: angle,
+    }))
+}
+
+fn normalise_unit(u: &str) -> String {
+    u.chars()
+        .filter(|c| !c.is_whitespace())
+        .map(|c| match c {
+            '·' | '⋅' => '*',
+            '³' => '3',
+            c => c,
+        })
+        .collect::<String>()
+        .replace("^", "")
+        .to_lowercase()
+}
