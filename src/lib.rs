@@ -21,6 +21,7 @@ pub mod files;
 pub mod fit;
 pub mod geodesic;
 pub mod input;
+pub mod limits;
 pub mod model;
 pub mod numerics;
 pub mod potential;

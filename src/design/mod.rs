@@ -52,7 +52,8 @@ use crate::error::{Error, Result};
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 use crate::input::{parse_toml, read_text};
-use crate::model::{Chain, Link, MAX_LINKS, PlanarChain, SpatialChain};
+use crate::limits::{MAX_GRAVITY, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_LINKS, MAX_MASS_KG, within};
+use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::units::Angle;
 
 /// A validated design, ready to compute with.
@@ -142,6 +143,14 @@ impl Design {
             finite(l.length, "length")?;
             finite(l.com, "com")?;
             finite(l.inertia, "inertia")?;
+            for (name, v, max, unit) in [
+                ("mass", l.mass, MAX_MASS_KG, " kg"),
+                ("length", l.length, MAX_LENGTH_M, " m"),
+                ("com", l.com, MAX_LENGTH_M, " m"),
+                ("inertia", l.inertia, MAX_INERTIA_KGM2, " kg·m²"),
+            ] {
+                within(v, max, unit).map_err(|r| invalid(&f(name), r))?;
+            }
             if l.mass <= 0.0 {
                 return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
             }
@@ -153,9 +162,7 @@ impl Design {
             }
         }
         for (k, g) in file.robot.gravity.iter().enumerate() {
-            if !g.is_finite() {
-                return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {g}")));
-            }
+            within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
         }
         let n = links.len();
         let chain = PlanarChain::new(
@@ -414,8 +421,8 @@ fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f
             ));
         }
     };
-    if let Some(k) = gravity.iter().position(|g| !g.is_finite()) {
-        return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {}", gravity[k])));
+    for (k, g) in gravity.iter().enumerate() {
+        within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
     }
     let urdf_path = path.parent().unwrap_or(Path::new(".")).join(robot.urdf.as_deref().unwrap_or_default());
     let locked: Vec<(String, f64)> = robot.locked.iter().map(|(k, v)| (k.clone(), v.0)).collect();

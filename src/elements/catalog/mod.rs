@@ -41,15 +41,6 @@ mod resolve;
 
 pub use file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
 
-/// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).
-pub const MAX_OFFSETS: usize = 1000;
-
-/// Most trim springs one design may carry (the trim solve enumerates 3^m faces).
-pub const MAX_TRIMS: usize = 9;
-
-/// Most candidate elements a catalogue may expand into (the shipped catalogues have about 500).
-pub const MAX_CANDIDATES: usize = 20_000;
-
 /// A validated cam family's settings (see [`crate::elements::spline`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CamSpec {
@@ -70,9 +61,6 @@ pub struct CamSpec {
     /// Largest pressure angle in degrees.
     pub max_pressure_angle: f64,
 }
-
-/// Most knots of a cam.
-pub const MAX_KNOTS: usize = 500;
 
 /// A validated family.
 #[derive(Debug, Clone)]
@@ -119,6 +107,10 @@ pub struct Catalog {
     pub name: String,
     /// Families.
     pub families: Vec<Family>,
+    /// At most this many candidates come out of [`Catalog::expand`] (each family's couplings ×
+    /// offsets × sides or cam columns; duplicates are dropped later): what the fit's memory
+    /// is judged by before any work.
+    pub candidate_bound: usize,
 }
 
 /// A fit candidate: an element and what its family says about building it.
