@@ -261,7 +261,7 @@ fn finish(
 ) -> Result<()> {
     let t = tables(settings, results);
     let dir = OutputDir::create(target, plan)?;
-    springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
+    springfit::report::sweep::write(&dir, design, &t, results, &outcome.bom)?;
     springfit::report::html::write_sweep(&dir, design)?;
     let written = dir.commit()?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");

@@ -356,4 +356,25 @@ radius = 2.0
         assert!(fields.contains(&"robot.links[1].com"), "{w:?}");
         assert!(validate(&design(BASE).unwrap()).unwrap().warnings.is_empty());
     }
+
+    /// The fit's memory is judged before any work: the default design's ~2900 rows × ~420
+    /// candidates are about 10 MB; the same design at 100 000 × 20 samples with a budget of 1
+    /// GiB is refused, naming the keys.
+    #[test]
+    fn a_fit_too_large_for_the_memory_is_refused_with_its_size() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), 2).unwrap();
+        let need = fit_memory(&design, &catalog);
+        assert!(need > 5_000_000 && need < 50_000_000, "{need}");
+        check_fit_memory(&design, &catalog, 1 << 30).unwrap();
+        let mut big = design.clone();
+        big.fit.training_directions = 100_000;
+        big.fit.training_samples = 20;
+        let err = check_fit_memory(&big, &catalog, 1 << 30).unwrap_err().to_string();
+        assert!(
+            err.contains("fit.training_samples") && err.contains("GiB") && err.contains("1.0 GiB available"),
+            "{err}"
+        );
+    }
 }

@@ -33,7 +33,7 @@ use crate::fit::bill::nearest;
 use crate::fit::refit::refit_with_fixed;
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
-use crate::residual::percentile;
+use crate::residual::{percentile, percentile_interval};
 
 pub use crate::design::tolerance::Distribution;
 
@@ -412,12 +412,16 @@ pub struct ToleranceSummary {
     pub actuator_share_p95: f64,
     pub residual_p99_deg_p50: f64,
     pub residual_p99_deg_p95: f64,
+    /// 95 % confidence interval of `residual_p99_deg_p95` (see [`crate::asbuilt::Spread`]).
+    pub residual_p99_deg_p95_ci: [f64; 2],
     /// |q_eq′ − q_eq| percentiles, rad.
     pub equilibrium_shift_rad_p50: f64,
     pub equilibrium_shift_rad_p95: f64,
     /// After each build's trim (designs with trim springs), p99 residual percentiles.
     pub trimmed_residual_p99_deg_p50: Option<f64>,
     pub trimmed_residual_p99_deg_p95: Option<f64>,
+    /// 95 % confidence interval of `trimmed_residual_p99_deg_p95`.
+    pub trimmed_residual_p99_deg_p95_ci: Option<[f64; 2]>,
     /// After each build's tuning (designs with trims or adjustable elements; see
     /// [`ItemResult::tuned`]): actuator share, p99 residual and equilibrium shift percentiles.
     pub tuned: Option<TunedSummary>,
@@ -512,10 +516,12 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 actuator_share_p95: percentile(&share, 95.0),
                 residual_p99_deg_p50: percentile(&resid, 50.0),
                 residual_p99_deg_p95: percentile(&resid, 95.0),
+                residual_p99_deg_p95_ci: percentile_interval(&resid, 95.0, crate::asbuilt::CONFIDENCE),
                 equilibrium_shift_rad_p50: percentile(&shift, 50.0),
                 equilibrium_shift_rad_p95: percentile(&shift, 95.0),
                 trimmed_residual_p99_deg_p50: trimmed.map(|t| t.p50),
                 trimmed_residual_p99_deg_p95: trimmed.map(|t| t.p95),
+                trimmed_residual_p99_deg_p95_ci: trimmed.map(|t| t.p95_ci),
                 tuned,
             }
         })

@@ -329,6 +329,21 @@ offsets = { phases = 4 }
         let family = |couplings: &str, offsets: &str| {
             format!("[[family]]\nname = \"x\"\nprofile = \"crank\"\ncouplings = {couplings}\noffsets = {offsets}\n")
         };
+        // Repeated families need names of their own.
+        let named = |text: String| -> String {
+            let mut k = 0;
+            text.lines()
+                .map(|l| {
+                    if l == "name = \"x\"" {
+                        k += 1;
+                        format!("name = \"x{k}\"")
+                    } else {
+                        l.to_string()
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        };
         let many: Vec<String> = (1..=300).map(|r| format!("[1, {r}]")).collect();
         let many = format!("{{ all_pairs = [{}] }}", many.join(", "));
         let cases = [
@@ -337,7 +352,7 @@ offsets = { phases = 4 }
             (family("\"joints\"", "{ grid = 18446744073709551615 }"), "family[0].offsets", "grid must have 1 to 1000"),
             (family(&many, "{ grid = 1000 }"), "family[0]", "more than 20000 candidate elements"),
             (
-                family("\"joints\"", "{ grid = 1000, equilibrium = true }").repeat(8),
+                named(family("\"joints\"", "{ grid = 1000, equilibrium = true }").repeat(8)),
                 "family[6]",
                 "more than 20000 candidate elements",
             ),
@@ -347,7 +362,7 @@ offsets = { phases = 4 }
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
         // Just under the bound: expands, and the repeated families add nothing.
-        let text = family("\"joints\"", "{ grid = 1000 }").repeat(6);
+        let text = named(family("\"joints\"", "{ grid = 1000 }").repeat(6));
         let c = load(&text, 3).unwrap();
         assert_eq!(c.expand(&[0.0; 3], |_| (-1.0, 1.0)).len(), 3000);
     }
