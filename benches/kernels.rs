@@ -45,7 +45,8 @@ fn row(label: &str, reps: usize, variants: &mut [(&str, &mut dyn FnMut())]) {
     let mut out = format!("{label}:");
     for (name, f) in variants.iter_mut() {
         let (med, min) = time(reps, f);
-        out += &format!(" {name} {:.3} ms / {:.3} ms;", ms(med), ms(min));
+        let f = |d| if ms(d) < 1.0 { format!("{:.2} µs", ms(d) * 1e3) } else { format!("{:.2} ms", ms(d)) };
+        out += &format!(" {name} {} / {};", f(med), f(min));
     }
     println!("{}", out.trim_end_matches(';'));
 }
@@ -180,7 +181,9 @@ fn main() {
             (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();
         let scaled = DMatrix::from_fn(p, p, |i, j| gram.g[(i, j)] * d[i] * d[j] + if i == j { 1e-10 } else { 0.0 });
         // The final QP of a sparse fit sees its support (12–16 columns); a dense fit all of them.
-        for n in [12.min(p), p] {
+        let chol_sizes: Vec<usize> =
+            if name == "double_pendulum_dense" { vec![12, 16, 24, 32, 48, 96, 200, p] } else { vec![12.min(p), p] };
+        for n in chol_sizes {
             let sub = scaled.view((0, 0), (n, n)).into_owned();
             row(
                 &format!("Cholesky of the scaled G ({n} × {n})"),
