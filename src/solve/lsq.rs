@@ -25,9 +25,9 @@ impl Gram {
     ///
     /// Kept although faer's triangular product ([`super::dense::gram_of`]) is 2.3× faster on the
     /// default design's 2880 × 402 rows (23 → 10 ms, `cargo bench --bench kernels`): its other
-    /// summation order changes G in the last bits, and the fits are that sensitive — the default
-    /// design, `double_pendulum_trim` and `ur5_lift_elbow` chose other springs, the others moved
-    /// by up to 1e-10 (BENCHMARKS.md, "Dense kernels").
+    /// summation order changes G in the last bits, and the fits are that sensitive: of the 11
+    /// shipped designs without cams, 7 chose other springs (the default design among them), the
+    /// others' rates moved by 3e-10 to 3e-6 (BENCHMARKS.md, "Dense kernels").
     pub fn from_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         let at = a.transpose();
         Gram { g: &at * a, c: &at * b, bb: b.dot(b) }
@@ -40,8 +40,9 @@ impl Gram {
     /// than a quarter of the entries are non-zero. Deterministic (fixed summation order).
     ///
     /// faer's dense triangular product is 3× faster than this on the cams' rows (window cams
-    /// 8871 × 512: 161 → 56 ms; 16 cams 8591 × 1024: 676 → 193 ms) but changes the cams' fits
-    /// (the 16-cam window's coefficients by up to their own size), so this stays.
+    /// 8871 × 512: 161 → 56 ms; 16 cams 8591 × 1024: 676 → 193 ms) but changes all four cam
+    /// designs' fits (by 2e-6 to 0.2 in the bill, the 16-cam window's cam profiles by up to their
+    /// own size), so this stays.
     pub fn from_sparse_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         let (m, p) = a.shape();
         let nnz = a.iter().filter(|v| **v != 0.0).count();

@@ -491,8 +491,9 @@ fn kkt_solve(
     }
     // nalgebra's LU, although faer's (`dense::variants::lu_solve_faer`) is 3–4.5× faster from
     // about 100 unknowns (the dense design's 375: 4.6 → 1.3 ms; 1216 of them per fit): the
-    // polished vertex is the solution of these systems, and faer's rounding changed which
-    // elements the dense, window and triple-pendulum fits keep (BENCHMARKS.md, "Dense kernels").
+    // polished vertex is the solution of these systems, and faer's rounding changed the dense,
+    // paper-window, triple-pendulum and 16-cam fits beyond their last digits (BENCHMARKS.md,
+    // "Dense kernels").
     let sol = kkt.lu().solve(&rhs)?;
     if sol.iter().any(|v| !v.is_finite()) {
         return None;
