@@ -51,6 +51,25 @@ fn row(label: &str, reps: usize, variants: &mut [(&str, &mut dyn FnMut())]) {
     println!("{}", out.trim_end_matches(';'));
 }
 
+/// NNLS of every problem in `grams` with each passive-set factorisation.
+fn nnls_row(label: &str, reps: usize, grams: &[Gram]) {
+    let settings = NnlsSettings::default();
+    let run = |kind| {
+        move || {
+            for g in grams {
+                black_box(nnls_signed_variant(g, 0.0, &settings, &[], &[], kind).unwrap());
+            }
+        }
+    };
+    let (mut hand, mut hand_faer, mut faer) =
+        (run(PassiveVariant::HandWritten), run(PassiveVariant::HandWrittenFaerSolve), run(PassiveVariant::Faer));
+    row(
+        label,
+        reps,
+        &mut [("hand-written", &mut hand), ("hand-written + faer solves", &mut hand_faer), ("faer", &mut faer)],
+    );
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     println!("dense kernels, hand-written/nalgebra vs faer (median / min over repeats, 1 thread)");
@@ -131,19 +150,11 @@ fn main() {
                 sol.k.iter().filter(|v| **v > 0.0).count()
             ));
         }
-        let mut runs: Vec<(&str, Box<dyn FnMut()>)> = kinds
-            .iter()
-            .map(|&(label, kind)| {
-                let w = &weighted;
-                let f: Box<dyn FnMut()> = Box::new(move || {
-                    black_box(nnls_signed_variant(w, 0.0, &settings, &[], &[], kind).unwrap());
-                });
-                (label, f)
-            })
-            .collect();
-        let mut refs: Vec<(&str, &mut dyn FnMut())> =
-            runs.iter_mut().map(|(l, f)| (*l, f.as_mut() as &mut dyn FnMut())).collect();
-        row(&format!("NNLS of all {p} columns ({})", outcome.join("; ")), reps.min(3), &mut refs);
+        nnls_row(
+            &format!("NNLS of all {p} columns ({})", outcome.join("; ")),
+            reps.min(3),
+            std::slice::from_ref(&weighted),
+        );
 
         // 2000 NNLS of random 12-column subsets.
         let mut seed = 7u64;
@@ -160,21 +171,7 @@ fn main() {
                 weighted.subset(&idx)
             })
             .collect();
-        let mut runs: Vec<(&str, Box<dyn FnMut()>)> = kinds
-            .iter()
-            .map(|&(label, kind)| {
-                let s = &subsets;
-                let f: Box<dyn FnMut()> = Box::new(move || {
-                    for g in s {
-                        black_box(nnls_signed_variant(g, 0.0, &settings, &[], &[], kind).unwrap());
-                    }
-                });
-                (label, f)
-            })
-            .collect();
-        let mut refs: Vec<(&str, &mut dyn FnMut())> =
-            runs.iter_mut().map(|(l, f)| (*l, f.as_mut() as &mut dyn FnMut())).collect();
-        row("2000 NNLS of 12-column subsets", reps.min(5), &mut refs);
+        nnls_row("2000 NNLS of 12-column subsets", reps.min(5), &subsets);
 
         // The scaled G (unit diagonal), as the QP sees it.
         let d: Vec<f64> =
