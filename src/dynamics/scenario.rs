@@ -632,7 +632,7 @@ pub struct ScenarioOutcome {
 /// energy of the nominal potential `potential` (through `label`'s log field for the exact one).
 pub fn resolve_scenario<'a>(
     design: &'a Design,
-    potential: &'a crate::dynamics::simulate::ElasticPotential,
+    potential: &crate::dynamics::simulate::ElasticPotential,
     label: &LabelSource<'a>,
     index: usize,
 ) -> Result<Scenario> {
