@@ -18,6 +18,7 @@ See docs/python.md in the repository for the whole API and the examples.
 
 from ._springfit import (
     BadInputError,
+    Comparison,
     ControlOutput,
     Controller,
     Design,
@@ -33,12 +34,15 @@ from ._springfit import (
     Potential,
     SettingError,
     Simulation,
+    Sweep,
     __version__,
+    compare,
     settling_times,
 )
 
 __all__ = [
     "BadInputError",
+    "Comparison",
     "ControlOutput",
     "Controller",
     "Design",
@@ -54,6 +58,8 @@ __all__ = [
     "Potential",
     "SettingError",
     "Simulation",
+    "Sweep",
     "__version__",
+    "compare",
     "settling_times",
 ]

@@ -127,6 +127,13 @@ class Design:
         progress: Progress = None,
     ) -> "Simulation":
         """`springfit simulate`: the scenarios (or the one named) in closed loop."""
+    def sweep(
+        self,
+        builds: Optional[int] = None,
+        seed: Optional[int] = None,
+        progress: Progress = None,
+    ) -> "Sweep":
+        """`springfit sweep` in one process (no shards); `builds`, `seed` as the options."""
     def export_mujoco(
         self,
         folder: Union[str, PathLike],
@@ -265,6 +272,34 @@ class Simulation:
         geodesic_deviation, in_ball, metrics."""
     def write(self, folder: Union[str, PathLike], overwrite_edits: bool = False) -> str:
         """Writes what `springfit simulate` writes into `folder`."""
+
+class Sweep:
+    """The outcome of `Design.sweep()`."""
+
+    @property
+    def tables(self) -> dict[str, Any]:
+        """sweep.json as a dict."""
+    @property
+    def items(self) -> list[dict[str, Any]]:
+        """Every item's result (the rows of sweep.csv)."""
+    def write(self, folder: Union[str, PathLike], overwrite_edits: bool = False) -> str:
+        """Writes what `springfit sweep` writes into `folder`."""
+
+class Comparison:
+    """Fits side by side, as `springfit compare` sets them."""
+
+    @property
+    def table(self) -> list[dict[str, Any]]:
+        """compare.csv as records, one per fit."""
+    @property
+    def csv(self) -> str:
+        """The text of compare.csv."""
+    def write(self, folder: Union[str, PathLike], overwrite_edits: bool = False) -> str:
+        """Writes what `springfit compare` writes into `folder`."""
+
+def compare(inputs: Sequence[Union[Fit, str, PathLike]], exact: Optional[Design] = None) -> Comparison:
+    """`springfit compare`: each input a Fit or a fit output folder; `exact` adds the exact
+    potential of that design as a reference."""
 
 def settling_times(
     t: Sequence[float],

@@ -392,6 +392,20 @@ impl PyDesign {
         crate::simulate::PySimulation::run(py, self, scenario, springs, exact, exact_label, progress)
     }
 
+    /// The sensitivity sweeps of `springfit sweep` (parasitic springs, manufacturing tolerance,
+    /// stock rates) in one process; `builds` and `seed` override `[sweep]` like the command's
+    /// options. Releases the GIL; `progress` is called as the items finish.
+    #[pyo3(signature = (builds = None, seed = None, progress = None))]
+    fn sweep(
+        &self,
+        py: Python<'_>,
+        builds: Option<usize>,
+        seed: Option<u64>,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<crate::sweep::PySweep> {
+        crate::sweep::PySweep::run(py, self, builds, seed, progress)
+    }
+
     /// Writes the MuJoCo model of the arm with `springs` (a Fit or a bom.csv path; default: fit
     /// them now) into `folder`, as `springfit export --mujoco` does: `<name>.xml`, `elements.md`,
     /// `bom.csv`. Returns the model file's path.

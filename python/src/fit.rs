@@ -91,6 +91,13 @@ impl PyFit {
 }
 
 impl PyFit {
+    /// The fit as `compare` records it (with its as-built brief).
+    pub fn record(&self) -> springfit::studies::compare::FitRecord {
+        let mut r = springfit::studies::compare::record_of(&self.outcome, &self.design.path);
+        r.as_built = self.as_built.as_ref().map(springfit::asbuilt::Brief::of);
+        r
+    }
+
     /// The fitted springs as a potential (an error for the exact reference).
     pub fn potential_springs(&self) -> PyResult<PyPotential> {
         if self.exact {
@@ -106,7 +113,7 @@ impl PyFit {
     /// (numbers as floats, blanks as None).
     #[getter]
     fn bom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        bom_records(py, &springfit::files::bom::to_csv(&self.outcome.bom))
+        csv_records(py, &springfit::files::bom::to_csv(&self.outcome.bom))
     }
 
     /// The bill of materials as a NumPy structured array, one field per column of `bom.csv`:
@@ -199,8 +206,9 @@ impl PyFit {
     }
 }
 
-/// Records from CSV text: a dict per line, numbers parsed, blanks None.
-pub fn bom_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyList>> {
+/// Records from CSV text (a bill of materials, a comparison's table): a dict per line, numbers
+/// parsed, blanks None.
+pub fn csv_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyList>> {
     let mut lines = text.lines();
     let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
     let out = PyList::empty(py);

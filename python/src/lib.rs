@@ -8,6 +8,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod arrays;
+mod compare;
 mod controller;
 mod convert;
 mod design;
@@ -16,6 +17,7 @@ mod fit;
 mod potential;
 mod progress;
 mod simulate;
+mod sweep;
 
 use pyo3::prelude::*;
 
@@ -66,6 +68,9 @@ fn _springfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<controller::PyController>()?;
     m.add_class::<controller::PyControlOutput>()?;
     m.add_class::<simulate::PySimulation>()?;
+    m.add_class::<sweep::PySweep>()?;
+    m.add_class::<compare::PyComparison>()?;
+    m.add_function(wrap_pyfunction!(compare::compare, m)?)?;
     m.add_function(wrap_pyfunction!(settling_times, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

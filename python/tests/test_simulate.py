@@ -42,3 +42,29 @@ def test_the_settling_rule_is_the_simulators(design, fit):
     got = springfit.settling_times(run["t"], run["label"], run["label_target"], run["in_ball"], c.mode_steps, 100.0)
     assert got == run["metrics"]["settling_s"]
     assert np.isfinite(run["energy"]).all()
+
+
+def test_sweep_writes_the_commands_tables(design, tmp_path):
+    sweep = design.sweep(builds=4, seed=3)
+    folder = sweep.write(tmp_path / "py")
+    out = tmp_path / "cli"
+    p = cli("sweep", DEFAULT, "--builds", 4, "--seed", 3, "--out", out, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    for name in ["sweep.csv", "sweep.json", "tolerance.md"]:
+        assert (folder / name).read_bytes() == (out / name).read_bytes(), name
+    assert sweep.tables == json.loads((out / "sweep.json").read_text())
+    assert len(sweep.items) == len((out / "sweep.csv").read_text().splitlines()) - 1
+
+
+def test_compare_writes_the_commands_table(design, fit, cli_fit, tmp_path):
+    c = springfit.compare([fit, cli_fit], exact=design)
+    folder = c.write(tmp_path / "py")
+    out = tmp_path / "cli"
+    p = cli("compare", cli_fit, cli_fit, "--exact", "--out", out, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert len(c.table) == 3 and c.table[-1]["design"] == "exact ½ω²r²"
+    assert (folder / "compare.md").exists() and (folder / "compare.svg").exists()
+    # The same fits give the same rows (the labels name their sources, which differ).
+    want = (out / "compare.csv").read_text().splitlines()
+    got = c.csv.splitlines()
+    assert want[0] == got[0] and len(want) == len(got)
