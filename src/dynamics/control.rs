@@ -250,8 +250,8 @@ pub struct Controller<'a> {
     /// target: the mode of the first labelled point.
     reference: Option<DVector<f64>>,
     out: ControlTorques,
-    /// For [`Controller::torque`], which prepares M(q) itself.
-    ws: Workspace,
+    /// For [`Controller::torque`], which prepares M(q) itself (taken out during the call).
+    ws: Option<Workspace>,
     gbuf: Vec<f64>,
     buf: Vec<f64>,
 }
@@ -296,7 +296,7 @@ impl<'a> Controller<'a> {
             lv: LogValue::zeros(n),
             reference: None,
             out: ControlTorques::zeros(n),
-            ws: chain.workspace(),
+            ws: Some(chain.workspace()),
             gbuf: Vec::with_capacity(n),
             buf: vec![0.0; n],
         };
@@ -380,6 +380,17 @@ impl<'a> Controller<'a> {
         Ok(kin + u - self.u0)
     }
 
+    /// E at (q, q̇) with M(q) given (row-major) and U_e + U_g at q if the caller has it.
+    fn energy_with(&mut self, q: &[f64], qd: &[f64], m: &[f64], nominal_u: Option<f64>) -> Result<f64> {
+        let n = q.len();
+        let u = match nominal_u {
+            Some(u) => u,
+            None => self.nominal_potential(q)?,
+        };
+        let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
+        Ok(kin + u - self.u0)
+    }
+
     /// The label at q and its target at t: (θ or Δ, θ_d or 0, inside the ε-ball). The label is
     /// NaN inside the ball (and without a field); the target NaN without an angle target.
     pub fn label(&mut self, t: f64, q: &[f64]) -> Result<(f64, f64, bool)> {
@@ -435,18 +446,21 @@ impl<'a> Controller<'a> {
         if !t.is_finite() {
             return Err(Error::Setting { field: "t".into(), reason: format!("must be finite, got {t}") });
         }
-        let mut ws = std::mem::replace(&mut self.ws, self.chain.workspace());
+        let mut ws = self.ws.take().unwrap_or_else(|| self.chain.workspace());
         let prepared = self.chain.prepare(&mut ws, q, qd);
         let result = if prepared {
             self.torque_at(t, q, qd, &ws, None).map(|_| ())
         } else {
             Err(Error::numerical("controller", format!("the mass matrix is not positive definite at t = {t:.4} s")))
         };
-        self.ws = ws;
+        let result = match result {
+            Ok(()) if self.out.energy_value.is_nan() => self.energy_with(q, qd, ws.mass(), None).map(|e| {
+                self.out.energy_value = e;
+            }),
+            other => other,
+        };
+        self.ws = Some(ws);
         result?;
-        if self.out.energy_value.is_nan() {
-            self.out.energy_value = self.energy_at(q, qd)?;
-        }
         Ok(&self.out)
     }
 
@@ -517,13 +531,7 @@ impl<'a> Controller<'a> {
         if let Some((law, target, compensate)) =
             self.energy.as_ref().map(|e| (e.law, e.target(t), e.compensate_damping))
         {
-            let u = match nominal_u {
-                Some(u) => u,
-                None => self.nominal_potential(q)?,
-            };
-            let m = ws.mass();
-            let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
-            let e = kin + u - self.u0;
+            let e = self.energy_with(q, qd, ws.mass(), nominal_u)?;
             self.out.energy_value = e;
             energy_torque(law, &self.settings, target - e, qd, ws.mass(), &mut self.out.energy);
             if compensate {
