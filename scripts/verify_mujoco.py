@@ -66,6 +66,31 @@ def callbacks(model):
     return out
 
 
+def passive_callback(model, cbs=None):
+    """The model's callback elements as MuJoCo's `mjcb_passive` and their potential energy:
+    (passive(m, d), energy(q)). `cbs` is `callbacks(model)` (read when not given)."""
+    cbs = callbacks(model) if cbs is None else cbs
+    # The callback elements as arrays, so one evaluation costs a few numpy operations.
+    codes = np.array([c[1] for c in cbs], dtype=int)
+    stiff = np.array([c[2] for c in cbs])
+    x0 = np.array([c[3] for c in cbs])
+    a = np.array([c[4] for c in cbs]).reshape(len(cbs), model.nq)
+
+    def slopes(d):
+        return np.select(
+            [codes == 1, codes == 2, codes == 3, codes == 4, codes == 5],
+            [d, d ** 3, np.sin(d), np.maximum(d, 0.0), np.minimum(d, 0.0)],
+        )
+
+    def passive(m, d):
+        d.qfrc_passive[:] -= a.T @ (stiff * slopes(a @ d.qpos - x0))
+
+    def callback_energy(q):
+        return sum(k * value(int(c), float(dd)) for c, k, dd in zip(codes, stiff, a @ q - x0))
+
+    return passive, callback_energy
+
+
 def read_runs(path, nq):
     """springfit's samples per run: {run: (t, q)} with t of shape (k,) and q of shape (k, nq)."""
     runs = {}
@@ -103,23 +128,7 @@ def main():
         print("verify_mujoco: the model does not use RK4; the comparison assumes springfit's scheme", file=sys.stderr)
     tol = args.tolerance or (CALLBACK_TOLERANCE if cbs else EXACT_TOLERANCE)
 
-    # The callback elements as arrays, so one evaluation costs a few numpy operations.
-    codes = np.array([c[1] for c in cbs], dtype=int)
-    stiff = np.array([c[2] for c in cbs])
-    x0 = np.array([c[3] for c in cbs])
-    a = np.array([c[4] for c in cbs]).reshape(len(cbs), model.nq)
-
-    def slopes(d):
-        return np.select(
-            [codes == 1, codes == 2, codes == 3, codes == 4, codes == 5],
-            [d, d ** 3, np.sin(d), np.maximum(d, 0.0), np.minimum(d, 0.0)],
-        )
-
-    def passive(m, d):
-        d.qfrc_passive[:] -= a.T @ (stiff * slopes(a @ d.qpos - x0))
-
-    def callback_energy(q):
-        return sum(k * value(int(c), float(dd)) for c, k, dd in zip(codes, stiff, a @ q - x0))
+    passive, callback_energy = passive_callback(model, cbs)
 
     mujoco.set_mjcb_passive(passive if cbs else None)
     h = model.opt.timestep

@@ -6,7 +6,6 @@ use anyhow::Result;
 use springfit::design::fit::SolverKind;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -74,10 +73,13 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         Some((ab, t.elapsed().as_secs_f64()))
     };
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, &plan)?;
-    springfit::report::fit::write_with_as_built(&dir, &design, &outcome, as_built.as_ref().and_then(|a| a.0.as_ref()))?;
-    springfit::report::html::write_fit(&dir, &design)?;
-    let written = dir.commit();
+    let written = springfit::report::fit::write_folder(
+        &target,
+        &plan,
+        &design,
+        &outcome,
+        as_built.as_ref().and_then(|a| a.0.as_ref()),
+    );
     step.finish();
     let written = written?;
     let st = &outcome.metrics.stats;

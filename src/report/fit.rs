@@ -140,6 +140,23 @@ const FILES: &[&str] = &[
     super::html::FILE,
 ];
 
+/// Writes everything `springfit fit` writes into the folder `target`, under `plan` (see
+/// [`files`]): the files of [`write_with_as_built`] and `report.html`, staged and committed at
+/// once. The command and the Python package's `Fit.write` both go through here, so their
+/// folders are the same file for file.
+pub fn write_folder(
+    target: &std::path::Path,
+    plan: &super::output::Plan,
+    design: &Design,
+    o: &FitOutcome,
+    as_built: Option<&crate::asbuilt::AsBuilt>,
+) -> Result<std::path::PathBuf> {
+    let dir = OutputDir::create(target, plan)?;
+    write_with_as_built(&dir, design, o, as_built)?;
+    super::html::write_fit(&dir, design)?;
+    dir.commit()
+}
+
 /// Writes every output of a fit (or of the exact reference) into `out`.
 pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
     write_with_as_built(out, design, o, None)

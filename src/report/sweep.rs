@@ -133,6 +133,23 @@ pub const FILES: &[&str] = &[
 /// The name a shard of `springfit sweep --shard i/N` writes.
 pub const SHARD_FILES: &[&str] = &["sweep_shard.json"];
 
+/// Writes everything `springfit sweep` writes into the folder `target` under `plan` ([`FILES`]):
+/// the files of [`write`] and `report.html`, staged and committed at once (the command and the
+/// Python package's `Sweep.write`).
+pub fn write_folder(
+    target: &std::path::Path,
+    plan: &super::output::Plan,
+    design: &crate::design::Design,
+    tables: &SweepTables,
+    results: &[ItemResult],
+    bom: &[BomRow],
+) -> Result<std::path::PathBuf> {
+    let dir = OutputDir::create(target, plan)?;
+    write(&dir, design, tables, results, bom)?;
+    super::html::write_sweep(&dir, design)?;
+    dir.commit()
+}
+
 /// Writes the sweep's outputs. `bom` is the nominal bill of materials (for `bom_stock.csv`).
 pub fn write(
     out: &OutputDir,

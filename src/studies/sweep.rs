@@ -170,6 +170,31 @@ pub fn kappa(design: &Design, springs: &SpringSet, fit: &FitOutcome) -> Vec<f64>
 }
 
 impl<'a> SweepContext<'a> {
+    /// The context `springfit sweep` runs its items in: the fit's springs as the nominal
+    /// potential, κ from its evaluation fan, the design's `[simulate]` and `[controllers]`, and as
+    /// the base run the first run of the `[sweep]` scenario, started by the springs' energy.
+    pub fn new(
+        design: &'a Design,
+        fit: &'a FitOutcome,
+        label: &'a LabelSource<'a>,
+        settings: SweepSettings,
+    ) -> Result<SweepContext<'a>> {
+        let index = crate::design::validate::sweep_scenario(design)?;
+        let nominal = ElasticPotential::Springs(fit.springs.clone());
+        let base = crate::dynamics::scenario::resolve_scenario(design, &nominal, label, index)?.runs.remove(0);
+        Ok(SweepContext {
+            design,
+            fit,
+            label,
+            sim: design.simulate,
+            controllers: design.controllers,
+            settings,
+            kappa: kappa(design, &fit.springs, fit),
+            base,
+            nominal,
+        })
+    }
+
     /// Runs the items `indices` of `items` in parallel; results in index order.
     pub fn run(&self, items: &[WorkItem], indices: &[usize]) -> Result<Vec<ItemResult>> {
         self.run_observed(items, indices, &|| {})
