@@ -44,7 +44,7 @@ fn each_bad_design_gets_its_own_clear_error() {
         (
             "dimension.toml",
             good.replace("q = [0.0, \"pi/2\"]", "q = [0.0, 1.0, 2.0]"),
-            vec!["dimension.toml", "equilibrium.q", "3 angles", "2 links"],
+            vec!["dimension.toml", "equilibrium.q", "3 angles", "2 joints"],
         ),
         (
             "wrong_type.toml",

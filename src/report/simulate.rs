@@ -349,10 +349,12 @@ fn configuration_panel(
             label: Some(r.name.clone()),
         });
         if let Some(pt) = start {
+            // A dot of the run's colour in a black ring: the same colour alone vanishes on its line.
+            layers.push(Layer::Points { points: vec![pt], style: Style::fill((0, 0, 0), 1.0), size: 7, label: None });
             layers.push(Layer::Points {
                 points: vec![pt],
                 style: Style::fill(run_colour(i), 1.0),
-                size: 4,
+                size: 5,
                 label: None,
             });
         }

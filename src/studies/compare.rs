@@ -112,10 +112,10 @@ pub fn table_csv(records: &[FitRecord]) -> String {
             r.solver,
             r.used,
             csv_field(&totals),
-            crate::units::deg(r.stats.median_abs),
-            crate::units::deg(r.stats.p95_abs),
-            crate::units::deg(r.stats.p99_abs),
-            crate::units::deg(r.stats.max_abs),
+            r.stats.median_abs,
+            r.stats.p95_abs,
+            r.stats.p99_abs,
+            r.stats.max_abs,
             r.actuator_share.map(|a| a.to_string()).unwrap_or_default(),
             as_built_csv(r.as_built.as_ref())
         ));
@@ -149,7 +149,11 @@ pub fn table_md(records: &[FitRecord]) -> String {
         let totals = if r.totals.is_empty() {
             "–".to_string()
         } else {
-            r.totals.iter().map(|(u, t)| format!("{t:.2} {u}")).collect::<Vec<_>>().join(", ")
+            r.totals
+                .iter()
+                .map(|(u, t)| format!("{t:.2} {}", u.replace('*', "·").replace("^3", "³")))
+                .collect::<Vec<_>>()
+                .join(", ")
         };
         s.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
@@ -158,10 +162,10 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.solver,
             r.used,
             totals,
-            r.stats.median_abs,
-            r.stats.p95_abs,
-            r.stats.p99_abs,
-            r.stats.max_abs,
+            crate::units::deg(r.stats.median_abs),
+            crate::units::deg(r.stats.p95_abs),
+            crate::units::deg(r.stats.p99_abs),
+            crate::units::deg(r.stats.max_abs),
             r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into()),
             spread_md(r.as_built.map(|b| b.p99_deg)),
             spread_md(r.as_built.and_then(|b| b.trimmed_p99_deg))

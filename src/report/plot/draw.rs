@@ -239,22 +239,51 @@ fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Pane
             if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.1e}") }
         }
     };
+    // An axis of few decades gets ticks every 0.1 in log₁₀ and labels only at 1, 2 and 5 × 10ᵏ
+    // (0.1, 0.2, 0.5, 1, 2, 5 instead of 0.32 and 3.2 alone); wider ones a label per decade.
+    let few = |r: (f64, f64)| r.1 - r.0 <= 2.5;
+    // A category label at most as wide as its box's slot (else the first is cut at the panel's
+    // edge and neighbours overlap): shortened in the middle, where names of a family agree least.
+    let slot = categories.as_ref().map_or(0, |c| (plot_w / c.len().max(1) as f64) as u32);
+    let fit_slot = |label: &str| -> String {
+        let chars: Vec<char> = label.chars().collect();
+        let mut keep = chars.len();
+        let shown = |k: usize| -> String {
+            if k >= chars.len() {
+                return label.to_string();
+            }
+            let head: String = chars[..k.div_ceil(2)].iter().collect();
+            let tail: String = chars[chars.len() - k / 2..].iter().collect();
+            format!("{head}…{tail}")
+        };
+        while keep > 4 && text_width(&shown(keep)) > slot.saturating_sub(6) {
+            keep -= 1;
+        }
+        shown(keep)
+    };
     let formatter = |v: &f64| -> String {
         match &categories {
             Some(c) => {
                 let i = v.round();
                 if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < c.len() {
-                    c[i as usize].clone()
+                    fit_slot(&c[i as usize])
                 } else {
                     String::new()
                 }
             }
+            None if panel.log_x && few(xr) => one_two_five(*v),
             None if panel.log_x => log_tick(*v),
             None => format_tick(*v),
         }
     };
-    let y_formatter = |v: &f64| if panel.log_y { log_tick(*v) } else { format_tick(*v) };
-    let decades = |r: (f64, f64)| ((r.1 - r.0).ceil() as usize + 1).clamp(3, 12);
+    let y_formatter = |v: &f64| match (panel.log_y, few(yr)) {
+        (true, true) => one_two_five(*v),
+        (true, false) => log_tick(*v),
+        _ => format_tick(*v),
+    };
+    let decades = |r: (f64, f64)| {
+        if few(r) { ((r.1 - r.0) * 10.0).ceil() as usize + 1 } else { ((r.1 - r.0).ceil() as usize + 1).clamp(3, 12) }
+    };
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
@@ -558,6 +587,22 @@ pub(super) fn finite_runs(line: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
 }
 
 /// Short tick labels: no trailing zeros, scientific only for very large or small values.
+/// The label of a log₁₀ tick at `v` when it sits at 1, 2 or 5 × 10ᵏ (within 1 %), else none: a
+/// log axis of few decades has a tick every 0.1 in log₁₀ and labels only these.
+pub(super) fn one_two_five(v: f64) -> String {
+    let x = 10f64.powf(v);
+    let k = x.log10().floor();
+    let m = x / 10f64.powf(k);
+    match [1.0, 2.0, 5.0, 10.0].into_iter().find(|c| (m / c - 1.0).abs() < 0.01) {
+        Some(c) => {
+            let x = c * 10f64.powf(k);
+            let digits = (-(x.log10().floor())).max(0.0) as usize;
+            if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.0e}") }
+        }
+        None => String::new(),
+    }
+}
+
 pub fn format_tick(v: f64) -> String {
     // Round-off at a tick that should read 0 (e.g. 2.2e-16).
     if v.abs() < 1e-9 {

@@ -243,7 +243,7 @@ pub fn render(fig: &Figure, stem: &Path) -> Result<[PathBuf; 2]> {
 mod tests {
     use ab_glyph::{Font, ScaleFont};
 
-    use super::draw::{clip_polyline, dashes, data_range, to_log};
+    use super::draw::{clip_polyline, dashes, data_range, one_two_five, to_log};
     use super::text::FONT;
     use super::*;
 
@@ -413,6 +413,15 @@ mod tests {
         let inked = |x: u32| (0..h).any(|y| buf[((y * w + x) * 3) as usize] < 128);
         let first = (0..w).find(|&x| inked(x)).expect("the glyph is drawn");
         assert!((first as f32 - (20.0 + bearing)).abs() <= 1.0, "ink starts at {first}, bearing {bearing}");
+    }
+
+    #[test]
+    fn short_log_axes_label_one_two_five() {
+        // Ticks every 0.1 in log₁₀ land within 0.3 % of 2 and 5 × 10ᵏ; others stay unlabelled.
+        let labels: Vec<String> = (-10..=10).map(|i| one_two_five(i as f64 / 10.0)).collect();
+        let shown: Vec<&str> = labels.iter().map(String::as_str).filter(|s| !s.is_empty()).collect();
+        assert_eq!(shown, ["0.1", "0.2", "0.5", "1", "2", "5", "10"]);
+        assert_eq!(one_two_five(-2.7), "0.002");
     }
 
     #[test]
