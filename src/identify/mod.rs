@@ -235,10 +235,10 @@ fn run_filters(log: &Log, run: &Run, cutoff: f64, settings: &IdentifySettings) -
             &log.path,
             format!("line {}: t", run.lines[0]),
             format!(
-                "{label} lasts {:.3} s: with a cut-off of {cutoff:.3} Hz the filters take {:.3} s to settle at each end, so \
-                 a run needs at least {shortest:.3} s",
+                "{label} lasts {:.3} s: with a cut-off of {cutoff:.3} Hz the filters take {:.3} s to settle, so a run needs \
+                 at least {shortest:.3} s",
                 run.duration(),
-                filters.edge as f64 * run.dt
+                filters.regression.settle() as f64 * run.dt
             ),
         ));
     }

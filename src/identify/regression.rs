@@ -16,13 +16,20 @@
 //! ```
 //!
 //! where L is one zero-phase low-pass applied to every term, so the equation holds for the
-//! filtered terms exactly as for the raw ones: no acceleration is ever formed, the momentum is
-//! differentiated after L has removed the encoder noise, and L distorts nothing the two sides do
-//! not share. The angles are first smoothed by a second zero-phase low-pass far above the motion
-//! (`smoothing_hz`, which removes the encoder's quantisation steps), and the velocity is their
-//! central difference. Rows are kept from where both filters have forgotten a run's ends
-//! ([`LowPass::settle`]) and taken every `stride` samples: L leaves nothing above a few times
-//! its cut-off, so denser rows would repeat the same information.
+//! filtered terms exactly as for the raw ones: no acceleration is ever used unfiltered, and L
+//! distorts nothing the two sides do not share. The angles are first smoothed by a second
+//! zero-phase low-pass far above the motion (`smoothing_hz`, which removes the encoder's
+//! quantisation steps), and the velocity is their central difference ([`central`]); the
+//! smoothing's first and last [`LowPass::settle`] samples, which still carry how the angles were
+//! extended, are dropped. The momentum's rate is the central difference of M q̇ (the momentum is
+//! known two samples beyond each kept end, so every kept sample has one) and goes through L like
+//! every other term: central differences and L are both linear and time-invariant, so in a run's
+//! interior this is d/dt L[M q̇] exactly, the noise L removes the same. Every term is extended
+//! even ([`Extension::Even`]) before L, so the equation still holds on the extensions, and the
+//! filtered equation right up to the ends of what is kept (differentiating after an extension
+//! would put a one-sided difference at each end, a bias of order Δt). Rows are taken every
+//! `stride` samples: L leaves nothing above a few times its cut-off, so denser rows would repeat
+//! the same information.
 //!
 //! Trim springs are known (their rates as the bill gives them, the rates the builder set) unless
 //! `[identify] trims = "estimated"`: their torque then enters y at the design rate like every
@@ -30,7 +37,7 @@
 
 use rayon::prelude::*;
 
-use super::filter::{LowPass, derivative};
+use super::filter::{Extension, LowPass, central, derivative};
 use super::log::Run;
 use crate::design::Design;
 use crate::design::identify::{IdentifySettings, TrimRates};
@@ -143,7 +150,8 @@ pub struct Filters {
     pub smoothing: LowPass,
     /// L, applied to both sides of the regression.
     pub regression: LowPass,
-    /// Samples dropped at each end of a run.
+    /// Samples dropped at each end of a run (where the smoothed angles still depend on how they
+    /// were extended).
     pub edge: usize,
     /// Rows are taken every `stride` samples.
     pub stride: usize,
@@ -156,15 +164,16 @@ impl Filters {
         let rate = 1.0 / dt;
         let smoothing = LowPass::butterworth(smoothing_hz, rate);
         let regression = LowPass::butterworth(cutoff_hz, rate);
-        let edge = smoothing.settle() + regression.settle() + 1;
+        let edge = smoothing.settle() + 2;
         // Ten rows per period of the cut-off: L passes nothing above a few times it.
         let stride = ((rate / (10.0 * cutoff_hz)).floor() as usize).max(1);
         Filters { smoothing, regression, edge, stride }
     }
 
-    /// The shortest run that yields one row, s.
+    /// The shortest run the filters take, s: L's start transient must die out inside the
+    /// extension, which is at most as long as what is kept.
     pub fn shortest_run(&self, dt: f64) -> f64 {
-        (2 * self.edge + 1) as f64 * dt
+        (2 * self.edge + self.regression.settle() + 1) as f64 * dt
     }
 }
 
@@ -232,8 +241,8 @@ impl Signals {
         Signals { len, data: vec![vec![0.0; len]; channels] }
     }
 
-    fn filtered(self, f: &LowPass) -> Signals {
-        let data = self.data.par_iter().map(|x| f.filtfilt(x)).collect();
+    fn filtered(self, f: &LowPass, extension: Extension) -> Signals {
+        let data = self.data.par_iter().map(|x| f.filtfilt_extended(x, extension)).collect();
         Signals { len: self.len, data }
     }
 }
@@ -242,39 +251,57 @@ impl Signals {
 /// region.
 pub fn run_rows(design: &Design, model: &Model, run: &Run, index: usize, filters: &Filters) -> Rows {
     let n = model.dof;
-    let len = run.len();
     let dt = run.dt;
     let chain = &design.chain;
-    // Smoothed angles and their velocity.
-    let q: Vec<Vec<f64>> =
-        (0..n).map(|j| filters.smoothing.filtfilt(&(0..len).map(|i| run.q[i * n + j]).collect::<Vec<_>>())).collect();
+    // Smoothed angles and their velocity, without the smoothing's ends.
+    let q: Vec<Vec<f64>> = (0..n)
+        .map(|j| filters.smoothing.filtfilt(&(0..run.len()).map(|i| run.q[i * n + j]).collect::<Vec<_>>()))
+        .collect();
     let qd: Vec<Vec<f64>> = q.iter().map(|x| derivative(x, dt)).collect();
-    // Per sample: momentum M q̇; the rest of y; the designed torque; the parts' columns.
+    let keep = filters.edge..run.len().saturating_sub(filters.edge).max(filters.edge);
+    let len = keep.len();
+    // The momentum M q̇ two samples beyond each kept end, and its rate by central differences.
+    let mut momentum = vec![vec![0.0; len + 4]; n];
+    for (i, s) in (keep.start - 2..keep.end + 2).enumerate() {
+        let qs = nalgebra::DVector::from_iterator(n, (0..n).map(|j| q[j][s]));
+        let v = nalgebra::DVector::from_iterator(n, (0..n).map(|j| qd[j][s]));
+        let p = chain.mass_matrix(&qs) * &v;
+        for j in 0..n {
+            momentum[j][i] = p[j];
+        }
+    }
+    let mut momentum_rate = Signals::new(n, len);
+    for j in 0..n {
+        for i in 0..len {
+            momentum_rate.data[j][i] = central(&momentum[j][i..i + 5], dt);
+        }
+    }
+    // Per kept sample: the rest of y; the designed torque; the parts' columns.
     let parts = model.parts.len();
-    let mut momentum = Signals::new(n, len);
     let mut rest = Signals::new(n, len);
     let mut designed = Signals::new(n, len);
     let mut columns = Signals::new(parts * n, len);
+    let mut damping = Signals::new(n, len);
+    let mut friction = Signals::new(n, len);
     let mut qi = vec![0.0; n];
     let mut g = vec![0.0; n];
-    for i in 0..len {
+    let mut spring = vec![0.0; n];
+    for (i, s) in keep.clone().enumerate() {
         for j in 0..n {
-            qi[j] = q[j][i];
+            qi[j] = q[j][s];
         }
         let qv = nalgebra::DVector::from_column_slice(&qi);
-        let v = nalgebra::DVector::from_iterator(n, (0..n).map(|j| qd[j][i]));
-        let m = chain.mass_matrix(&qv);
-        let p = &m * &v;
+        let v = nalgebra::DVector::from_iterator(n, (0..n).map(|j| qd[j][s]));
         let dm = chain.mass_matrix_derivatives(&qv);
         chain.gravity_gradient_into(&qi, &mut g);
-        let mut spring = vec![0.0; n];
         model.designed.gradient_into(&qi, &mut spring);
         for j in 0..n {
             let dt_dq = 0.5 * v.dot(&(&dm[j] * &v));
-            let tau = run.tau.as_ref().map_or(0.0, |t| t[i * n + j]);
-            momentum.data[j][i] = p[j];
+            let tau = run.tau.as_ref().map_or(0.0, |t| t[s * n + j]);
             rest.data[j][i] = -dt_dq + g[j] - tau + spring[j];
             designed.data[j][i] = -spring[j];
+            damping.data[j][i] = -v[j];
+            friction.data[j][i] = if v[j] == 0.0 { 0.0 } else { -v[j].signum() };
         }
         for (k, part) in model.parts.iter().enumerate() {
             part.set.gradient_into(&qi, &mut g);
@@ -283,40 +310,34 @@ pub fn run_rows(design: &Design, model: &Model, run: &Run, index: usize, filters
             }
         }
     }
+    // L on every term, each extended even.
     let l = &filters.regression;
-    let momentum_rate: Vec<Vec<f64>> = momentum.filtered(l).data.iter().map(|x| derivative(x, dt)).collect();
-    let rest = rest.filtered(l);
-    let designed = designed.filtered(l);
-    let columns = columns.filtered(l);
-    let damping: Vec<Vec<f64>> = qd.par_iter().map(|v| l.filtfilt(&v.iter().map(|x| -x).collect::<Vec<_>>())).collect();
-    let friction: Vec<Vec<f64>> = qd
-        .par_iter()
-        .map(|v| l.filtfilt(&v.iter().map(|x| if *x == 0.0 { 0.0 } else { -x.signum() }).collect::<Vec<_>>()))
-        .collect();
+    let momentum_rate = momentum_rate.filtered(l, Extension::Even);
+    let rest = rest.filtered(l, Extension::Even);
+    let designed = designed.filtered(l, Extension::Even);
+    let columns = columns.filtered(l, Extension::Even);
+    let damping = damping.filtered(l, Extension::Even);
+    let friction = friction.filtered(l, Extension::Even);
 
     let width = model.unknowns.len();
     let mut rows = Rows { width, ..Rows::default() };
-    let mut step = 0;
-    let mut i = filters.edge;
-    while i + filters.edge < len {
+    for (step, i) in (0..len).step_by(filters.stride).enumerate() {
         for j in 0..n {
-            rows.y.push(momentum_rate[j][i] + rest.data[j][i]);
+            rows.y.push(momentum_rate.data[j][i] + rest.data[j][i]);
             for u in &model.unknowns {
                 rows.phi.push(match *u {
                     Unknown::Rate(k) => columns.data[k * n + j][i],
-                    Unknown::Damping(d) if d == j => damping[j][i],
-                    Unknown::Friction(d) if d == j => friction[j][i],
+                    Unknown::Damping(d) if d == j => damping.data[j][i],
+                    Unknown::Friction(d) if d == j => friction.data[j][i],
                     _ => 0.0,
                 });
             }
             rows.designed.push(designed.data[j][i]);
             rows.joint.push(j);
-            rows.t.push(run.t[i]);
+            rows.t.push(run.t[keep.start + i]);
             rows.run.push(index);
             rows.step.push(step);
         }
-        step += 1;
-        i += filters.stride;
     }
     rows
 }
