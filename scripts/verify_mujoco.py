@@ -138,6 +138,13 @@ class Passive:
         mujoco.set_mjcb_passive(self if len(self) else None)
 
 
+def passive_callback(model):
+    """The model's springs MuJoCo cannot represent itself (callback elements and cams) as MuJoCo's
+    `mjcb_passive` and their potential energy: (passive(m, d), energy(q))."""
+    springs = Passive(model)
+    return springs, springs.energy
+
+
 def read_runs(path, nq):
     """springfit's samples per run: {run: (t, q)} with t of shape (k,) and q of shape (k, nq)."""
     runs = {}

@@ -2,9 +2,12 @@
 //!
 //! Every failure a user can meet carries what a person needs to fix it: the file, the field (or the
 //! line and column for TOML syntax), and the reason. The library never prints or exits; the CLI maps
-//! [`Error::kind`] to an exit code.
+//! [`Error::kind`] to an exit code. Numbers a message would write out in hundreds of digits are
+//! shown in scientific notation ([`crate::limits::tidy_numbers`]).
 
 use std::path::PathBuf;
+
+use crate::limits::tidy_numbers as tidy;
 
 /// What kind of failure an [`Error`] is, for callers that react differently (the CLI's exit codes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,7 +30,7 @@ pub enum Error {
         cause: std::io::Error,
     },
     /// A TOML or CSV file does not parse, or has an unknown field or a value of the wrong type.
-    #[error("{}:{line}:{column}: {message}", path.display())]
+    #[error("{}{}: {}", path.display(), position(*line, *column), tidy(message))]
     Parse {
         path: PathBuf,
         /// 1-based line of the problem (0 when the parser gave no position).
@@ -37,20 +40,20 @@ pub enum Error {
         message: String,
     },
     /// A value parsed but is not acceptable (a negative mass, an equilibrium outside the region).
-    #[error("{}: field `{field}`: {reason}", path.display())]
+    #[error("{}: field `{field}`: {}", path.display(), tidy(reason))]
     Invalid { path: PathBuf, field: String, reason: String },
     /// Settings or arguments given through the API or the command line are not acceptable.
-    #[error("setting `{field}`: {reason}")]
+    #[error("setting `{field}`: {}", tidy(reason))]
     Setting { field: String, reason: String },
     /// The fit's constraints cannot all be met.
-    #[error("the fit is infeasible: {constraint}: {reason}")]
+    #[error("the fit is infeasible: {}: {}", tidy(constraint), tidy(reason))]
     Infeasible { constraint: String, reason: String },
     /// A numerical method failed (integrator step-size underflow, a singular mass matrix, a log
     /// map that did not converge, a solver that stopped early).
-    #[error("{context}: {reason}")]
+    #[error("{}: {}", tidy(context), tidy(reason))]
     Numerical { context: String, reason: String },
     /// A plot could not be drawn or written.
-    #[error("plot {}: {reason}", path.display())]
+    #[error("plot {}: {}", path.display(), tidy(reason))]
     Plot { path: PathBuf, reason: String },
 }
 
@@ -81,6 +84,11 @@ impl Error {
     pub fn numerical(context: impl Into<String>, reason: impl Into<String>) -> Self {
         Error::Numerical { context: context.into(), reason: reason.into() }
     }
+}
+
+/// `:line:column` of a parse error, or nothing when the parser gave no position.
+fn position(line: usize, column: usize) -> String {
+    if line == 0 { String::new() } else { format!(":{line}:{column}") }
 }
 
 /// The library's result type.

@@ -22,6 +22,7 @@ pub mod fit;
 pub mod geodesic;
 pub mod identify;
 pub mod input;
+pub mod limits;
 pub mod model;
 pub mod numerics;
 pub mod potential;

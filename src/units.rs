@@ -3,7 +3,8 @@
 //! Design files are easier to read with `"pi/2"` than with `1.5707963267948966`. An [`Angle`]
 //! deserialises from a TOML number or from a string of the form `[sign][number][*]pi[/number]`
 //! or a plain number (`"pi/2"`, `"-pi/6"`, `"3*pi/4"`, `"2pi"`, `"0.5"`). Nothing else is
-//! accepted, so a typo is an error rather than a silent zero.
+//! accepted, so a typo is an error rather than a silent zero; nor is an angle beyond
+//! [`crate::limits::MAX_ANGLE_RAD`].
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -66,10 +67,13 @@ impl<'de> Deserialize<'de> for Angle {
             Raw::Int(i) => i as f64,
             Raw::Text(s) => Angle::parse(&s).map_err(serde::de::Error::custom)?,
         };
-        // TOML has `nan` and `inf`: an angle must be a finite number, as written in text or not.
+        // TOML has `nan` and `inf`: an angle must be a finite number, as written in text or not,
+        // and one no arm turns through (see `limits::MAX_ANGLE_RAD`).
         if !v.is_finite() {
             return Err(serde::de::Error::custom(format!("`{v}` is not a finite angle")));
         }
+        crate::limits::within(v, crate::limits::MAX_ANGLE_RAD, " rad")
+            .map_err(|e| serde::de::Error::custom(format!("the angle {e}")))?;
         Ok(Angle(v))
     }
 }

@@ -43,7 +43,7 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
         ));
         for b in chain.bodies() {
             progress.say(format!(
-                "  joint {}: axis {} moves {} kg (held joints and fixed links merged), com {} m",
+                "  joint {}: axis {} in the joint's own frame (the URDF's <axis>), moves {} kg (held joints and fixed links merged), com {} m in that frame",
                 b.joint,
                 fmt_vec(b.axis.as_slice()),
                 b.mass,
@@ -80,7 +80,45 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     ));
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));
+    for line in suggestions(&design, report.largest_radius, report.largest_radius_is_lower_bound) {
+        progress.say(line);
+    }
     Ok(())
+}
+
+/// What to choose for a new arm, from the exact potential U* = ½ω²r² the springs approach: every
+/// mode reaches the energy ½ω²r² at metric distance r, so a scenario's energy E fits inside a
+/// ball of radius R only if E ≤ ½ω²R², and the largest valid radius bounds R.
+fn suggestions(design: &Design, largest: f64, lower_bound: bool) -> Vec<String> {
+    let omega = design.fit.frequency;
+    let radius = match design.region {
+        Region::Ball { radius } => radius,
+        Region::Box { .. } => design.valid_region().map(|r| r.extent).unwrap_or(largest),
+    };
+    let bound = if lower_bound { "at least " } else { "" };
+    let mut out = vec![format!(
+        "for this arm: region.radius up to the largest valid radius, {bound}{largest:.4} (a fit is easier well inside it); at fit.frequency ω = {omega} rad/s a mode reaches ½ω²r² = {:.4} J at the region's edge r = {radius:.4}, and {:.4} J at r = {largest:.4}",
+        0.5 * omega * omega * radius * radius,
+        0.5 * omega * omega * largest * largest,
+    )];
+    let energies: Vec<(String, f64)> =
+        design.file.scenario.iter().enumerate().flat_map(|(i, s)| s.energies(i)).collect();
+    if let Some((field, e)) = energies.iter().cloned().max_by(|a, b| a.1.total_cmp(&b.1)) {
+        let reach = 0.5 * omega * omega * radius * radius;
+        let needed_omega = (2.0 * e).sqrt() / radius;
+        out.push(if e <= reach {
+            format!(
+                "the scenarios ask for at most {e} J ({field}): inside the region at this ω (ω ≥ {needed_omega:.4} rad/s puts it inside region.radius = {radius:.4})"
+            )
+        } else {
+            format!(
+                "the scenarios ask for up to {e} J ({field}), beyond the {reach:.4} J the region reaches at this ω: raise fit.frequency to at least {needed_omega:.4} rad/s, or region.radius to at least {:.4}{}, or lower the energy",
+                (2.0 * e).sqrt() / omega,
+                if (2.0 * e).sqrt() / omega > largest && !lower_bound { " (beyond the largest valid radius: raise ω)" } else { "" }
+            )
+        });
+    }
+    out
 }
 
 /// `--json`: one object on stdout; an invalid region is reported in it and then as an error.

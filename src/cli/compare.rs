@@ -97,12 +97,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
         records.push(r);
     }
     disambiguate(&mut records);
-    let dir = OutputDir::create(&target, &plan)?;
-    // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
-    let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
-    springfit::report::compare::write_compare(&dir, &records, signed)?;
-    springfit::report::html::write_compare(&dir)?;
-    let written = dir.commit()?;
+    let written = springfit::report::compare::write_compare_folder(&target, &plan, &records)?;
     for r in &records {
         progress.say(format!(
             "{}: {} springs, p99 {:.4}°, max {:.4}°{}",

@@ -9,7 +9,6 @@ use springfit::error::Error;
 use springfit::export::mujoco;
 use springfit::files::bom;
 use springfit::fit::run::fit;
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -25,7 +24,7 @@ pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_mujoco", design.name)));
     // Refuse a folder springfit may not write into before fitting anything.
     let xml_name = format!("{}.xml", design.name);
-    let plan = session.plan("export", [xml_name.as_str(), "elements.md", "bom.csv", "cams/*"]);
+    let plan = session.plan("export", mujoco::files(&design));
     springfit::report::output::check(&target, &plan)?;
     let (rows, from) = match &args.bom {
         Some(path) => {
@@ -62,12 +61,7 @@ pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
             (outcome.bom, format!("a fit of {} with catalogue {}", design.path.display(), outcome.catalog))
         }
     };
-    let model = mujoco::export(&design, &rows, 1.0 / design.simulate.rate)?;
-    let dir = OutputDir::create(&target, &plan)?;
-    dir.write(&xml_name, &model.xml)?;
-    dir.write("elements.md", mujoco::elements_md(&design, &model, &from, &xml_name))?;
-    bom::write(&dir, "bom.csv", &rows)?;
-    let written = dir.commit()?;
+    let (model, written) = mujoco::write_folder(&target, &plan, &design, &rows, &from)?;
     progress.say(format!(
         "{}: {} springs for MuJoCo, {} exact, {} by passive-force callback; RK4 at {} s",
         design.name,

@@ -6,7 +6,6 @@ use anyhow::Result;
 use springfit::design::fit::SolverKind;
 use springfit::error::Error;
 use springfit::fit::run::{exact_reference, fit};
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -74,10 +73,13 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         Some((ab, t.elapsed().as_secs_f64()))
     };
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, &plan)?;
-    springfit::report::fit::write_with_as_built(&dir, &design, &outcome, as_built.as_ref().and_then(|a| a.0.as_ref()))?;
-    springfit::report::html::write_fit(&dir, &design)?;
-    let written = dir.commit();
+    let written = springfit::report::fit::write_folder(
+        &target,
+        &plan,
+        &design,
+        &outcome,
+        as_built.as_ref().and_then(|a| a.0.as_ref()),
+    );
     step.finish();
     let written = written?;
     let st = &outcome.metrics.stats;
@@ -95,6 +97,12 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             outcome.candidates - outcome.dropped,
             outcome.solve.solver,
             outcome.solve.status
+        ));
+    }
+    if let Some(b) = outcome.solve.budget_met_at {
+        progress.say(format!(
+            "budget {}: the selection found no set of {} elements that meets every constraint; the answer is the best set of at most {b} (the search at budget {b}; trims come on top)",
+            settings.max_elements, settings.max_elements
         ));
     }
     progress.say(format!(
@@ -142,12 +150,13 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     match &as_built {
         Some((Some(ab), secs)) => {
             progress.say(format!(
-                "as built ({} builds at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {:.3}° / {:.3}°, max {:.3}° / {:.3}°, shift {:.4} / {:.4} rad (Euclidean), {:.4} / {:.4} (metric); {:.2} s",
-                ab.builds,
+                "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {:.3}° / {:.3}° (p95 within {}° at 95 % confidence), max {:.3}° / {:.3}°, shift {:.4} / {:.4} rad (Euclidean), {:.4} / {:.4} (metric); {:.2} s",
+                plural(ab.builds, "build"),
                 ab.tolerance.label(),
                 ab.distribution.name(),
                 ab.p99_deg.p50,
                 ab.p99_deg.p95,
+                ab.p99_deg.p95_interval(3),
                 ab.max_deg.p50,
                 ab.max_deg.p95,
                 ab.shift_rad.p50,
@@ -158,20 +167,21 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             ));
             if let Some(t) = &ab.trimmed {
                 progress.say(format!(
-                    "as built and trimmed: p99 {:.3}° / {:.3}°, max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} builds not fully restored",
+                    "as built and trimmed: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} not fully restored",
                     t.p99_deg.p50,
                     t.p99_deg.p95,
+                    t.p99_deg.p95_interval(3),
                     t.max_deg.p50,
                     t.max_deg.p95,
                     t.trim_change_nm_per_rad.p50,
                     t.trim_change_nm_per_rad.p95,
-                    t.builds_not_restored
+                    plural(t.builds_not_restored, "build")
                 ));
             }
             if ab.builds_without_equilibrium > 0 {
                 progress.say(format!(
-                    "{} builds have no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
-                    ab.builds_without_equilibrium
+                    "{} no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
+                    if ab.builds_without_equilibrium == 1 { "1 build has".to_string() } else { format!("{} builds have", ab.builds_without_equilibrium) }
                 ));
             }
         }
@@ -192,4 +202,9 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
 
 fn display(p: &Path) -> String {
     p.display().to_string()
+}
+
+/// `1 build`, `2 builds`.
+pub fn plural(n: usize, word: &str) -> String {
+    if n == 1 { format!("1 {word}") } else { format!("{n} {word}s") }
 }

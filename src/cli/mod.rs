@@ -273,6 +273,18 @@ pub fn run() -> Result<()> {
         if t == 0 {
             return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
         }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let most = springfit::limits::MAX_THREADS_PER_CORE * cores;
+        if t > most {
+            return Err(Error::Setting {
+                field: "--threads".into(),
+                reason: format!(
+                    "{t} threads on a machine with {cores} cores: at most {most} ({} per core; more only slow the work down)",
+                    springfit::limits::MAX_THREADS_PER_CORE
+                ),
+            }
+            .into());
+        }
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
     }
     let edits = if cli.overwrite_edits { Edits::Overwrite } else { Edits::Refuse };

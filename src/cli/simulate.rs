@@ -9,7 +9,6 @@ use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
 use springfit::files::bom;
 use springfit::fit::run::fit;
-use springfit::geodesic::{Fan, FanSpec, Stop};
 use springfit::report::output::OutputDir;
 
 use super::Session;
@@ -110,25 +109,11 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             "tabulated mode label: largest error {err:.2e}° against the exact label on {count} held-out samples"
         ));
     }
-    let region = design.valid_region()?;
-    let fan = Fan::trace(
-        &design.chain,
-        &design.q_eq,
-        FanSpec {
-            count: 72,
-            phase: 0.0,
-            stop: Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc },
-            spacing: region.extent / 50.0,
-        },
-        design.geodesics.ode,
-    )?;
+    let fan = springfit::report::simulate::plot_fan(&design)?;
     let mut dir = OutputDir::create(&target, &plan)?;
     if let Some(only) = &args.scenario {
         // A rerun of one scenario keeps the other scenarios' files of the previous run.
-        let own = format!("sim_{only}");
-        dir.keep_previous(|name| {
-            !(name == format!("{own}.csv") || name == format!("{own}.json") || name.starts_with(&format!("{own}_")))
-        })?;
+        springfit::report::simulate::keep_other_scenarios(&mut dir, only)?;
     }
     for i in indices {
         let name = design.file.scenario[i].name.clone();

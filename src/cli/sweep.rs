@@ -6,12 +6,11 @@ use anyhow::Result;
 use serde::{Deserialize, Serialize};
 use springfit::design::Design;
 use springfit::dynamics::scenario::label_source;
-use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
 use springfit::fit::FitOutcome;
 use springfit::fit::run::fit;
 use springfit::report::output::OutputDir;
-use springfit::studies::sweep::{ItemResult, SweepContext, kappa, parse_shard, plan, shard_indices, tables};
+use springfit::studies::sweep::{ItemResult, SweepContext, parse_shard, plan, shard_indices, tables};
 
 use super::Session;
 use super::progress::Progress;
@@ -78,7 +77,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
         )
         .into());
     }
-    let index = springfit::design::validate::sweep_scenario(&design)?;
+    springfit::design::validate::sweep_scenario(&design)?;
     // Say which tolerances the builds use: the design's levels replace the catalogue's own.
     let stated: Vec<String> = catalog
         .families
@@ -189,30 +188,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
     let label = label_source(&design, &design.simulate);
     step.finish();
     let (label, _) = label?;
-    let nominal = ElasticPotential::Springs(outcome.springs.clone());
-    let base = {
-        let q_eq = design.q_eq.as_slice().to_vec();
-        let springs = outcome.springs.clone();
-        let chain = &design.chain;
-        let u = |q: &[f64]| {
-            springs.elements.iter().zip(&springs.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
-                + chain.gravity_potential(q)
-        };
-        let u0 = u(&q_eq);
-        let mut energy_at = |q: &[f64]| -> springfit::Result<f64> { Ok(u(q) - u0) };
-        design.file.scenario[index].resolve(index, &design, &mut energy_at)?.runs.remove(0)
-    };
-    let ctx = SweepContext {
-        design: &design,
-        fit: &outcome,
-        label: &label,
-        sim: design.simulate,
-        controllers: design.controllers,
-        settings: settings.clone(),
-        kappa: kappa(&design, &outcome.springs, &outcome),
-        base,
-        nominal,
-    };
+    let ctx = SweepContext::new(&design, &outcome, &label, settings.clone())?;
     let indices = match shard {
         Some(s) => shard_indices(items.len(), s),
         None => (0..items.len()).collect(),
@@ -260,10 +236,7 @@ fn finish(
     progress: &Progress,
 ) -> Result<()> {
     let t = tables(settings, results);
-    let dir = OutputDir::create(target, plan)?;
-    springfit::report::sweep::write(&dir, &design.name, &t, results, &outcome.bom)?;
-    springfit::report::html::write_sweep(&dir, design)?;
-    let written = dir.commit()?;
+    let written = springfit::report::sweep::write_folder(target, plan, design, &t, results, &outcome.bom)?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");
     for r in &t.parasitic {
         progress.say(format!(

@@ -137,6 +137,12 @@ impl FitSettings {
         if !(self.frequency.is_finite() && self.frequency > 0.0) {
             return err("frequency", "must be a positive number of rad/s");
         }
+        if self.frequency > crate::limits::MAX_FREQUENCY {
+            return err(
+                "frequency",
+                &format!("must be at most {} rad/s (the largest springfit accepts)", crate::limits::MAX_FREQUENCY),
+            );
+        }
         if !(4..=100_000).contains(&self.training_directions) {
             return err("training_directions", "must be 4 to 100000");
         }

@@ -53,7 +53,8 @@ use crate::error::{Error, Result};
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 use crate::input::{parse_toml, read_text};
-use crate::model::{Chain, Link, MAX_LINKS, PlanarChain, SpatialChain};
+use crate::limits::{MAX_GRAVITY, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_LINKS, MAX_MASS_KG, within};
+use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::units::Angle;
 
 /// A validated design, ready to compute with.
@@ -143,6 +144,14 @@ impl Design {
             finite(l.length, "length")?;
             finite(l.com, "com")?;
             finite(l.inertia, "inertia")?;
+            for (name, v, max, unit) in [
+                ("mass", l.mass, MAX_MASS_KG, " kg"),
+                ("length", l.length, MAX_LENGTH_M, " m"),
+                ("com", l.com, MAX_LENGTH_M, " m"),
+                ("inertia", l.inertia, MAX_INERTIA_KGM2, " kg·m²"),
+            ] {
+                within(v, max, unit).map_err(|r| invalid(&f(name), r))?;
+            }
             if l.mass <= 0.0 {
                 return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
             }
@@ -154,9 +163,7 @@ impl Design {
             }
         }
         for (k, g) in file.robot.gravity.iter().enumerate() {
-            if !g.is_finite() {
-                return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {g}")));
-            }
+            within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
         }
         let n = links.len();
         let chain = PlanarChain::new(
@@ -348,6 +355,15 @@ impl Design {
         })
     }
 
+    /// Whether this is the paper's arm (its double pendulum without gravity, at the paper's
+    /// equilibrium q = (0, π/2)): only then do the paper's own figures compare with ours.
+    pub fn is_paper_arm(&self) -> bool {
+        let paper = crate::model::PlanarChain::paper_double_pendulum();
+        let same_arm =
+            self.chain.planar().is_some_and(|c| c.links() == paper.links() && c.gravity() == paper.gravity());
+        same_arm && self.q_eq.as_slice() == [0.0, std::f64::consts::FRAC_PI_2]
+    }
+
     /// Number of joints.
     pub fn dof(&self) -> usize {
         self.chain.dof()
@@ -416,8 +432,8 @@ fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f
             ));
         }
     };
-    if let Some(k) = gravity.iter().position(|g| !g.is_finite()) {
-        return Err(invalid(&format!("robot.gravity[{k}]"), format!("must be finite, got {}", gravity[k])));
+    for (k, g) in gravity.iter().enumerate() {
+        within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
     }
     let urdf_path = path.parent().unwrap_or(Path::new(".")).join(robot.urdf.as_deref().unwrap_or_default());
     let locked: Vec<(String, f64)> = robot.locked.iter().map(|(k, v)| (k.clone(), v.0)).collect();
@@ -536,20 +552,25 @@ radius = 2.0
                 "region.lower",
                 "not a finite angle",
             ),
-            (PAPER.replacen("mass = 1.0\nlength = 2.0", "mass = 1e300\nlength = 1e300", 1), "robot.links", "overflows"),
-            (PAPER.replacen("com = 1.0", "com = 1e160", 1), "robot.links", "overflows"),
+            (
+                PAPER.replacen("mass = 1.0\nlength = 2.0", "mass = 1e300\nlength = 1e300", 1),
+                "robot.links[0].mass",
+                "1e6 kg",
+            ),
+            (PAPER.replacen("com = 1.0", "com = 1e160", 1), "robot.links[0].com", "1000 m"),
+            (PAPER.replacen("mass = 1.0", "mass = 1e200", 1), "robot.links[0].mass", "1e200"),
         ];
         for (text, field, reason) in cases {
             let err = load(&text).unwrap_err().to_string();
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
-        // Large but finite angles are fine, unless their sums overflow.
-        assert!(load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1e300, \"pi/2\"]")).is_ok());
+        // Angles up to the limit are fine, beyond it refused with the limit.
+        assert!(load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [999, \"pi/2\"]")).is_ok());
         let err = load(&PAPER.replace("q = [0, \"pi/2\"]", "q = [1.7e308, 1.7e308]")).unwrap_err().to_string();
-        assert!(err.contains("equilibrium.q") && err.contains("overflow"), "{err}");
+        assert!(err.contains("equilibrium.q") && err.contains("1000 rad"), "{err}");
         let err = load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e307]")).unwrap_err().to_string();
-        assert!(err.contains("robot.gravity") && err.contains("overflows"), "{err}");
-        assert!(load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -1e300]")).is_ok());
+        assert!(err.contains("robot.gravity[1]") && err.contains("1000 m/s²"), "{err}");
+        assert!(load(&PAPER.replace("[robot]", "[robot]\ngravity = [0, -999]")).is_ok());
     }
 
     #[test]

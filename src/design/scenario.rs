@@ -319,6 +319,29 @@ impl ScenarioSpec {
     }
 }
 
+impl ScenarioSpec {
+    /// The energies (U − U(q_eq), J) the scenario asks for, each with the field that asks:
+    /// release energies, a switch's energy, a swing-up's start and target energies (defaults
+    /// included, as `resolve` uses them).
+    pub fn energies(&self, index: usize) -> Vec<(String, f64)> {
+        let f = |name: &str| format!("scenario[{index}].{name}");
+        match self.kind {
+            ScenarioKind::Free => {
+                self.releases.iter().enumerate().map(|(k, r)| (f(&format!("releases[{k}].energy")), r.energy)).collect()
+            }
+            ScenarioKind::Switch => vec![(f("energy"), self.energy.unwrap_or(10.0))],
+            ScenarioKind::Swingup => {
+                let ed = match &self.ed {
+                    None => 20.0,
+                    Some(EnergySpec::Value(v)) => *v,
+                    Some(EnergySpec::Steps(steps)) => steps.iter().map(|p| p[1]).fold(0.0, f64::max),
+                };
+                vec![(f("e0"), self.e0.unwrap_or(5.0)), (f("ed"), ed)]
+            }
+        }
+    }
+}
+
 fn kind_name(k: ScenarioKind) -> &'static str {
     match k {
         ScenarioKind::Free => "free",

@@ -61,6 +61,7 @@ pub fn validate(design: &Design) -> Result<Validated> {
     };
     if let Some(c) = &catalog {
         crate::design::validate::check_trimmed_weight(design, c, &design.fit)?;
+        check_fit_memory(design, c, crate::limits::available_memory())?;
     }
     for (i, sc) in design.file.scenario.iter().enumerate() {
         sc.check(i, design)?;
@@ -88,6 +89,38 @@ pub fn validate(design: &Design) -> Result<Validated> {
     Ok(Validated { catalog, warnings })
 }
 
+/// Bytes the fit's dense problem takes at most: the weighted rows (one per training sample and
+/// direction of [γ̇]^⊥, n − 1 per sample) × the candidates, and the Gram matrix, in f64.
+pub fn fit_memory(design: &Design, catalog: &Catalog) -> u64 {
+    let s = &design.fit;
+    let rows = (s.training_directions as u64) * (s.training_samples as u64 + 1) * (design.dof().max(2) as u64 - 1);
+    let columns = catalog.candidate_bound as u64;
+    8 * (rows * columns + columns * columns)
+}
+
+/// Refuses a design whose fit would not fit in `available` bytes, naming the keys that size it.
+pub fn check_fit_memory(design: &Design, catalog: &Catalog, available: u64) -> Result<()> {
+    let need = fit_memory(design, catalog);
+    if need > available {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        return Err(Error::invalid(
+            &design.path,
+            "fit.training_samples",
+            format!(
+                "the fit's dense rows would take {:.1} GiB ({} training directions × {} samples × {} rows per sample × up to {} candidates of {}, 8 bytes each) and this machine has {:.1} GiB available: lower fit.training_directions or fit.training_samples, or use a smaller catalogue",
+                gib(need),
+                design.fit.training_directions,
+                design.fit.training_samples,
+                design.dof().max(2) - 1,
+                catalog.candidate_bound,
+                catalog.path.display(),
+                gib(available)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The index of the `[sweep] scenario`, or an error listing the scenarios the design has.
 pub fn sweep_scenario(design: &Design) -> Result<usize> {
     let name = &design.file.sweep.scenario;
@@ -106,6 +139,14 @@ pub fn sweep_scenario(design: &Design) -> Result<usize> {
 }
 
 fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
+    if path.is_dir() {
+        let written = design.file.catalog.as_deref().unwrap_or_default();
+        return Err(Error::invalid(
+            &design.path,
+            "catalog",
+            format!("`{written}` is a folder ({}): name the catalogue's TOML file in it", path.display()),
+        ));
+    }
     if !path.is_file() {
         let written = design.file.catalog.as_deref().unwrap_or_default();
         return Err(Error::invalid(
@@ -314,5 +355,26 @@ radius = 2.0
         assert!(fields.contains(&"equilibrium.q[1]"), "{w:?}");
         assert!(fields.contains(&"robot.links[1].com"), "{w:?}");
         assert!(validate(&design(BASE).unwrap()).unwrap().warnings.is_empty());
+    }
+
+    /// The fit's memory is judged before any work: the default design's ~2900 rows × ~420
+    /// candidates are about 10 MB; the same design at 100 000 × 20 samples with a budget of 1
+    /// GiB is refused, naming the keys.
+    #[test]
+    fn a_fit_too_large_for_the_memory_is_refused_with_its_size() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), 2).unwrap();
+        let need = fit_memory(&design, &catalog);
+        assert!(need > 5_000_000 && need < 50_000_000, "{need}");
+        check_fit_memory(&design, &catalog, 1 << 30).unwrap();
+        let mut big = design.clone();
+        big.fit.training_directions = 100_000;
+        big.fit.training_samples = 20;
+        let err = check_fit_memory(&big, &catalog, 1 << 30).unwrap_err().to_string();
+        assert!(
+            err.contains("fit.training_samples") && err.contains("GiB") && err.contains("1.0 GiB available"),
+            "{err}"
+        );
     }
 }

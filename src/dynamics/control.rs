@@ -26,7 +26,84 @@
 //! damping; damping compensation adds the feed-forward D q̇ (the hardware-style remedy the
 //! paper recommends).
 
-use crate::design::controllers::{Blend, ControllerSettings, EnergyLaw, ModeInertia};
+//!
+//! **The controller of a loop.** [`Controller`] is the one place these laws are combined: the
+//! label (from a [`LogField`]), the blend at the ε-ball, the schedules of θ_d (or u_d) and E_d,
+//! the damping compensation. `springfit simulate` calls it at every stage of its integrator
+//! ([`crate::dynamics::simulate::Dynamics`]) and a robot's own loop calls the same code through
+//! [`Controller::torque`] (the Python package's `Controller`), so what runs on the arm is what
+//! was simulated.
+
+use nalgebra::DVector;
+
+use crate::design::controllers::{Blend, ControllerSettings, EnergyLaw, LabelGradient, ModeInertia};
+use crate::error::{Error, Result};
+use crate::geodesic::MetricFrame;
+use crate::geodesic::label::{LogField, LogValue, angle_label, sphere_distance};
+use crate::geodesic::logmap::wrap_angle;
+use crate::model::{Chain, Workspace};
+use crate::potential::{GroupedSet, Potential, SpringSet};
+
+/// A desired mode: an angle θ (two joints) or a direction u in the metric frame (any number).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModeTarget {
+    /// θ_d.
+    Angle(f64),
+    /// A unit vector in the metric frame at q_eq (±u the same mode).
+    Direction(DVector<f64>),
+}
+
+/// Mode control of a run: the desired mode as a schedule of (start time, target).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeControl {
+    /// Steps of the schedule, by increasing start time (the first at t = 0).
+    pub schedule: Vec<(f64, ModeTarget)>,
+}
+
+impl ModeControl {
+    /// The target in force at time t.
+    pub fn target(&self, t: f64) -> &ModeTarget {
+        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
+        &self.schedule[k].1
+    }
+}
+
+/// Energy regulation of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnergyControl {
+    /// τ_E or τ_nD.
+    pub law: EnergyLaw,
+    /// E_d in J as a schedule of (start time, value), by increasing time, the first at t = 0.
+    pub schedule: Vec<(f64, f64)>,
+    /// Add the damping feed-forward D q̇.
+    pub compensate_damping: bool,
+}
+
+impl EnergyControl {
+    /// E_d at time t.
+    pub fn target(&self, t: f64) -> f64 {
+        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
+        self.schedule[k].1
+    }
+
+    /// The last E_d of the schedule (what the end of a run is judged against).
+    pub fn final_target(&self) -> f64 {
+        self.schedule.last().map_or(0.0, |s| s.1)
+    }
+}
+
+/// The elastic potential: what an arm has, and what its controllers believe it has (the
+/// nominal one, for the energy E).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ElasticPotential {
+    /// A spring set (fitted, or read from a bill of materials).
+    Springs(SpringSet),
+    /// U_e = ½ω²r² − U_g through the log field.
+    Exact {
+        /// ω in rad/s.
+        omega: f64,
+    },
+}
 
 /// The weight of the mode controller at distance `r` = ‖q − q_eq‖ from the equilibrium (joint
 /// angles, rad): 0 inside the ε-ball, 1 from 2ε on (smooth) or right outside ε (hard).
@@ -110,6 +187,361 @@ pub fn energy_torque(
 #[inline]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The controllers' torques at one state, by source (N·m per joint), with what they saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlTorques {
+    /// τ_θ, already scaled by the blend weight.
+    pub mode: Vec<f64>,
+    /// τ_E or τ_nD.
+    pub energy: Vec<f64>,
+    /// The damping feed-forward D q̇.
+    pub compensation: Vec<f64>,
+    /// The blend weight of the mode torque (0 inside the ε-ball or without mode control).
+    pub weight: f64,
+    /// E = ½q̇ᵀMq̇ + U(q) − U(q_eq) with the nominal U, when it was computed (energy control on,
+    /// or [`Controller::torque`]); NaN otherwise.
+    pub energy_value: f64,
+}
+
+impl ControlTorques {
+    fn zeros(n: usize) -> Self {
+        ControlTorques {
+            mode: vec![0.0; n],
+            energy: vec![0.0; n],
+            compensation: vec![0.0; n],
+            weight: 0.0,
+            energy_value: f64::NAN,
+        }
+    }
+
+    /// τ_c = τ_θ + τ_E + τ_comp, joint i: what joint i's motor delivers.
+    pub fn motor(&self, i: usize) -> f64 {
+        self.mode[i] + self.energy[i] + self.compensation[i]
+    }
+}
+
+/// What the controller believes the potential to be, in the form it evaluates fast.
+enum Nominal {
+    Springs(GroupedSet),
+    /// ω² M(q_eq), row-major.
+    Exact(Vec<f64>),
+}
+
+/// Mode selection and energy regulation for one arm, with their schedules: the torques a loop
+/// sends to the motors at (q, q̇, t). See the module docs for the laws; every setting is the
+/// design's `[controllers]` ([`ControllerSettings`]).
+pub struct Controller<'a> {
+    chain: &'a Chain,
+    q_eq: Vec<f64>,
+    frame: MetricFrame,
+    settings: ControllerSettings,
+    nominal: Nominal,
+    /// U(q_eq) with the nominal potential: energies are measured from it.
+    u0: f64,
+    mode: Option<ModeControl>,
+    energy: Option<EnergyControl>,
+    /// The joint damping D (diagonal) that the compensation feeds forward.
+    damping: Vec<f64>,
+    field: Option<Box<dyn LogField + 'a>>,
+    lv: LogValue,
+    /// The reference mode of the label output for three or more joints without a direction
+    /// target: the mode of the first labelled point.
+    reference: Option<DVector<f64>>,
+    out: ControlTorques,
+    /// For [`Controller::torque`], which prepares M(q) itself (taken out during the call).
+    ws: Option<Workspace>,
+    gbuf: Vec<f64>,
+    buf: Vec<f64>,
+}
+
+impl<'a> Controller<'a> {
+    /// A controller for `chain` about `q_eq` believing the potential `potential`, with the gains
+    /// `settings`. `field` evaluates log(q): needed for mode control, for the exact potential and
+    /// for the label. No mode or energy control and no damping until they are set.
+    pub fn new(
+        chain: &'a Chain,
+        q_eq: &DVector<f64>,
+        potential: &ElasticPotential,
+        settings: ControllerSettings,
+        field: Option<Box<dyn LogField + 'a>>,
+    ) -> Result<Controller<'a>> {
+        let n = chain.dof();
+        let m_eq = chain.mass_matrix(q_eq);
+        let frame = MetricFrame::new(&m_eq)?;
+        let nominal = match potential {
+            ElasticPotential::Springs(s) => Nominal::Springs(s.grouped()),
+            ElasticPotential::Exact { omega } => {
+                if field.is_none() {
+                    return Err(Error::Setting {
+                        field: "potential".into(),
+                        reason: "the exact potential needs a log field".into(),
+                    });
+                }
+                Nominal::Exact(m_eq.iter().map(|m| m * omega * omega).collect())
+            }
+        };
+        let mut c = Controller {
+            chain,
+            q_eq: q_eq.as_slice().to_vec(),
+            frame,
+            settings,
+            nominal,
+            u0: 0.0,
+            mode: None,
+            energy: None,
+            damping: vec![0.0; n],
+            field,
+            lv: LogValue::zeros(n),
+            reference: None,
+            out: ControlTorques::zeros(n),
+            ws: Some(chain.workspace()),
+            gbuf: Vec::with_capacity(n),
+            buf: vec![0.0; n],
+        };
+        let q_eq = c.q_eq.clone();
+        c.u0 = c.nominal_potential(&q_eq)?;
+        Ok(c)
+    }
+
+    /// Sets (or, with `None`, switches off) mode selection.
+    pub fn set_mode(&mut self, mode: Option<ModeControl>) {
+        self.mode = mode;
+    }
+
+    /// Sets (or switches off) energy regulation.
+    pub fn set_energy(&mut self, energy: Option<EnergyControl>) {
+        self.energy = energy;
+    }
+
+    /// Sets the joint damping D (diagonal, N·m·s/rad) that the compensation feeds forward.
+    pub fn set_damping(&mut self, damping: Vec<f64>) {
+        self.damping = damping;
+    }
+
+    /// Mode selection, if on.
+    pub fn mode(&self) -> Option<&ModeControl> {
+        self.mode.as_ref()
+    }
+
+    /// Energy regulation, if on.
+    pub fn energy(&self) -> Option<&EnergyControl> {
+        self.energy.as_ref()
+    }
+
+    /// The gains.
+    pub fn settings(&self) -> &ControllerSettings {
+        &self.settings
+    }
+
+    /// The torques of the last [`Controller::torque`] or [`Controller::torque_at`].
+    pub fn torques(&self) -> &ControlTorques {
+        &self.out
+    }
+
+    /// v = log(q) and ∂v/∂q from the controller's field (the arm's exact potential uses it too).
+    pub fn log_value(&mut self, q: &[f64]) -> Result<&LogValue> {
+        let field = self
+            .field
+            .as_mut()
+            .ok_or_else(|| Error::Setting { field: "label".into(), reason: "mode control needs a label".into() })?;
+        field.eval(q, &mut self.lv)?;
+        Ok(&self.lv)
+    }
+
+    /// U_e + U_g at q with the nominal potential.
+    pub fn nominal_potential(&mut self, q: &[f64]) -> Result<f64> {
+        let ue = match &self.nominal {
+            Nominal::Springs(s) => s.value(q)?,
+            Nominal::Exact(omega2_m_eq) => {
+                let field = self.field.as_mut().expect("checked in new");
+                field.eval(q, &mut self.lv)?;
+                let n = q.len();
+                let v = &self.lv.v;
+                let mut r = 0.0;
+                for i in 0..n {
+                    for j in 0..n {
+                        r += v[i] * omega2_m_eq[i + n * j] * v[j];
+                    }
+                }
+                0.5 * r - self.chain.gravity_potential(q)
+            }
+        };
+        Ok(ue + self.chain.gravity_potential(q))
+    }
+
+    /// The energy E = ½q̇ᵀMq̇ + U(q) − U(q_eq) at a state, with the nominal U.
+    pub fn energy_at(&mut self, q: &[f64], qd: &[f64]) -> Result<f64> {
+        let u = self.nominal_potential(q)?;
+        let m = self.chain.mass_matrix(&DVector::from_column_slice(q));
+        let kin = 0.5
+            * qd.iter().enumerate().map(|(i, a)| a * (0..q.len()).map(|j| m[(i, j)] * qd[j]).sum::<f64>()).sum::<f64>();
+        Ok(kin + u - self.u0)
+    }
+
+    /// E at (q, q̇) with M(q) given (row-major) and U_e + U_g at q if the caller has it.
+    fn energy_with(&mut self, q: &[f64], qd: &[f64], m: &[f64], nominal_u: Option<f64>) -> Result<f64> {
+        let n = q.len();
+        let u = match nominal_u {
+            Some(u) => u,
+            None => self.nominal_potential(q)?,
+        };
+        let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
+        Ok(kin + u - self.u0)
+    }
+
+    /// The label at q and its target at t: (θ or Δ, θ_d or 0, inside the ε-ball). The label is
+    /// NaN inside the ball (and without a field); the target NaN without an angle target.
+    pub fn label(&mut self, t: f64, q: &[f64]) -> Result<(f64, f64, bool)> {
+        let n = q.len();
+        let dist = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let in_ball = dist <= self.settings.epsilon;
+        let Some(field) = self.field.as_mut() else { return Ok((f64::NAN, f64::NAN, in_ball)) };
+        if dist == 0.0 {
+            return Ok((f64::NAN, f64::NAN, true));
+        }
+        field.eval(q, &mut self.lv)?;
+        if n == 2 {
+            let (theta, _) = angle_label(&self.lv);
+            let target = match self.mode.as_ref().map(|m| m.target(t)) {
+                Some(ModeTarget::Angle(a)) => wrap_angle(*a),
+                _ => f64::NAN,
+            };
+            Ok((if in_ball { f64::NAN } else { theta }, target, in_ball))
+        } else {
+            let reference = match self.mode.as_ref().map(|m| m.target(t)) {
+                Some(ModeTarget::Direction(u)) => u.clone(),
+                _ => {
+                    if self.reference.is_none() {
+                        let w = self.frame.to_frame(&DVector::from_column_slice(&self.lv.v));
+                        self.reference = Some(w.normalize());
+                    }
+                    self.reference.clone().expect("set above")
+                }
+            };
+            let (delta, _) = sphere_distance(&self.lv, &self.frame, &reference);
+            Ok((if in_ball { f64::NAN } else { delta }, 0.0, in_ball))
+        }
+    }
+
+    /// The torques at (q, q̇, t) for a loop of its own: checks the state, evaluates M(q), runs
+    /// [`Controller::torque_at`] and also computes E.
+    pub fn torque(&mut self, t: f64, q: &[f64], qd: &[f64]) -> Result<&ControlTorques> {
+        let n = self.chain.dof();
+        for (name, x) in [("q", q), ("qdot", qd)] {
+            if x.len() != n {
+                return Err(Error::Setting {
+                    field: name.into(),
+                    reason: format!("has {} entries but the robot has {n} joints", x.len()),
+                });
+            }
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Setting {
+                    field: format!("{name}[{i}]"),
+                    reason: format!("must be finite, got {}", x[i]),
+                });
+            }
+        }
+        if !t.is_finite() {
+            return Err(Error::Setting { field: "t".into(), reason: format!("must be finite, got {t}") });
+        }
+        let mut ws = self.ws.take().unwrap_or_else(|| self.chain.workspace());
+        let prepared = self.chain.prepare(&mut ws, q, qd);
+        let result = if prepared {
+            self.torque_at(t, q, qd, &ws, None).map(|_| ())
+        } else {
+            Err(Error::numerical("controller", format!("the mass matrix is not positive definite at t = {t:.4} s")))
+        };
+        let result = match result {
+            Ok(()) if self.out.energy_value.is_nan() => self.energy_with(q, qd, ws.mass(), None).map(|e| {
+                self.out.energy_value = e;
+            }),
+            other => other,
+        };
+        self.ws = Some(ws);
+        result?;
+        Ok(&self.out)
+    }
+
+    /// The torques at (q, q̇, t) into [`Controller::torques`], with M(q) and its factor already in
+    /// `ws` ([`Chain::prepare`]). `nominal_u` is U_e + U_g at q with the nominal potential when
+    /// the caller has it (the simulator's spring gradient comes with it); otherwise it is
+    /// computed when the energy law needs it.
+    pub fn torque_at(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        ws: &Workspace,
+        nominal_u: Option<f64>,
+    ) -> Result<&ControlTorques> {
+        let n = q.len();
+        self.out.mode.fill(0.0);
+        self.out.energy.fill(0.0);
+        self.out.compensation.fill(0.0);
+        self.out.weight = 0.0;
+        self.out.energy_value = f64::NAN;
+        // Mode selection.
+        if let Some(mode) = &self.mode {
+            let dist2: f64 = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum();
+            let weight = blend_weight(self.settings.blend, self.settings.epsilon, dist2.sqrt());
+            self.out.weight = weight;
+            if weight > 0.0 {
+                let field = self.field.as_mut().ok_or_else(|| Error::Setting {
+                    field: "label".into(),
+                    reason: "mode control needs a label".into(),
+                })?;
+                field.eval(q, &mut self.lv)?;
+                let mut g = std::mem::take(&mut self.gbuf);
+                let delta = match mode.target(t) {
+                    ModeTarget::Angle(theta_d) if n == 2 => {
+                        let (theta, grad) = angle_label(&self.lv);
+                        g.clear();
+                        g.extend_from_slice(&grad);
+                        wrap_angle(theta - theta_d)
+                    }
+                    ModeTarget::Direction(u) => {
+                        let (delta, grad) = sphere_distance(&self.lv, &self.frame, u);
+                        g = grad;
+                        delta
+                    }
+                    ModeTarget::Angle(_) => {
+                        return Err(Error::Setting {
+                            field: "mode".into(),
+                            reason: "an angle mode needs two joints; give a direction vector".into(),
+                        });
+                    }
+                };
+                if self.settings.gradient == LabelGradient::Paper {
+                    for gi in g.iter_mut() {
+                        *gi *= dist2;
+                    }
+                }
+                self.buf.copy_from_slice(&g);
+                ws.solve(&mut self.buf);
+                mode_torque(&self.settings, delta, &g, &self.buf, qd, ws.mass(), &mut self.out.mode);
+                for t in self.out.mode.iter_mut() {
+                    *t *= weight;
+                }
+                self.gbuf = g;
+            }
+        }
+        // Energy regulation and damping compensation.
+        if let Some((law, target, compensate)) =
+            self.energy.as_ref().map(|e| (e.law, e.target(t), e.compensate_damping))
+        {
+            let e = self.energy_with(q, qd, ws.mass(), nominal_u)?;
+            self.out.energy_value = e;
+            energy_torque(law, &self.settings, target - e, qd, ws.mass(), &mut self.out.energy);
+            if compensate {
+                for ((c, d), v) in self.out.compensation.iter_mut().zip(&self.damping).zip(qd) {
+                    *c = d * v;
+                }
+            }
+        }
+        Ok(&self.out)
+    }
 }
 
 #[cfg(test)]

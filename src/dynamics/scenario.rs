@@ -316,23 +316,8 @@ pub fn metrics(
     let mut settling_s = Vec::new();
     if let Some(mode) = &spec.mode {
         if kind == ScenarioKind::Switch {
-            for (k, (t0, _)) in mode.schedule.iter().enumerate() {
-                let t1 = mode.schedule.get(k + 1).map(|s| s.0).unwrap_or(spec.duration + 1e-9);
-                let window: Vec<usize> = outside.iter().copied().filter(|&i| tr.t[i] >= *t0 && tr.t[i] < t1).collect();
-                let ok = |i: usize| {
-                    let target = tr.label_target[i];
-                    deg(if two { wrap_angle(tr.label[i] - target).abs() } else { tr.label[i] }) < 3.0
-                };
-                // Settled from the earliest sample after which every sample of the step is within 3°.
-                let mut settle = None;
-                for &i in window.iter().rev() {
-                    if !ok(i) {
-                        break;
-                    }
-                    settle = Some(tr.t[i] - t0);
-                }
-                settling_s.push(settle);
-            }
+            let starts: Vec<f64> = mode.schedule.iter().map(|s| s.0).collect();
+            settling_s = settling_times(&tr.t, &tr.label, &tr.label_target, &tr.in_ball, &starts, spec.duration, two);
         }
     }
     let (mut energy_rel, mut energy_signed) = (None, None);
@@ -385,6 +370,45 @@ pub fn metrics(
         peak_actuator_torque_nm: result.peak_actuator_torque,
         geodesic_deviation: None,
     }
+}
+
+/// Seconds from each mode step until the label stays within 3° of its target for the rest of
+/// the step (None: never), from samples of a run: times `t`, labels and their targets (θ and θ_d
+/// for two joints, NaN inside the ε-ball; Δ and 0 for more, see [`crate::dynamics::simulate::Trace`]),
+/// whether each sample is in the ε-ball, the steps' start times, the run's duration and whether the
+/// arm has two joints. Samples
+/// in the ball do not count. The settling times of `sim_<name>.json`; a loop of one's own (a
+/// MuJoCo model driven by [`crate::dynamics::control::Controller`]) is judged by the same rule.
+pub fn settling_times(
+    t: &[f64],
+    label: &[f64],
+    label_target: &[f64],
+    in_ball: &[bool],
+    starts: &[f64],
+    duration: f64,
+    two_joints: bool,
+) -> Vec<Option<f64>> {
+    let deg = |x: f64| x.to_degrees();
+    let outside: Vec<usize> = (0..t.len()).filter(|&i| !in_ball[i] && label[i].is_finite()).collect();
+    let mut settling = Vec::with_capacity(starts.len());
+    for (k, t0) in starts.iter().enumerate() {
+        let t1 = starts.get(k + 1).copied().unwrap_or(duration + 1e-9);
+        let window: Vec<usize> = outside.iter().copied().filter(|&i| t[i] >= *t0 && t[i] < t1).collect();
+        let ok = |i: usize| {
+            let target = label_target[i];
+            deg(if two_joints { wrap_angle(label[i] - target).abs() } else { label[i] }) < 3.0
+        };
+        // Settled from the earliest sample after which every sample of the step is within 3°.
+        let mut settle = None;
+        for &i in window.iter().rev() {
+            if !ok(i) {
+                break;
+            }
+            settle = Some(t[i] - t0);
+        }
+        settling.push(settle);
+    }
+    settling
 }
 
 /// Angles unwrapped into a continuous series: each finite value is moved by a multiple of 2π to
@@ -604,17 +628,14 @@ pub struct ScenarioOutcome {
     pub runs: Vec<(RunResult, RunMetrics)>,
 }
 
-/// Resolves and runs scenario `index` of the design with the elastic potential `potential`.
-/// Runs go in parallel; each owns its label field, so results do not depend on the thread count.
-pub fn run_scenario<'a>(
+/// Resolves scenario `index` of the design into its runs, with the start points placed by the
+/// energy of the nominal potential `potential` (through `label`'s log field for the exact one).
+pub fn resolve_scenario<'a>(
     design: &'a Design,
-    potential: &'a crate::dynamics::simulate::ElasticPotential,
+    potential: &crate::dynamics::simulate::ElasticPotential,
     label: &LabelSource<'a>,
-    settings: &crate::design::simulate::SimSettings,
-    controllers: &ControllerSettings,
     index: usize,
-) -> Result<ScenarioOutcome> {
-    use rayon::prelude::*;
+) -> Result<Scenario> {
     let spec = &design.file.scenario[index];
     let mut energy_field = label.field();
     let mut lv = crate::geodesic::label::LogValue::zeros(design.dof());
@@ -635,7 +656,23 @@ pub fn run_scenario<'a>(
     };
     let u0 = nominal(&q0)?;
     let mut energy_at = |q: &[f64]| -> Result<f64> { Ok(nominal(q)? - u0) };
-    let scenario = spec.resolve(index, design, &mut energy_at)?;
+    spec.resolve(index, design, &mut energy_at)
+}
+
+/// Resolves and runs scenario `index` of the design with the elastic potential `potential`.
+/// Runs go in parallel; each owns its label field, so results do not depend on the thread count.
+pub fn run_scenario<'a>(
+    design: &'a Design,
+    potential: &'a crate::dynamics::simulate::ElasticPotential,
+    label: &LabelSource<'a>,
+    settings: &crate::design::simulate::SimSettings,
+    controllers: &ControllerSettings,
+    index: usize,
+) -> Result<ScenarioOutcome> {
+    use rayon::prelude::*;
+    let spec = &design.file.scenario[index];
+    let chain = &design.chain;
+    let scenario = resolve_scenario(design, potential, label, index)?;
     let results: Vec<Result<(RunResult, RunMetrics)>> = scenario
         .runs
         .par_iter()

@@ -1,7 +1,7 @@
 //! Closed-loop simulation: the arm with its springs, damping and controllers.
 //!
 //! M q̈ + C q̇ + ∂U_g/∂q + D q̇ + ∂U_e/∂q = τ_c, with τ_c the sum of the active controllers
-//! ([`crate::dynamics::control`]). The state carries, besides (q, q̇), one quadrature per torque source
+//! ([`crate::dynamics::control::Controller`], the same code a robot's own loop runs). The state carries, besides (q, q̇), one quadrature per torque source
 //! accumulating ∫|τᵀq̇| dt, so the energy fluxes of the paper's Table II come out of the same
 //! integration at the same order (the paper's Σ|τᵀq̇|δt is its rectangle-rule version). Fixed-step
 //! RK4 at a given rate is the default; the adaptive option uses Dormand–Prince with error control
@@ -13,15 +13,14 @@ use crate::design::simulate::{Integrator, SimSettings};
 use nalgebra::DVector;
 use serde::Serialize;
 
-use crate::design::controllers::{ControllerSettings, EnergyLaw, LabelGradient};
-use crate::dynamics::control::{blend_weight, dot, energy_torque, mode_torque};
+use crate::design::controllers::ControllerSettings;
+use crate::dynamics::control::{Controller, dot};
+pub use crate::dynamics::control::{ElasticPotential, EnergyControl, ModeControl, ModeTarget};
 use crate::error::{Error, Result};
-use crate::geodesic::MetricFrame;
-use crate::geodesic::label::{LogField, LogValue, angle_label, sphere_distance};
-use crate::geodesic::logmap::wrap_angle;
+use crate::geodesic::label::LogField;
 use crate::model::{Chain, Workspace};
 use crate::numerics::ode::{Dopri5, OdeSettings};
-use crate::potential::{GroupedSet, Potential, SpringSet};
+use crate::potential::GroupedSet;
 
 /// The torque sources, in the order of the output columns.
 pub const SOURCES: [&str; 6] = ["spring", "gravity", "damping", "mode", "energy", "compensation"];
@@ -33,53 +32,6 @@ const ENERGY: usize = 4;
 const COMPENSATION: usize = 5;
 const NSRC: usize = 6;
 
-/// A desired mode: an angle θ (two joints) or a direction u in the metric frame (any number).
-#[derive(Debug, Clone, PartialEq)]
-pub enum ModeTarget {
-    /// θ_d.
-    Angle(f64),
-    /// A unit vector in the metric frame at q_eq (±u the same mode).
-    Direction(DVector<f64>),
-}
-
-/// Mode control of a run: the desired mode as a schedule of (start time, target).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ModeControl {
-    /// Steps of the schedule, by increasing start time (the first at t = 0).
-    pub schedule: Vec<(f64, ModeTarget)>,
-}
-
-impl ModeControl {
-    fn target(&self, t: f64) -> &ModeTarget {
-        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
-        &self.schedule[k].1
-    }
-}
-
-/// Energy regulation of a run.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EnergyControl {
-    /// τ_E or τ_nD.
-    pub law: EnergyLaw,
-    /// E_d in J as a schedule of (start time, value), by increasing time, the first at t = 0.
-    pub schedule: Vec<(f64, f64)>,
-    /// Add the damping feed-forward D q̇.
-    pub compensate_damping: bool,
-}
-
-impl EnergyControl {
-    /// E_d at time t.
-    pub fn target(&self, t: f64) -> f64 {
-        let k = self.schedule.partition_point(|(t0, _)| *t0 <= t).max(1) - 1;
-        self.schedule[k].1
-    }
-
-    /// The last E_d of the schedule (what the end of a run is judged against).
-    pub fn final_target(&self) -> f64 {
-        self.schedule.last().map_or(0.0, |s| s.1)
-    }
-}
-
 /// Parasitic springs ½ ε (q − q_eq)ᵀ diag(κ) (q − q_eq): unknown to the controllers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Parasitic {
@@ -87,18 +39,6 @@ pub struct Parasitic {
     pub eps: f64,
     /// κᵢ in N·m/rad.
     pub kappa: Vec<f64>,
-}
-
-/// The elastic potential the arm has.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ElasticPotential {
-    /// A spring set (fitted, or read from a bill of materials).
-    Springs(SpringSet),
-    /// U_e = ½ω²r² − U_g through the log field.
-    Exact {
-        /// ω in rad/s.
-        omega: f64,
-    },
 }
 
 /// One simulation run.
@@ -208,32 +148,26 @@ pub struct RunResult {
     pub peak_actuator_torque: f64,
 }
 
-/// Everything a run's right-hand side needs, with its scratch space.
+/// Everything a run's right-hand side needs, with its scratch space: the arm as it is (its
+/// springs, parasitic springs, gravity and damping) and its [`Controller`].
 pub struct Dynamics<'a> {
     chain: &'a Chain,
     q_eq: Vec<f64>,
-    frame: MetricFrame,
     potential: &'a ElasticPotential,
     /// A spring-set potential grouped for evaluation ([`GroupedSet`]): the nominal springs, and
     /// the springs the arm actually has when they differ (built or scaled).
     nominal: Option<GroupedSet>,
     actual: Option<GroupedSet>,
-    /// U(q_eq) with the nominal potential (energies are measured from it).
-    u0: f64,
     omega2_m_eq: Vec<f64>,
-    controllers: ControllerSettings,
+    controller: Controller<'a>,
     spec: &'a RunSpec,
-    field: Option<Box<dyn LogField + 'a>>,
     ws: Workspace,
-    lv: LogValue,
     tau: [Vec<f64>; NSRC],
     buf: Vec<f64>,
     buf2: Vec<f64>,
-    gbuf: Vec<f64>,
     peak: [f64; NSRC],
     peak_actuator: f64,
     error: Option<Error>,
-    reference: Option<DVector<f64>>,
 }
 
 impl<'a> Dynamics<'a> {
@@ -248,8 +182,6 @@ impl<'a> Dynamics<'a> {
         field: Option<Box<dyn LogField + 'a>>,
     ) -> Result<Dynamics<'a>> {
         let n = chain.dof();
-        let m_eq = chain.mass_matrix(q_eq);
-        let frame = MetricFrame::new(&m_eq)?;
         let omega2 = match potential {
             ElasticPotential::Exact { omega } => omega * omega,
             ElasticPotential::Springs(_) => 0.0,
@@ -265,101 +197,37 @@ impl<'a> Dynamics<'a> {
             }
             ElasticPotential::Exact { .. } => (None, None),
         };
-        let mut d = Dynamics {
+        let mut controller = Controller::new(chain, q_eq, potential, controllers, field)?;
+        controller.set_mode(spec.mode.clone());
+        controller.set_energy(spec.energy.clone());
+        controller.set_damping(spec.damping.clone());
+        Ok(Dynamics {
             chain,
             q_eq: q_eq.as_slice().to_vec(),
-            frame,
             potential,
             nominal,
             actual,
-            u0: 0.0,
-            omega2_m_eq: m_eq.iter().map(|m| m * omega2).collect(),
-            controllers,
+            omega2_m_eq: chain.mass_matrix(q_eq).iter().map(|m| m * omega2).collect(),
+            controller,
             spec,
-            field,
             ws: chain.workspace(),
-            lv: LogValue::zeros(n),
             tau: std::array::from_fn(|_| vec![0.0; n]),
             buf: vec![0.0; n],
             buf2: vec![0.0; n],
-            gbuf: Vec::with_capacity(n),
             peak: [0.0; NSRC],
             peak_actuator: 0.0,
             error: None,
-            reference: None,
-        };
-        if matches!(potential, ElasticPotential::Exact { .. }) && d.field.is_none() {
-            return Err(Error::Setting {
-                field: "potential".into(),
-                reason: "the exact potential needs a log field".into(),
-            });
-        }
-        let q_eq = d.q_eq.clone();
-        d.u0 = d.nominal_potential(&q_eq)?;
-        Ok(d)
+        })
     }
 
-    /// U_e + U_g at q (nominal: without parasitic springs).
-    fn nominal_potential(&mut self, q: &[f64]) -> Result<f64> {
-        let ue = match self.potential {
-            ElasticPotential::Springs(_) => self.nominal.as_ref().expect("set in new").value(q)?,
-            ElasticPotential::Exact { .. } => {
-                let field = self.field.as_mut().expect("checked in new");
-                field.eval(q, &mut self.lv)?;
-                let n = q.len();
-                let v = &self.lv.v;
-                let mut r = 0.0;
-                for i in 0..n {
-                    for j in 0..n {
-                        r += v[i] * self.omega2_m_eq[i + n * j] * v[j];
-                    }
-                }
-                0.5 * r - self.chain.gravity_potential(q)
-            }
-        };
-        Ok(ue + self.chain.gravity_potential(q))
-    }
-
-    /// The energy E at a state.
+    /// The energy E at a state (the nominal potential: what the controllers see).
     pub fn energy(&mut self, q: &[f64], qd: &[f64]) -> Result<f64> {
-        let u = self.nominal_potential(q)?;
-        let m = self.chain.mass_matrix(&DVector::from_column_slice(q));
-        let kin = 0.5
-            * qd.iter().enumerate().map(|(i, a)| a * (0..q.len()).map(|j| m[(i, j)] * qd[j]).sum::<f64>()).sum::<f64>();
-        Ok(kin + u - self.u0)
+        self.controller.energy_at(q, qd)
     }
 
     /// Label at q: (θ or Δ, target) for output; NaN inside the ε-ball.
     pub fn label(&mut self, t: f64, q: &[f64]) -> Result<(f64, f64, bool)> {
-        let n = q.len();
-        let dist = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
-        let in_ball = dist <= self.controllers.epsilon;
-        let Some(field) = self.field.as_mut() else { return Ok((f64::NAN, f64::NAN, in_ball)) };
-        if dist == 0.0 {
-            return Ok((f64::NAN, f64::NAN, true));
-        }
-        field.eval(q, &mut self.lv)?;
-        if n == 2 {
-            let (theta, _) = angle_label(&self.lv);
-            let target = match self.spec.mode.as_ref().map(|m| m.target(t)) {
-                Some(ModeTarget::Angle(a)) => wrap_angle(*a),
-                _ => f64::NAN,
-            };
-            Ok((if in_ball { f64::NAN } else { theta }, target, in_ball))
-        } else {
-            let reference = match self.spec.mode.as_ref().map(|m| m.target(t)) {
-                Some(ModeTarget::Direction(u)) => u.clone(),
-                _ => {
-                    if self.reference.is_none() {
-                        let w = self.frame.to_frame(&DVector::from_column_slice(&self.lv.v));
-                        self.reference = Some(w.normalize());
-                    }
-                    self.reference.clone().expect("set above")
-                }
-            };
-            let (delta, _) = sphere_distance(&self.lv, &self.frame, &reference);
-            Ok((if in_ball { f64::NAN } else { delta }, 0.0, in_ball))
-        }
+        self.controller.label(t, q)
     }
 
     /// The state derivative: (q̇, q̈, |P| per source).
@@ -403,15 +271,14 @@ impl<'a> Dynamics<'a> {
                 }
             }
             ElasticPotential::Exact { .. } => {
-                let field = self.field.as_mut().expect("checked in new");
-                field.eval(q, &mut self.lv)?;
+                let lv = self.controller.log_value(q)?;
                 // ∇U* = ω² (∂v/∂q)ᵀ M_eq v.
                 for j in 0..n {
-                    self.buf2[j] = (0..n).map(|k| self.omega2_m_eq[j + n * k] * self.lv.v[k]).sum();
+                    self.buf2[j] = (0..n).map(|k| self.omega2_m_eq[j + n * k] * lv.v[k]).sum();
                 }
                 self.chain.gravity_gradient_into(q, &mut self.buf);
                 for i in 0..n {
-                    let g: f64 = (0..n).map(|j| self.lv.dvdq[j * n + i] * self.buf2[j]).sum();
+                    let g: f64 = (0..n).map(|j| lv.dvdq[j * n + i] * self.buf2[j]).sum();
                     // U_e = U* − U_g: its torque is −∇U* + ∇U_g.
                     self.tau[SPRING][i] = -g + self.buf[i];
                 }
@@ -427,66 +294,11 @@ impl<'a> Dynamics<'a> {
             self.tau[GRAVITY][i] = -self.buf[i];
             self.tau[DAMPING][i] = -self.spec.damping[i] * qd[i];
         }
-        // Mode selection.
-        if let Some(mode) = &self.spec.mode {
-            let dist2: f64 = q.iter().zip(&self.q_eq).map(|(a, b)| (a - b).powi(2)).sum();
-            let weight = blend_weight(self.controllers.blend, self.controllers.epsilon, dist2.sqrt());
-            if weight > 0.0 {
-                let field = self.field.as_mut().ok_or_else(|| Error::Setting {
-                    field: "label".into(),
-                    reason: "mode control needs a label".into(),
-                })?;
-                field.eval(q, &mut self.lv)?;
-                let mut g = std::mem::take(&mut self.gbuf);
-                let delta = match mode.target(t) {
-                    ModeTarget::Angle(theta_d) if n == 2 => {
-                        let (theta, grad) = angle_label(&self.lv);
-                        g.clear();
-                        g.extend_from_slice(&grad);
-                        wrap_angle(theta - theta_d)
-                    }
-                    ModeTarget::Direction(u) => {
-                        let (delta, grad) = sphere_distance(&self.lv, &self.frame, u);
-                        g = grad;
-                        delta
-                    }
-                    ModeTarget::Angle(_) => {
-                        return Err(Error::Setting {
-                            field: "mode".into(),
-                            reason: "an angle mode needs two joints; give a direction vector".into(),
-                        });
-                    }
-                };
-                if self.controllers.gradient == LabelGradient::Paper {
-                    for gi in g.iter_mut() {
-                        *gi *= dist2;
-                    }
-                }
-                self.buf.copy_from_slice(&g);
-                self.ws.solve(&mut self.buf);
-                mode_torque(&self.controllers, delta, &g, &self.buf, qd, self.ws.mass(), &mut self.tau[MODE]);
-                for t in self.tau[MODE].iter_mut() {
-                    *t *= weight;
-                }
-                self.gbuf = g;
-            }
-        }
-        // Energy regulation and damping compensation.
-        if let Some(ec) = &self.spec.energy {
-            let u = match nominal_u {
-                Some(u) => u,
-                None => self.nominal_potential(q)?,
-            };
-            let m = self.ws.mass();
-            let kin = 0.5 * (0..n).map(|i| qd[i] * (0..n).map(|j| m[i * n + j] * qd[j]).sum::<f64>()).sum::<f64>();
-            let e = kin + u - self.u0;
-            energy_torque(ec.law, &self.controllers, ec.target(t) - e, qd, self.ws.mass(), &mut self.tau[ENERGY]);
-            if ec.compensate_damping {
-                for i in 0..n {
-                    self.tau[COMPENSATION][i] = self.spec.damping[i] * qd[i];
-                }
-            }
-        }
+        // The controllers: mode selection, energy regulation and damping compensation.
+        let c = self.controller.torque_at(t, q, qd, &self.ws, nominal_u)?;
+        self.tau[MODE].copy_from_slice(&c.mode);
+        self.tau[ENERGY].copy_from_slice(&c.energy);
+        self.tau[COMPENSATION].copy_from_slice(&c.compensation);
         // q̈ = M⁻¹ (Σ τ − h).
         for i in 0..n {
             self.buf[i] = self.tau.iter().map(|t| t[i]).sum::<f64>() - self.ws.coriolis()[i];

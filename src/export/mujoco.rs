@@ -401,6 +401,33 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
     Ok(MujocoModel { xml: x, elements, timestep })
 }
 
+/// The names `springfit export --mujoco` may write for `design` (see
+/// [`crate::report::output::Plan`]).
+pub fn files(design: &Design) -> Vec<String> {
+    vec![format!("{}.xml", design.name), "elements.md".into(), "bom.csv".into(), "cams/*".into()]
+}
+
+/// Writes the export of `rows` into the folder `target` under `plan` ([`files`]): the model
+/// `<design name>.xml` (RK4 at the design's `[simulate] rate`), `elements.md` saying where the
+/// springs came from (`from`), and the bill of materials exported. The command and the Python
+/// package's `export_mujoco` both go through here.
+pub fn write_folder(
+    target: &std::path::Path,
+    plan: &crate::report::output::Plan,
+    design: &Design,
+    rows: &[BomRow],
+    from: &str,
+) -> Result<(MujocoModel, std::path::PathBuf)> {
+    let model = export(design, rows, 1.0 / design.simulate.rate)?;
+    let xml_name = format!("{}.xml", design.name);
+    let dir = crate::report::output::OutputDir::create(target, plan)?;
+    dir.write(&xml_name, &model.xml)?;
+    dir.write("elements.md", elements_md(design, &model, from, &xml_name))?;
+    crate::files::bom::write(&dir, "bom.csv", rows)?;
+    let written = dir.commit()?;
+    Ok((model, written))
+}
+
 /// `elements.md`: how each element is represented, and what the export chose where the design
 /// says nothing (inertias about the other axes, the plane, the step).
 pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml_name: &str) -> String {

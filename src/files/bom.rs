@@ -33,7 +33,7 @@ use crate::elements::{Element, Profile, fmt_number};
 use crate::error::{Error, Result};
 use crate::files::cam::CamFile;
 use crate::input::read_text;
-use crate::model::MAX_LINKS;
+use crate::limits::{MAX_ANGLE_RAD, MAX_COUPLING, MAX_LINKS, MAX_STIFFNESS, show, within};
 
 /// The CSV header.
 pub const HEADER: &str = "id,family,profile,side,coupling,offset_rad,stiffness,unit,max_torque_nm,max_deflection_rad,stock_rate,tolerance,preload_nm,adjust_range_rad,trim_min,trim_max,gear_ratio,file";
@@ -273,7 +273,9 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
     };
     let mut rows = Vec::new();
     let mut origin = Vec::new();
-    let mut dof = None;
+    // Each row's line and coupling length (all rows act on one robot), and the ids seen.
+    let mut lengths: Vec<(usize, usize)> = Vec::new();
+    let mut ids: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
     for (line_index, (idx, line)) in lines.enumerate() {
         let ln = idx + 1;
         let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
@@ -285,6 +287,11 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
             if !v.is_finite() {
                 return Err(bad(ln, name, format!("`{}` is not a finite number", f[i])));
             }
+            Ok(v)
+        };
+        let angle = |i: usize, name: &str| -> Result<f64> {
+            let v = num(i, name)?;
+            within(v, MAX_ANGLE_RAD, " rad").map_err(|e| bad(ln, name, e))?;
             Ok(v)
         };
         // A cam as one row (side empty) or, in older files, one row per signed coefficient.
@@ -309,17 +316,34 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
         if coupling.iter().all(|a| *a == 0.0) {
             return Err(bad(ln, "coupling", "a coupling of all zeros moves nothing".into()));
         }
-        match dof {
-            None => dof = Some(coupling.len()),
-            Some(d) if d != coupling.len() => {
-                return Err(bad(ln, "coupling", format!("has {} entries but earlier rows have {d}", coupling.len())));
-            }
-            _ => {}
+        if let Some(a) = coupling.iter().find(|a| a.abs() > MAX_COUPLING) {
+            return Err(bad(
+                ln,
+                "coupling",
+                format!(
+                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
+                    show(*a),
+                    show(MAX_COUPLING)
+                ),
+            ));
         }
+        lengths.push((ln, coupling.len()));
+        if let Some(&first) = ids.get(f[0].trim()) {
+            return Err(bad(
+                ln,
+                "id",
+                format!(
+                    "`{}` is also the id of line {first}: every row needs its own id (a row copied twice?)",
+                    f[0].trim()
+                ),
+            ));
+        }
+        ids.insert(f[0].trim().to_string(), ln);
         let stiffness = num(6, "stiffness")?;
         if stiffness < 0.0 {
-            return Err(bad(ln, "stiffness", format!("must be ≥ 0, got {stiffness}")));
+            return Err(bad(ln, "stiffness", format!("must be ≥ 0, got {}", show(stiffness))));
         }
+        within(stiffness, MAX_STIFFNESS, "").map_err(|e| bad(ln, "stiffness", e))?;
         let unit = profile.map_or(CAM_UNIT, |p| p.unit());
         if f[7].trim() != unit {
             let what = profile.map_or("cam's follower rate", |p| p.name());
@@ -371,7 +395,7 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
                 line: ln,
                 id: &f[0],
                 coupling: &coupling,
-                first_knot: num(5, "offset_rad")?,
+                first_knot: angle(5, "offset_rad")?,
                 follower_rate: stiffness,
                 gear_ratio,
                 file,
@@ -410,7 +434,7 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
         rows.push(BomRow {
             id: f[0].clone(),
             family: f[1].clone(),
-            element: Element { profile, coupling, offset: num(5, "offset_rad")? },
+            element: Element { profile, coupling, offset: angle(5, "offset_rad")? },
             stiffness,
             max_torque_nm: num(8, "max_torque_nm")?,
             max_deflection_rad: num(9, "max_deflection_rad")?,
@@ -424,6 +448,24 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
     }
     if rows.is_empty() {
         return Err(bad(1, "rows", "the bill of materials lists no element".into()));
+    }
+    // Rows for a robot of another size: the line that differs from most rows is the wrong one.
+    let mut counts: Vec<(usize, usize)> = Vec::new();
+    for &(_, len) in &lengths {
+        match counts.iter_mut().find(|(l, _)| *l == len) {
+            Some(c) => c.1 += 1,
+            None => counts.push((len, 1)),
+        }
+    }
+    if counts.len() > 1 {
+        let (usual, _) = counts.iter().copied().max_by_key(|&(len, n)| (n, std::cmp::Reverse(len))).unwrap_or((0, 0));
+        if let Some(&(ln, len)) = lengths.iter().find(|(_, len)| *len != usual) {
+            return Err(bad(
+                ln,
+                "coupling",
+                format!("has {len} entries but the other rows have {usual} (one per joint)"),
+            ));
+        }
     }
     Ok((rows, origin))
 }

@@ -31,7 +31,7 @@ pub struct CamFile {
     pub first_knot_rad: f64,
     /// Knot spacing h in rad.
     pub knot_spacing_rad: f64,
-    /// Number of knots N (4 to [`crate::elements::catalog::MAX_KNOTS`]).
+    /// Number of knots N (4 to [`crate::limits::MAX_KNOTS`]).
     pub knots: u16,
     /// The N + 2 signed coefficients cⱼ in J, j = 0 … N + 1.
     pub coefficients_j: Vec<f64>,
@@ -144,10 +144,10 @@ impl CamFile {
         let finite = |field: &str, x: f64| {
             if x.is_finite() { Ok(()) } else { Err(bad(field, format!("must be a finite number, got {x}"))) }
         };
-        if f.coupling.is_empty() || f.coupling.len() > crate::model::MAX_LINKS {
+        if f.coupling.is_empty() || f.coupling.len() > crate::limits::MAX_LINKS {
             return Err(bad(
                 "coupling",
-                format!("has {} entries: one per joint, at most {}", f.coupling.len(), crate::model::MAX_LINKS),
+                format!("has {} entries: one per joint, at most {}", f.coupling.len(), crate::limits::MAX_LINKS),
             ));
         }
         for a in &f.coupling {
@@ -163,8 +163,8 @@ impl CamFile {
                 format!("must be a finite spacing > 0 rad, got {}", f.knot_spacing_rad),
             ));
         }
-        if !(4..=crate::elements::catalog::MAX_KNOTS).contains(&usize::from(f.knots)) {
-            return Err(bad("knots", format!("must be 4 to {}, got {}", crate::elements::catalog::MAX_KNOTS, f.knots)));
+        if !(4..=crate::limits::MAX_KNOTS).contains(&usize::from(f.knots)) {
+            return Err(bad("knots", format!("must be 4 to {}, got {}", crate::limits::MAX_KNOTS, f.knots)));
         }
         let want = usize::from(f.knots) + 2;
         if f.coefficients_j.len() != want {

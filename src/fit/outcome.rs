@@ -42,6 +42,10 @@ pub struct SolveReport {
     /// squared change of the training rows of a build about its own equilibrium. None without
     /// a tolerance.
     pub expected_build_spread: Option<f64>,
+    /// With `max_elements = K`: the budget whose selection met every constraint when the search
+    /// at K itself found no set that does (then the best set of at most K found has fewer
+    /// elements); None when the budget K was met as asked, or without a budget.
+    pub budget_met_at: Option<usize>,
 }
 
 /// How well a potential does on the held-out evaluation fan.

@@ -139,6 +139,21 @@ impl<'a> Prepared<'a> {
 }
 
 impl Prepared<'_> {
+    /// The assembled problem (rows, right-hand side, constraint groups).
+    pub fn problem(&self) -> &FitProblem {
+        &self.problem
+    }
+
+    /// The normal equations of the problem's rows.
+    pub fn gram(&self) -> &Gram {
+        &self.gram
+    }
+
+    /// Which candidates are one part.
+    pub fn grouping(&self) -> &Grouping {
+        &self.grouping
+    }
+
     /// What the tolerance-aware fit adds to the normal equations, from the nominal stiffnesses
     /// `k`: the diagonal Dᵢᵢ of the springs and one block per group (one deviation per part),
     /// plus the optional shift penalty (see `fit::robust`).

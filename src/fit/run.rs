@@ -45,7 +45,7 @@ impl Prepared<'_> {
         let q_eq = design.q_eq.as_slice();
         stage("solving");
         let t2 = Instant::now();
-        let (k, report) = self.solve_for_the_build(settings, stage)?;
+        let (k, report) = self.solve_within_budget(settings, stage)?;
         let t_solve = t2.elapsed().as_secs_f64();
 
         stage("evaluating on held-out geodesics");
@@ -89,6 +89,34 @@ impl Prepared<'_> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
         })
+    }
+
+    /// [`Prepared::solve_for_the_build`] with at most `max_elements` items. The selection
+    /// searches K-item sets by a least-squares objective with the equalities weighted, and the
+    /// set it picks may not meet the exact constraints even when a smaller set does (the default
+    /// design: K = 3 and 5 feasible, the set found for K = 4 not). A budget that can meet the
+    /// constraints is never reported infeasible: the search is repeated with K − 1, K − 2, …
+    /// and the first that succeeds is the answer, noted in [`SolveReport::budget_met_at`]. Only
+    /// when no budget succeeds is K's own error returned. The Pareto curve uses this same
+    /// search.
+    fn solve_within_budget(&self, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<(Vec<f64>, SolveReport)> {
+        let asked = settings.max_elements;
+        let mut first_error = None;
+        for budget in (1..=asked.max(1)).rev() {
+            let here = FitSettings { max_elements: if asked == 0 { 0 } else { budget }, ..*settings };
+            match self.solve_for_the_build(&here, stage) {
+                Ok((k, mut report)) => {
+                    report.budget_met_at = (budget < asked).then_some(budget);
+                    return Ok((k, report));
+                }
+                Err(e @ Error::Infeasible { .. }) if asked > 1 => {
+                    first_error.get_or_insert(e);
+                    stage(&format!("budget {budget} infeasible: trying {}", budget - 1));
+                }
+                Err(e) => return Err(first_error.unwrap_or(e)),
+            }
+        }
+        Err(first_error.unwrap_or_else(|| Error::numerical("fit", "no budget was tried")))
     }
 
     /// The stiffness of every candidate: the nominal solve, and with a tolerance the robust
@@ -155,6 +183,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
             selection_swaps: 0,
             cut_rounds: 0,
             expected_build_spread: None,
+            budget_met_at: None,
         },
         timings: Timings {
             geodesics: t_geo,

@@ -76,6 +76,7 @@ pub fn solve_gram(
         selection_swaps: 0,
         cut_rounds: 0,
         expected_build_spread: None,
+        budget_met_at: None,
     };
     let support = select(&weighted, grouping, settings, &mut report)?;
     // The QP sees one signed unknown per group coefficient instead of its ± column pair (see

@@ -25,9 +25,6 @@ pub use spatial::{Body, MAX_BODIES, SpatialChain};
 
 use crate::numerics::linalg;
 
-/// The longest chain springfit handles (design files; couplings in bills of materials).
-pub const MAX_LINKS: usize = 8;
-
 /// A serial chain of revolute joints: the robot springfit designs for.
 #[derive(Debug, Clone)]
 pub enum Chain {

@@ -9,8 +9,12 @@
 //!
 //! What cannot be used is refused with the URDF file and element named: a chosen joint that is
 //! missing, prismatic, fixed or floating; chosen joints that are not one chain in the given
-//! order; a moving joint's link without inertial data; mimic joints where they would move (they
-//! would couple joints, which springfit does not model).
+//! order; a moving joint's link without inertial data; a mimic joint that follows a moving joint
+//! (it would couple joints, which springfit does not model). A mimic joint that follows a held
+//! joint is held too, at `multiplier · leader + offset` (a gripper's second finger), unless the
+//! design locks it itself. Inertial data must be physical: positive mass, an inertia tensor that
+//! is positive definite and satisfies the triangle inequality of its principal moments, every
+//! value finite and within [`crate::limits`].
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -20,6 +24,7 @@ use urdf_rs::JointType;
 
 use super::spatial::{Body, MAX_BODIES, SpatialChain};
 use crate::error::{Error, Result};
+use crate::limits::{MAX_ANGLE_RAD, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_MASS_KG, show, within};
 
 /// A rigid placement: rotation then translation.
 #[derive(Debug, Clone, Copy)]
@@ -46,6 +51,9 @@ impl Pose {
 /// Reads `urdf` and builds the chain of `joints` (base first) with the other joints held at
 /// `locked` (name, value in rad or m for a prismatic joint) and gravity in the base frame.
 pub fn load(urdf: &Path, joints: &[String], locked: &[(String, f64)], gravity: [f64; 3]) -> Result<SpatialChain> {
+    if urdf.is_dir() {
+        return Err(Error::io(urdf, std::io::Error::other("is a folder: robot.urdf names the robot's .urdf file")));
+    }
     let text = std::fs::read_to_string(urdf).map_err(|e| Error::io(urdf, e))?;
     parse(urdf, &text, joints, locked, gravity)
 }
@@ -62,16 +70,27 @@ pub fn parse(
         path: urdf.to_path_buf(),
         line: 0,
         column: 0,
-        message: format!("not a URDF this reader understands: {e}"),
+        message: format!(
+            "cannot be read as a URDF ({e}): the file must be one complete <robot> element of well-formed XML; a file cut short, or saved from a xacro without expanding it, reads like this"
+        ),
     })?;
     let bad = |element: String, reason: String| Error::invalid(urdf, element, reason);
     let joint_el = |name: &str| format!("<joint name=\"{name}\">");
     let link_el = |name: &str| format!("<link name=\"{name}\">");
 
     // The tree: links by name, the joint above each link, the joints below each link.
-    let link_index: HashMap<&str, usize> = robot.links.iter().enumerate().map(|(i, l)| (l.name.as_str(), i)).collect();
-    let joint_index: HashMap<&str, usize> =
-        robot.joints.iter().enumerate().map(|(i, j)| (j.name.as_str(), i)).collect();
+    let mut link_index: HashMap<&str, usize> = HashMap::new();
+    for (i, l) in robot.links.iter().enumerate() {
+        if link_index.insert(l.name.as_str(), i).is_some() {
+            return Err(bad(link_el(&l.name), "is defined twice: every link needs its own name".into()));
+        }
+    }
+    let mut joint_index: HashMap<&str, usize> = HashMap::new();
+    for (i, j) in robot.joints.iter().enumerate() {
+        if joint_index.insert(j.name.as_str(), i).is_some() {
+            return Err(bad(joint_el(&j.name), "is defined twice: every joint needs its own name".into()));
+        }
+    }
     let mut above: Vec<Option<usize>> = vec![None; robot.links.len()];
     let mut below: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
     for (j, joint) in robot.joints.iter().enumerate() {
@@ -177,10 +196,20 @@ pub fn parse(
                 format!("is {:?}: only revolute, continuous and prismatic joints can be locked", joint.joint_type),
             ));
         }
-        if !value.is_finite() {
-            return Err(bad(joint_el(name), format!("locked at {value}: must be finite")));
-        }
+        within(*value, MAX_ANGLE_RAD, "").map_err(|e| bad(joint_el(name), format!("locked at a value that {e}")))?;
         held.insert(j, *value);
+    }
+    // A mimic joint of a held joint is held where its leader puts it (unless locked itself).
+    for (j, joint) in robot.joints.iter().enumerate() {
+        let Some(m) = &joint.mimic else { continue };
+        if held.contains_key(&j) || chosen.contains_key(&j) {
+            continue;
+        }
+        let leader = *joint_index.get(m.joint.as_str()).ok_or_else(|| {
+            bad(joint_el(&joint.name), format!("mimics the joint `{}`, which is not in the file", m.joint))
+        })?;
+        let value = m.multiplier.unwrap_or(1.0) * held.get(&leader).copied().unwrap_or(0.0) + m.offset.unwrap_or(0.0);
+        held.insert(j, value);
     }
 
     // Walk the tree from the base: which moving body each link rides on, and where.
@@ -228,13 +257,6 @@ pub fn parse(
                 bodies[k] = Some((pose.then(&origin), unit.ok_or_else(zero_axis)?));
                 (Some(k), Pose::identity())
             } else {
-                if joint.mimic.is_some() && owner.is_some() {
-                    return Err(bad(
-                        joint_el(&joint.name),
-                        "is a mimic joint on a moving part of the arm: coupled joints are not modelled (refused)"
-                            .into(),
-                    ));
-                }
                 let value = held.get(&j).copied().unwrap_or(0.0);
                 let motion = match joint.joint_type {
                     JointType::Fixed => Pose::identity(),
@@ -272,14 +294,8 @@ pub fn parse(
         let Some(Placed { owner: Some(k), pose, depth }) = placed[l] else { continue };
         let inertial = &link.inertial;
         let i = &inertial.inertia;
-        let values = [inertial.mass.value, i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz];
-        if !values.iter().all(|v| v.is_finite()) {
-            return Err(bad(link_el(&link.name), "has a non-finite mass or inertia".into()));
-        }
-        if inertial.mass.value < 0.0 {
-            return Err(bad(link_el(&link.name), format!("has a negative mass {}", inertial.mass.value)));
-        }
         let local = Matrix3::new(i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz);
+        physical(inertial.mass.value, &local, &inertial.origin).map_err(|r| bad(link_el(&link.name), r))?;
         let is_body_link = robot.joints[above[l].expect("a moving link has a joint above")].name == joints[k];
         if is_body_link && inertial.mass.value == 0.0 && local == Matrix3::zeros() {
             return Err(bad(
@@ -329,6 +345,48 @@ pub fn parse(
     // deep ones (its centre of mass when nothing hangs below it).
     let tip_point = if tip[n - 1].1 == Vector3::zeros() { last.com } else { tip[n - 1].1 };
     Ok(SpatialChain::new(chain_bodies, gravity, tip_point.into()))
+}
+
+/// Checks a link's inertial data: a finite mass in [0, MAX_MASS_KG] (0 only with no inertia: a
+/// link without inertial data), an inertia tensor with finite entries within MAX_INERTIA_KGM2
+/// that is positive semi-definite with principal moments obeying the triangle inequality
+/// (Iₐ + I_b ≥ I_c, what any distribution of mass gives), positive definite when the link has
+/// mass spread in space, and an origin within MAX_LENGTH_M.
+fn physical(mass: f64, inertia: &Matrix3<f64>, origin: &urdf_rs::Pose) -> std::result::Result<(), String> {
+    within(mass, MAX_MASS_KG, " kg").map_err(|e| format!("<inertial><mass value> {e}"))?;
+    if mass < 0.0 {
+        return Err(format!("has a negative mass {}: a mass must be positive (kg)", show(mass)));
+    }
+    for v in inertia.iter() {
+        within(*v, MAX_INERTIA_KGM2, " kg·m²").map_err(|e| format!("<inertial><inertia> {e}"))?;
+    }
+    for v in origin.xyz.0.iter().chain(origin.rpy.0.iter()) {
+        within(*v, MAX_LENGTH_M, "").map_err(|e| format!("<inertial><origin> {e}"))?;
+    }
+    if mass == 0.0 && *inertia != Matrix3::zeros() {
+        return Err("has an inertia but zero mass: a body with inertia has mass".into());
+    }
+    let moments = inertia.symmetric_eigen().eigenvalues;
+    let scale = moments.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let tol = 1e-9 * scale;
+    let [a, b, c] = [moments[0], moments[1], moments[2]];
+    if a.min(b).min(c) < -tol {
+        return Err(format!(
+            "has an inertia tensor that is not positive semi-definite (principal moments {}, {}, {} kg·m²): a body's moments of inertia are ≥ 0",
+            show(a),
+            show(b),
+            show(c)
+        ));
+    }
+    if a + b < c - tol || b + c < a - tol || a + c < b - tol {
+        return Err(format!(
+            "has principal moments of inertia {}, {}, {} kg·m² that break the triangle inequality (each is at most the sum of the other two for any body)",
+            show(a),
+            show(b),
+            show(c)
+        ));
+    }
+    Ok(())
 }
 
 /// Whether joint `j` lies above joint `c` in the tree (so `c` moves with whatever `j` does).

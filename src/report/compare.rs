@@ -34,6 +34,22 @@ pub const COMPARE_FILES: &[&str] = &["compare.csv", "compare.md", "compare.svg",
 /// The names `springfit pareto` may write, `report.html` included.
 pub const PARETO_FILES: &[&str] = &["pareto.csv", "pareto.md", "pareto.svg", "pareto.png", super::html::FILE];
 
+/// Writes everything `springfit compare` writes into the folder `target` under `plan`
+/// ([`COMPARE_FILES`]): the files of [`write_compare`] (signed histograms when any residual
+/// angle is negative: two-joint fits) and `report.html`, staged and committed at once.
+pub fn write_compare_folder(
+    target: &std::path::Path,
+    plan: &super::output::Plan,
+    records: &[FitRecord],
+) -> Result<std::path::PathBuf> {
+    let dir = OutputDir::create(target, plan)?;
+    // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
+    let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
+    write_compare(&dir, records, signed)?;
+    super::html::write_compare(&dir)?;
+    dir.commit()
+}
+
 /// Writes `compare.csv`, `compare.md` and `compare.svg/.png`: the histograms of |residual angle|
 /// of every record on shared logarithmic bins, and a box plot of |angle| per record on a log axis.
 /// Two-joint angles are signed and three-joint ones are not, so the figure compares magnitudes

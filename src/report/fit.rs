@@ -34,6 +34,9 @@ pub struct Summary {
     pub status: String,
     /// The element budget (0: none).
     pub max_elements: usize,
+    /// The smaller budget whose selection met every constraint when the search at
+    /// `max_elements` found no set that does (null: met as asked).
+    pub budget_met_at: Option<usize>,
     pub selection_evaluations: usize,
     pub selection_swaps: usize,
     /// Residual statistics by distance band from q_eq.
@@ -82,6 +85,7 @@ impl Summary {
             timings_s: o.timings,
             status: o.solve.status.clone(),
             max_elements: o.settings.max_elements,
+            budget_met_at: o.solve.budget_met_at,
             selection_evaluations: o.solve.selection_evaluations,
             selection_swaps: o.solve.selection_swaps,
             bands: o.metrics.bands.clone(),
@@ -135,6 +139,23 @@ const FILES: &[&str] = &[
     "report.md",
     super::html::FILE,
 ];
+
+/// Writes everything `springfit fit` writes into the folder `target`, under `plan` (see
+/// [`files`]): the files of [`write_with_as_built`] and `report.html`, staged and committed at
+/// once. The command and the Python package's `Fit.write` both go through here, so their
+/// folders are the same file for file.
+pub fn write_folder(
+    target: &std::path::Path,
+    plan: &super::output::Plan,
+    design: &Design,
+    o: &FitOutcome,
+    as_built: Option<&crate::asbuilt::AsBuilt>,
+) -> Result<std::path::PathBuf> {
+    let dir = OutputDir::create(target, plan)?;
+    write_with_as_built(&dir, design, o, as_built)?;
+    super::html::write_fit(&dir, design)?;
+    dir.commit()
+}
 
 /// Writes every output of a fit (or of the exact reference) into `out`.
 pub fn write(out: &OutputDir, design: &Design, o: &FitOutcome) -> Result<()> {
@@ -209,7 +230,7 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
         return "## As built\n\nNo as-built figures: the fit is for the drawing only (`[fit] tolerance = \"none\"`) and no element states a catalogue tolerance, or `builds = 0`.\n\n".into();
     };
     let mut r = format!(
-        "## As built\n\n{} Monte Carlo builds (seed {}), every stiffness scaled by 1 + δ, δ {} within the tolerance ({}); each build judged about its own equilibrium on {} held-out geodesics. p50 / p95 over builds:\n\n| figure | p50 | p95 |\n| --- | ---: | ---: |\n",
+        "## As built\n\n{} Monte Carlo builds (seed {}), every stiffness scaled by 1 + δ, δ {} within the tolerance ({}); each build judged about its own equilibrium on {} held-out geodesics. p50 / p95 over builds, with the 95 % confidence interval of the p95 (distribution-free, from order statistics: where the p95 of all builds the tolerance allows lies, given these):\n\n| figure | p50 | p95 | p95, 95 % interval |\n| --- | ---: | ---: | ---: |\n",
         ab.builds,
         ab.seed,
         ab.distribution.name(),
@@ -217,7 +238,14 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
         crate::asbuilt::DIRECTIONS
     );
     let row = |name: &str, sp: &crate::asbuilt::Spread, unit: &str, digits: usize| {
-        format!("| {name} | {:.*}{unit} | {:.*}{unit} |\n", digits, sp.p50, digits, sp.p95)
+        format!(
+            "| {name} | {:.*}{unit} | {:.*}{unit} | {}{unit} |\n",
+            digits,
+            sp.p50,
+            digits,
+            sp.p95,
+            sp.p95_interval(digits)
+        )
     };
     r.push_str(&row("p99 \\|residual angle\\|", &ab.p99_deg, "°", 3));
     r.push_str(&row("max \\|residual angle\\|", &ab.max_deg, "°", 3));

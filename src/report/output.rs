@@ -248,6 +248,17 @@ fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
             ));
         }
     }
+    // A link to nothing: the system would say "Not a directory".
+    if target.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink()) && !target.exists() {
+        let to = std::fs::read_link(target).map(|t| t.display().to_string()).unwrap_or_default();
+        return Err(Error::io(
+            target,
+            std::io::Error::other(format!(
+                "is a symbolic link to {to}, which does not exist: choose another --out or remove the link"
+            )),
+        ));
+    }
+    writable(target)?;
     if !target.exists() {
         return Ok(Previous::Absent);
     }
@@ -312,6 +323,31 @@ fn list(names: &[String]) -> String {
         0 => String::new(),
         1 => q[0].clone(),
         n => format!("{} and {}", q[..n - 1].join(", "), q[n - 1]),
+    }
+}
+
+/// Whether the output folder can be made: the nearest existing folder above it takes a new
+/// entry (a probe folder, created and removed at once). A place the system refuses, such as
+/// `/proc/x` or a read-only mount, is named before any work instead of with the system's words
+/// after it.
+fn writable(target: &Path) -> Result<()> {
+    let parent = parent_of(target);
+    let Some(base) = parent.ancestors().find(|a| a.as_os_str().is_empty() || a.is_dir()) else { return Ok(()) };
+    let base = if base.as_os_str().is_empty() { Path::new(".") } else { base };
+    let probe = base.join(format!(".springfit-probe-{}", std::process::id()));
+    match std::fs::create_dir(&probe) {
+        Ok(()) => {
+            let _ = std::fs::remove_dir(&probe);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => Err(Error::io(
+            target,
+            std::io::Error::other(format!(
+                "the output folder cannot be created: {} does not take new folders ({e}); choose another --out",
+                base.display()
+            )),
+        )),
     }
 }
 

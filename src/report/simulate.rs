@@ -17,7 +17,7 @@ use crate::design::scenario::ScenarioKind;
 use crate::dynamics::scenario::{RunMetrics, ScenarioOutcome, unwrap_angles};
 use crate::dynamics::simulate::{ElasticPotential, SOURCES};
 use crate::error::Result;
-use crate::geodesic::Fan;
+use crate::geodesic::{Fan, FanSpec, Stop};
 
 /// `sim_<name>.json`.
 #[derive(Debug, Clone, Serialize)]
@@ -97,27 +97,47 @@ pub fn files<'a>(scenarios: impl IntoIterator<Item = &'a str>) -> Vec<String> {
     files
 }
 
-/// Writes a scenario's outputs.
-#[allow(clippy::too_many_arguments)]
-pub fn write(
-    out: &OutputDir,
+/// For a rerun of scenario `only` alone: keeps the other scenarios' files of the previous run
+/// in the folder.
+pub fn keep_other_scenarios(dir: &mut OutputDir, only: &str) -> Result<()> {
+    let own = format!("sim_{only}");
+    dir.keep_previous(|name| {
+        !(name == format!("{own}.csv") || name == format!("{own}.json") || name.starts_with(&format!("{own}_")))
+    })
+}
+
+/// The fan of geodesics the configuration-space figures draw behind the runs.
+pub fn plot_fan(design: &Design) -> Result<Fan> {
+    let region = design.valid_region()?;
+    Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec {
+            count: 72,
+            phase: 0.0,
+            stop: Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc },
+            spacing: region.extent / 50.0,
+        },
+        design.geodesics.ode,
+    )
+}
+
+/// `sim_<name>.json` of a scenario's outcome.
+pub fn summary(
     design: &Design,
     outcome: &ScenarioOutcome,
     potential: &ElasticPotential,
     potential_name: &str,
     label_name: &str,
     label_error_deg: Option<f64>,
-    fan: &Fan,
-) -> Result<()> {
-    let name = &outcome.scenario.name;
-    out.write(&format!("sim_{name}.csv"), scenario_csv(outcome))?;
+) -> ScenarioSummary {
     let runs: std::collections::BTreeMap<String, RunMetrics> =
         outcome.runs.iter().map(|(r, m)| (r.name.clone(), m.clone())).collect();
     let worst = |f: &dyn Fn(&RunMetrics) -> Option<f64>| {
         outcome.runs.iter().filter_map(|(_, m)| f(m)).fold(None, |a: Option<f64>, d| Some(a.map_or(d, |a| a.max(d))))
     };
-    let summary = ScenarioSummary {
-        scenario: name.clone(),
+    ScenarioSummary {
+        scenario: outcome.scenario.name.clone(),
         kind: outcome.scenario.kind,
         potential: potential_name.into(),
         label: label_name.into(),
@@ -132,7 +152,24 @@ pub fn write(
             ElasticPotential::Springs(s) => Some(crate::fit::bill::fingerprint(s)),
             ElasticPotential::Exact { .. } => None,
         },
-    };
+    }
+}
+
+/// Writes a scenario's outputs.
+#[allow(clippy::too_many_arguments)]
+pub fn write(
+    out: &OutputDir,
+    design: &Design,
+    outcome: &ScenarioOutcome,
+    potential: &ElasticPotential,
+    potential_name: &str,
+    label_name: &str,
+    label_error_deg: Option<f64>,
+    fan: &Fan,
+) -> Result<()> {
+    let name = &outcome.scenario.name;
+    out.write(&format!("sim_{name}.csv"), scenario_csv(outcome))?;
+    let summary = summary(design, outcome, potential, potential_name, label_name, label_error_deg);
     out.write(&format!("sim_{name}.json"), serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
     let title = |what: &str| format!("{} — scenario {name}: {what}", design.name);
     render(

@@ -2,6 +2,7 @@
 
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
+use crate::design::Design;
 use crate::dynamics::simulate::SOURCES;
 use crate::error::Result;
 use crate::files::bom;
@@ -48,7 +49,7 @@ pub fn items_csv(results: &[ItemResult]) -> String {
 }
 
 /// `tolerance.md`: the three tables a person reads.
-pub fn tables_md(design: &str, t: &SweepTables) -> String {
+pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
     let mut s = format!("# Sensitivity of {design}\n\n## Parasitic springs (the paper's Table II)\n\n");
     s.push_str("| ε | ∫\\|P_Ũ\\| (J) | ∫\\|P_θ\\| (J) | ∫\\|P_E\\| (J) | actuator share |\n| ---: | ---: | ---: | ---: | ---: |\n");
     for r in &t.parasitic {
@@ -61,30 +62,34 @@ pub fn tables_md(design: &str, t: &SweepTables) -> String {
             100.0 * r.actuator_share
         ));
     }
-    s.push_str("\nThe paper's neural-network potential: ε = 0: 354.56 / 2.86 / 0.03 J (share 0.82 %); ε = 1: 565.60 / 20.92 / 181.83 J.\n");
-    s.push_str("\n## Manufacturing tolerance\n\nResidual angles of each build are taken on held-out geodesics from the equilibrium the built springs actually have (its shift from q_eq is listed); the actuator share comes from the closed-loop run, whose controllers still assume the nominal springs and q_eq.\n\n| tolerance | distribution | builds | actuator share p50 | p95 | residual p99 p50 | p95 | equilibrium shift p50 | p95 |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+    if paper_arm {
+        s.push_str("\nThe paper's neural-network potential on this arm: ε = 0: 354.56 / 2.86 / 0.03 J (share 0.82 %); ε = 1: 565.60 / 20.92 / 181.83 J.\n");
+    }
+    s.push_str("\n## Manufacturing tolerance\n\nResidual angles of each build are taken on held-out geodesics from the equilibrium the built springs actually have (its shift from q_eq is listed); the actuator share comes from the closed-loop run, whose controllers still assume the nominal springs and q_eq.\n\n| tolerance | distribution | builds | actuator share p50 | p95 | residual p99 p50 | p95 | p95, 95 % interval | equilibrium shift p50 | p95 |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     for l in &t.tolerance_levels {
         s.push_str(&format!(
-            "| {} | {:?} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {:.4} rad | {:.4} rad |\n",
+            "| {} | {} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {}° | {:.4} rad | {:.4} rad |\n",
             l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
-            l.distribution,
+            l.distribution.name(),
             l.builds,
             100.0 * l.actuator_share_p50,
             100.0 * l.actuator_share_p95,
             l.residual_p99_deg_p50,
             l.residual_p99_deg_p95,
+            interval(l.residual_p99_deg_p95_ci),
             l.equilibrium_shift_rad_p50,
             l.equilibrium_shift_rad_p95
         ));
     }
     if t.tolerance_levels.iter().any(|l| l.trimmed_residual_p99_deg_p50.is_some()) {
-        s.push_str("\nAfter the trim a builder would make (trim springs re-relaxed at the build's equilibrium, rates set so that ∇²U = w² M there):\n\n| tolerance | trimmed residual p99 p50 | p95 |\n| --- | ---: | ---: |\n");
+        s.push_str("\nAfter the trim a builder would make (trim springs re-relaxed at the build's equilibrium, rates set so that ∇²U = w² M there):\n\n| tolerance | trimmed residual p99 p50 | p95 | p95, 95 % interval |\n| --- | ---: | ---: | ---: |\n");
         for l in &t.tolerance_levels {
             s.push_str(&format!(
-                "| {} | {:.3}° | {:.3}° |\n",
+                "| {} | {:.3}° | {:.3}° | {}° |\n",
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
                 l.trimmed_residual_p99_deg_p50.unwrap_or(f64::NAN),
-                l.trimmed_residual_p99_deg_p95.unwrap_or(f64::NAN)
+                l.trimmed_residual_p99_deg_p95.unwrap_or(f64::NAN),
+                l.trimmed_residual_p99_deg_p95_ci.map_or("–".into(), interval)
             ));
         }
     }
@@ -128,17 +133,34 @@ pub const FILES: &[&str] = &[
 /// The name a shard of `springfit sweep --shard i/N` writes.
 pub const SHARD_FILES: &[&str] = &["sweep_shard.json"];
 
+/// Writes everything `springfit sweep` writes into the folder `target` under `plan` ([`FILES`]):
+/// the files of [`write`] and `report.html`, staged and committed at once (the command and the
+/// Python package's `Sweep.write`).
+pub fn write_folder(
+    target: &std::path::Path,
+    plan: &super::output::Plan,
+    design: &crate::design::Design,
+    tables: &SweepTables,
+    results: &[ItemResult],
+    bom: &[BomRow],
+) -> Result<std::path::PathBuf> {
+    let dir = OutputDir::create(target, plan)?;
+    write(&dir, design, tables, results, bom)?;
+    super::html::write_sweep(&dir, design)?;
+    dir.commit()
+}
+
 /// Writes the sweep's outputs. `bom` is the nominal bill of materials (for `bom_stock.csv`).
 pub fn write(
     out: &OutputDir,
-    design: &str,
+    design: &Design,
     tables: &SweepTables,
     results: &[ItemResult],
     bom: &[BomRow],
 ) -> Result<()> {
     out.write("sweep.csv", items_csv(results))?;
     out.write("sweep.json", serde_json::to_string_pretty(tables).expect("serialises") + "\n")?;
-    out.write("tolerance.md", tables_md(design, tables))?;
+    out.write("tolerance.md", tables_md(&design.name, design.is_paper_arm(), tables))?;
     if let Some(k) = results.iter().find_map(|r| r.stock_stiffness.clone()) {
         let rows: Vec<BomRow> = bom
             .iter()
@@ -278,7 +300,7 @@ pub fn write(
         ];
         render(
             &Figure {
-                title: Some(format!("{design}: manufacturing tolerance")),
+                title: Some(format!("{}: manufacturing tolerance", design.name)),
                 width: 1300,
                 height: 560,
                 rows: 1,
@@ -289,4 +311,10 @@ pub fn write(
         )?;
     }
     Ok(())
+}
+
+/// A 95 % interval as text, `2.235–2.791` (∞ for an open end).
+fn interval(ci: [f64; 2]) -> String {
+    let end = |x: f64| if x.is_finite() { format!("{x:.3}") } else { "∞".into() };
+    format!("{}–{}", end(ci[0]), end(ci[1]))
 }

@@ -22,6 +22,12 @@ impl Gram {
     ///
     /// Computed with nalgebra's single-threaded matrix product, so the result is bit-identical
     /// whatever the thread count (a parallel product would change the summation order).
+    ///
+    /// Kept although faer's triangular product ([`super::dense::gram_of`]) is 2.3× faster on the
+    /// default design's 2880 × 402 rows (23 → 10 ms, `cargo bench --bench kernels`): its other
+    /// summation order changes G in the last bits, and the fits are that sensitive: of the 11
+    /// shipped designs without cams, 7 chose other springs (the default design among them), the
+    /// others' rates moved by 3e-10 to 3e-6 (BENCHMARKS.md, "Dense kernels").
     pub fn from_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         let at = a.transpose();
         Gram { g: &at * a, c: &at * b, bb: b.dot(b) }
@@ -32,6 +38,11 @@ impl Gram {
     /// row's non-zero entries: O(m·nnz²) instead of O(m·p²) — for eight cams on 15 000 rows
     /// about 100× less work than the dense product. Falls back to the dense product when more
     /// than a quarter of the entries are non-zero. Deterministic (fixed summation order).
+    ///
+    /// faer's dense triangular product is 3× faster than this on the cams' rows (window cams
+    /// 8871 × 512: 161 → 56 ms; 16 cams 8591 × 1024: 676 → 193 ms) but changes all four cam
+    /// designs' fits (by 2e-6 to 0.2 in the bill, the 16-cam window's cam profiles by up to their
+    /// own size), so this stays.
     pub fn from_sparse_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         let (m, p) = a.shape();
         let nnz = a.iter().filter(|v| **v != 0.0).count();

@@ -4,6 +4,7 @@
 //! items ([`selection`]). The fit turns candidates into these columns.
 
 pub mod constraint;
+pub mod dense;
 pub mod lsq;
 pub mod nnls;
 pub mod qp;

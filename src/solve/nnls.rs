@@ -99,6 +99,49 @@ pub fn nnls_signed(
     passive_start: &[usize],
     free: &[bool],
 ) -> Result<NnlsSolution> {
+    nnls_with::<PassiveFactor>(gram, l1, settings, passive_start, free)
+}
+
+/// How the passive-set systems are factored: the hand-written reusing Cholesky (what the fit
+/// uses) or faer's (for `benches/kernels.rs`, which measured both; see [`PassiveFactor`]).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PassiveVariant {
+    /// [`PassiveFactor`]: shared columns reused, the rest register-blocked, nalgebra's
+    /// triangular solves.
+    HandWritten,
+    /// The same factor with faer's triangular solves.
+    HandWrittenFaerSolve,
+    /// faer's blocked Cholesky of every passive set from scratch, faer's solves.
+    Faer,
+}
+
+/// [`nnls_signed`] with the passive-set factorisation `variant` (for the benchmark).
+#[doc(hidden)]
+pub fn nnls_signed_variant(
+    gram: &Gram,
+    l1: f64,
+    settings: &NnlsSettings,
+    passive_start: &[usize],
+    free: &[bool],
+    variant: PassiveVariant,
+) -> Result<NnlsSolution> {
+    match variant {
+        PassiveVariant::HandWritten => nnls_with::<PassiveFactor>(gram, l1, settings, passive_start, free),
+        PassiveVariant::HandWrittenFaerSolve => {
+            nnls_with::<HandFactorFaerSolve>(gram, l1, settings, passive_start, free)
+        }
+        PassiveVariant::Faer => nnls_with::<FaerFactor>(gram, l1, settings, passive_start, free),
+    }
+}
+
+fn nnls_with<F: PassiveSolver>(
+    gram: &Gram,
+    l1: f64,
+    settings: &NnlsSettings,
+    passive_start: &[usize],
+    free: &[bool],
+) -> Result<NnlsSolution> {
     let p = gram.dim();
     let is_free = |j: usize| free.get(j).copied().unwrap_or(false);
     if p == 0 {
@@ -119,7 +162,7 @@ pub fn nnls_signed(
     let mut forbidden = vec![false; p];
     let max_outer = settings.max_iterations_factor.max(1) * p + 10;
     let mut iterations = 0;
-    let mut factor = PassiveFactor::default();
+    let mut factor = F::default();
     let fixed_free: Vec<usize> = (0..p).filter(|&j| is_free(j) && d[j] > 0.0).collect();
     if !fixed_free.is_empty() {
         // The free unknowns alone: any signs are feasible, so this is the starting point.
@@ -214,7 +257,7 @@ pub fn nnls_signed(
 }
 
 /// Solves G_PP z = c_P, with a small ridge when G_PP is (numerically) singular.
-fn solve_passive(g: &DMatrix<f64>, c: &DVector<f64>, idx: &[usize], factor: &mut PassiveFactor) -> DVector<f64> {
+fn solve_passive<F: PassiveSolver>(g: &DMatrix<f64>, c: &DVector<f64>, idx: &[usize], factor: &mut F) -> DVector<f64> {
     let n = idx.len();
     let rhs = DVector::from_fn(n, |a, _| c[idx[a]]);
     // A ridge of 1e-12 on the unit diagonal keeps near-dependent sets (crank phases span only two
@@ -249,6 +292,13 @@ fn solve_passive(g: &DMatrix<f64>, c: &DVector<f64>, idx: &[usize], factor: &mut
 /// window's eight cams (512 ± columns, 1232 Lawson–Hanson steps, 2215 passive solves of up to
 /// 246 unknowns) spent 1.25 s in these factorizations from scratch; with the shared columns
 /// reused and the rest register-blocked ([`update_block`]), 0.65 s.
+///
+/// Kept against faer (`cargo bench --bench kernels`, [`nnls_signed_variant`]): faer's blocked
+/// Cholesky of every passive set from scratch made the window cams' NNLS 18 % slower (593 →
+/// 700 ms), the default design's NNLS of all 402 columns 11 % slower and 2000 refits of
+/// 12-column subsets 14 % slower; the reuse beats a faster factorisation of the whole set, and
+/// at a dozen unknowns faer's setup costs more than the arithmetic. faer's triangular solves
+/// with this factor gained nothing measurable either (and would change the fits' last bits).
 #[derive(Debug, Default)]
 struct PassiveFactor {
     /// The passive set of `l` (sorted); empty when nothing is stored.
@@ -259,6 +309,80 @@ struct PassiveFactor {
     l: Vec<f64>,
     /// Spare storage for the next factor.
     spare: Vec<f64>,
+}
+
+/// A factorisation of the passive-set systems G_PP + ridge·I.
+trait PassiveSolver: Default {
+    /// Factors G_PP + ridge·I for P = `idx` (sorted); false if it is not numerically positive
+    /// definite (a zero, negative or NaN pivot, as nalgebra's `cholesky()` would refuse).
+    fn factor(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool;
+    /// Solves (L Lᵀ) z = b with the stored factor.
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64>;
+}
+
+impl PassiveSolver for PassiveFactor {
+    fn factor(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        PassiveFactor::factor(self, g, idx, ridge)
+    }
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        PassiveFactor::solve(self, b)
+    }
+}
+
+/// [`PassiveFactor`] with faer's triangular solves (measured, not used: see `PassiveFactor`).
+#[derive(Debug, Default)]
+struct HandFactorFaerSolve(PassiveFactor);
+
+impl PassiveSolver for HandFactorFaerSolve {
+    fn factor(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        self.0.factor(g, idx, ridge)
+    }
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        let n = self.0.idx.len();
+        let l = faer::MatRef::from_column_major_slice(&self.0.l, n, n);
+        let mut z = b.clone();
+        let rhs = faer::MatMut::from_column_major_slice_mut(z.as_mut_slice(), n, 1);
+        faer::linalg::cholesky::llt::solve::solve_in_place(
+            l,
+            rhs,
+            faer::Par::Seq,
+            faer::dyn_stack::MemStack::new(&mut []),
+        );
+        z
+    }
+}
+
+/// faer's Cholesky of every passive set from scratch (measured, not used: see `PassiveFactor`).
+#[derive(Debug, Default)]
+struct FaerFactor {
+    l: DMatrix<f64>,
+}
+
+impl PassiveSolver for FaerFactor {
+    fn factor(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        let n = idx.len();
+        let m = DMatrix::from_fn(n, n, |i, j| g[(idx[i], idx[j])] + if i == j { ridge } else { 0.0 });
+        match super::dense::cholesky_lower(m) {
+            Some(l) => {
+                self.l = l;
+                true
+            }
+            None => false,
+        }
+    }
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        let n = self.l.nrows();
+        let l = faer::MatRef::from_column_major_slice(self.l.as_slice(), n, n);
+        let mut z = b.clone();
+        let rhs = faer::MatMut::from_column_major_slice_mut(z.as_mut_slice(), n, 1);
+        faer::linalg::cholesky::llt::solve::solve_in_place(
+            l,
+            rhs,
+            faer::Par::Seq,
+            faer::dyn_stack::MemStack::new(&mut []),
+        );
+        z
+    }
 }
 
 impl PassiveFactor {
@@ -506,6 +630,27 @@ mod tests {
                 for (x, y) in mine.iter().zip(theirs.iter()) {
                     assert_eq!(x.to_bits(), y.to_bits(), "step {step}: {x} vs {y}");
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn faer_passive_factors_give_the_same_solutions() {
+        // The measured alternatives (faer's Cholesky from scratch, faer's solves with the reused
+        // factor) solve the same problems: same support, same stiffnesses to 1e-9 relative.
+        let mut seed = 23;
+        for (m, p) in [(60, 8), (200, 40), (300, 120)] {
+            let a = DMatrix::from_fn(m, p, |_, _| lcg(&mut seed));
+            let b = DVector::from_fn(m, |_, _| lcg(&mut seed));
+            let gram = Gram::from_rows(&a, &b);
+            let s = NnlsSettings::default();
+            let hand = nnls_signed_variant(&gram, 0.0, &s, &[], &[], PassiveVariant::HandWritten).unwrap();
+            assert_eq!(hand, nnls(&gram, 0.0, &s).unwrap());
+            for v in [PassiveVariant::HandWrittenFaerSolve, PassiveVariant::Faer] {
+                let other = nnls_signed_variant(&gram, 0.0, &s, &[], &[], v).unwrap();
+                let support = |k: &DVector<f64>| k.iter().map(|x| *x > 0.0).collect::<Vec<_>>();
+                assert_eq!(support(&hand.k), support(&other.k), "{v:?}, {m} × {p}");
+                assert!((&hand.k - &other.k).amax() <= 1e-9 * hand.k.amax(), "{v:?}, {m} × {p}");
             }
         }
     }

@@ -39,6 +39,15 @@ impl Default for QpSettings {
 /// Ridge added to the scaled Hessian (see [`Scaled::new`]).
 const RIDGE: f64 = 1e-10;
 
+/// From this many unknowns the factor form's Cholesky is faer's: 1.7× nalgebra's at 32, 3.6× at
+/// 402 (the dense fits: 2.25 ms → 0.62 ms), 5× at 1024 (`cargo bench --bench kernels`). Clarabel's
+/// iterates then differ in the last bits, but the answers of the large QPs are the polished
+/// vertices and every shipped design's outputs stay byte-identical. Below it nalgebra's: the
+/// two take at most 2.5 µs there, and the sparse fits' final QPs over their 10–16 chosen springs
+/// sometimes keep Clarabel's point (with faer's factor at 12 unknowns `double_pendulum_straight`
+/// moved by 7e-11).
+const FAER_CHOLESKY_FROM: usize = 32;
+
 /// How a QP solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum QpStatus {
@@ -480,6 +489,11 @@ fn kkt_solve(
         }
         rhs[ns + r] = val - fixed.iter().map(|&(j, u)| row[j] * u).sum::<f64>();
     }
+    // nalgebra's LU, although faer's (`dense::variants::lu_solve_faer`) is 3–4.5× faster from
+    // about 100 unknowns (the dense design's 375: 4.6 → 1.3 ms; 1216 of them per fit): the
+    // polished vertex is the solution of these systems, and faer's rounding changed the dense,
+    // paper-window, triple-pendulum and 16-cam fits beyond their last digits (BENCHMARKS.md,
+    // "Dense kernels").
     let sol = kkt.lu().solve(&rhs)?;
     if sol.iter().any(|v| !v.is_finite()) {
         return None;
@@ -515,8 +529,9 @@ impl Scaled {
         let mut ridge = RIDGE;
         let r = loop {
             let m = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j] + if i == j { ridge } else { 0.0 });
-            if let Some(ch) = m.cholesky() {
-                break ch.l().transpose();
+            let l = if n >= FAER_CHOLESKY_FROM { super::dense::cholesky_lower(m) } else { m.cholesky().map(|c| c.l()) };
+            if let Some(l) = l {
+                break l.transpose();
             }
             ridge *= 100.0;
         };

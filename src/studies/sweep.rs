@@ -33,7 +33,7 @@ use crate::fit::bill::nearest;
 use crate::fit::refit::refit_with_fixed;
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
-use crate::residual::percentile;
+use crate::residual::{percentile, percentile_interval};
 
 pub use crate::design::tolerance::Distribution;
 
@@ -170,6 +170,31 @@ pub fn kappa(design: &Design, springs: &SpringSet, fit: &FitOutcome) -> Vec<f64>
 }
 
 impl<'a> SweepContext<'a> {
+    /// The context `springfit sweep` runs its items in: the fit's springs as the nominal
+    /// potential, κ from its evaluation fan, the design's `[simulate]` and `[controllers]`, and as
+    /// the base run the first run of the `[sweep]` scenario, started by the springs' energy.
+    pub fn new(
+        design: &'a Design,
+        fit: &'a FitOutcome,
+        label: &'a LabelSource<'a>,
+        settings: SweepSettings,
+    ) -> Result<SweepContext<'a>> {
+        let index = crate::design::validate::sweep_scenario(design)?;
+        let nominal = ElasticPotential::Springs(fit.springs.clone());
+        let base = crate::dynamics::scenario::resolve_scenario(design, &nominal, label, index)?.runs.remove(0);
+        Ok(SweepContext {
+            design,
+            fit,
+            label,
+            sim: design.simulate,
+            controllers: design.controllers,
+            settings,
+            kappa: kappa(design, &fit.springs, fit),
+            base,
+            nominal,
+        })
+    }
+
     /// Runs the items `indices` of `items` in parallel; results in index order.
     pub fn run(&self, items: &[WorkItem], indices: &[usize]) -> Result<Vec<ItemResult>> {
         self.run_observed(items, indices, &|| {})
@@ -412,12 +437,16 @@ pub struct ToleranceSummary {
     pub actuator_share_p95: f64,
     pub residual_p99_deg_p50: f64,
     pub residual_p99_deg_p95: f64,
+    /// 95 % confidence interval of `residual_p99_deg_p95` (see [`crate::asbuilt::Spread`]).
+    pub residual_p99_deg_p95_ci: [f64; 2],
     /// |q_eq′ − q_eq| percentiles, rad.
     pub equilibrium_shift_rad_p50: f64,
     pub equilibrium_shift_rad_p95: f64,
     /// After each build's trim (designs with trim springs), p99 residual percentiles.
     pub trimmed_residual_p99_deg_p50: Option<f64>,
     pub trimmed_residual_p99_deg_p95: Option<f64>,
+    /// 95 % confidence interval of `trimmed_residual_p99_deg_p95`.
+    pub trimmed_residual_p99_deg_p95_ci: Option<[f64; 2]>,
     /// After each build's tuning (designs with trims or adjustable elements; see
     /// [`ItemResult::tuned`]): actuator share, p99 residual and equilibrium shift percentiles.
     pub tuned: Option<TunedSummary>,
@@ -512,10 +541,12 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 actuator_share_p95: percentile(&share, 95.0),
                 residual_p99_deg_p50: percentile(&resid, 50.0),
                 residual_p99_deg_p95: percentile(&resid, 95.0),
+                residual_p99_deg_p95_ci: percentile_interval(&resid, 95.0, crate::asbuilt::CONFIDENCE),
                 equilibrium_shift_rad_p50: percentile(&shift, 50.0),
                 equilibrium_shift_rad_p95: percentile(&shift, 95.0),
                 trimmed_residual_p99_deg_p50: trimmed.map(|t| t.p50),
                 trimmed_residual_p99_deg_p95: trimmed.map(|t| t.p95),
+                trimmed_residual_p99_deg_p95_ci: trimmed.map(|t| t.p95_ci),
                 tuned,
             }
         })

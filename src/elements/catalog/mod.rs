@@ -41,15 +41,6 @@ mod resolve;
 
 pub use file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
 
-/// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).
-pub const MAX_OFFSETS: usize = 1000;
-
-/// Most trim springs one design may carry (the trim solve enumerates 3^m faces).
-pub const MAX_TRIMS: usize = 9;
-
-/// Most candidate elements a catalogue may expand into (the shipped catalogues have about 500).
-pub const MAX_CANDIDATES: usize = 20_000;
-
 /// A validated cam family's settings (see [`crate::elements::spline`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CamSpec {
@@ -70,9 +61,6 @@ pub struct CamSpec {
     /// Largest pressure angle in degrees.
     pub max_pressure_angle: f64,
 }
-
-/// Most knots of a cam.
-pub const MAX_KNOTS: usize = 500;
 
 /// A validated family.
 #[derive(Debug, Clone)]
@@ -119,6 +107,10 @@ pub struct Catalog {
     pub name: String,
     /// Families.
     pub families: Vec<Family>,
+    /// At most this many candidates come out of [`Catalog::expand`] (each family's couplings ×
+    /// offsets × sides or cam columns; duplicates are dropped later): what the fit's memory
+    /// is judged by before any work.
+    pub candidate_bound: usize,
 }
 
 /// A fit candidate: an element and what its family says about building it.
@@ -337,6 +329,21 @@ offsets = { phases = 4 }
         let family = |couplings: &str, offsets: &str| {
             format!("[[family]]\nname = \"x\"\nprofile = \"crank\"\ncouplings = {couplings}\noffsets = {offsets}\n")
         };
+        // Repeated families need names of their own.
+        let named = |text: String| -> String {
+            let mut k = 0;
+            text.lines()
+                .map(|l| {
+                    if l == "name = \"x\"" {
+                        k += 1;
+                        format!("name = \"x{k}\"")
+                    } else {
+                        l.to_string()
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        };
         let many: Vec<String> = (1..=300).map(|r| format!("[1, {r}]")).collect();
         let many = format!("{{ all_pairs = [{}] }}", many.join(", "));
         let cases = [
@@ -345,7 +352,7 @@ offsets = { phases = 4 }
             (family("\"joints\"", "{ grid = 18446744073709551615 }"), "family[0].offsets", "grid must have 1 to 1000"),
             (family(&many, "{ grid = 1000 }"), "family[0]", "more than 20000 candidate elements"),
             (
-                family("\"joints\"", "{ grid = 1000, equilibrium = true }").repeat(8),
+                named(family("\"joints\"", "{ grid = 1000, equilibrium = true }").repeat(8)),
                 "family[6]",
                 "more than 20000 candidate elements",
             ),
@@ -355,7 +362,7 @@ offsets = { phases = 4 }
             assert!(err.contains(field) && err.contains(reason), "expected {field} / {reason} in {err}");
         }
         // Just under the bound: expands, and the repeated families add nothing.
-        let text = family("\"joints\"", "{ grid = 1000 }").repeat(6);
+        let text = named(family("\"joints\"", "{ grid = 1000 }").repeat(6));
         let c = load(&text, 3).unwrap();
         assert_eq!(c.expand(&[0.0; 3], |_| (-1.0, 1.0)).len(), 3000);
     }

@@ -2,6 +2,7 @@
 //! family and the key) and resolved for the robot (couplings for its joints, offsets, cam
 //! settings, trim ranges).
 
+use crate::limits::{MAX_CANDIDATES, MAX_COUPLING, MAX_KNOTS, MAX_OFFSETS, MAX_STIFFNESS, show, within};
 use std::path::Path;
 
 use super::file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
@@ -79,11 +80,18 @@ impl Catalog {
                     let all = matches!(f.couplings, CouplingSpec::AllPairs(_));
                     let mut out = Vec::new();
                     for (k, r) in ratios.iter().enumerate() {
-                        if !(r[0].is_finite() && r[1].is_finite()) || r[0] == 0.0 || r[1] == 0.0 {
+                        if !(r[0].is_finite() && r[1].is_finite())
+                            || r[0] == 0.0
+                            || r[1] == 0.0
+                            || r[0].abs().max(r[1].abs()) > MAX_COUPLING
+                        {
                             let key = if all { "all_pairs" } else { "pairs" };
                             return Err(invalid(
                                 format!("family[{i}].couplings.{key}[{k}]"),
-                                "both gear ratios must be finite and non-zero".into(),
+                                format!(
+                                    "both gear ratios must be finite and non-zero, at most {} in magnitude",
+                                    show(MAX_COUPLING)
+                                ),
                             ));
                         }
                         for j in 0..dof - 1 {
@@ -109,6 +117,16 @@ impl Catalog {
                         }
                         if a.iter().any(|x| !x.is_finite()) {
                             return Err(invalid(fld, "entries must be finite".into()));
+                        }
+                        if let Some(x) = a.iter().find(|x| x.abs() > MAX_COUPLING) {
+                            return Err(invalid(
+                                fld,
+                                format!(
+                                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
+                                    show(*x),
+                                    show(MAX_COUPLING)
+                                ),
+                            ));
                         }
                         if a.iter().all(|x| *x == 0.0) {
                             return Err(invalid(fld, "a coupling of all zeros moves nothing".into()));
@@ -174,14 +192,17 @@ impl Catalog {
                 })?;
             if let Some(k) = f.max_stiffness {
                 if !(k.is_finite() && k > 0.0) {
-                    return Err(invalid(field("max_stiffness"), format!("must be positive, got {k}")));
+                    return Err(invalid(field("max_stiffness"), format!("must be positive, got {}", show(k))));
                 }
+                within(k, MAX_STIFFNESS, "").map_err(|e| invalid(field("max_stiffness"), e))?;
             }
             let mut rates = f.stock_rates.clone();
             for (k, r) in rates.iter().enumerate() {
+                let field = format!("family[{i}].stock_rates[{k}]");
                 if !(r.is_finite() && *r > 0.0) {
-                    return Err(invalid(format!("family[{i}].stock_rates[{k}]"), format!("must be positive, got {r}")));
+                    return Err(invalid(field, format!("must be positive, got {}", show(*r))));
                 }
+                within(*r, MAX_STIFFNESS, "").map_err(|e| invalid(field, e))?;
             }
             rates.sort_by(f64::total_cmp);
             rates.dedup();
@@ -190,6 +211,15 @@ impl Catalog {
             }
             if f.name.trim().is_empty() {
                 return Err(invalid(field("name"), "must not be empty".into()));
+            }
+            if let Some(j) = file.family[..i].iter().position(|g| g.name.trim() == f.name.trim()) {
+                return Err(invalid(
+                    field("name"),
+                    format!(
+                        "`{}` is also the name of family[{j}]: the bill of materials tells families apart by name",
+                        f.name
+                    ),
+                ));
             }
             let adjust_range = match (f.adjustable, f.adjust_range) {
                 (false, None) => None,
@@ -222,9 +252,11 @@ impl Catalog {
                     if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
                         return Err(invalid(
                             field("trim_range"),
-                            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{lo}, {hi}]"),
+                            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{}, {}]", show(lo), show(hi)),
                         ));
                     }
+                    within(hi, MAX_STIFFNESS, " N·m/rad")
+                        .map_err(|e| invalid(field("trim_range"), format!("the upper rate {e}")))?;
                     if profiles != [Profile::Linear] {
                         return Err(invalid(field("profile"), "trim springs are linear".into()));
                     }
@@ -251,10 +283,10 @@ impl Catalog {
             };
             if trim_range.is_some() {
                 trims += couplings.len();
-                if trims > crate::elements::catalog::MAX_TRIMS {
+                if trims > crate::limits::MAX_TRIMS {
                     return Err(invalid(
                         field("couplings"),
-                        format!("the catalogue lists more than {} trim springs", crate::elements::catalog::MAX_TRIMS),
+                        format!("the catalogue lists more than {} trim springs", crate::limits::MAX_TRIMS),
                     ));
                 }
             }
@@ -274,7 +306,7 @@ impl Catalog {
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "catalog".into())
         });
-        Ok(Catalog { path: path.to_path_buf(), name, families })
+        Ok(Catalog { path: path.to_path_buf(), name, families, candidate_bound: candidates })
     }
 }
 

@@ -1,0 +1,261 @@
+//! `Design.fit()` and its result: the bill of materials, the residual angles as arrays, the
+//! summary and the as-built figures, the fitted potential, and `write(folder)` through the
+//! command's own writer.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use numpy::PyArrayDyn;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use springfit::Error;
+use springfit::asbuilt::AsBuilt;
+use springfit::design::Design;
+use springfit::design::fit::SolverKind;
+use springfit::fit::FitOutcome;
+use springfit::report::output::{Edits, Plan};
+
+use crate::arrays::shaped;
+use crate::convert::json;
+use crate::design::PyDesign;
+use crate::errors::{IntoPy, in_design, setting, to_py};
+use crate::potential::PyPotential;
+use crate::progress::Progress;
+
+/// A fit of a design (or the exact reference ½ω²r²), with its as-built figures.
+#[pyclass(name = "Fit", module = "springfit", frozen)]
+pub struct PyFit {
+    pub design: Arc<Design>,
+    pub outcome: Arc<FitOutcome>,
+    as_built: Option<AsBuilt>,
+    exact: bool,
+}
+
+impl PyFit {
+    /// Runs the fit as `springfit fit` does (same settings, checks, as-built builds).
+    pub fn run(
+        py: Python<'_>,
+        d: &PyDesign,
+        exact: bool,
+        solver: Option<&str>,
+        max_elements: Option<usize>,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<PyFit> {
+        let design = d.design.clone();
+        let mut settings = design.fit;
+        if let Some(s) = solver {
+            settings.solver = match s {
+                "nnls" => SolverKind::Nnls,
+                "qp" => SolverKind::Qp,
+                other => return Err(setting("solver", format!("must be \"nnls\" or \"qp\", got \"{other}\""))),
+            };
+        }
+        if let Some(k) = max_elements {
+            settings.max_elements = k;
+        }
+        settings.validate().map_err(|(field, reason)| to_py(Error::Setting { field, reason }))?;
+        let catalog = if exact {
+            None
+        } else {
+            Some(d.catalog_or(
+                "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
+            )?)
+        };
+        let progress = Progress::new(progress);
+        let result = py.detach(|| {
+            let stage = |name: &str| progress.stage(name);
+            let outcome = match catalog {
+                None => springfit::fit::run::exact_reference(&design, &settings, &stage),
+                Some(c) => springfit::fit::run::fit(&design, c, &settings, &stage),
+            };
+            let outcome = outcome.map_err(|e| match catalog {
+                Some(c) => springfit::fit::hints::explain(&design, &settings, c, settings.max_elements, e),
+                None => e,
+            });
+            let outcome = match outcome {
+                Ok(o) => o,
+                Err(e) => return Err(e),
+            };
+            let as_built = if exact {
+                None
+            } else {
+                progress.stage("as-built Monte Carlo builds");
+                springfit::asbuilt::of_fit(&design, &outcome)?
+            };
+            Ok((outcome, as_built))
+        });
+        progress.raised()?;
+        let (outcome, as_built) = result.map_err(|e| in_design(e, &design.path))?;
+        Ok(PyFit { design, outcome: Arc::new(outcome), as_built, exact })
+    }
+}
+
+impl PyFit {
+    /// The fit as `compare` records it (with its as-built brief).
+    pub fn record(&self) -> springfit::studies::compare::FitRecord {
+        let mut r = springfit::studies::compare::record_of(&self.outcome, &self.design.path);
+        r.as_built = self.as_built.as_ref().map(springfit::asbuilt::Brief::of);
+        r
+    }
+
+    /// The fitted springs as a potential (an error for the exact reference).
+    pub fn potential_springs(&self) -> PyResult<PyPotential> {
+        if self.exact {
+            return Err(setting("potential", "the exact reference has no springs: use Potential.exact(design)"));
+        }
+        Ok(PyPotential::springs(self.design.clone(), self.outcome.springs.clone(), "fit".into()))
+    }
+}
+
+#[pymethods]
+impl PyFit {
+    /// The bill of materials as records: one dict per row of `bom.csv`, keyed by its columns
+    /// (numbers as floats, blanks as None).
+    #[getter]
+    fn bom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        csv_records(py, &springfit::files::bom::to_csv(&self.outcome.bom))
+    }
+
+    /// The bill of materials as a NumPy structured array, one field per column of `bom.csv`:
+    /// float64 where every entry is a number (blanks NaN), a string otherwise.
+    #[getter]
+    fn bom_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        structured(py, &springfit::files::bom::to_csv(&self.outcome.bom))
+    }
+
+    /// The text of `bom.csv`, byte for byte what `springfit fit` writes.
+    #[getter]
+    fn bom_csv(&self) -> String {
+        springfit::files::bom::to_csv(&self.outcome.bom)
+    }
+
+    /// Number of elements used (a cam counts as one).
+    #[getter]
+    fn used(&self) -> usize {
+        self.outcome.used()
+    }
+
+    /// Residual angles on the held-out geodesics, degrees, shape (N,) (signed for two joints).
+    #[getter]
+    fn residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let r = &self.outcome.metrics.residuals;
+        shaped(py, r.iter().map(|s| s.angle_deg).collect(), false, r.len(), &[])
+    }
+
+    /// The samples of the residual angles, as the columns of `residuals.csv`: `direction` (N,),
+    /// `s` (N,), `q` (N, n) and `angle_deg` (N,).
+    #[getter]
+    fn residual_samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let r = &self.outcome.metrics.residuals;
+        let n = self.outcome.dof;
+        let out = PyDict::new(py);
+        let dirs: Vec<i64> = r.iter().map(|s| s.direction as i64).collect();
+        out.set_item("direction", numpy::PyArray1::from_vec(py, dirs))?;
+        out.set_item("s", shaped(py, r.iter().map(|s| s.s).collect(), false, r.len(), &[])?)?;
+        out.set_item("q", shaped(py, r.iter().flat_map(|s| s.q.iter().copied()).collect(), false, r.len(), &[n])?)?;
+        out.set_item("angle_deg", shaped(py, r.iter().map(|s| s.angle_deg).collect(), false, r.len(), &[])?)?;
+        Ok(out)
+    }
+
+    /// `summary.json` as a dict (with the as-built figures).
+    #[getter]
+    fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut s = springfit::report::fit::Summary::new(&self.outcome, &self.design.path);
+        s.as_built = self.as_built;
+        json(py, &s)
+    }
+
+    /// The as-built figures (Monte Carlo builds at the design's tolerance) as a dict, or None
+    /// when the fit states no tolerance (or for the exact reference).
+    #[getter]
+    fn as_built<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match &self.as_built {
+            Some(a) => json(py, a),
+            None => Ok(py.None().into_bound(py)),
+        }
+    }
+
+    /// The fitted elastic potential U_e (the springs), for value, gradient and Hessian.
+    #[getter]
+    fn potential(&self) -> PyResult<PyPotential> {
+        self.potential_springs()
+    }
+
+    /// Writes every file `springfit fit` writes into `folder` (bom.csv, bom.md, summary.json,
+    /// residuals.csv, plots, report.md, report.html, cams/), through the command's output folder:
+    /// refused before writing if the folder holds files springfit did not write, or edited since
+    /// (unless `overwrite_edits`). Returns the folder.
+    #[pyo3(signature = (folder, overwrite_edits = false))]
+    fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
+        let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
+        let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits);
+        let (design, outcome, as_built) = (&self.design, &self.outcome, self.as_built.as_ref());
+        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built)).py()
+    }
+
+    fn __repr__(&self) -> String {
+        let st = &self.outcome.metrics.stats;
+        format!(
+            "<springfit.Fit {}: {} {}, p99 {:.4}°, max {:.4}°>",
+            self.outcome.design,
+            self.outcome.used(),
+            self.outcome.used_noun(),
+            st.p99_abs,
+            st.max_abs
+        )
+    }
+}
+
+/// Records from CSV text (a bill of materials, a comparison's table): a dict per line, numbers
+/// parsed, blanks None.
+pub fn csv_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyList>> {
+    let mut lines = text.lines();
+    let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
+    let out = PyList::empty(py);
+    for line in lines.filter(|l| !l.trim().is_empty()) {
+        let fields = springfit::csv::split_csv_line(line).map_err(|e| setting("bom", e))?;
+        let row = PyDict::new(py);
+        for (k, v) in header.iter().zip(fields) {
+            if v.is_empty() {
+                row.set_item(k, py.None())?;
+            } else if let Ok(x) = v.parse::<f64>() {
+                row.set_item(k, x)?;
+            } else {
+                row.set_item(k, v)?;
+            }
+        }
+        out.append(row)?;
+    }
+    Ok(out)
+}
+
+/// A structured array from CSV text (see `Fit.bom_array`).
+pub fn structured<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
+    let rows: Vec<Vec<String>> =
+        lines.map(|l| springfit::csv::split_csv_line(l).map_err(|e| setting("bom", e))).collect::<PyResult<_>>()?;
+    let numeric: Vec<bool> = (0..header.len())
+        .map(|c| rows.iter().all(|r| r.get(c).is_none_or(|v| v.is_empty() || v.parse::<f64>().is_ok())))
+        .collect();
+    let dtype = PyList::empty(py);
+    for (c, name) in header.iter().enumerate() {
+        let width = rows.iter().map(|r| r.get(c).map_or(0, |v| v.chars().count())).max().unwrap_or(0).max(1);
+        let kind = if numeric[c] { "f8".to_string() } else { format!("U{width}") };
+        dtype.append((name.as_str(), kind))?;
+    }
+    let records = PyList::empty(py);
+    for r in &rows {
+        let fields = PyList::empty(py);
+        for c in 0..header.len() {
+            let v = r.get(c).map(String::as_str).unwrap_or("");
+            if numeric[c] {
+                fields.append(if v.is_empty() { f64::NAN } else { v.parse::<f64>().unwrap_or(f64::NAN) })?;
+            } else {
+                fields.append(v)?;
+            }
+        }
+        records.append(pyo3::types::PyTuple::new(py, fields)?)?;
+    }
+    py.import("numpy")?.call_method1("array", (records, dtype))
+}

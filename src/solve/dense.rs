@@ -1,0 +1,211 @@
+//! The dense kernels of the solvers — normal-equation products, Cholesky and LU — with the
+//! implementation a measurement chose for each (`cargo bench --bench kernels`, BENCHMARKS.md
+//! "Dense kernels: faer where it wins").
+//!
+//! faer is called through views over nalgebra's column-major storage (no copies) and always
+//! with `Par::Seq`; the crate is built without its `rayon` feature, so no faer call can split
+//! its work across threads and a result's bits do not depend on the thread count.
+//!
+//! [`variants`] keeps the implementations that lost or that the others are checked against, for
+//! the benchmark and the tests.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::triangular::BlockStructure;
+use faer::{Accum, MatMut, MatRef, Par};
+use nalgebra::DMatrix;
+
+fn view(m: &DMatrix<f64>) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(m.as_slice(), m.nrows(), m.ncols())
+}
+
+fn view_mut(m: &mut DMatrix<f64>) -> MatMut<'_, f64> {
+    let (r, c) = m.shape();
+    MatMut::from_column_major_slice_mut(m.as_mut_slice(), r, c)
+}
+
+/// The lower Cholesky factor L of the symmetric matrix `m` (L Lᵀ = m, the strict upper triangle
+/// zero); None when a pivot is not positive (as nalgebra's `cholesky()`, which it replaced).
+pub fn cholesky_lower(mut m: DMatrix<f64>) -> Option<DMatrix<f64>> {
+    use faer::linalg::cholesky::llt::factor;
+    let n = m.nrows();
+    assert_eq!(n, m.ncols(), "cholesky_lower needs a square matrix");
+    let par = Par::Seq;
+    let mut buf = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(n, par, Default::default()));
+    let stack = MemStack::new(&mut buf);
+    factor::cholesky_in_place(view_mut(&mut m), Default::default(), par, stack, Default::default()).ok()?;
+    for j in 1..n {
+        for i in 0..j {
+            m[(i, j)] = 0.0;
+        }
+    }
+    Some(m)
+}
+
+/// AᵀA for rows `a` (m × p): the lower triangle by faer's triangular product, mirrored (half
+/// the multiplications of a full product, no transposed copy of A).
+pub fn gram_of(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let p = a.ncols();
+    let mut g = DMatrix::zeros(p, p);
+    let av = view(a);
+    faer::linalg::matmul::triangular::matmul(
+        view_mut(&mut g),
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        av.transpose(),
+        BlockStructure::Rectangular,
+        av,
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    for j in 1..p {
+        for i in 0..j {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
+    g
+}
+
+/// The implementations the kernels above are measured and checked against: nalgebra's (the
+/// code before faer) and faer's where the hand-written or nalgebra code stayed. Not part of the
+/// library's interface; public for `benches/kernels.rs`.
+#[doc(hidden)]
+pub mod variants {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::{Accum, MatMut, MatRef, Par};
+    use nalgebra::{DMatrix, DVector};
+
+    /// Solves the square system M x = b by faer's LU with partial pivoting; None when a pivot is
+    /// exactly zero (as nalgebra's `lu().solve()`). 3–4.5× nalgebra's from about 100 unknowns,
+    /// slower below 30; not used: its rounding changes the QP's polished vertices (see
+    /// `qp::kkt_solve`).
+    pub fn lu_solve_faer(mut m: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+        use faer::linalg::lu::partial_pivoting::{factor, solve};
+        let n = m.nrows();
+        assert_eq!(n, m.ncols(), "lu_solve needs a square matrix");
+        assert_eq!(n, b.len(), "lu_solve: right-hand side of the wrong length");
+        let mut x = b.clone();
+        if n == 0 {
+            return Some(x);
+        }
+        let (mut perm, mut perm_inv) = (vec![0usize; n], vec![0usize; n]);
+        let par = Par::Seq;
+        let req = factor::lu_in_place_scratch::<usize, f64>(n, n, par, Default::default())
+            .or(solve::solve_in_place_scratch::<usize, f64>(n, 1, par));
+        let mut buf = MemBuffer::new(req);
+        let stack = MemStack::new(&mut buf);
+        let mut lu = super::view_mut(&mut m);
+        let (_, p) = factor::lu_in_place(lu.as_mut(), &mut perm, &mut perm_inv, par, stack, Default::default());
+        if (0..n).any(|i| lu[(i, i)] == 0.0) {
+            return None;
+        }
+        let rhs = MatMut::from_column_major_slice_mut(x.as_mut_slice(), n, 1);
+        solve::solve_in_place(lu.as_ref(), lu.as_ref(), p, rhs, par, stack);
+        Some(x)
+    }
+
+    /// Aᵀb by faer's product.
+    pub fn transpose_times_faer(a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
+        let mut c = DVector::zeros(a.ncols());
+        let bv = MatRef::from_column_major_slice(b.as_slice(), b.len(), 1);
+        let cv = MatMut::from_column_major_slice_mut(c.as_mut_slice(), a.ncols(), 1);
+        faer::linalg::matmul::matmul(cv, Accum::Replace, super::view(a).transpose(), bv, 1.0, Par::Seq);
+        c
+    }
+
+    /// nalgebra's LU with partial pivoting (the QP's KKT solve).
+    pub fn lu_solve_nalgebra(m: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+        m.lu().solve(b)
+    }
+
+    /// nalgebra's Cholesky (the QP's factor form before faer).
+    pub fn cholesky_lower_nalgebra(m: DMatrix<f64>) -> Option<DMatrix<f64>> {
+        m.cholesky().map(|c| c.l())
+    }
+
+    /// AᵀA by nalgebra: a transposed copy and matrixmultiply's product (`Gram::from_rows`).
+    pub fn gram_of_nalgebra(a: &DMatrix<f64>) -> DMatrix<f64> {
+        a.transpose() * a
+    }
+
+    /// Aᵀb by nalgebra (`Gram::from_rows`).
+    pub fn transpose_times_nalgebra(a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
+        a.transpose() * b
+    }
+
+    /// AᵀA by faer's full (rectangular) product.
+    pub fn gram_of_faer_full(a: &DMatrix<f64>) -> DMatrix<f64> {
+        let p = a.ncols();
+        let mut g = DMatrix::zeros(p, p);
+        let av = super::view(a);
+        faer::linalg::matmul::matmul(super::view_mut(&mut g), Accum::Replace, av.transpose(), av, 1.0, Par::Seq);
+        g
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DVector;
+
+    use super::variants::*;
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    #[test]
+    fn faer_lu_solves_as_nalgebras_does() {
+        let mut seed = 3;
+        // A KKT-like system: symmetric positive block, constraint rows, zero block.
+        for (ns, ne) in [(1, 0), (7, 2), (40, 5), (130, 12)] {
+            let a = DMatrix::from_fn(ns + 3, ns, |_, _| lcg(&mut seed));
+            let rows = DMatrix::from_fn(ne, ns, |_, _| lcg(&mut seed));
+            let n = ns + ne;
+            let mut k = DMatrix::zeros(n, n);
+            k.view_mut((0, 0), (ns, ns)).copy_from(&(a.transpose() * &a));
+            k.view_mut((ns, 0), (ne, ns)).copy_from(&rows);
+            k.view_mut((0, ns), (ns, ne)).copy_from(&rows.transpose());
+            let b = DVector::from_fn(n, |_, _| lcg(&mut seed));
+            let (mine, theirs) = (lu_solve_faer(k.clone(), &b).unwrap(), lu_solve_nalgebra(k.clone(), &b).unwrap());
+            let scale = theirs.amax().max(1.0);
+            assert!((&mine - &theirs).amax() <= 1e-10 * scale, "{ns}+{ne}: {}", (&mine - &theirs).amax());
+            assert!((&k * &mine - &b).amax() < 1e-9);
+        }
+        // An exactly singular system (a zero row and column): None, as from nalgebra.
+        let mut s = DMatrix::identity(4, 4);
+        s[(2, 2)] = 0.0;
+        let b = DVector::from_element(4, 1.0);
+        assert!(lu_solve_faer(s.clone(), &b).is_none() && lu_solve_nalgebra(s, &b).is_none());
+        assert_eq!(lu_solve_faer(DMatrix::zeros(0, 0), &DVector::zeros(0)).unwrap().len(), 0);
+    }
+
+    #[test]
+    fn faer_cholesky_is_nalgebras_factor() {
+        let mut seed = 5;
+        for n in [1, 3, 17, 90] {
+            let a = DMatrix::from_fn(n + 2, n, |_, _| lcg(&mut seed));
+            let m = a.transpose() * &a + DMatrix::identity(n, n) * 1e-3;
+            let (mine, theirs) = (cholesky_lower(m.clone()).unwrap(), cholesky_lower_nalgebra(m.clone()).unwrap());
+            assert!((&mine - &theirs).amax() <= 1e-12 * theirs.amax(), "n = {n}");
+            assert!((0..n).all(|j| (0..j).all(|i| mine[(i, j)] == 0.0)));
+        }
+        let mut indefinite = DMatrix::identity(3, 3);
+        indefinite[(1, 1)] = -1.0;
+        assert!(cholesky_lower(indefinite.clone()).is_none() && cholesky_lower_nalgebra(indefinite).is_none());
+    }
+
+    #[test]
+    fn faer_normal_equations_match_nalgebras() {
+        let mut seed = 9;
+        let a = DMatrix::from_fn(300, 37, |_, _| lcg(&mut seed));
+        let b = DVector::from_fn(300, |_, _| lcg(&mut seed));
+        let (g, g0) = (gram_of(&a), gram_of_nalgebra(&a));
+        assert!((&g - &g0).amax() <= 1e-12 * g0.amax());
+        assert_eq!(g, g.transpose());
+        assert!((gram_of_faer_full(&a) - &g0).amax() <= 1e-12 * g0.amax());
+        let (c, c0) = (transpose_times_faer(&a, &b), transpose_times_nalgebra(&a, &b));
+        assert!((&c - &c0).amax() <= 1e-12 * c0.amax());
+    }
+}

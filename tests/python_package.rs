@@ -1,0 +1,43 @@
+//! The Python package (`python/`): its pytest suite, run against this build's `springfit`
+//! binary (the tests compare the package's results with the command's files).
+//!
+//! The package must be installed first (`pip install ./python`, which `.ci/run` does). On a
+//! machine without it the test says why it skipped and passes; under CI (`CI` set) a missing
+//! package or pytest fails the run, so CI never skips the Python tests silently.
+
+mod util;
+
+use std::process::Command;
+
+use util::repo;
+
+/// Why the package's tests cannot run here, or None when they can.
+fn missing() -> Option<String> {
+    match Command::new("python3").args(["-c", "import springfit, pytest, numpy"]).output() {
+        Err(e) => Some(format!("python3 cannot be started ({e})")),
+        Ok(o) if !o.status.success() => Some(format!(
+            "python3 cannot import springfit, pytest and numpy ({}); install them with `python3 -m pip install ./python pytest`",
+            String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("").trim()
+        )),
+        Ok(_) => None,
+    }
+}
+
+#[test]
+fn the_python_package_passes_its_tests() {
+    if let Some(why) = missing() {
+        assert!(std::env::var_os("CI").is_none(), "CI must run the Python package's tests: {why}");
+        eprintln!("SKIPPED: the Python package's tests: {why}");
+        return;
+    }
+    let out = Command::new("python3")
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "python/tests"])
+        .env("SPRINGFIT_BIN", env!("CARGO_BIN_EXE_springfit"))
+        .current_dir(repo())
+        .output()
+        .expect("run pytest");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    println!("{text}");
+    assert!(out.status.success(), "pytest failed:\n{text}");
+    assert!(text.contains(" passed"), "pytest ran no test:\n{text}");
+}
