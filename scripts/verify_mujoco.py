@@ -9,9 +9,10 @@ of `springfit simulate DESIGN --scenario free --bom BOM` with the same bill of m
 of the CSV (column `run`) starts from rest at its first sample; MuJoCo integrates it with the
 model's own RK4 step, and q(t) is compared with springfit's at every sample up to --duration
 seconds. Elements MuJoCo cannot represent exactly are listed in the model as
-`<numeric name="springfit_callback_...">` entries [code, k, x0, a1..an] and applied through
-`mjcb_passive`, which MuJoCo calls at every RK4 stage, so the scheme stays the same as
-springfit's.
+`<numeric name="springfit_callback_...">` entries [code, k, x0, a1..an] and cams as
+`<numeric name="springfit_cam_...">` entries [N, h, x_lo, a1..an, c0..c_{N+1}], and applied
+through `mjcb_passive`, which MuJoCo calls at every RK4 stage, so the scheme stays the same as
+springfit's (`Passive` below; scripts/identify_mujoco.py imports it).
 
 Prints, per run, the largest |q_mujoco - q_springfit| and MuJoCo's energy drift (largest
 |E(t) - E(0)|, with the callback elements' potential added to MuJoCo's), then one summary line.
@@ -32,6 +33,7 @@ except ImportError as e:  # pragma: no cover - reported, not tested
     sys.exit(2)
 
 CALLBACK_PREFIX = "springfit_callback_"
+CAM_PREFIX = "springfit_cam_"
 EXACT_TOLERANCE = 1e-4
 CALLBACK_TOLERANCE = 1e-3
 
@@ -51,44 +53,96 @@ def value(code, d):
     raise ValueError(f"unknown profile code {code}")
 
 
-def callbacks(model):
-    """The callback elements of the model: (name, code, k, x0, a)."""
+def numerics(model, prefix):
+    """The model's `<numeric>` entries named prefix + NAME: (NAME, data)."""
     out = []
     for i in range(model.nnumeric):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_NUMERIC, i)
-        if not name.startswith(CALLBACK_PREFIX):
-            continue
-        adr, size = model.numeric_adr[i], model.numeric_size[i]
-        data = model.numeric_data[adr:adr + size]
-        if size != 3 + model.nq:
-            raise ValueError(f"{name}: expected {3 + model.nq} numbers, got {size}")
-        out.append((name[len(CALLBACK_PREFIX):], int(data[0]), float(data[1]), float(data[2]), np.array(data[3:])))
+        if name.startswith(prefix):
+            adr, size = model.numeric_adr[i], model.numeric_size[i]
+            out.append((name[len(prefix):], np.array(model.numeric_data[adr:adr + size], dtype=float)))
     return out
 
 
-def passive_callback(model, cbs=None):
-    """The model's callback elements as MuJoCo's `mjcb_passive` and their potential energy:
-    (passive(m, d), energy(q)). `cbs` is `callbacks(model)` (read when not given)."""
-    cbs = callbacks(model) if cbs is None else cbs
-    # The callback elements as arrays, so one evaluation costs a few numpy operations.
-    codes = np.array([c[1] for c in cbs], dtype=int)
-    stiff = np.array([c[2] for c in cbs])
-    x0 = np.array([c[3] for c in cbs])
-    a = np.array([c[4] for c in cbs]).reshape(len(cbs), model.nq)
+def callbacks(model):
+    """The callback elements of the model: (name, code, k, x0, a)."""
+    out = []
+    for name, data in numerics(model, CALLBACK_PREFIX):
+        if len(data) != 3 + model.nq:
+            raise ValueError(f"{name}: expected {3 + model.nq} numbers, got {len(data)}")
+        out.append((name, int(data[0]), float(data[1]), float(data[2]), data[3:]))
+    return out
 
-    def slopes(d):
+
+def cams(model):
+    """The cams of the model: (name, knots N, spacing h, first knot, a, coefficients c)."""
+    out = []
+    for name, data in numerics(model, CAM_PREFIX):
+        count = int(data[0]) if len(data) else 0
+        if count < 4 or len(data) != 3 + model.nq + count + 2:
+            raise ValueError(f"{name}: expected N >= 4 and 3 + {model.nq} + N + 2 numbers, got {len(data)}")
+        out.append((name, count, float(data[1]), float(data[2]), data[3:3 + model.nq], data[3 + model.nq:]))
+    return out
+
+
+def cam_eval(count, h, lo, c, x):
+    """V(x) and V'(x) of the cam V = sum_j c_j B_j(x - lo), as springfit's `spline_sum`: inside the
+    knot span the four cubic pieces, beyond it the second-order Taylor polynomial at the end."""
+    t = (x - lo) / h
+    end = min(max(t, 0.0), count - 1.0)
+    dt = t - end
+    i0 = min(int(math.floor(end)), count - 2)
+    u = end - i0
+    w = 1.0 - u
+    c0, c1, c2, c3 = c[i0:i0 + 4]
+    b = (c0 * w ** 3 + c1 * (3 * u ** 3 - 6 * u * u + 4) + c2 * (3 * w ** 3 - 6 * w * w + 4) + c3 * u ** 3) / 6.0
+    b1 = 0.5 * (-c0 * w * w + c1 * (3 * u * u - 4 * u) - c2 * (3 * w * w - 4 * w) + c3 * u * u)
+    b2 = c0 * w + c1 * (3 * u - 2) + c2 * (3 * w - 2) + c3 * u
+    return b + dt * (b1 + 0.5 * dt * b2), (b1 + dt * b2) / h
+
+
+class Passive:
+    """The springs MuJoCo cannot represent itself, applied in `mjcb_passive`: the callback elements
+    as arrays (a few numpy operations per call) and the cams one by one."""
+
+    def __init__(self, model):
+        cbs = callbacks(model)
+        self.cams = cams(model)
+        self.names = [c[0] for c in cbs] + [c[0] for c in self.cams]
+        self.codes = np.array([c[1] for c in cbs], dtype=int)
+        self.stiff = np.array([c[2] for c in cbs])
+        self.x0 = np.array([c[3] for c in cbs])
+        self.a = np.array([c[4] for c in cbs]).reshape(len(cbs), model.nq)
+
+    def __len__(self):
+        return len(self.names)
+
+    def slopes(self, d):
+        codes = self.codes
         return np.select(
             [codes == 1, codes == 2, codes == 3, codes == 4, codes == 5],
             [d, d ** 3, np.sin(d), np.maximum(d, 0.0), np.minimum(d, 0.0)],
         )
 
-    def passive(m, d):
-        d.qfrc_passive[:] -= a.T @ (stiff * slopes(a @ d.qpos - x0))
+    def __call__(self, m, d):
+        if len(self.codes):
+            d.qfrc_passive[:] -= self.a.T @ (self.stiff * self.slopes(self.a @ d.qpos - self.x0))
+        for _, count, h, lo, a, c in self.cams:
+            d.qfrc_passive[:] -= a * cam_eval(count, h, lo, c, float(a @ d.qpos))[1]
 
-    def callback_energy(q):
-        return sum(k * value(int(c), float(dd)) for c, k, dd in zip(codes, stiff, a @ q - x0))
+    def energy(self, q):
+        e = sum(k * value(int(c), float(dd)) for c, k, dd in zip(self.codes, self.stiff, self.a @ q - self.x0))
+        return e + sum(cam_eval(count, h, lo, c, float(a @ q))[0] for _, count, h, lo, a, c in self.cams)
 
-    return passive, callback_energy
+    def install(self):
+        mujoco.set_mjcb_passive(self if len(self) else None)
+
+
+def passive_callback(model):
+    """The model's springs MuJoCo cannot represent itself (callback elements and cams) as MuJoCo's
+    `mjcb_passive` and their potential energy: (passive(m, d), energy(q))."""
+    springs = Passive(model)
+    return springs, springs.energy
 
 
 def read_runs(path, nq):
@@ -116,7 +170,7 @@ def main():
     args = ap.parse_args()
     try:
         model = mujoco.MjModel.from_xml_path(args.model)
-        cbs = callbacks(model)
+        cbs = Passive(model)
         runs = read_runs(args.sim_csv, model.nq)
     except (ValueError, OSError) as e:
         print(f"verify_mujoco: {e}", file=sys.stderr)
@@ -128,12 +182,11 @@ def main():
         print("verify_mujoco: the model does not use RK4; the comparison assumes springfit's scheme", file=sys.stderr)
     tol = args.tolerance or (CALLBACK_TOLERANCE if cbs else EXACT_TOLERANCE)
 
-    passive, callback_energy = passive_callback(model, cbs)
-
-    mujoco.set_mjcb_passive(passive if cbs else None)
+    cbs.install()
+    callback_energy = cbs.energy
     h = model.opt.timestep
     print(f"{args.model}: {model.nq} joints, {model.ntendon} tendons, {len(cbs)} callback elements "
-          f"({', '.join(c[0] for c in cbs) or 'none'}); RK4 step {h} s; {len(runs)} runs over {args.duration} s")
+          f"({', '.join(cbs.names) or 'none'}); RK4 step {h} s; {len(runs)} runs over {args.duration} s")
     worst, worst_drift = 0.0, 0.0
     try:
         for name, (t, q_ref) in runs.items():

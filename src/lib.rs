@@ -20,6 +20,7 @@ pub mod export;
 pub mod files;
 pub mod fit;
 pub mod geodesic;
+pub mod identify;
 pub mod input;
 pub mod limits;
 pub mod model;

@@ -6,6 +6,7 @@ mod compare;
 mod export;
 mod fit;
 mod geodesics;
+mod identify;
 mod progress;
 mod simulate;
 mod sweep;
@@ -202,6 +203,31 @@ the residual is made as small as the freedom left allows. Writes bom_tuned.csv, 
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// A built arm's spring rates, damping and friction from logged swings (or, with --plan, the
+    /// releases to log).
+    #[command(
+        after_help = "Examples:\n  springfit identify designs/double_pendulum.toml --bom out/double_pendulum/bom.csv --plan\n  springfit identify designs/double_pendulum.toml --bom out/double_pendulum/bom.csv --log swings.csv driven.csv\n\n\
+A log is CSV with t, q1…qn (rad, the design's joint order), optionally tau1…taun (N·m) and run.\n\
+Writes identify.md, identify.json, identified.csv (the bill with measured_stiffness filled in, for\n\
+springfit tune --measured), identify_torque and identify_rates (SVG, PNG) and report.html; with\n\
+--plan, plan.md, plan.json, plan_rates and report.html."
+    )]
+    Identify {
+        /// Design file (TOML).
+        design: PathBuf,
+        /// The bill of materials of the built arm (the fit's bom.csv).
+        #[arg(long, value_name = "FILE")]
+        bom: PathBuf,
+        /// Logs of its motion (CSV), one or more.
+        #[arg(long = "log", value_name = "FILE", num_args = 1.., required_unless_present = "plan")]
+        logs: Vec<PathBuf>,
+        /// Propose releases to log instead (D-optimal), with the standard errors they would give.
+        #[arg(long, conflicts_with = "logs")]
+        plan: bool,
+        /// Output folder (default: out/<design name>_identify, or …_identify_plan).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(
         after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit check designs/ur5_lift_elbow.toml --json\n\n\
@@ -279,6 +305,9 @@ pub fn run() -> Result<()> {
         }
         Command::Geodesics { design, out } => geodesics::run(&design, out, &session),
         Command::Tune { design, measured, out } => tune::run(&design, &measured, out, &session),
+        Command::Identify { design, bom, logs, plan, out } => {
+            identify::run(identify::IdentifyArgs { design, bom, logs, plan, out }, &session)
+        }
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {
                 SolverArg::Nnls => SolverKind::Nnls,

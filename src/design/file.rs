@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::controllers::ControllerSettings;
 use super::fit::FitSettings;
+use super::identify::IdentifySettings;
 use super::scenario::ScenarioSpec;
 use super::simulate::SimSettings;
 use super::sweep::SweepSettings;
@@ -40,6 +41,8 @@ pub struct DesignFile {
     pub scenario: Vec<ScenarioSpec>,
     /// Sensitivity sweeps.
     pub sweep: SweepSettings,
+    /// Identification of a built arm from logged motion.
+    pub identify: IdentifySettings,
     /// Whether the file has a `[sweep]` table (set by [`Design::parse`]): a sweep scenario the
     /// user named and the design lacks is an error, the default one missing only a warning (a
     /// design may never be swept).

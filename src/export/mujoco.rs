@@ -16,6 +16,7 @@
 //! | compression, side ± | fixed tendon with a dead band `springlength="lo hi"` | yes |
 //! | crank on one joint (a = ±eᵢ) | zero-length spatial tendon between two sites | yes |
 //! | crank on a coupling | passive-force callback (`mjcb_passive`) | no |
+//! | cam (its coefficient rows together) | passive-force callback | no |
 //!
 //! The crank identity: a zero-rest-length spring of rate κ between a site at radius d on the
 //! parent (at angle x₀) and one at radius r on the child has L² = r² + d² − 2 r d cos(q − x₀), so
@@ -23,7 +24,11 @@
 //!
 //! Elements without an exact equivalent are written as `<custom><numeric>` entries named
 //! `springfit_callback_<name>` with data `[profile code, k, x₀, a₁ … aₙ]` (codes in
-//! [`callback_code`]), so the model file alone says everything a passive-force callback needs.
+//! [`callback_code`]), so the model file alone says everything a passive-force callback needs. A
+//! cam is one entry `springfit_cam_<id>` with data `[N, h, x_lo, a₁ … aₙ, c₀ … c_{N+1}]`: its
+//! potential V(x) = Σⱼ cⱼ Bⱼ(x − x_lo) on N uniform knots of spacing h (the B-splines of
+//! `elements::spline`, continued beyond the knots by their second-order Taylor polynomials), the
+//! torque −a V′(a·q).
 
 use std::fmt::Write as _;
 
@@ -34,6 +39,9 @@ use crate::fit::bill::BomRow;
 
 /// Prefix of the `<numeric>` entries that describe callback elements.
 pub const CALLBACK_PREFIX: &str = "springfit_callback_";
+
+/// Prefix of the `<numeric>` entries that describe cams.
+pub const CAM_PREFIX: &str = "springfit_cam_";
 
 /// The far end of a one-sided dead band, rad: far beyond any reachable a·q, so the band is open
 /// on that side in practice (MuJoCo's band needs two finite numbers).
@@ -112,14 +120,14 @@ pub struct ExportedElement {
 pub struct MujocoModel {
     /// The MJCF text.
     pub xml: String,
-    /// Every element of the bill of materials, in its order.
+    /// Every element of the bill of materials, in its order (a cam once, at its first row).
     pub elements: Vec<ExportedElement>,
     /// The simulation step written into `<option timestep>`, s.
     pub timestep: f64,
 }
 
 impl MujocoModel {
-    /// Elements MuJoCo reproduces exactly.
+    /// Elements MuJoCo reproduces exactly (a cam counts once).
     pub fn exact_count(&self) -> usize {
         self.elements.iter().filter(|e| e.representation.is_exact()).count()
     }
@@ -139,7 +147,7 @@ pub fn callback_code(p: Profile) -> u8 {
         Profile::Crank => 3,
         Profile::Compression(Side::Plus) => 4,
         Profile::Compression(Side::Minus) => 5,
-        // Refused by `export` before any code is asked for.
+        // A cam has its own entry (`CAM_PREFIX`), never a code.
         Profile::Spline(_) => 0,
     }
 }
@@ -181,16 +189,6 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
         });
     }
-    if let Some(r) = rows.iter().find(|r| matches!(r.element.profile, Profile::Spline(_))) {
-        return Err(Error::Setting {
-            field: "bom".into(),
-            reason: format!(
-                "cam {} cannot be exported: MuJoCo has no element for an arbitrary profile, and the passive-force \
-                 callback does not carry cams yet (export a bill of materials without cams)",
-                r.id.split('.').next().unwrap_or(&r.id)
-            ),
-        });
-    }
     let planar = planar_chain(design)?;
     let links = planar.links();
     // Joint attributes, sites per body (index 0 is the world), tendons, callbacks.
@@ -200,8 +198,44 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
     let mut customs = String::new();
     let mut elements = Vec::with_capacity(rows.len());
     let mut used_names = std::collections::BTreeSet::new();
+    let cams = crate::fit::bill::grouped(rows);
+    let mut cams_done = vec![false; cams.len()];
     for (i, row) in rows.iter().enumerate() {
         let e = &row.element;
+        if matches!(e.profile, Profile::Spline(_)) {
+            // A cam: one callback entry for all its coefficient rows, at its first.
+            let id = row.id.split('.').next().unwrap_or(&row.id);
+            let Some(c) = cams.iter().position(|c| c.id == id) else { continue };
+            if std::mem::replace(&mut cams_done[c], true) {
+                continue;
+            }
+            let cam = &cams[c];
+            let mut name = sanitize(&cam.id);
+            if name.is_empty() || !used_names.insert(name.clone()) {
+                name = format!("cam_{}", c + 1);
+                used_names.insert(name.clone());
+            }
+            let mut data = vec![f64::from(cam.knots.count), cam.knots.width, cam.knots.lo];
+            data.extend_from_slice(&cam.coupling);
+            data.extend_from_slice(&cam.coefficients);
+            let data: Vec<String> = data.into_iter().map(num).collect();
+            let _ = writeln!(customs, "    <numeric name=\"{CAM_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
+            elements.push(ExportedElement {
+                id: cam.id.clone(),
+                name,
+                label: format!(
+                    "cam ({}) on {} knots from {:.3}",
+                    cam.coupling.iter().map(|a| crate::elements::fmt_number(*a)).collect::<Vec<_>>().join(";"),
+                    cam.knots.count,
+                    cam.knots.lo
+                ),
+                stiffness: format!("{} coefficients (J)", cam.coefficients.len()),
+                representation: Representation::Callback {
+                    reason: "a cam: MuJoCo has no element for an arbitrary profile".into(),
+                },
+            });
+            continue;
+        }
         let k = row.stiffness;
         let mut name = sanitize(&row.id);
         if name.is_empty() || !used_names.insert(name.clone()) {
@@ -442,6 +476,10 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
   [code, k, x₀, a₁ … aₙ] (code 1 linear, 2 cubic, 3 crank, 4 compression +, 5 compression −). Add
   −a · k u′(a·q − x₀) to `qfrc_passive` in `mjcb_passive`, which MuJoCo calls at every RK4 stage;
   `scripts/verify_mujoco.py` in the springfit repository does this.
+- Cams are listed as `<custom><numeric name=\"{cam_prefix}<name>\">` with data
+  [N, h, x_lo, a₁ … aₙ, c₀ … c_(N+1)]: V(x) = Σⱼ cⱼ Bⱼ(x − x_lo), cubic B-splines on N uniform
+  knots of spacing h (continued beyond the knots by their second-order Taylor polynomials); add
+  −a V′(a·q) in the same callback.
 ",
         n = design.dof(),
         r = AXIAL_INERTIA_RATIO,
@@ -452,6 +490,7 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
         r2 = CRANK_CHILD_RADIUS,
         far = DEAD_BAND_FAR,
         prefix = CALLBACK_PREFIX,
+        cam_prefix = CAM_PREFIX,
     );
     if design.simulate.integrator != crate::design::simulate::Integrator::Rk4 {
         s.push_str("\nNote: this design simulates with the adaptive integrator; MuJoCo uses RK4 at the step above, so trajectories agree only to that step's accuracy.\n");

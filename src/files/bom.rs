@@ -81,6 +81,8 @@ struct Line {
     adjust: Adjustment,
     /// A cam: its file's name and content.
     cam: Option<(String, CamFile)>,
+    /// The row it is written for (a cam's: its first coefficient row).
+    row: usize,
 }
 
 /// The lines of a bill of materials written as `name`: each cam (its coefficient rows, grouped
@@ -91,7 +93,7 @@ fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
     let cams = crate::fit::bill::grouped(rows);
     let mut done = vec![false; cams.len()];
     let mut out = Vec::new();
-    for r in rows {
+    for (row, r) in rows.iter().enumerate() {
         let e = &r.element;
         if !matches!(e.profile, Profile::Spline(_)) {
             out.push(Line {
@@ -110,6 +112,7 @@ fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
                 preload_nm: r.preload_nm,
                 adjust: r.adjust,
                 cam: None,
+                row,
             });
             continue;
         }
@@ -143,6 +146,7 @@ fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
                 cam_file_name(name, &c.id),
                 CamFile::new(&c.coupling, &c.knots, &c.coefficients, &summary.build),
             )),
+            row,
         });
     }
     out
@@ -189,6 +193,35 @@ pub fn files(name: &str, rows: &[BomRow]) -> Vec<(String, String)> {
     }
     let mut out = vec![(name.to_string(), s)];
     out.extend(cams);
+    out
+}
+
+/// The files of a bill of materials written as `name` with a last column `measured_stiffness`,
+/// as [`read_measured`] reads it: `measured[j]` is row j's measured rate in its unit (None: blank,
+/// as designed). A cam's line gets its follower spring's rate scaled as its first coefficient
+/// row's rate is (one rate error per cam).
+pub fn files_measured(name: &str, rows: &[BomRow], measured: &[Option<f64>]) -> Vec<(String, String)> {
+    let lines = lines(name, rows);
+    let mut out = files(name, rows);
+    let mut text = String::new();
+    for (k, line) in out[0].1.lines().enumerate() {
+        text.push_str(line);
+        if k == 0 {
+            text.push_str(",measured_stiffness");
+        } else if let Some(l) = lines.get(k - 1) {
+            let r = &rows[l.row];
+            let value = measured.get(l.row).copied().flatten().map(|m| match l.cam {
+                Some(_) if r.stiffness > 0.0 => l.stiffness * (m / r.stiffness),
+                _ => m,
+            });
+            text.push(',');
+            if let Some(v) = value {
+                text.push_str(&format!("{v}"));
+            }
+        }
+        text.push('\n');
+    }
+    out[0].1 = text;
     out
 }
 

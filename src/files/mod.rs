@@ -1,6 +1,7 @@
 //! The files springfit reads and writes beside its reports: the bill of materials (`bom.csv`)
-//! and the cams' files it names.
+//! and the cams' files it names, and the logs of a built arm's motion that `identify` reads.
 
 pub mod bom;
 pub mod cam;
 pub mod fit_folder;
+pub mod log;

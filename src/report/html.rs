@@ -365,6 +365,17 @@ pub fn write_sweep(out: &OutputDir, design: &Design) -> Result<()> {
     p.finish()
 }
 
+/// `report.html` of `springfit identify` (and `identify --plan`): the report, the figures, the
+/// design.
+pub fn write_identify(out: &OutputDir, design: &Design) -> Result<()> {
+    let mut p = Page::new(out, format!("springfit identify: {}", design.name));
+    p.markdown_file("identify.md")?;
+    p.markdown_file("plan.md")?;
+    p.remaining_figures("Figures", |_| true)?;
+    p.design(design)?;
+    p.finish()
+}
+
 /// `report.html` of `springfit compare`: the table and the figures.
 pub fn write_compare(out: &OutputDir) -> Result<()> {
     let mut p = Page::new(out, "springfit compare".to_string());

@@ -6,6 +6,7 @@ pub mod figures;
 pub mod fit;
 pub mod geodesics;
 pub mod html;
+pub mod identify;
 pub mod output;
 pub mod plot;
 pub mod simulate;

@@ -1,0 +1,414 @@
+//! Least squares with honest uncertainty: the estimate, its covariance from the residual, the
+//! problem's condition, and which rate errors the logs cannot tell apart.
+//!
+//! **Scaling and rank.** The columns of Φ are scaled to unit length, so the condition number
+//! κ = √(λ_max / λ_min) of ΦᵀΦ compares directions, not units. Directions with
+//! λ ≤ [`RANK_TOLERANCE`] λ_max carry no information: the estimate is the minimum-norm one, and
+//! an unknown with a component in them is not estimable at all.
+//!
+//! **Covariance.** The residual e = y − Φθ̂ of filtered signals is not white: L colours the
+//! encoder noise, and what the model misses (friction near a reversal, a motor's ripple) repeats
+//! with the swing. The covariance is therefore the sandwich (ΦᵀΦ)⁺ S (ΦᵀΦ)⁺ with S the
+//! Newey–West estimate of the scores' long-run covariance: the scores gₜ = Σ φ e over the rows of
+//! one sample, their autocovariances up to a lag window of one swing period summed with Bartlett
+//! weights, within each run (runs are independent). It needs no noise model, and white residuals
+//! give back σ² (ΦᵀΦ)⁻¹.
+//!
+//! **What cannot be told apart.** A rate whose standard error exceeds the
+//! `max_standard_error` is not identified. The logs may still fix combinations of such rates
+//! (two springs whose torques are nearly proportional over the swings): in the information of
+//! the unidentified rates with every other unknown profiled out (the Schur complement), each
+//! eigenvector is a combination; those with a standard error within the bound are identified
+//! combinations, the others the logs cannot fix. Unidentified rates that load on a common
+//! unfixed combination form a group; a group of one is a rate the logs did not excite. For
+//! `tune`, an unidentified rate keeps only its identified combinations: the unfixed ones are
+//! left at the design value (δ = 0), the smallest change that explains the logs.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::regression::Rows;
+
+/// Eigenvalues of ΦᵀΦ (unit columns) below this fraction of the largest carry no information.
+pub const RANK_TOLERANCE: f64 = 1e-12;
+
+/// A rate loads on a combination when its weight there is at least this (unit combination).
+pub const LOADING: f64 = 0.2;
+
+/// The least-squares estimate and its covariance.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    /// θ̂, in each unknown's unit (minimum norm in the scaled unknowns where the rank is short).
+    pub theta: Vec<f64>,
+    /// Covariance of θ̂ (Newey–West sandwich), in the unknowns' units.
+    pub covariance: DMatrix<f64>,
+    /// Whether each unknown is estimable (no component in a direction without information).
+    pub estimable: Vec<bool>,
+    /// ΦᵀΦ in the unknowns' units.
+    pub information: DMatrix<f64>,
+    /// √(λ_max / λ_min) of ΦᵀΦ with unit columns (infinite when the rank is short).
+    pub condition: f64,
+    /// Rank of ΦᵀΦ.
+    pub rank: usize,
+    /// Residual e = y − Φθ̂ per row.
+    pub residual: Vec<f64>,
+    /// rms of Φ's columns (the torque each unknown's unit change makes), N·m per unit.
+    pub column_rms: Vec<f64>,
+}
+
+impl Estimate {
+    /// Standard error of unknown `u` (infinite when not estimable).
+    pub fn standard_error(&self, u: usize) -> f64 {
+        if self.estimable[u] { self.covariance[(u, u)].max(0.0).sqrt() } else { f64::INFINITY }
+    }
+}
+
+/// Solves y = Φθ in the least-squares sense. `lag_seconds` is the Newey–West window.
+pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
+    let p = rows.width;
+    let m = rows.len();
+    let mut scale = vec![0.0; p];
+    for r in 0..m {
+        for (s, x) in scale.iter_mut().zip(rows.row(r)) {
+            *s += x * x;
+        }
+    }
+    let column_rms: Vec<f64> = scale.iter().map(|s| (s / m.max(1) as f64).sqrt()).collect();
+    let scale: Vec<f64> = scale.iter().map(|s| if *s > 0.0 { s.sqrt() } else { 1.0 }).collect();
+    // Scaled normal equations.
+    let mut g: DMatrix<f64> = DMatrix::zeros(p, p);
+    let mut b: DVector<f64> = DVector::zeros(p);
+    let mut phi_s = vec![0.0; p];
+    for r in 0..m {
+        for (k, x) in rows.row(r).iter().enumerate() {
+            phi_s[k] = x / scale[k];
+        }
+        for a in 0..p {
+            b[a] += phi_s[a] * rows.y[r];
+            for c in a..p {
+                g[(a, c)] += phi_s[a] * phi_s[c];
+            }
+        }
+    }
+    for a in 0..p {
+        for c in 0..a {
+            g[(a, c)] = g[(c, a)];
+        }
+    }
+    let eig = g.clone().symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
+    let kept: Vec<usize> = (0..p).filter(|&k| eig.eigenvalues[k] > RANK_TOLERANCE * top).collect();
+    let rank = kept.len();
+    let low = kept.iter().map(|&k| eig.eigenvalues[k]).fold(f64::INFINITY, f64::min);
+    let condition = if rank == p && p > 0 { (top / low).sqrt() } else { f64::INFINITY };
+    // G⁺ from the kept eigenpairs.
+    let mut pinv = DMatrix::zeros(p, p);
+    for &k in &kept {
+        let v = eig.eigenvectors.column(k);
+        pinv += v * v.transpose() / eig.eigenvalues[k];
+    }
+    let theta_s = &pinv * &b;
+    // An unknown is estimable when its unit vector lies in the span of the kept eigenvectors.
+    let estimable: Vec<bool> = (0..p)
+        .map(|u| {
+            let inside: f64 = kept.iter().map(|&k| eig.eigenvectors[(u, k)].powi(2)).sum();
+            inside > 1.0 - 1e-8
+        })
+        .collect();
+    let residual: Vec<f64> = (0..m)
+        .map(|r| {
+            rows.y[r]
+                - rows.row(r).iter().zip(scale.iter().zip(theta_s.iter())).map(|(x, (s, t))| x / s * t).sum::<f64>()
+        })
+        .collect();
+    let meat = newey_west(rows, &scale, &residual, lag_seconds);
+    let correction = if m > rank { m as f64 / (m - rank) as f64 } else { 1.0 };
+    let cov_s = &pinv * meat * &pinv * correction;
+    let s = DMatrix::from_diagonal(&DVector::from_iterator(p, scale.iter().map(|x| 1.0 / x)));
+    let covariance = &s * cov_s * &s;
+    let sinv = DMatrix::from_diagonal(&DVector::from_column_slice(&scale));
+    let information = &sinv * g * &sinv;
+    Estimate {
+        theta: theta_s.iter().zip(&scale).map(|(t, s)| t / s).collect(),
+        covariance,
+        estimable,
+        information,
+        condition,
+        rank,
+        residual,
+        column_rms,
+    }
+}
+
+/// The Newey–West long-run covariance of the scores gₜ = Σ φₛ e over the rows of each step, with
+/// Bartlett weights up to `lag_seconds`, summed over runs.
+fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) -> DMatrix<f64> {
+    let p = rows.width;
+    let mut meat = DMatrix::zeros(p, p);
+    let mut start = 0;
+    while start < rows.len() {
+        let run = rows.run[start];
+        let end = (start..rows.len()).find(|&r| rows.run[r] != run).unwrap_or(rows.len());
+        let steps = rows.step[end - 1] + 1;
+        let mut scores = DMatrix::zeros(steps, p);
+        for r in start..end {
+            let e = residual[r];
+            for (k, x) in rows.row(r).iter().enumerate() {
+                scores[(rows.step[r], k)] += x / scale[k] * e;
+            }
+        }
+        let lags = ((lag_seconds / rows.step_seconds[run]).ceil() as usize).min(steps.saturating_sub(1));
+        meat += scores.transpose() * &scores;
+        for l in 1..=lags {
+            let w = 1.0 - l as f64 / (lags + 1) as f64;
+            let a = scores.rows(0, steps - l);
+            let b = scores.rows(l, steps - l);
+            let gamma = a.transpose() * b;
+            meat += (&gamma + gamma.transpose()) * w;
+        }
+        start = end;
+    }
+    meat
+}
+
+/// A combination Σ wᵢ δᵢ of rate errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Combination {
+    /// (index into the rates, weight); the weights sum to 1 when they share a sign, else the
+    /// largest is ±1.
+    pub weights: Vec<(usize, f64)>,
+    /// Its estimate.
+    pub value: f64,
+    /// Its standard error.
+    pub standard_error: f64,
+}
+
+/// Rates the logs cannot tell apart, and what they do fix about them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// The rates (indices into the rates).
+    pub members: Vec<usize>,
+    /// Combinations of them the logs fix (standard error within the bound); the others, as
+    /// many as the group has members less these, the logs leave open.
+    pub identified: Vec<Combination>,
+}
+
+/// What the logs say about the rate errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateVerdict {
+    /// Whether each rate is identified on its own.
+    pub identified: Vec<bool>,
+    /// The groups of rates that are not.
+    pub groups: Vec<Group>,
+    /// The rates for `tune`: identified ones as estimated, the others reduced to their
+    /// identified combinations (δ = 0 along what the logs leave open).
+    pub for_tuning: Vec<f64>,
+}
+
+/// Sorts the rates (unknowns `rates`, their δ in `estimate`) into identified ones and groups.
+pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVerdict {
+    let se: Vec<f64> = rates.iter().map(|&u| estimate.standard_error(u)).collect();
+    let identified: Vec<bool> = se.iter().map(|s| *s <= bound).collect();
+    let mut for_tuning: Vec<f64> = rates.iter().map(|&u| estimate.theta[u]).collect();
+    let open: Vec<usize> = (0..rates.len()).filter(|&i| !identified[i]).collect();
+    if open.is_empty() {
+        return RateVerdict { identified, groups: Vec::new(), for_tuning };
+    }
+    let p = estimate.theta.len();
+    let unknowns_open: Vec<usize> = open.iter().map(|&i| rates[i]).collect();
+    let rest: Vec<usize> = (0..p).filter(|u| !unknowns_open.contains(u)).collect();
+    let sub = |a: &[usize], b: &[usize]| DMatrix::from_fn(a.len(), b.len(), |i, j| estimate.information[(a[i], b[j])]);
+    let g_uu = sub(&unknowns_open, &unknowns_open);
+    let g_ur = sub(&unknowns_open, &rest);
+    let g_rr = sub(&rest, &rest);
+    let schur = if rest.is_empty() {
+        g_uu
+    } else {
+        let rr_inv = g_rr.clone().pseudo_inverse(RANK_TOLERANCE * g_rr.amax().max(f64::MIN_POSITIVE)).unwrap_or(g_rr);
+        &g_uu - &g_ur * rr_inv * g_ur.transpose()
+    };
+    let eig = schur.symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
+    let cov =
+        DMatrix::from_fn(open.len(), open.len(), |i, j| estimate.covariance[(unknowns_open[i], unknowns_open[j])]);
+    let theta = DVector::from_iterator(open.len(), unknowns_open.iter().map(|&u| estimate.theta[u]));
+    // Each eigenvector: a unit combination, its estimate and standard error.
+    let combos: Vec<(DVector<f64>, f64, f64)> = (0..open.len())
+        .map(|k| {
+            let v = eig.eigenvectors.column(k).into_owned();
+            if eig.eigenvalues[k] <= RANK_TOLERANCE * top.max(f64::MIN_POSITIVE) {
+                (v, f64::NAN, f64::INFINITY)
+            } else {
+                let value = v.dot(&theta);
+                let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
+                (v, value, se)
+            }
+        })
+        .collect();
+    // Reduce the open rates to their identified combinations.
+    let mut reduced = DVector::zeros(open.len());
+    for (v, value, se) in &combos {
+        if *se <= bound {
+            reduced += v * *value;
+        }
+    }
+    for (i, &r) in open.iter().enumerate() {
+        for_tuning[r] = reduced[i];
+    }
+    // Groups: open rates joined through the space of unfixed combinations. Its projector P
+    // does not depend on which basis the eigensolver picked for a repeated eigenvalue: rates i
+    // and j cannot be told apart when |Pᵢⱼ| ≥ LOADING².
+    let mut projector = DMatrix::zeros(open.len(), open.len());
+    for (v, _, se) in &combos {
+        if *se > bound {
+            projector += v * v.transpose();
+        }
+    }
+    let mut group_of: Vec<usize> = (0..open.len()).collect();
+    for i in 0..open.len() {
+        for j in 0..i {
+            if projector[(i, j)].abs() >= LOADING * LOADING {
+                let (a, b) = (group_of[i], group_of[j]);
+                for g in group_of.iter_mut() {
+                    if *g == a {
+                        *g = b;
+                    }
+                }
+            }
+        }
+    }
+    let mut labels: Vec<usize> = Vec::new();
+    for &g in &group_of {
+        if !labels.contains(&g) {
+            labels.push(g);
+        }
+    }
+    let groups = labels
+        .iter()
+        .map(|&label| {
+            let members: Vec<usize> = (0..open.len()).filter(|&i| group_of[i] == label).collect();
+            let identified = combos
+                .iter()
+                .filter(|(v, _, se)| *se <= bound && members.iter().map(|&i| v[i] * v[i]).sum::<f64>() >= 0.5)
+                .map(|(v, value, se)| {
+                    let w: Vec<(usize, f64)> =
+                        members.iter().filter(|&&i| v[i].abs() >= 0.05).map(|&i| (open[i], v[i])).collect();
+                    let sum: f64 = w.iter().map(|x| x.1).sum();
+                    let l1: f64 = w.iter().map(|x| x.1.abs()).sum();
+                    let norm =
+                        if sum.abs() > 0.999 * l1 { sum } else { w.iter().fold(0.0f64, |m, x| m.max(x.1.abs())) };
+                    let norm = if norm == 0.0 { 1.0 } else { norm };
+                    Combination {
+                        weights: w.iter().map(|&(i, x)| (i, x / norm)).collect(),
+                        value: value / norm,
+                        standard_error: se / norm.abs(),
+                    }
+                })
+                .collect();
+            Group { members: members.iter().map(|&i| open[i]).collect(), identified }
+        })
+        .collect();
+    RateVerdict { identified, groups, for_tuning }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::rng::SplitMix64;
+
+    /// Rows of y = Φθ + noise for given columns (one joint, one run).
+    fn rows(columns: &[Vec<f64>], theta: &[f64], noise: f64, seed: u64) -> Rows {
+        let m = columns[0].len();
+        let mut rng = SplitMix64::stream(seed, 0);
+        let mut r = Rows { width: columns.len(), step_seconds: vec![0.01], ..Rows::default() };
+        for i in 0..m {
+            let y: f64 = columns.iter().zip(theta).map(|(c, t)| c[i] * t).sum::<f64>() + noise * rng.normal();
+            r.y.push(y);
+            for c in columns {
+                r.phi.push(c[i]);
+            }
+            r.designed.push(0.0);
+            r.joint.push(0);
+            r.t.push(i as f64 * 0.01);
+            r.run.push(0);
+            r.step.push(i);
+        }
+        r
+    }
+
+    fn signal(m: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
+        (0..m).map(|i| f(i as f64 * 0.01)).collect()
+    }
+
+    #[test]
+    fn white_noise_gives_the_textbook_standard_errors() {
+        // Two well separated columns, white noise σ = 0.1: se = σ / |column|.
+        let m = 4000;
+        let c = vec![signal(m, |t| (2.0 * t).sin()), signal(m, |t| (5.3 * t).cos())];
+        let e = least_squares(&rows(&c, &[0.3, -0.2], 0.1, 1), 0.0);
+        for k in 0..2 {
+            let norm = c[k].iter().map(|x| x * x).sum::<f64>().sqrt();
+            let want = 0.1 / norm;
+            assert!((e.standard_error(k) / want - 1.0).abs() < 0.1, "{} vs {want}", e.standard_error(k));
+        }
+        assert!((e.theta[0] - 0.3).abs() < 4.0 * e.standard_error(0));
+        assert!(e.condition < 1.2 && e.rank == 2, "κ {}", e.condition);
+    }
+
+    #[test]
+    fn coloured_noise_widens_the_standard_errors_as_it_should() {
+        // Noise that repeats for 0.5 s (a random walk reset every 50 rows): the white formula
+        // would be too optimistic; the Newey–West errors match the spread over seeds.
+        let m = 6000;
+        let c = vec![signal(m, |t| 1.0 + 0.3 * (0.7 * t).sin())];
+        let mut spread = Vec::new();
+        let mut reported = Vec::new();
+        for seed in 0..40 {
+            let mut r = rows(&c, &[1.0], 0.0, seed);
+            let mut rng = SplitMix64::stream(100 + seed, 0);
+            let mut level = 0.0;
+            for i in 0..m {
+                if i % 50 == 0 {
+                    level = 0.05 * rng.normal();
+                }
+                r.y[i] += level;
+            }
+            let e = least_squares(&r, 1.0);
+            spread.push(e.theta[0]);
+            reported.push(e.standard_error(0));
+        }
+        let mean = spread.iter().sum::<f64>() / 40.0;
+        let sd = (spread.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 39.0).sqrt();
+        let se = reported.iter().sum::<f64>() / 40.0;
+        assert!((se / sd - 1.0).abs() < 0.35, "reported {se:.3e}, spread {sd:.3e}");
+    }
+
+    #[test]
+    fn proportional_columns_are_a_group_with_their_combination_identified() {
+        // Columns 0 and 1 proportional (1 : 2): only δ₀ + 2δ₁ shows; column 2 never excited.
+        let m = 2000;
+        let base = signal(m, |t| (1.3 * t).sin() + 0.2);
+        let c =
+            vec![base.clone(), base.iter().map(|x| 2.0 * x).collect(), vec![0.0; m], signal(m, |t| (3.1 * t).cos())];
+        let e = least_squares(&rows(&c, &[0.02, 0.01, 0.03, -0.04], 1e-4, 3), 0.1);
+        assert_eq!(e.rank, 2);
+        assert!(e.condition.is_infinite());
+        assert!(!e.estimable[0] && !e.estimable[1] && !e.estimable[2] && e.estimable[3]);
+        assert!((e.theta[3] + 0.04).abs() < 1e-5);
+        let v = rate_verdict(&e, &[0, 1, 2, 3], 0.005);
+        assert_eq!(v.identified, vec![false, false, false, true]);
+        assert_eq!(v.groups.len(), 2, "{:?}", v.groups);
+        let pair = v.groups.iter().find(|g| g.members.len() == 2).unwrap();
+        assert_eq!(pair.members, vec![0, 1]);
+        // The identified combination is δ₀ + 2δ₁ (weights 1/3, 2/3 of it) = 0.04 / 3.
+        let c = &pair.identified[0];
+        assert!((c.weights[0].1 - 1.0 / 3.0).abs() < 1e-9 && (c.weights[1].1 - 2.0 / 3.0).abs() < 1e-9, "{c:?}");
+        assert!((c.value - 0.04 / 3.0).abs() < 2e-5, "{c:?}");
+        let lone = v.groups.iter().find(|g| g.members == vec![2]).unwrap();
+        assert!(lone.identified.is_empty());
+        // For tuning: the pair reduced to its combination (minimum norm), the lone rate at 0.
+        let t = &v.for_tuning;
+        assert!((t[0] + 2.0 * t[1] - 0.04).abs() < 2e-5 && (2.0 * t[0] - t[1]).abs() < 1e-9, "{t:?}");
+        assert_eq!(t[2], 0.0);
+        assert!((t[3] + 0.04).abs() < 1e-5);
+    }
+}

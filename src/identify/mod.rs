@@ -1,0 +1,471 @@
+//! Identification of a built arm from its own motion: the rate error of every spring and cam,
+//! the joint damping and the Coulomb friction, from logged joint angles (and motor torques when
+//! the arm is driven), with their standard errors and what the logs cannot tell apart.
+//!
+//! The pipeline, one module per step:
+//!
+//! 1. the logs are read (`files::log`) and every sample checked against the region
+//!    ([`region`]);
+//! 2. each run's angles are smoothed, the equation of motion is written linear in the unknowns and
+//!    both of its sides are low-passed with one zero-phase filter ([`filter`], [`regression`]);
+//! 3. least squares with the Newey–West covariance, the condition and the groups of rates the
+//!    logs cannot tell apart ([`estimate`]);
+//! 4. the rates the identified δ give, for `tune` ([`Identification::measured`]).
+//!
+//! [`plan`] proposes releases that make every rate identifiable before anything is logged.
+
+pub mod estimate;
+pub mod filter;
+pub mod log;
+pub mod plan;
+pub mod region;
+pub mod regression;
+pub mod swing;
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::design::Design;
+use crate::design::identify::IdentifySettings;
+use crate::error::{Error, Result};
+use crate::fit::bill::BomRow;
+use crate::potential::Potential;
+use estimate::{Combination, Estimate};
+use log::{Log, Run};
+use regression::{Filters, Model, Rows, Unknown};
+
+/// What the logs say about one part's rate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// δ identified on its own (standard error within the bound).
+    Identified,
+    /// In a group of rates the logs cannot tell apart (an index into the groups).
+    Group(usize),
+}
+
+/// The estimate of one part's rate error.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RateEstimate {
+    /// The bill's id (`S01`, or `C01` for a cam).
+    pub id: String,
+    /// Its catalogue family.
+    pub family: String,
+    /// Whether it is a trim spring (estimated only with `trims = "estimated"`).
+    pub trim: bool,
+    /// Its rows in the bill of materials.
+    #[serde(skip)]
+    pub rows: Vec<usize>,
+    /// δ, the rate error as a fraction of the design rate (least squares; not meaningful when
+    /// not identified).
+    pub delta: f64,
+    /// Standard error of δ (infinite: the logs carry nothing about it alone).
+    #[serde(serialize_with = "finite_or_null")]
+    pub standard_error: f64,
+    /// Identified, or in which group.
+    pub status: Status,
+    /// The δ `tune` gets (identified: as estimated; in a group: reduced to the group's
+    /// identified combinations).
+    pub for_tuning: f64,
+    /// rms over the logs of the torque a change δ = 1 would make, N·m.
+    pub torque_rms_nm: f64,
+}
+
+/// Rates the logs cannot tell apart, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RateGroup {
+    /// The parts' ids.
+    pub members: Vec<String>,
+    /// Why, in words.
+    pub reason: String,
+    /// Combinations of their δ the logs do fix: (id, weight) and value ± standard error.
+    pub identified: Vec<CombinationReport>,
+}
+
+/// An identified combination Σ wᵢ δᵢ.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CombinationReport {
+    pub weights: Vec<(String, f64)>,
+    pub value: f64,
+    pub standard_error: f64,
+}
+
+/// A joint's damping and friction estimates (None where not estimated).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointEstimate {
+    /// `q1`, `q2`, …
+    pub joint: String,
+    /// Viscous damping and its standard error, N·m·s/rad.
+    pub damping: Option<Value>,
+    /// Coulomb friction and its standard error, N·m.
+    pub friction: Option<Value>,
+}
+
+/// An estimate with its standard error (infinite: not estimable from these logs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Value {
+    pub value: f64,
+    #[serde(serialize_with = "finite_or_null")]
+    pub standard_error: f64,
+}
+
+/// One run as used.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// The log file.
+    pub file: String,
+    /// The run's name (empty: the whole file).
+    pub run: String,
+    pub samples: usize,
+    pub seconds: f64,
+    pub rate_hz: f64,
+    /// Whether motor torques were logged.
+    pub driven: bool,
+    /// Regression rows it gave (one per kept sample and joint).
+    pub rows: usize,
+}
+
+/// Torques on one run for the plots: what the motion says the elements, damping and friction
+/// exerted, what the identified model predicts and what the design would have, all through L.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TorqueTrace {
+    /// `file: run`.
+    pub run: String,
+    pub t: Vec<f64>,
+    /// Per joint.
+    pub measured: Vec<Vec<f64>>,
+    pub predicted: Vec<Vec<f64>>,
+    pub designed: Vec<Vec<f64>>,
+}
+
+/// The outcome of `identify`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Identification {
+    /// Cut-off of the regression's low-pass and of the encoder smoothing, Hz.
+    pub cutoff_hz: f64,
+    pub smoothing_hz: f64,
+    /// The bound on a rate's standard error for it to count as identified.
+    pub max_standard_error: f64,
+    pub runs: Vec<RunSummary>,
+    /// Regression rows and unknowns.
+    pub rows: usize,
+    pub unknowns: usize,
+    /// Rank of the regression and its condition number (columns scaled to unit length; infinite
+    /// when the rank is short).
+    pub rank: usize,
+    #[serde(serialize_with = "finite_or_null")]
+    pub condition: f64,
+    /// rms of the residual and of the elements' designed torque per joint, N·m.
+    pub residual_rms_nm: Vec<f64>,
+    pub torque_rms_nm: Vec<f64>,
+    pub rates: Vec<RateEstimate>,
+    pub groups: Vec<RateGroup>,
+    pub joints: Vec<JointEstimate>,
+    /// Per row of the bill: the rate to write as `measured_stiffness` (None: as designed).
+    #[serde(skip)]
+    pub measured: Vec<Option<f64>>,
+    #[serde(skip)]
+    pub trace: Option<TorqueTrace>,
+}
+
+fn finite_or_null<S: serde::Serializer>(x: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
+    if x.is_finite() { s.serialize_f64(*x) } else { s.serialize_none() }
+}
+
+impl Identification {
+    /// Number of parts whose rate is identified on its own.
+    pub fn identified_count(&self) -> usize {
+        self.rates.iter().filter(|r| r.status == Status::Identified).count()
+    }
+}
+
+/// Checks that a bill of materials belongs to the design: as many joints, and its elements hold
+/// the design's equilibrium (a bill of another design does not).
+pub fn check_bill(design: &Design, bom_path: &Path, bom: &[BomRow]) -> Result<()> {
+    let n = design.dof();
+    if let Some(r) = bom.iter().find(|r| r.element.coupling.len() != n) {
+        return Err(Error::invalid(
+            bom_path,
+            "coupling",
+            format!("{}: the elements act on {} joints but the design's robot has {n}", r.id, r.element.coupling.len()),
+        ));
+    }
+    let q = design.q_eq.as_slice();
+    let set = crate::fit::bill::spring_set(bom);
+    let g = set.grouped().gradient(q)? + design.chain.gravity_gradient(q);
+    let scale: f64 =
+        set.element_torques(q).iter().map(|t| t.amax()).sum::<f64>() + design.chain.gravity_gradient(q).amax();
+    if g.amax() > 1e-2 * scale.max(1e-9) {
+        return Err(Error::invalid(
+            bom_path,
+            "stiffness",
+            format!(
+                "the bill's elements do not hold the design's equilibrium q_eq: |∇U(q_eq)| = {:.3e} N·m against element \
+                 torques of {:.3e} N·m there (is it the bill of another design?)",
+                g.amax(),
+                scale
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The filters of a run, or an error naming the log, the line and the setting when its
+/// sampling is too slow or the run too short for them.
+fn run_filters(log: &Log, run: &Run, cutoff: f64, settings: &IdentifySettings) -> Result<Filters> {
+    let rate = 1.0 / run.dt;
+    let label = if run.name.is_empty() { "the log".to_string() } else { format!("run `{}`", run.name) };
+    if settings.smoothing_hz >= 0.45 * rate {
+        return Err(Error::invalid(
+            &log.path,
+            format!("line {}: t", run.lines[1]),
+            format!(
+                "{label} is sampled at {rate:.4} Hz: identify.smoothing_hz = {} needs a rate above {:.4} Hz (lower it in \
+                 the design's [identify])",
+                settings.smoothing_hz,
+                settings.smoothing_hz / 0.45
+            ),
+        ));
+    }
+    let filters = Filters::new(run.dt, cutoff, settings.smoothing_hz);
+    let shortest = filters.shortest_run(run.dt);
+    if run.duration() < shortest {
+        return Err(Error::invalid(
+            &log.path,
+            format!("line {}: t", run.lines[0]),
+            format!(
+                "{label} lasts {:.3} s: with a cut-off of {cutoff:.3} Hz the filters take {:.3} s to settle, so a run needs \
+                 at least {shortest:.3} s",
+                run.duration(),
+                filters.regression.settle() as f64 * run.dt
+            ),
+        ));
+    }
+    Ok(filters)
+}
+
+/// Identifies the built arm's rates (bill `bom`, read from `bom_path`), damping and friction
+/// from `logs`.
+pub fn identify(
+    design: &Design,
+    bom_path: &Path,
+    bom: &[BomRow],
+    logs: &[Log],
+    settings: &IdentifySettings,
+) -> Result<Identification> {
+    check_bill(design, bom_path, bom)?;
+    let n = design.dof();
+    let cutoff = settings.cutoff(design.fit.frequency);
+    let test = region::RegionTest::new(design, settings.region_margin);
+    let mut runs: Vec<(&Log, &Run, Filters)> = Vec::new();
+    for log in logs {
+        if log.dof != n {
+            return Err(Error::invalid(
+                &log.path,
+                "line 1: header",
+                format!("the log has {} joints but the design's robot has {n}", log.dof),
+            ));
+        }
+        for run in &log.runs {
+            let filters = run_filters(log, run, cutoff, settings)?;
+            if let Some(out) = test.first_outside(&run.q)? {
+                return Err(Error::invalid(
+                    &log.path,
+                    format!("line {}: q", run.lines[out.sample]),
+                    format!(
+                        "{}: angles in degrees, another joint order or an encoder zero off? (q1 … q{n} are the design's \
+                         joints, in rad)",
+                        out.reason
+                    ),
+                ));
+            }
+            runs.push((log, run, filters));
+        }
+    }
+    let model = Model::new(bom, n, settings);
+    let pairs: Vec<(&Run, Filters)> = runs.iter().map(|(_, r, f)| (*r, f.clone())).collect();
+    let rows = regression::all_rows(design, &model, &pairs);
+    if rows.len() <= model.unknowns.len() {
+        return Err(Error::invalid(
+            &logs[0].path,
+            "t",
+            format!(
+                "the logs give {} regression rows for {} unknowns: log longer runs",
+                rows.len(),
+                model.unknowns.len()
+            ),
+        ));
+    }
+    let lag = std::f64::consts::TAU / design.fit.frequency;
+    let estimate = estimate::least_squares(&rows, lag);
+    Ok(assemble(design, bom, settings, cutoff, &model, &runs, &rows, &estimate))
+}
+
+/// Joins the estimate, the verdict on the rates and the summaries into the outcome.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    design: &Design,
+    bom: &[BomRow],
+    settings: &IdentifySettings,
+    cutoff: f64,
+    model: &Model,
+    runs: &[(&Log, &Run, Filters)],
+    rows: &Rows,
+    estimate: &Estimate,
+) -> Identification {
+    let n = design.dof();
+    let rate_unknowns: Vec<usize> =
+        (0..model.unknowns.len()).filter(|&u| matches!(model.unknowns[u], Unknown::Rate(_))).collect();
+    let verdict = estimate::rate_verdict(estimate, &rate_unknowns, settings.max_standard_error);
+    let mut status: Vec<Status> =
+        verdict.identified.iter().map(|&ok| if ok { Status::Identified } else { Status::Group(0) }).collect();
+    let residual_rms: f64 = (estimate.residual.iter().map(|e| e * e).sum::<f64>() / rows.len() as f64).sqrt();
+    let groups: Vec<RateGroup> = verdict
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, group)| {
+            for &i in &group.members {
+                status[i] = Status::Group(g);
+            }
+            let ids: Vec<String> = group.members.iter().map(|&i| model.parts[i].id.clone()).collect();
+            let reason = if group.members.len() > 1 {
+                format!(
+                    "Their torques over these logs are nearly proportional: the logs fix {} of their {} rates only as \
+                     the combinations below",
+                    group.identified.len(),
+                    group.members.len()
+                )
+            } else {
+                let u = rate_unknowns[group.members[0]];
+                let top = estimate.column_rms.iter().fold(0.0f64, |m, x| m.max(*x));
+                if estimate.column_rms[u] <= 1e-9 * top.max(f64::MIN_POSITIVE) {
+                    "The logs never engage it: it exerts no torque anywhere along them".to_string()
+                } else {
+                    format!(
+                        "Its torque over these logs (rms {:.3e} N·m for δ = 1, against a residual of {:.3e} N·m) leaves \
+                         its δ a standard error of {:.3} %, beyond the bound of {} %",
+                        estimate.column_rms[u],
+                        residual_rms,
+                        100.0 * estimate.standard_error(u),
+                        100.0 * settings.max_standard_error
+                    )
+                }
+            };
+            let combination = |c: &Combination| CombinationReport {
+                weights: c.weights.iter().map(|&(i, w)| (model.parts[i].id.clone(), w)).collect(),
+                value: c.value,
+                standard_error: c.standard_error,
+            };
+            RateGroup { members: ids, reason, identified: group.identified.iter().map(combination).collect() }
+        })
+        .collect();
+    let rates: Vec<RateEstimate> = model
+        .parts
+        .iter()
+        .enumerate()
+        .map(|(i, part)| {
+            let u = rate_unknowns[i];
+            RateEstimate {
+                id: part.id.clone(),
+                family: part.family.clone(),
+                trim: part.trim,
+                rows: part.rows.clone(),
+                delta: estimate.theta[u],
+                standard_error: estimate.standard_error(u),
+                status: status[i].clone(),
+                for_tuning: verdict.for_tuning[i],
+                torque_rms_nm: estimate.column_rms[u],
+            }
+        })
+        .collect();
+    let value =
+        |u: Option<usize>| u.map(|u| Value { value: estimate.theta[u], standard_error: estimate.standard_error(u) });
+    let joints: Vec<JointEstimate> = (0..n)
+        .map(|j| JointEstimate {
+            joint: format!("q{}", j + 1),
+            damping: value(model.unknowns.iter().position(|u| *u == Unknown::Damping(j))),
+            friction: value(model.unknowns.iter().position(|u| *u == Unknown::Friction(j))),
+        })
+        .collect();
+    // The measured rates: each estimated part's rows scaled by 1 + δ (for tuning); known trims and
+    // parts the logs never engaged stay as designed.
+    let mut measured: Vec<Option<f64>> = vec![None; bom.len()];
+    for r in &rates {
+        if r.torque_rms_nm > 0.0 {
+            for &j in &r.rows {
+                measured[j] = Some(bom[j].stiffness * (1.0 + r.for_tuning));
+            }
+        }
+    }
+    let per_joint = |f: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        (0..n)
+            .map(|j| {
+                let (s, c) =
+                    (0..rows.len()).filter(|&r| rows.joint[r] == j).fold((0.0, 0), |(s, c), r| (s + f(r), c + 1));
+                (s / c.max(1) as f64).sqrt()
+            })
+            .collect()
+    };
+    let residual_rms_nm = per_joint(&|r| estimate.residual[r].powi(2));
+    let torque_rms_nm = per_joint(&|r| rows.designed[r].powi(2));
+    let summaries: Vec<RunSummary> = runs
+        .iter()
+        .enumerate()
+        .map(|(k, (log, run, _))| RunSummary {
+            file: log.path.display().to_string(),
+            run: run.name.clone(),
+            samples: run.len(),
+            seconds: run.duration(),
+            rate_hz: 1.0 / run.dt,
+            driven: run.tau.is_some(),
+            rows: rows.run.iter().filter(|&&r| r == k).count(),
+        })
+        .collect();
+    Identification {
+        cutoff_hz: cutoff,
+        smoothing_hz: settings.smoothing_hz,
+        max_standard_error: settings.max_standard_error,
+        runs: summaries,
+        rows: rows.len(),
+        unknowns: model.unknowns.len(),
+        rank: estimate.rank,
+        condition: estimate.condition,
+        residual_rms_nm,
+        torque_rms_nm,
+        rates,
+        groups,
+        joints,
+        measured,
+        trace: trace(runs, rows, estimate, n),
+    }
+}
+
+/// The torque trace of the run with the most rows, its first 10 s of rows.
+fn trace(runs: &[(&Log, &Run, Filters)], rows: &Rows, estimate: &Estimate, n: usize) -> Option<TorqueTrace> {
+    let best = (0..runs.len()).max_by_key(|&k| rows.run.iter().filter(|&&r| r == k).count())?;
+    let picked: Vec<usize> = (0..rows.len()).filter(|&r| rows.run[r] == best).collect();
+    let t0 = rows.t[*picked.first()?];
+    let mut out = TorqueTrace {
+        run: {
+            let file = runs[best].0.path.file_name().map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+            if runs[best].1.name.is_empty() { file } else { format!("{file}, run {}", runs[best].1.name) }
+        },
+        t: Vec::new(),
+        measured: vec![Vec::new(); n],
+        predicted: vec![Vec::new(); n],
+        designed: vec![Vec::new(); n],
+    };
+    for &r in picked.iter().filter(|&&r| rows.t[r] - t0 <= 10.0) {
+        let j = rows.joint[r];
+        if j == 0 {
+            out.t.push(rows.t[r]);
+        }
+        let fitted: f64 = rows.row(r).iter().zip(&estimate.theta).map(|(x, t)| x * t).sum();
+        out.measured[j].push(rows.y[r] + rows.designed[r]);
+        out.predicted[j].push(fitted + rows.designed[r]);
+        out.designed[j].push(rows.designed[r]);
+    }
+    Some(out)
+}

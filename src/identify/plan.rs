@@ -1,0 +1,273 @@
+//! The excitation plan: releases from rest that make every rate identifiable, chosen before the
+//! arm is logged.
+//!
+//! **Candidates.** Releases from rest at exp(f·ℓ·u): `directions` metric unit vectors u at q_eq
+//! (for two joints over half a turn: u and −u swing on the same mode) and each distance fraction
+//! f of `radii` of the region's extent ℓ along u. Each is simulated as designed (nominal rates,
+//! no damping or friction) for `release_seconds` at `rate_hz` ([`super::swing`]); a candidate
+//! whose swing leaves the region is dropped.
+//!
+//! **Criterion: D-optimal.** The regression of a candidate's noise-free swing gives its
+//! information Φᵀ Φ about the unknowns (δ of every part, damping, friction). Releases are added
+//! one at a time, each the candidate that most increases log det of the summed information
+//! (with unit-scaled unknowns and a tiny ridge, so that unknowns no candidate excites do not
+//! make every determinant zero); a candidate may be chosen again (another release there). The
+//! D-optimal design minimises the volume of the estimates' confidence ellipsoid, so it does not
+//! favour any one unknown.
+//!
+//! **Predicted standard errors.** After each addition the chosen releases are read through a
+//! simulated encoder (`encoder_bits` per turn, `encoder_noise_counts` rms before quantisation,
+//! seeded) and identified exactly as `identify` would identify real logs; the plan stops when
+//! every rate is identified or the total log reaches `max_log_seconds`, and reports what that
+//! identification found: the standard error every rate would get, and which rates no release
+//! within the region can tell apart.
+
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::log::{Log, Run};
+use super::regression::{Filters, Model, Rows};
+use super::swing::{Drive, encoder_reading, swing};
+use super::{Identification, Status};
+use crate::design::Design;
+use crate::error::{Error, Result};
+use crate::fit::bill::BomRow;
+use crate::geodesic::{Fan, FanSpec, Region, Stop};
+use crate::numerics::rng::SplitMix64;
+use crate::potential::Potential;
+
+/// One proposed release.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Release {
+    /// Where to hold the arm before letting go, rad.
+    pub q0: Vec<f64>,
+    /// The release direction in the metric frame at q_eq (unit vector).
+    pub direction: Vec<f64>,
+    /// Its metric distance from q_eq, √(kg·m²)·rad.
+    pub distance: f64,
+    /// The potential energy it starts with, U(q0) − U(q_eq), J.
+    pub energy_j: f64,
+    /// How many times to release it.
+    pub releases: usize,
+    /// Log length of each release, s.
+    pub seconds: f64,
+}
+
+/// The plan.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Plan {
+    /// The criterion, in words.
+    pub criterion: String,
+    /// Candidates considered, and how many were dropped because their swing leaves the region.
+    pub candidates: usize,
+    pub dropped: usize,
+    /// The releases, in the order they were chosen (a repeated choice adds to `releases`).
+    pub releases: Vec<Release>,
+    /// Total log length, s.
+    pub total_seconds: f64,
+    /// Log rate and encoder the prediction assumes.
+    pub rate_hz: f64,
+    pub encoder_bits: u32,
+    pub encoder_noise_counts: f64,
+    /// Whether every rate comes out identified.
+    pub complete: bool,
+    /// The identification of the simulated logs of the plan.
+    pub predicted: Identification,
+}
+
+/// A candidate release with its simulated swing and the rows it gives.
+struct Candidate {
+    q0: Vec<f64>,
+    direction: Vec<f64>,
+    distance: f64,
+    energy: f64,
+    run: Run,
+    information: DMatrix<f64>,
+}
+
+/// Proposes releases for identifying `bom` (read from `bom_path`) on `design`.
+pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Result<Plan> {
+    let settings = &design.file.identify;
+    super::check_bill(design, bom_path, bom)?;
+    let n = design.dof();
+    let springs = crate::fit::bill::spring_set(bom);
+    let model = Model::new(bom, n, settings);
+    let cutoff = settings.cutoff(design.fit.frequency);
+    let filters = Filters::new(1.0 / settings.rate_hz, cutoff, settings.smoothing_hz);
+    if settings.release_seconds < filters.shortest_run(1.0 / settings.rate_hz) {
+        return Err(Error::invalid(
+            &design.path,
+            "identify.release_seconds",
+            format!(
+                "{} s is shorter than the filters need at a cut-off of {cutoff:.3} Hz ({:.3} s)",
+                settings.release_seconds,
+                filters.shortest_run(1.0 / settings.rate_hz)
+            ),
+        ));
+    }
+    // Candidate release points along a fan of geodesics to the region's boundary.
+    let extent = match &design.region {
+        Region::Ball { radius } => *radius,
+        _ => design.geodesics.max_arc,
+    };
+    let stop = match &design.region {
+        Region::Ball { radius } => Stop::Arc(*radius),
+        region => Stop::Region { region, max_arc: design.geodesics.max_arc },
+    };
+    let count = if n == 2 { 2 * settings.directions } else { settings.directions };
+    let fan = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec { count, phase: 0.0, stop, spacing: extent / 400.0 },
+        design.geodesics.ode,
+    )?;
+    let u_eq = springs.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
+    let mut points = Vec::new();
+    for (g, u) in fan.geodesics.iter().zip(&fan.frame_directions) {
+        // Two joints: u and −u swing on the same mode.
+        if n == 2 && (u[1] < -1e-12 || (u[1].abs() <= 1e-12 && u[0] < 0.0)) {
+            continue;
+        }
+        for &f in &settings.radii {
+            let target = f * g.length();
+            let i = (0..g.len()).min_by(|&a, &b| (g.s(a) - target).abs().total_cmp(&(g.s(b) - target).abs()));
+            if let Some(i) = i.filter(|&i| i > 0) {
+                points.push((g.q(i).to_vec(), u.iter().copied().collect::<Vec<_>>(), g.s(i)));
+            }
+        }
+    }
+    let zeros = vec![0.0; n];
+    let drive = Drive { damping: &zeros, friction: &zeros, torque: None };
+    let test = super::region::RegionTest::new(design, settings.region_margin);
+    let simulated: Vec<Option<Candidate>> = points
+        .par_iter()
+        .map(|(q0, direction, distance)| {
+            let run = swing(design, &springs, &drive, q0, settings.release_seconds, settings.rate_hz)?;
+            if test.first_outside(&run.q).ok()?.is_some() {
+                return None;
+            }
+            let rows = super::regression::run_rows(design, &model, &run, 0, &filters);
+            let energy = springs.value(q0).ok()? + design.chain.gravity_potential(q0) - u_eq;
+            Some(Candidate {
+                q0: q0.clone(),
+                direction: direction.clone(),
+                distance: *distance,
+                energy,
+                run,
+                information: information(&rows),
+            })
+        })
+        .collect();
+    let dropped = simulated.iter().filter(|c| c.is_none()).count();
+    let candidates: Vec<Candidate> = simulated.into_iter().flatten().collect();
+    if candidates.is_empty() {
+        return Err(Error::invalid(
+            &design.path,
+            "identify.radii",
+            "every candidate release swings out of the region: choose smaller identify.radii".to_string(),
+        ));
+    }
+    // Unit scaling of the unknowns over all candidates, and the ridge.
+    let p = model.unknowns.len();
+    let total: DMatrix<f64> = candidates.iter().fold(DMatrix::zeros(p, p), |a, c| a + &c.information);
+    let scale: Vec<f64> = (0..p).map(|k| if total[(k, k)] > 0.0 { 1.0 / total[(k, k)].sqrt() } else { 1.0 }).collect();
+    let scaled = |m: &DMatrix<f64>| DMatrix::from_fn(p, p, |a, b| m[(a, b)] * scale[a] * scale[b]);
+    let infos: Vec<DMatrix<f64>> = candidates.iter().map(|c| scaled(&c.information)).collect();
+    let ridge = 1e-9 * (0..p).map(|k| scaled(&total)[(k, k)]).sum::<f64>().max(1e-300) / p as f64;
+    let mut sum = DMatrix::<f64>::identity(p, p) * ridge;
+    let mut chosen: Vec<(usize, usize)> = Vec::new(); // (candidate, repeat)
+    let mut repeats = vec![0usize; candidates.len()];
+    let mut readings: Vec<Run> = Vec::new();
+    let budget = (settings.max_log_seconds / settings.release_seconds).floor().max(1.0) as usize;
+    let mut predicted = None;
+    while chosen.len() < budget {
+        let best = (0..candidates.len())
+            .max_by(|&a, &b| log_det(&(&sum + &infos[a])).total_cmp(&log_det(&(&sum + &infos[b]))))
+            .expect("at least one candidate");
+        sum += &infos[best];
+        chosen.push((best, repeats[best]));
+        let mut rng = SplitMix64::stream(settings.seed, (best * 1000 + repeats[best]) as u64);
+        repeats[best] += 1;
+        let mut reading =
+            encoder_reading(&candidates[best].run, settings.encoder_bits, settings.encoder_noise_counts, &mut rng);
+        reading.name = format!("release {}", chosen.len());
+        readings.push(reading);
+        let id = identify_readings(design, bom_path, bom, &readings)?;
+        let complete = id.rates.iter().all(|r| r.status == Status::Identified);
+        predicted = Some(id);
+        if complete {
+            break;
+        }
+    }
+    let predicted = predicted.expect("one release at least");
+    let mut releases: Vec<Release> = Vec::new();
+    let mut placed: Vec<Option<usize>> = vec![None; candidates.len()];
+    for &(c, _) in &chosen {
+        match placed[c] {
+            Some(i) => releases[i].releases += 1,
+            None => {
+                let k = &candidates[c];
+                placed[c] = Some(releases.len());
+                releases.push(Release {
+                    q0: k.q0.clone(),
+                    direction: k.direction.clone(),
+                    distance: k.distance,
+                    energy_j: k.energy,
+                    releases: 1,
+                    seconds: settings.release_seconds,
+                });
+            }
+        }
+    }
+    Ok(Plan {
+        criterion: "D-optimal: each release the candidate that most increases log det of the information ΦᵀΦ".into(),
+        candidates: candidates.len() + dropped,
+        dropped,
+        total_seconds: chosen.len() as f64 * settings.release_seconds,
+        releases,
+        rate_hz: settings.rate_hz,
+        encoder_bits: settings.encoder_bits,
+        encoder_noise_counts: settings.encoder_noise_counts,
+        complete: predicted.rates.iter().all(|r| r.status == Status::Identified),
+        predicted,
+    })
+}
+
+/// Identifies simulated readings as `identify` identifies logs.
+fn identify_readings(
+    design: &Design,
+    bom_path: &std::path::Path,
+    bom: &[BomRow],
+    runs: &[Run],
+) -> Result<Identification> {
+    let log = Log {
+        path: std::path::PathBuf::from("(the plan's simulated releases)"),
+        dof: design.dof(),
+        runs: runs.to_vec(),
+    };
+    super::identify(design, bom_path, bom, &[log], &design.file.identify)
+}
+
+/// ΦᵀΦ of a candidate's rows.
+fn information(rows: &Rows) -> DMatrix<f64> {
+    let p = rows.width;
+    let mut g = DMatrix::zeros(p, p);
+    for r in 0..rows.len() {
+        let x = rows.row(r);
+        for a in 0..p {
+            for b in 0..p {
+                g[(a, b)] += x[a] * x[b];
+            }
+        }
+    }
+    g
+}
+
+/// log det of a symmetric positive definite matrix (−∞ if it is not).
+fn log_det(m: &DMatrix<f64>) -> f64 {
+    match m.clone().cholesky() {
+        Some(c) => 2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>(),
+        None => f64::NEG_INFINITY,
+    }
+}
