@@ -89,6 +89,13 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
         settings.label = LabelKind::Exact;
     }
     let c = &design.controllers;
+    if let Some(max) = &c.max_torque {
+        let max: Vec<String> = max.iter().map(|m| format!("{m}")).collect();
+        progress.say(format!(
+            "actuator limits: [{}] N·m per joint (torques scaled within them, each law's direction kept)",
+            max.join(", ")
+        ));
+    }
     progress.say(match c.blend {
         springfit::design::controllers::Blend::Smooth => format!(
             "mode controller: blended in smoothly between ε = {} and 2ε = {} rad from q_eq",
@@ -152,6 +159,12 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             );
             if m.flux.mode + m.flux.energy + m.flux.compensation > 0.0 {
                 share.push_str(&format!(", peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm));
+                if design.controllers.max_torque.is_some() {
+                    share.push_str(&format!(
+                        " (the laws asked {:.2} N·m; saturated for {:.2} s)",
+                        m.peak_demanded_torque_nm, m.saturated_s
+                    ));
+                }
             }
             parts.push(share);
             if m.flux.compensation > 0.0 {

@@ -40,6 +40,10 @@ pub struct ScenarioSummary {
     pub mode_drift_deg: Option<f64>,
     /// Largest actuator torque over the runs, N·m.
     pub peak_actuator_torque_nm: f64,
+    /// `[controllers] max_torque`, N·m per joint (null: no limit).
+    pub max_torque_nm: Option<Vec<f64>>,
+    /// Longest time at saturation over the runs, s.
+    pub saturated_s: f64,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
     /// Fingerprint of the spring set simulated (`fit::bill::fingerprint`; null for the exact potential).
@@ -147,6 +151,8 @@ pub fn summary(
         geodesic_deviation_max: worst(&|m| m.geodesic_deviation.as_ref().map(|d| d.max)),
         mode_drift_deg: worst(&|m| m.mode_drift_deg),
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
+        max_torque_nm: design.controllers.max_torque.clone(),
+        saturated_s: worst(&|m| Some(m.saturated_s)).unwrap_or(0.0),
         runs,
         spring_set: match potential {
             ElasticPotential::Springs(s) => Some(crate::fit::bill::fingerprint(s)),
