@@ -6,8 +6,9 @@ use std::path::Path;
 use nalgebra::DVector;
 use springfit::design::Design;
 use springfit::design::controllers::{Blend, ControllerSettings};
-use springfit::design::scenario::{EnergyTarget, ScenarioKind};
+use springfit::design::scenario::{EnergyTarget, ModeSpec, ScenarioKind};
 use springfit::design::simulate::SimSettings;
+use springfit::dynamics::backbone::{backbone, backbone_energies};
 use springfit::dynamics::scenario::{label_source, metrics, run_scenario, start_on_mode};
 use springfit::dynamics::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, run};
 use springfit::elements::catalog::Catalog;
@@ -106,6 +107,25 @@ fn a_saturated_swing_up_still_reaches_its_target_energy() {
     assert!(m.saturated_s > 1.0, "{m:?}");
     assert!(m.peak_actuator_torque_nm <= 2.0 + 1e-9, "{m:?}");
     assert!(m.energy_rel_error_last5s.unwrap() < 0.01, "{m:?}");
+}
+
+#[test]
+fn the_exact_potential_is_isochronous_on_every_mode_and_energy() {
+    // ½ω²r²: r(t) = r₀ cos ωt on every geodesic, so T = 2π/ω whatever the mode and the energy.
+    // Two modes at the design's lowest and highest backbone energies (5 and 20 J).
+    let d = design("double_pendulum.toml");
+    let pot = ElasticPotential::Exact { omega: d.fit.frequency };
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let energies = backbone_energies(&d);
+    assert_eq!(energies, vec![5.0, 10.0, 15.0, 20.0]);
+    let modes = [ModeSpec::Angle(0.0), ModeSpec::Angle(4.0 * std::f64::consts::FRAC_PI_3)];
+    let b = backbone(&d, &pot, &label, &d.simulate, &modes, &[energies[0], energies[3]]).unwrap();
+    assert_eq!(b.points.len(), 4);
+    assert!(b.out_of_reach.is_empty());
+    let err = b.isochrony_error.unwrap();
+    println!("exact potential: isochrony error {err:.3e} over {} points", b.points.len());
+    assert!(err < 1e-6, "{b:?}");
+    assert!((b.nominal_period_s - 2.0 * std::f64::consts::PI / 4.0).abs() < 1e-15);
 }
 
 #[test]

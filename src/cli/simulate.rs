@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use springfit::design::simulate::LabelKind;
+use springfit::dynamics::backbone::{backbone, backbone_energies, backbone_modes};
 use springfit::dynamics::scenario::{label_source, run_scenario};
 use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
@@ -190,6 +191,29 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             }
             progress.say(format!("  {}: {}", r.name, parts.join(", ")));
         }
+    }
+    let step = progress.step("backbone (period against energy on every mode)");
+    let modes = backbone_modes(design.dof());
+    let energies = backbone_energies(&design);
+    let backbone = backbone(&design, &potential, &label, &settings, &modes, &energies);
+    let secs = step.finish();
+    let backbone = backbone?;
+    springfit::report::simulate::write_backbone(&dir, &design, &potential_name, &backbone)?;
+    let reached = backbone.points.iter().filter(|p| p.period_s.is_some()).count();
+    progress.say(match backbone.isochrony_error {
+        Some(e) => format!(
+            "backbone ({reached} points: {} modes at {} J, {secs:.2} s): isochrony error max |T/T₀ − 1| = {e:.3e} (T₀ = 2π/ω = {:.4} s)",
+            modes.len(),
+            energies.iter().map(|e| format!("{e:.3}")).collect::<Vec<_>>().join(", "),
+            backbone.nominal_period_s
+        ),
+        None => "backbone: no period could be read (no mode reaches the energies inside the region)".to_string(),
+    });
+    if !backbone.out_of_reach.is_empty() {
+        progress.say(format!(
+            "  {} (mode, energy) point(s) out of reach inside the region: see backbone.md",
+            backbone.out_of_reach.len()
+        ));
     }
     springfit::report::html::write_simulate(&dir, &design)?;
     let written = dir.commit()?;

@@ -228,7 +228,7 @@ impl ScenarioSpec {
 }
 
 /// The metric-unit joint velocity of a mode.
-fn mode_direction(mode: &ModeSpec, n: usize, frame: &MetricFrame) -> std::result::Result<DVector<f64>, String> {
+pub fn mode_direction(mode: &ModeSpec, n: usize, frame: &MetricFrame) -> std::result::Result<DVector<f64>, String> {
     let v = match mode {
         ModeSpec::Angle(theta) => {
             if n != 2 {
