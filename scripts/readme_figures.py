@@ -691,7 +691,11 @@ FIGURES = {
     "sim.dp.switch.energy": lambda r: signed_pct(
         sim(r, "sim.dp", "switch")["runs"]["switch"]["energy_signed_error_last5s"]
     ),
-    "sim.dp.switch.peak": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['peak_actuator_torque_nm']:.1f} N·m",
+    "sim.dp.switch.peak": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['peak_actuator_torque_nm']:.2f} N·m",
+    "sim.dp.isochrony": lambda r: f"{r.json('sim.dp', 'summary.json')['isochrony_error']:.1e}",
+    "sim.exact.isochrony": lambda r: f"{r.json('sim.dp_exact', 'summary.json')['isochrony_error']:.1e}",
+    "sim.dp.switch.demand": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['peak_demanded_torque_nm']:.1f} N·m",
+    "sim.dp.switch.saturated": lambda r: f"{sim(r, 'sim.dp', 'switch')['runs']['switch']['saturated_s']:.2f} s",
     "asbuilt.dp5.p99": as_built("fit.dp", "p99_deg"),
     "asbuilt.dp5.shift": as_built("fit.dp", "shift_rad"),
     "asbuilt.dp5.trimmed": as_built("fit.dp", "trimmed.p99_deg"),

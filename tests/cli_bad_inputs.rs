@@ -75,6 +75,24 @@ fn inputs_that_passed_are_refused_with_the_file_the_field_and_the_reason() {
             &["design.toml", "equilibrium.q", "1e300", "1000 rad"],
         ),
         case(
+            "an actuator limit of 0 N·m",
+            vec![("design.toml", design_with("max_torque = [10.0, 10.0]", "max_torque = [10.0, 0.0]"))],
+            &check,
+            &["design.toml", "controllers.max_torque[1]", "> 0 N·m, got 0"],
+        ),
+        case(
+            "one actuator limit for two joints",
+            vec![("design.toml", design_with("max_torque = [10.0, 10.0]", "max_torque = [10.0]"))],
+            &check,
+            &["design.toml", "controllers.max_torque", "1 entries but the robot has 2 joints"],
+        ),
+        case(
+            "actuator limits that cannot hold the arm against gravity",
+            vec![("design.toml", design_with("gravity = [0.0, 0.0]", "gravity = [0.0, -9.81]"))],
+            &check,
+            &["design.toml", "controllers.max_torque[0]", "cannot hold the arm against gravity", "needs 29.430 N·m"],
+        ),
+        case(
             "a link of 1e200 kg (was: \"singular\")",
             vec![("design.toml", design_with("mass = 1.0", "mass = 1e200"))],
             &check,

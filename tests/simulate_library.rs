@@ -6,8 +6,9 @@ use std::path::Path;
 use nalgebra::DVector;
 use springfit::design::Design;
 use springfit::design::controllers::{Blend, ControllerSettings};
-use springfit::design::scenario::{EnergyTarget, ScenarioKind};
+use springfit::design::scenario::{EnergyTarget, ModeSpec, ScenarioKind};
 use springfit::design::simulate::SimSettings;
+use springfit::dynamics::backbone::{backbone, backbone_energies};
 use springfit::dynamics::scenario::{label_source, metrics, run_scenario, start_on_mode};
 use springfit::dynamics::simulate::{Dynamics, ElasticPotential, ModeControl, ModeTarget, RunSpec, run};
 use springfit::elements::catalog::Catalog;
@@ -84,6 +85,50 @@ fn twelve_springs_leave_the_geodesic_by_a_bounded_amount() {
 }
 
 #[test]
+fn a_saturated_swing_up_still_reaches_its_target_energy() {
+    // The exact potential (no fit), actuators limited to 2 N·m: τ_E + compensation saturates for
+    // a good part of the swing-up from 5 J to 20 J against D = 0.3 I, gets there all the same,
+    // and never exceeds the limit.
+    let d = design("double_pendulum.toml");
+    let pot = ElasticPotential::Exact { omega: d.fit.frequency };
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let mut limited = d.clone();
+    limited.file.scenario[scenario_index(&d, "swingup")].variants = vec!["energy_compensated".into()];
+    let controllers = ControllerSettings { max_torque: Some(vec![2.0, 2.0]), ..d.controllers.clone() };
+    let out = run_scenario(&limited, &pot, &label, &d.simulate, &controllers, scenario_index(&d, "swingup")).unwrap();
+    let m = &out.runs[0].1;
+    println!(
+        "limited swing-up: E − E_d {:+.4} %, saturated {:.2} s, peak {:.4} N·m (asked {:.3})",
+        100.0 * m.energy_signed_error_last5s.unwrap(),
+        m.saturated_s,
+        m.peak_actuator_torque_nm,
+        m.peak_demanded_torque_nm
+    );
+    assert!(m.saturated_s > 1.0, "{m:?}");
+    assert!(m.peak_actuator_torque_nm <= 2.0 + 1e-9, "{m:?}");
+    assert!(m.energy_rel_error_last5s.unwrap() < 0.01, "{m:?}");
+}
+
+#[test]
+fn the_exact_potential_is_isochronous_on_every_mode_and_energy() {
+    // ½ω²r²: r(t) = r₀ cos ωt on every geodesic, so T = 2π/ω whatever the mode and the energy.
+    // Two modes at the design's lowest and highest backbone energies (5 and 20 J).
+    let d = design("double_pendulum.toml");
+    let pot = ElasticPotential::Exact { omega: d.fit.frequency };
+    let (label, _) = label_source(&d, &d.simulate).unwrap();
+    let energies = backbone_energies(&d);
+    assert_eq!(energies, vec![5.0, 10.0, 15.0, 20.0]);
+    let modes = [ModeSpec::Angle(0.0), ModeSpec::Angle(4.0 * std::f64::consts::FRAC_PI_3)];
+    let b = backbone(&d, &pot, &label, &d.simulate, &modes, &[energies[0], energies[3]]).unwrap();
+    assert_eq!(b.points.len(), 4);
+    assert!(b.out_of_reach.is_empty());
+    let err = b.isochrony_error.unwrap();
+    println!("exact potential: isochrony error {err:.3e} over {} points", b.points.len());
+    assert!(err < 1e-6, "{b:?}");
+    assert!((b.nominal_period_s - 2.0 * std::f64::consts::PI / 4.0).abs() < 1e-15);
+}
+
+#[test]
 fn controllers_reach_their_targets_with_fitted_springs() {
     let d = design("double_pendulum.toml");
     let pot = fitted(&d);
@@ -109,10 +154,27 @@ fn controllers_reach_their_targets_with_fitted_springs() {
     assert_eq!(r.trace.t.len(), 10_001);
     assert_eq!(*r.trace.t.last().unwrap(), 100.0);
     assert!(r.trace.t.iter().enumerate().all(|(j, &t)| t == j as f64 / 100.0));
-    // The paper's hard switch kicks harder after each mode step.
-    let hard = ControllerSettings { blend: Blend::Hard, ..d.controllers };
+    // Within the paper's ±10 N·m (the design's max_torque), saturated for a while, every step
+    // still settles within 4 s.
+    assert_eq!(d.controllers.max_torque.as_deref(), Some(&[10.0, 10.0][..]));
+    println!(
+        "switch: peak {:.3} N·m (asked {:.3}), saturated {:.3} s, share {:.4} %, settling {:?}",
+        m.peak_actuator_torque_nm,
+        m.peak_demanded_torque_nm,
+        m.saturated_s,
+        100.0 * m.actuator_share,
+        m.settling_s
+    );
+    assert!(m.peak_actuator_torque_nm <= 10.0 + 1e-9 && m.peak_demanded_torque_nm > 10.0, "{m:?}");
+    assert!(m.saturated_s > 0.0 && m.saturated_s < 5.0, "{m:?}");
+    assert!(m.settling_s.iter().all(|s| s.is_some_and(|s| s < 4.0)), "{:?}", m.settling_s);
+    // The paper's hard switch kicks harder after each mode step (both without a limit).
+    let unlimited = ControllerSettings { max_torque: None, ..d.controllers.clone() };
+    let smooth_run = run_scenario(&d, &pot, &label, &d.simulate, &unlimited, index).unwrap();
+    let hard = ControllerSettings { blend: Blend::Hard, ..unlimited };
     let hard_run = run_scenario(&d, &pot, &label, &d.simulate, &hard, index).unwrap();
-    let (smooth_peak, hard_peak) = (m.peak_torque_nm.mode, hard_run.runs[0].1.peak_torque_nm.mode);
+    let (smooth_peak, hard_peak) = (smooth_run.runs[0].1.peak_torque_nm.mode, hard_run.runs[0].1.peak_torque_nm.mode);
+    assert_eq!(smooth_run.runs[0].1.saturated_s, 0.0);
     println!("peak mode torque: smooth blend {smooth_peak:.2} N·m, hard switch {hard_peak:.2} N·m");
     assert!(smooth_peak < 0.9 * hard_peak, "smooth {smooth_peak} N·m, hard {hard_peak} N·m");
     // Without an energy target the mode controller's damping drains the swing.
@@ -163,9 +225,9 @@ fn the_mode_controller_turns_a_three_joint_arm_onto_the_desired_mode() {
         built: None,
     };
     let settings = SimSettings { rate: 400.0, ..d.simulate };
-    let controllers = ControllerSettings { k_theta: 5.0, ..d.controllers };
+    let controllers = ControllerSettings { k_theta: 5.0, ..d.controllers.clone() };
     let field = Box::new(ExactLog::new(&d.chain, &d.q_eq, d.geodesics.ode));
-    let mut dynamics = Dynamics::new(&d.chain, &d.q_eq, &pot, controllers, &spec, Some(field)).unwrap();
+    let mut dynamics = Dynamics::new(&d.chain, &d.q_eq, &pot, controllers.clone(), &spec, Some(field)).unwrap();
     let result = run(&mut dynamics, &settings).unwrap();
     let labels: Vec<f64> = result.trace.label.iter().copied().filter(|v| v.is_finite()).collect();
     let (first, last) = (labels[0].to_degrees(), labels.last().unwrap().to_degrees());

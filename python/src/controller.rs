@@ -187,7 +187,7 @@ impl PyController {
                     &o.design.chain,
                     &o.design.q_eq,
                     &o.potential,
-                    o.design.controllers,
+                    o.design.controllers.clone(),
                     Some(label.field()),
                 )
             })?;
@@ -420,7 +420,7 @@ impl PyController {
     fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let s = {
             let mut st = self.lock();
-            st.cell.with_dependent_mut(|_, c| *c.settings())
+            st.cell.with_dependent_mut(|_, c| c.settings().clone())
         };
         crate::convert::json(py, &s)
     }

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use springfit::design::simulate::LabelKind;
+use springfit::dynamics::backbone::{backbone, backbone_energies, backbone_modes};
 use springfit::dynamics::scenario::{label_source, run_scenario};
 use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
@@ -89,6 +90,13 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
         settings.label = LabelKind::Exact;
     }
     let c = &design.controllers;
+    if let Some(max) = &c.max_torque {
+        let max: Vec<String> = max.iter().map(|m| format!("{m}")).collect();
+        progress.say(format!(
+            "actuator limits: [{}] N·m per joint (torques scaled within them, each law's direction kept)",
+            max.join(", ")
+        ));
+    }
     progress.say(match c.blend {
         springfit::design::controllers::Blend::Smooth => format!(
             "mode controller: blended in smoothly between ε = {} and 2ε = {} rad from q_eq",
@@ -152,6 +160,12 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             );
             if m.flux.mode + m.flux.energy + m.flux.compensation > 0.0 {
                 share.push_str(&format!(", peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm));
+                if design.controllers.max_torque.is_some() {
+                    share.push_str(&format!(
+                        " (the laws asked {:.2} N·m; saturated for {:.2} s)",
+                        m.peak_demanded_torque_nm, m.saturated_s
+                    ));
+                }
             }
             parts.push(share);
             if m.flux.compensation > 0.0 {
@@ -177,6 +191,29 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             }
             progress.say(format!("  {}: {}", r.name, parts.join(", ")));
         }
+    }
+    let step = progress.step("backbone (period against energy on every mode)");
+    let modes = backbone_modes(design.dof());
+    let energies = backbone_energies(&design);
+    let backbone = backbone(&design, &potential, &label, &settings, &modes, &energies);
+    let secs = step.finish();
+    let backbone = backbone?;
+    springfit::report::simulate::write_backbone(&dir, &design, &potential_name, &backbone)?;
+    let reached = backbone.points.iter().filter(|p| p.period_s.is_some()).count();
+    progress.say(match backbone.isochrony_error {
+        Some(e) => format!(
+            "backbone ({reached} points: {} modes at {} J, {secs:.2} s): isochrony error max |T/T₀ − 1| = {e:.3e} (T₀ = 2π/ω = {:.4} s)",
+            modes.len(),
+            energies.iter().map(|e| format!("{e:.3}")).collect::<Vec<_>>().join(", "),
+            backbone.nominal_period_s
+        ),
+        None => "backbone: no period could be read (no mode reaches the energies inside the region)".to_string(),
+    });
+    if !backbone.out_of_reach.is_empty() {
+        progress.say(format!(
+            "  {} (mode, energy) point(s) out of reach inside the region: see backbone.md",
+            backbone.out_of_reach.len()
+        ));
     }
     springfit::report::html::write_simulate(&dir, &design)?;
     let written = dir.commit()?;

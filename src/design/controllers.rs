@@ -52,7 +52,7 @@ pub enum EnergyLaw {
 }
 
 /// `[controllers]`: gains shared by the scenarios (the paper's settings by default).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ControllerSettings {
     /// Mode stiffness k_θ.
@@ -72,6 +72,11 @@ pub struct ControllerSettings {
     pub beta_e: f64,
     /// Gain β_nD of τ_nD (N·m·s/(rad·J)).
     pub beta_nd: f64,
+    /// The largest torque each joint's actuator gives, N·m (one entry per joint; none: no limit).
+    /// The controllers saturate within it keeping their laws' directions (see
+    /// `dynamics::control::saturate`); the design refuses a limit that cannot hold the arm
+    /// against gravity at q_eq.
+    pub max_torque: Option<Vec<f64>>,
 }
 
 impl Default for ControllerSettings {
@@ -85,6 +90,7 @@ impl Default for ControllerSettings {
             blend: Blend::Smooth,
             beta_e: 0.13,
             beta_nd: 0.4,
+            max_torque: None,
         }
     }
 }
@@ -102,6 +108,43 @@ impl ControllerSettings {
         ] {
             if !nonneg(v) {
                 return Err((format!("controllers.{name}"), format!("must be a finite number ≥ 0, got {v}")));
+            }
+        }
+        for (i, &v) in self.max_torque.iter().flatten().enumerate() {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((
+                    format!("controllers.max_torque[{i}]"),
+                    format!("must be a finite torque > 0 N·m, got {v}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks `max_torque` against the arm: one entry per joint, each at least the torque that
+    /// holds the arm against gravity at q_eq (`holding`, N·m per joint: the actuators hold it
+    /// there while the springs are fitted and trimmed, and a limit below it could not).
+    pub fn check_max_torque(&self, holding: &[f64]) -> Result<(), (String, String)> {
+        let Some(max) = &self.max_torque else { return Ok(()) };
+        let n = holding.len();
+        if max.len() != n {
+            return Err((
+                "controllers.max_torque".into(),
+                format!("has {} entries but the robot has {n} joints (one limit per joint, N·m)", max.len()),
+            ));
+        }
+        let needed = holding.iter().map(|g| format!("{:.3}", g.abs())).collect::<Vec<_>>().join(", ");
+        for i in 0..n {
+            if max[i] < holding[i].abs() {
+                return Err((
+                    format!("controllers.max_torque[{i}]"),
+                    format!(
+                        "{} N·m cannot hold the arm against gravity at q_eq: joint {} needs {:.3} N·m (all joints: [{needed}] N·m)",
+                        max[i],
+                        i + 1,
+                        holding[i].abs()
+                    ),
+                ));
             }
         }
         Ok(())

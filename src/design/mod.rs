@@ -320,6 +320,9 @@ impl Design {
         file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        let mut holding = vec![0.0; chain.dof()];
+        chain.gravity_gradient_into(q_eq.as_slice(), &mut holding);
+        file.controllers.check_max_torque(&holding).map_err(|(field, reason)| invalid(&field, reason))?;
         file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.identify.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         let mut names = std::collections::HashSet::new();
@@ -350,7 +353,7 @@ impl Design {
             geodesics: file.geodesics,
             fit: file.fit,
             simulate: file.simulate,
-            controllers: file.controllers,
+            controllers: file.controllers.clone(),
             file,
         })
     }

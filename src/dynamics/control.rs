@@ -25,7 +25,17 @@
 //! damping τ_nD = β_nD (E_d − E) q̇. A proportional τ_E leaves a steady deficit against joint
 //! damping; damping compensation adds the feed-forward D q̇ (the hardware-style remedy the
 //! paper recommends).
-
+//!
+//! **Saturation.** With `[controllers] max_torque` (τ_max per joint) the torques are brought
+//! within |τ_c,i| ≤ τ_max,i by [`saturate`], never by clipping joints one by one (which would turn
+//! the torque off the law's direction: a clipped τ_θ pushes across modes, a clipped τ_E is no longer
+//! tangent to the motion). The mode torque comes first and is scaled as a whole vector, so it keeps
+//! the direction M g (or g); the energy torque and the compensation then share what is left, scaled
+//! together as one vector by the largest factor that fits, so τ_E stays along M q̇ and never takes
+//! the mode law's headroom. The energy loop is aware of it in this sense: what it is given is the
+//! headroom the mode law leaves, and while saturated its deficit E_d − E is what the next instants
+//! act on. It has no integral state, so nothing winds up: once the torque fits again the law is
+//! exactly the unsaturated one.
 //!
 //! **The controller of a loop.** [`Controller`] is the one place these laws are combined: the
 //! label (from a [`LogField`]), the blend at the ε-ball, the schedules of θ_d (or u_d) and E_d,
@@ -183,6 +193,58 @@ pub fn energy_torque(
     }
 }
 
+/// The scale factors [`saturate`] applied: 1 when the torque fitted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Saturation {
+    /// The factor on τ_θ.
+    pub mode: f64,
+    /// The factor on τ_E + τ_comp.
+    pub energy: f64,
+}
+
+impl Saturation {
+    /// No saturation.
+    pub const NONE: Saturation = Saturation { mode: 1.0, energy: 1.0 };
+
+    /// Whether any torque was scaled down.
+    pub fn active(&self) -> bool {
+        self.mode < 1.0 || self.energy < 1.0
+    }
+}
+
+/// Brings the controllers' torques within `max` (N·m per joint, each > 0), in place, keeping
+/// each law's direction (see the module docs): τ_θ is scaled by s = min(1, minᵢ τ_max,i/|τ_θ,i|);
+/// τ_E and τ_comp together by the largest λ ∈ [0, 1] with |s τ_θ,i + λ (τ_E,i + τ_comp,i)| ≤
+/// τ_max,i for every joint.
+pub fn saturate(max: &[f64], mode: &mut [f64], energy: &mut [f64], compensation: &mut [f64]) -> Saturation {
+    let mut s = 1.0f64;
+    for (t, m) in mode.iter().zip(max) {
+        if t.abs() > *m {
+            s = s.min(m / t.abs());
+        }
+    }
+    if s < 1.0 {
+        for t in mode.iter_mut() {
+            *t *= s;
+        }
+    }
+    let mut lambda = 1.0f64;
+    for i in 0..max.len() {
+        let rest = energy[i] + compensation[i];
+        if (mode[i] + rest).abs() > max[i] {
+            // |τ_θ,i| ≤ τ_max,i: the bound is met in the direction of `rest`.
+            lambda = lambda.min(((max[i].copysign(rest) - mode[i]) / rest).max(0.0));
+        }
+    }
+    if lambda < 1.0 {
+        for (e, c) in energy.iter_mut().zip(compensation.iter_mut()) {
+            *e *= lambda;
+            *c *= lambda;
+        }
+    }
+    Saturation { mode: s, energy: lambda }
+}
+
 /// Dot product of two slices.
 #[inline]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -192,12 +254,18 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// The controllers' torques at one state, by source (N·m per joint), with what they saw.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlTorques {
-    /// τ_θ, already scaled by the blend weight.
+    /// τ_θ, already scaled by the blend weight (and by the saturation).
     pub mode: Vec<f64>,
-    /// τ_E or τ_nD.
+    /// τ_E or τ_nD (saturated with the compensation).
     pub energy: Vec<f64>,
     /// The damping feed-forward D q̇.
     pub compensation: Vec<f64>,
+    /// How `[controllers] max_torque` scaled the torques ([`Saturation::NONE`] without a limit
+    /// or when they fitted).
+    pub saturation: Saturation,
+    /// Largest |τ_θ,i + τ_E,i + τ_comp,i| over the joints as the laws asked, before saturation,
+    /// N·m.
+    pub demand: f64,
     /// The blend weight of the mode torque (0 inside the ε-ball or without mode control).
     pub weight: f64,
     /// E = ½q̇ᵀMq̇ + U(q) − U(q_eq) with the nominal U, when it was computed (energy control on,
@@ -211,6 +279,8 @@ impl ControlTorques {
             mode: vec![0.0; n],
             energy: vec![0.0; n],
             compensation: vec![0.0; n],
+            saturation: Saturation::NONE,
+            demand: 0.0,
             weight: 0.0,
             energy_value: f64::NAN,
         }
@@ -268,6 +338,14 @@ impl<'a> Controller<'a> {
         field: Option<Box<dyn LogField + 'a>>,
     ) -> Result<Controller<'a>> {
         let n = chain.dof();
+        if let Some(max) = &settings.max_torque {
+            if max.len() != n || max.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
+                return Err(Error::Setting {
+                    field: "controllers.max_torque".into(),
+                    reason: format!("needs {n} finite limits > 0 N·m (one per joint), got {max:?}"),
+                });
+            }
+        }
         let m_eq = chain.mass_matrix(q_eq);
         let frame = MetricFrame::new(&m_eq)?;
         let nominal = match potential {
@@ -540,6 +618,11 @@ impl<'a> Controller<'a> {
                 }
             }
         }
+        self.out.demand = (0..n).map(|i| self.out.motor(i).abs()).fold(0.0, f64::max);
+        self.out.saturation = match &self.settings.max_torque {
+            Some(max) => saturate(max, &mut self.out.mode, &mut self.out.energy, &mut self.out.compensation),
+            None => Saturation::NONE,
+        };
         Ok(&self.out)
     }
 }
@@ -565,6 +648,37 @@ mod tests {
         assert!((a[0] - 0.65 * qd[0]).abs() < 1e-12 && (a[1] - 0.65 * qd[1]).abs() < 1e-12);
         energy_torque(EnergyLaw::NegativeDamping, &s, -2.0, &qd, &m, &mut tau);
         assert!((tau[0] + 0.8 * 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn saturation_keeps_each_laws_direction_and_uses_the_headroom() {
+        let max = [10.0, 4.0];
+        let parallel = |a: &[f64], b: &[f64]| (a[0] * b[1] - a[1] * b[0]).abs() < 1e-12 && dot(a, b) > 0.0;
+        let within = |t: &[f64]| t.iter().zip(&max).all(|(t, m)| t.abs() <= m + 1e-12);
+        // τ_θ = (20, −6) is beyond both limits: scaled as a whole by min(10/20, 4/6) = 0.5 to
+        // (10, −3), not clipped to (10, −4), which would turn it off its direction.
+        let (mut mode, mut energy, mut comp) = ([20.0, -6.0], [1.0, 3.0], [0.5, 0.0]);
+        let s = saturate(&max, &mut mode, &mut energy, &mut comp);
+        assert!((s.mode - 0.5).abs() < 1e-12 && s.active(), "{s:?}");
+        assert!(parallel(&mode, &[20.0, -6.0]) && (mode[0] - 10.0).abs() < 1e-12);
+        // No headroom left at joint 1 in the direction τ_E + τ_comp push: both vanish together.
+        assert_eq!(s.energy, 0.0);
+        assert_eq!((energy, comp), ([0.0, 0.0], [0.0, 0.0]));
+        // τ_θ within its limits, the sum not: τ_E + τ_comp = (8, 6) scaled by the largest λ that
+        // fits, min((10 − 6)/8, (4 + 1)/6) = 0.5, each along its own direction; joint 1 ends on
+        // its limit, joint 2 inside.
+        let (mut mode, mut energy, mut comp) = ([6.0, -1.0], [6.0, 4.0], [2.0, 2.0]);
+        let s = saturate(&max, &mut mode, &mut energy, &mut comp);
+        assert_eq!(s.mode, 1.0);
+        assert_eq!(mode, [6.0, -1.0]);
+        assert!((s.energy - 0.5).abs() < 1e-12, "{s:?}");
+        assert!(parallel(&energy, &[6.0, 4.0]) && parallel(&comp, &[2.0, 2.0]));
+        let total: Vec<f64> = (0..2).map(|i| mode[i] + energy[i] + comp[i]).collect();
+        assert!(within(&total) && (total[0] - 10.0).abs() < 1e-12 && (total[1] - 2.0).abs() < 1e-12, "{total:?}");
+        // Within the limits nothing changes.
+        let (mut mode, mut energy, mut comp) = ([1.0, 1.0], [1.0, -1.0], [0.0, 0.0]);
+        assert_eq!(saturate(&max, &mut mode, &mut energy, &mut comp), Saturation::NONE);
+        assert_eq!((mode, energy), ([1.0, 1.0], [1.0, -1.0]));
     }
 
     #[test]

@@ -59,6 +59,11 @@ pub struct RunMetrics {
     pub peak_torque_nm: PeakTorques,
     /// Largest |τ_θ,ᵢ + τ_E,ᵢ + τ_comp,ᵢ| over joints and time: what an actuator delivers, N·m.
     pub peak_actuator_torque_nm: f64,
+    /// The same as the laws asked it before `[controllers] max_torque` saturated them, N·m
+    /// (equal to the delivered peak without a limit).
+    pub peak_demanded_torque_nm: f64,
+    /// Seconds the controllers spent saturated by `max_torque` (0 without a limit).
+    pub saturated_s: f64,
 }
 
 /// The deviation of a free motion from the geodesic of its start's mode.
@@ -227,7 +232,7 @@ impl ScenarioSpec {
 }
 
 /// The metric-unit joint velocity of a mode.
-fn mode_direction(mode: &ModeSpec, n: usize, frame: &MetricFrame) -> std::result::Result<DVector<f64>, String> {
+pub fn mode_direction(mode: &ModeSpec, n: usize, frame: &MetricFrame) -> std::result::Result<DVector<f64>, String> {
     let v = match mode {
         ModeSpec::Angle(theta) => {
             if n != 2 {
@@ -377,6 +382,8 @@ pub fn metrics(
             compensation: p[5],
         },
         peak_actuator_torque_nm: result.peak_actuator_torque,
+        peak_demanded_torque_nm: result.peak_demanded_torque,
+        saturated_s: result.saturated_s,
         geodesic_deviation: None,
     }
 }
@@ -637,20 +644,17 @@ pub struct ScenarioOutcome {
     pub runs: Vec<(RunResult, RunMetrics)>,
 }
 
-/// Resolves scenario `index` of the design into its runs, with the start points placed by the
-/// energy of the nominal potential `potential` (through `label`'s log field for the exact one).
-pub fn resolve_scenario<'a>(
+/// U − U(q_eq) with the nominal potential `potential` as a function of q (through `label`'s log
+/// field for the exact one): what places start points on a mode at an energy.
+pub fn nominal_energy<'a>(
     design: &'a Design,
-    potential: &crate::dynamics::simulate::ElasticPotential,
+    potential: &'a crate::dynamics::simulate::ElasticPotential,
     label: &LabelSource<'a>,
-    index: usize,
-) -> Result<Scenario> {
-    let spec = &design.file.scenario[index];
+) -> Result<impl FnMut(&[f64]) -> Result<f64> + 'a> {
     let mut energy_field = label.field();
     let mut lv = crate::geodesic::label::LogValue::zeros(design.dof());
-    let q0 = design.q_eq.as_slice().to_vec();
     let chain = &design.chain;
-    let mut nominal = |q: &[f64]| -> Result<f64> {
+    let mut nominal = move |q: &[f64]| -> Result<f64> {
         Ok(match potential {
             crate::dynamics::simulate::ElasticPotential::Springs(s) => {
                 s.elements.iter().zip(&s.stiffness).map(|(e, k)| k * e.value(q)).sum::<f64>()
@@ -663,9 +667,20 @@ pub fn resolve_scenario<'a>(
             }
         })
     };
-    let u0 = nominal(&q0)?;
-    let mut energy_at = |q: &[f64]| -> Result<f64> { Ok(nominal(q)? - u0) };
-    spec.resolve(index, design, &mut energy_at)
+    let u0 = nominal(design.q_eq.as_slice())?;
+    Ok(move |q: &[f64]| -> Result<f64> { Ok(nominal(q)? - u0) })
+}
+
+/// Resolves scenario `index` of the design into its runs, with the start points placed by the
+/// energy of the nominal potential `potential` (through `label`'s log field for the exact one).
+pub fn resolve_scenario<'a>(
+    design: &'a Design,
+    potential: &'a crate::dynamics::simulate::ElasticPotential,
+    label: &LabelSource<'a>,
+    index: usize,
+) -> Result<Scenario> {
+    let mut energy_at = nominal_energy(design, potential, label)?;
+    design.file.scenario[index].resolve(index, design, &mut energy_at)
 }
 
 /// Resolves and runs scenario `index` of the design with the elastic potential `potential`.
@@ -690,7 +705,7 @@ pub fn run_scenario<'a>(
                 chain,
                 &design.q_eq,
                 potential,
-                *controllers,
+                controllers.clone(),
                 run,
                 Some(label.field()),
             )?;

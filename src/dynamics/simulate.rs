@@ -31,6 +31,8 @@ const MODE: usize = 3;
 const ENERGY: usize = 4;
 const COMPENSATION: usize = 5;
 const NSRC: usize = 6;
+/// Quadratures carried with (q, q̇): ∫|P| per source, then the time at saturation.
+const NQUAD: usize = NSRC + 1;
 
 /// Parasitic springs ½ ε (q − q_eq)ᵀ diag(κ) (q − q_eq): unknown to the controllers.
 #[derive(Debug, Clone, PartialEq)]
@@ -146,6 +148,10 @@ pub struct RunResult {
     pub peak_torque: [f64; NSRC],
     /// Largest |τ_θ,ᵢ + τ_E,ᵢ + τ_comp,ᵢ| over the run: what the joint's actuator delivers, N·m.
     pub peak_actuator_torque: f64,
+    /// The same as the controllers' laws asked it, before `[controllers] max_torque`, N·m.
+    pub peak_demanded_torque: f64,
+    /// Time the controllers spent saturated (any torque scaled down by `max_torque`), s.
+    pub saturated_s: f64,
 }
 
 /// Everything a run's right-hand side needs, with its scratch space: the arm as it is (its
@@ -167,6 +173,7 @@ pub struct Dynamics<'a> {
     buf2: Vec<f64>,
     peak: [f64; NSRC],
     peak_actuator: f64,
+    peak_demand: f64,
     error: Option<Error>,
 }
 
@@ -216,6 +223,7 @@ impl<'a> Dynamics<'a> {
             buf2: vec![0.0; n],
             peak: [0.0; NSRC],
             peak_actuator: 0.0,
+            peak_demand: 0.0,
             error: None,
         })
     }
@@ -296,6 +304,7 @@ impl<'a> Dynamics<'a> {
         }
         // The controllers: mode selection, energy regulation and damping compensation.
         let c = self.controller.torque_at(t, q, qd, &self.ws, nominal_u)?;
+        let (saturated, demand) = (c.saturation.active(), c.demand);
         self.tau[MODE].copy_from_slice(&c.mode);
         self.tau[ENERGY].copy_from_slice(&c.energy);
         self.tau[COMPENSATION].copy_from_slice(&c.compensation);
@@ -313,6 +322,8 @@ impl<'a> Dynamics<'a> {
         dy[2 * n + 3] = flux(MODE);
         dy[2 * n + 4] = flux(ENERGY);
         dy[2 * n + 5] = flux(COMPENSATION);
+        dy[2 * n + NSRC] = if saturated { 1.0 } else { 0.0 };
+        self.peak_demand = self.peak_demand.max(demand);
         for (k, tau) in self.tau.iter().enumerate() {
             for v in tau {
                 self.peak[k] = self.peak[k].max(v.abs());
@@ -363,7 +374,7 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
             reason: format!("start state and damping need {n} entries"),
         });
     }
-    let dim = 2 * n + NSRC;
+    let dim = 2 * n + NQUAD;
     let mut y = vec![0.0; dim];
     y[..n].copy_from_slice(&spec.q0);
     y[n..2 * n].copy_from_slice(&spec.qd0);
@@ -499,6 +510,8 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         fluxes: Fluxes { potential: f[0], gravity: f[1], damping: f[2], mode: f[3], energy: f[4], compensation: f[5] },
         peak_torque: dynamics.peak,
         peak_actuator_torque: dynamics.peak_actuator,
+        peak_demanded_torque: dynamics.peak_demand,
+        saturated_s: f[NSRC],
     })
 }
 

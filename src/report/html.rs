@@ -351,6 +351,7 @@ pub fn write_simulate(out: &OutputDir, design: &Design) -> Result<()> {
             }
         }
     }
+    p.markdown_file(super::simulate::BACKBONE)?;
     p.remaining_figures("Other figures", |_| true)?;
     p.design(design)?;
     p.finish()

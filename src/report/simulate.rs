@@ -13,11 +13,98 @@ use super::output::OutputDir;
 use super::plot::{Figure, Layer, Panel, Style, palette, render};
 use crate::design::Design;
 use crate::design::controllers::Blend;
-use crate::design::scenario::ScenarioKind;
+use crate::design::scenario::{ModeSpec, ScenarioKind};
+use crate::dynamics::backbone::Backbone;
 use crate::dynamics::scenario::{RunMetrics, ScenarioOutcome, unwrap_angles};
 use crate::dynamics::simulate::{ElasticPotential, SOURCES};
 use crate::error::Result;
 use crate::geodesic::{Fan, FanSpec, Stop};
+
+/// The design-level summary: the backbone and its isochrony error.
+pub const SUMMARY: &str = "summary.json";
+/// The backbone as a table a person reads (also in `report.html`).
+pub const BACKBONE: &str = "backbone.md";
+
+/// `summary.json` of `springfit simulate`.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimulateSummary {
+    /// The design's name.
+    pub design: String,
+    /// `springs (fit)`, `springs (bom.csv)` or `exact ½ω²r²`.
+    pub potential: String,
+    /// max |T/T₀ − 1| over the backbone's modes and energies (null without a period).
+    pub isochrony_error: Option<f64>,
+    /// The period of every mode against energy.
+    pub backbone: Backbone,
+}
+
+/// The backbone as markdown: one row per mode, one column per energy, T/T₀ − 1 in the cells.
+pub fn backbone_md(design: &Design, backbone: &Backbone) -> String {
+    let mut s = format!(
+        "## Backbone: period against energy\n\nFree runs from rest on each mode where U − U(q_eq) = E, {} nominal periods each; the period T read from the passages past q_eq, against T₀ = 2π/ω = {:.4} s (ω = {} rad/s). The exact potential ½ω²r² gives T = T₀ on every mode at every energy. Cells: T/T₀ − 1.\n\n| mode |",
+        crate::dynamics::backbone::PERIODS,
+        backbone.nominal_period_s,
+        backbone.omega_rad_s
+    );
+    for e in &backbone.energies_j {
+        s.push_str(&format!(" {e:.3} J |"));
+    }
+    s.push_str("\n| --- |");
+    for _ in &backbone.energies_j {
+        s.push_str(" ---: |");
+    }
+    s.push('\n');
+    let mut modes: Vec<&ModeSpec> = Vec::new();
+    for p in &backbone.points {
+        if !modes.contains(&&p.mode) {
+            modes.push(&p.mode);
+        }
+    }
+    for (m, _) in &backbone.out_of_reach {
+        if !modes.contains(&m) {
+            modes.push(m);
+        }
+    }
+    for mode in modes {
+        s.push_str(&format!("| {} |", mode_name(mode)));
+        for e in &backbone.energies_j {
+            let cell = backbone.points.iter().find(|p| &p.mode == mode && p.energy_j == *e);
+            s.push_str(&match cell {
+                Some(p) => match p.rel_error {
+                    Some(r) => format!(" {:+.3e} |", r),
+                    None => " no period |".to_string(),
+                },
+                None => " out of reach |".to_string(),
+            });
+        }
+        s.push('\n');
+    }
+    s.push_str(&match backbone.isochrony_error {
+        Some(e) => format!("\nIsochrony error of `{}` (max |T/T₀ − 1|): {:.3e}.\n", design.name, e),
+        None => "\nNo period could be read.\n".to_string(),
+    });
+    s
+}
+
+/// A mode as the tables name it: θ in degrees, or the direction of joint velocities.
+fn mode_name(mode: &ModeSpec) -> String {
+    match mode {
+        ModeSpec::Angle(a) => format!("θ = {:.0}°", a.to_degrees()),
+        ModeSpec::Vector(v) => format!("[{}]", v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ")),
+    }
+}
+
+/// Writes `summary.json` and `backbone.md`.
+pub fn write_backbone(out: &OutputDir, design: &Design, potential_name: &str, backbone: &Backbone) -> Result<()> {
+    let summary = SimulateSummary {
+        design: design.name.clone(),
+        potential: potential_name.into(),
+        isochrony_error: backbone.isochrony_error,
+        backbone: backbone.clone(),
+    };
+    out.write(SUMMARY, serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
+    out.write(BACKBONE, backbone_md(design, backbone))
+}
 
 /// `sim_<name>.json`.
 #[derive(Debug, Clone, Serialize)]
@@ -42,6 +129,10 @@ pub struct ScenarioSummary {
     pub mode_drift_wrapped_deg: Option<f64>,
     /// Largest actuator torque over the runs, N·m.
     pub peak_actuator_torque_nm: f64,
+    /// `[controllers] max_torque`, N·m per joint (null: no limit).
+    pub max_torque_nm: Option<Vec<f64>>,
+    /// Longest time at saturation over the runs, s.
+    pub saturated_s: f64,
     /// Metrics per run.
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
     /// Fingerprint of the spring set simulated (`fit::bill::fingerprint`; null for the exact potential).
@@ -92,7 +183,7 @@ fn run_colour(i: usize) -> (u8, u8, u8) {
 /// The names `springfit simulate` may write when it runs these scenarios (see
 /// [`super::output::Plan`]), `report.html` included.
 pub fn files<'a>(scenarios: impl IntoIterator<Item = &'a str>) -> Vec<String> {
-    let mut files = vec![super::html::FILE.to_string()];
+    let mut files = vec![super::html::FILE.to_string(), SUMMARY.to_string(), BACKBONE.to_string()];
     for name in scenarios {
         files.extend([format!("sim_{name}.csv"), format!("sim_{name}.json"), format!("sim_{name}_*")]);
     }
@@ -150,6 +241,8 @@ pub fn summary(
         mode_drift_deg: worst(&|m| m.mode_drift_deg),
         mode_drift_wrapped_deg: worst(&|m| m.mode_drift_wrapped_deg),
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
+        max_torque_nm: design.controllers.max_torque.clone(),
+        saturated_s: worst(&|m| Some(m.saturated_s)).unwrap_or(0.0),
         runs,
         spring_set: match potential {
             ElasticPotential::Springs(s) => Some(crate::fit::bill::fingerprint(s)),

@@ -187,7 +187,7 @@ impl<'a> SweepContext<'a> {
             fit,
             label,
             sim: design.simulate,
-            controllers: design.controllers,
+            controllers: design.controllers.clone(),
             settings,
             kappa: kappa(design, &fit.springs, fit),
             base,
@@ -236,7 +236,7 @@ impl<'a> SweepContext<'a> {
             &self.design.chain,
             &self.design.q_eq,
             potential,
-            self.controllers,
+            self.controllers.clone(),
             spec,
             Some(self.label.field()),
         )?;
