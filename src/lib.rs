@@ -23,6 +23,7 @@ pub mod geodesic;
 pub mod input;
 pub mod model;
 pub mod numerics;
+pub mod parts;
 pub mod potential;
 pub mod realise;
 pub mod report;

@@ -33,6 +33,7 @@
 pub mod controllers;
 pub mod file;
 pub mod fit;
+pub mod parts;
 pub mod scenario;
 pub mod simulate;
 pub mod sweep;
@@ -313,6 +314,7 @@ impl Design {
         file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.parts.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         let mut names = std::collections::HashSet::new();
         for (i, sc) in file.scenario.iter().enumerate() {
             if !names.insert(sc.name.clone()) {

@@ -4,3 +4,5 @@
 pub mod bom;
 pub mod cam;
 pub mod fit_folder;
+pub mod parts;
+pub mod stock;
