@@ -82,6 +82,9 @@ fn every_design_key_is_documented_in_its_section() {
     documented(file, &doc, "`[simulate]`", &keys(&SimSettings::default()));
     documented(file, &doc, "`[controllers]`", &keys(&ControllerSettings::default()));
     documented(file, &doc, "`[sweep]`", &keys(&SweepSettings::default()));
+    documented(file, &doc, "`[parts]`", &keys(&springfit::design::parts::PartsSettings::default()));
+    let envelope: springfit::design::parts::ElementEnvelope = toml::from_str("id = \"S01\"").expect("an envelope");
+    documented(file, &doc, "`[parts]`", &keys(&envelope));
     let scenario: ScenarioSpec = toml::from_str("name = \"s\"\nkind = \"free\"").expect("a minimal scenario");
     documented(file, &doc, "`[[scenario]]`", &keys(&scenario));
 }

@@ -68,6 +68,9 @@ pub struct ElementPart {
     pub part: std::result::Result<Part, Limit>,
     /// The stock part ordered instead of winding one, if a stock list has one within tolerance.
     pub stock: Option<StockPart>,
+    /// A cam's follower: its rate (N/mm), preload and largest stroke (mm) as the cam's family
+    /// sets them (None for springs).
+    pub follower: Option<[f64; 3]>,
 }
 
 impl ElementPart {
@@ -247,6 +250,7 @@ pub fn choose(
             duty,
             part,
             stock,
+            follower: None,
         });
     }
     for cam in cams {
@@ -265,6 +269,7 @@ pub fn choose(
             duty,
             part,
             stock,
+            follower: Some([b.follower_rate, b.preload, stroke]),
         });
     }
     let realised = RealisedSet::new(bom, &elements);
@@ -425,8 +430,16 @@ pub fn limit_message(e: &ElementPart, l: &Limit) -> String {
             "; set [fit] max_element_torque = {:.3} (N·m) to keep a part possible, or widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm, safety_factor)",
             t
         ));
+    } else if let Some([rate, preload, stroke]) = e.follower {
+        m.push_str(&format!(
+            "; the cam's follower has rate {rate:.3} N/mm, preload {preload:.2} mm and stroke {stroke:.2} mm: a longer stroke (the cam family's `max_stroke`) stores the same energy in a softer spring, or widen [parts] for {}",
+            e.id
+        ));
     } else if c.name != "mechanism" {
-        m.push_str("; widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm) for this element");
+        m.push_str(&format!(
+            "; widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm; [[parts.element]] id = \"{}\") for this element",
+            e.id
+        ));
     }
     m
 }

@@ -643,57 +643,62 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
     search.finish()
 }
 
-/// A cam follower's compression spring: rate `rate` (N/mm), preload `preload` (mm) at the base
-/// circle and the cam's largest `stroke` (mm).
+/// A cam follower's compression springs: rate `rate` (N/mm) shared by one to four equal springs
+/// round the stem, preload `preload` (mm) at the base circle and the cam's largest `stroke` (mm).
 pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Result<Part, Limit> {
     let mut search = Search::new();
-    let (f1, f2) = (rate * preload, rate * (preload + stroke));
-    for d in req.material.sizes() {
-        for w in indices() {
-            let dm = w * d;
-            let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
-            if !(0.5..=400.0).contains(&n) {
-                continue;
+    // Up to four equal springs side by side round the follower's stem share the rate.
+    for quantity in 1..=4usize {
+        let q = quantity as f64;
+        let rate = rate / q;
+        let (f1, f2) = (rate * preload, rate * (preload + stroke));
+        for d in req.material.sizes() {
+            for w in indices() {
+                let dm = w * d;
+                let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
+                if !(0.5..=400.0).contains(&n) {
+                    continue;
+                }
+                let s = HelicalSpring { material: req.material, d, dm, n };
+                search.consider(
+                    q * s.mass(),
+                    || {
+                        let l0 = s.solid_length() + s.min_gaps() + preload + stroke;
+                        let rm = s.rm();
+                        let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
+                        let checks = vec![
+                            lower("active coils", n, MIN_COILS, "coils"),
+                            upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
+                            upper(
+                                "fatigue (Goodman)",
+                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles) * req.safety,
+                                1.0,
+                                "utilisation",
+                            ),
+                            upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+                            upper("free length", l0, req.max_length, "mm"),
+                            lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
+                        ];
+                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety);
+                        let points = vec![
+                            WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
+                            WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
+                        ];
+                        Part {
+                            mechanism: Mechanism::Follower,
+                            spring: Spring::Compression(s, l0),
+                            quantity,
+                            realised_rate: q * s.rate(),
+                            points,
+                            checks,
+                            tolerance: rate_tolerance(d, dm, n, f2, req.grade),
+                            mass: q * s.mass(),
+                            life,
+                        }
+                    },
+                    || format!("{quantity} × d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+                );
             }
-            let s = HelicalSpring { material: req.material, d, dm, n };
-            search.consider(
-                s.mass(),
-                || {
-                    let l0 = s.solid_length() + s.min_gaps() + preload + stroke;
-                    let rm = s.rm();
-                    let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
-                    let checks = vec![
-                        lower("active coils", n, MIN_COILS, "coils"),
-                        upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
-                        upper(
-                            "fatigue (Goodman)",
-                            Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles) * req.safety,
-                            1.0,
-                            "utilisation",
-                        ),
-                        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
-                        upper("free length", l0, req.max_length, "mm"),
-                        lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
-                    ];
-                    let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety);
-                    let points = vec![
-                        WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
-                        WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
-                    ];
-                    Part {
-                        mechanism: Mechanism::Follower,
-                        spring: Spring::Compression(s, l0),
-                        quantity: 1,
-                        realised_rate: s.rate(),
-                        points,
-                        checks,
-                        tolerance: rate_tolerance(d, dm, n, f2, req.grade),
-                        mass: s.mass(),
-                        life,
-                    }
-                },
-                || format!("d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
-            );
         }
     }
     search.finish()
@@ -734,6 +739,23 @@ mod tests {
         }
         assert!((k / 20.0 - 1.0).abs() < 1e-12 && r < big_r);
         assert!(part.worst() <= 1.0);
+    }
+
+    /// With rollers the pin's phase and the spring's rate are set so that the realised torque
+    /// and stiffness at the equilibrium deflection are k sin d and k cos d, the fitted element's.
+    #[test]
+    fn a_crank_over_rollers_keeps_the_torque_and_stiffness_at_the_equilibrium() {
+        let duty = Duty { at_eq: -1.1, range: [-3.0, 2.0], swing: [-2.0, 0.5] };
+        let part = crank(15.0, &duty, &Requirements { pulley_radius: 5.0, ..req() }).expect("a spring");
+        let Mechanism::Crank { phase, .. } = part.mechanism else { panic!() };
+        assert!(phase != 0.0 && phase.abs() < 0.05, "{phase}");
+        let (_, t, c) = part.potential(duty.at_eq);
+        assert!((t - 15.0 * duty.at_eq.sin()).abs() < 1e-6 * 15.0, "{t}");
+        assert!((c - 15.0 * duty.at_eq.cos()).abs() < 1e-3 * 15.0, "{c}");
+        // Elsewhere the rollers show: close to, not equal to, the ideal torque.
+        let (_, t2, _) = part.potential(1.5);
+        let err = (t2 - 15.0 * 1.5f64.sin()).abs() / 15.0;
+        assert!(err > 1e-6 && err < 0.02, "{err}");
     }
 
     /// Rollers of radius ρ: the path is continuous across the exit line, equals the straight
