@@ -106,6 +106,20 @@ fn every_catalogue_key_is_documented_in_its_section() {
     }
 }
 
+/// Every column of `parts.csv` and of a stock list is named (in backquotes) in its table of
+/// `docs/outputs.md` and `docs/parts.md`.
+#[test]
+fn every_parts_column_is_documented() {
+    let outputs = read("docs/outputs.md");
+    let start = outputs.find("### `parts.csv`").expect("docs/outputs.md has a `parts.csv` section");
+    let table = &outputs[start..outputs[start..].find("\n## ").map_or(outputs.len(), |i| start + i)];
+    let missing: Vec<&str> =
+        springfit::files::parts::HEADER.split(',').filter(|c| !table.contains(&format!("`{c}`"))).collect();
+    assert!(missing.is_empty(), "docs/outputs.md, `parts.csv`: undocumented columns {missing:?}");
+    let parts = read("docs/parts.md");
+    assert!(parts.contains(springfit::files::stock::HEADER), "docs/parts.md does not show the stock list's header");
+}
+
 /// README.md and every page under docs/ (read from the directory, so a new page is covered).
 fn documentation_files() -> Vec<String> {
     let mut pages: Vec<String> = std::fs::read_dir(repo().join("docs"))

@@ -6,7 +6,8 @@ mod util;
 
 use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
-use springfit::realise::material::{Material, Strength};
+use springfit::realise::material::{Material, Strength, by_key};
+use springfit::realise::mechanism::{self, Duty, Mechanism, Requirements, cable_path};
 use springfit::realise::spring::{HelicalSpring, TorsionSpring, shear_k};
 use util::{design_text_anywhere, repo, springfit, temp_dir, write};
 
@@ -53,6 +54,93 @@ fn torsion_spring_against_bhandari_example_10_21() {
     assert!((exact - 392.53).abs() < 0.01, "{exact}");
     let book = TorsionSpring { material: m, d: 1.6, dm: 18.0, n: 393.0, leg: 0.0 };
     assert!((book.rate() / 3.0 - 1.0).abs() < 2e-3);
+}
+
+/// A vendor's catalogue: the stock torsion springs springfit ships in
+/// `catalogs/stock/springs_co_za_torsion.csv`, copied from springs.co.za's published table
+/// (music wire; d, outside diameter, arm length, approximate coils, the angular deflection and
+/// the torque at it). EN 13906-3's E d⁴ / (3667 D n) with music wire's E (196.5 GPa, the
+/// `ASTM-A228` row of the material table) gives T10110 (d = 0.35 mm, D = 4.9 mm, n = 6.55,
+/// 4.5 N·mm at 180°: 0.025 N·mm/°) to 0.22 %, T10150 to 0.22 %, the 90°, 270° and 360° springs
+/// of both wires to 1.00 % (the page's coil counts are "approximate") and the 0.51 mm T10180 to
+/// 1.6 %.
+#[test]
+fn a_vendors_torsion_springs_are_reproduced_from_their_geometry() {
+    let rows = springfit::files::stock::read(&repo().join("catalogs/stock/springs_co_za_torsion.csv")).unwrap();
+    assert_eq!(rows.len(), 9);
+    let music = by_key("ASTM-A228").unwrap();
+    let mut worst: f64 = 0.0;
+    for r in &rows {
+        assert!(r.source.starts_with("http://springs.co.za/"), "{}: {}", r.part_number, r.source);
+        let s = TorsionSpring { material: music, d: r.d, dm: r.dm, n: r.n, leg: r.length };
+        let err = s.rate_per_degree() / r.rate - 1.0;
+        if r.part_number == "T10110" || r.part_number == "T10150" {
+            assert!(err.abs() < 0.0025, "{}: {:+.3} %", r.part_number, 100.0 * err);
+        } else if r.d < 0.5 {
+            assert!(err.abs() < 0.0101, "{}: {:+.3} %", r.part_number, 100.0 * err);
+        }
+        worst = worst.max(err.abs());
+    }
+    assert!(worst < 0.017, "{worst}");
+}
+
+/// The crank's cable over a roller of radius ρ is the shortest path from the pin round the roller
+/// to where it leaves the fairlead (a straight run to the roller and an arc on it): found here
+/// by brute force over the point where the cable meets the roller, against `cable_path`'s
+/// closed form (tangent length + ρ × wrap angle). The realised crank's torque is the
+/// derivative of its potential, and without rollers the potential is the ideal
+/// k (1 − cos(x − x₀)) at every crank radius and anchor distance the search picks.
+#[test]
+fn the_realised_crank_against_its_closed_form() {
+    let (r, big_r, rho) = (30.0, 90.0, 5.0);
+    for d in [0.3f64, 1.0, 2.0, 2.9] {
+        let (px, py) = (r * d.cos(), r * d.sin());
+        // Roller centre C = (R, ρ); the cable leaves its lowest point (R, 0) heading outwards
+        // after running counter-clockwise round it from the point T(θ) where the straight run
+        // meets it. The run must not cut into the roller: T is visible from the pin,
+        // (T − C)·(P − C) ≥ ρ².
+        let (cx, cy) = (big_r, rho);
+        let brute = (0..=400_000)
+            .map(|i| -0.5 * std::f64::consts::PI + 2.0 * std::f64::consts::PI * f64::from(i) / 400_000.0)
+            .map(|t| (t, cx + rho * t.cos(), cy + rho * t.sin()))
+            .filter(|&(_, tx, ty)| (tx - cx) * (px - cx) + (ty - cy) * (py - cy) >= rho * rho)
+            .map(|(t, tx, ty)| (px - tx).hypot(py - ty) + rho * (1.5 * std::f64::consts::PI - t))
+            .fold(f64::INFINITY, f64::min);
+        let closed = cable_path(r, big_r, rho, d);
+        assert!((closed - brute).abs() < 1e-6 * closed, "{d}: {closed} vs {brute}");
+    }
+    let material = by_key("EN10270-1-SM").unwrap();
+    let req = |pulley: f64| Requirements {
+        material,
+        grade: 2,
+        cycles: 1e6,
+        safety: 1.1,
+        max_outer_diameter: 150.0,
+        max_length: 400.0,
+        max_lever: 100.0,
+        shaft_diameter: 12.0,
+        pulley_radius: pulley,
+    };
+    let duty = Duty { at_eq: -0.7, range: [-2.6, 1.9], swing: [-1.5, 0.4] };
+    for k in [4.0, 12.0, 30.0] {
+        let ideal = mechanism::crank(k, &duty, &req(0.0)).unwrap();
+        let Mechanism::Crank { r, big_r, .. } = ideal.mechanism else { panic!() };
+        for d in [-2.6, -0.7, 0.0, 1.2, 1.9] {
+            let (u, t, _) = ideal.potential(d);
+            assert!((u - k * (1.0 - f64::cos(d))).abs() < 1e-9 * k, "k {k}, r {r}, R {big_r}: U({d})");
+            assert!((t - k * d.sin()).abs() < 1e-6 * k, "k {k}: torque at {d}");
+        }
+        let rollers = mechanism::crank(k, &duty, &req(5.0)).unwrap();
+        for d in [-2.0, 0.5, 1.5] {
+            let h = 1e-4;
+            let (um, _, _) = rollers.potential(d - h);
+            let (up, _, _) = rollers.potential(d + h);
+            let (_, t, _) = rollers.potential(d);
+            assert!(((up - um) / (2.0 * h) - t).abs() < 1e-5 * k, "k {k}: torque at {d}");
+            // The rollers lengthen the cable by a little: the torque stays within 3 % of k.
+            assert!((t - k * d.sin()).abs() < 0.03 * k, "k {k}: {t} vs {}", k * d.sin());
+        }
+    }
 }
 
 /// A small fit of the paper's design (fans and restarts reduced: the test checks the parts, not
@@ -150,11 +238,16 @@ fn bad_parts_input_and_a_stock_part() {
     write(&dir, "columns.csv", &fixture.replace(",max_load_unit", ""));
     let design = write(&dir, "columns.toml", &format!("{base}\n[parts]\nstock = \"columns.csv\"\n"));
     springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"]).fails(2, &["columns.csv", "max_load_unit"]);
+    write(&dir, "units.csv", &fixture.replace("4.2,N/mm", "4.2,lbf/in"));
+    let design = write(&dir, "units.toml", &format!("{base}\n[parts]\nstock = \"units.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
+        .fails(2, &["units.csv", "line 5: rate_unit", "lbf/in", "N/mm"]);
+    assert!(!dir.join("out").exists());
     // An envelope no spring fits: exit 1, the limit named.
     let design = write(&dir, "tiny.toml", &format!("{base}\n[parts]\nmax_outer_diameter_mm = 3.0\n"));
     springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "fit"]).ok();
     springfit(&dir, &["parts", design.to_str().unwrap(), "--bom", "fit/bom.csv", "--out", "tiny"])
-        .fails(1, &["no spring meets", "max_outer_diameter_mm"]);
+        .fails(1, &["tiny.toml: [parts]", "no spring meets", "max_outer_diameter_mm"]);
     // The shipped envelope: every element has a part; a stock row at 1 % off the first torsion
     // spring's rate is ordered instead.
     let design = write(&dir, "ok.toml", &base);

@@ -103,11 +103,7 @@ pub fn run(design: &Path, bom: Option<PathBuf>, out: Option<PathBuf>, session: &
     say(&parts, session);
     progress.say(format!("wrote {} (parts.csv, parts.md, sketch_*.svg)", written.display()));
     if let Some((e, l)) = parts.missing().next() {
-        return Err(Error::Infeasible {
-            constraint: format!("[parts] for {}", e.id),
-            reason: springfit::parts::limit_message(e, l),
-        }
-        .into());
+        return Err(Error::NoPart { path: design.path.clone(), reason: springfit::parts::limit_message(e, l) }.into());
     }
     Ok(())
 }
