@@ -279,6 +279,21 @@ def fit_stdout(r):
     return "```text\n" + "\n".join(lines) + "\n```"
 
 
+def parts_count(job):
+    """`N of M` elements with a part, from summary.json's `realised`."""
+
+    def f(r):
+        realised = r.json(job, "summary.json")["realised"]
+        return f"{realised['parts']} of {realised['parts'] + len(realised['missing'])}"
+
+    return f
+
+
+def parts_missing(job):
+    """The ids of the elements no spring meets, from summary.json's `realised`."""
+    return lambda r: ", ".join(r.json(job, "summary.json")["realised"]["missing"]) or "none"
+
+
 def fit_summary(job):
     return lambda r: r.json(job, "summary.json")
 
@@ -504,6 +519,9 @@ offsets = "equilibrium"
 """
 
 # (what is wrong, edits of the design [(old, new)], edits of the catalogue, command, exit code)
+# The end of ERROR_DESIGN, where the cases of `[parts]` add their section.
+SWEEP_END = '[sweep]\nscenario = "free"\n'
+
 ERROR_CASES = [
     ("malformed TOML", [("[region]", "[region")], [], "check", 2),
     ("unknown field", [('kind = "ball"', 'kind = "ball"\nspeed = 1.0')], [], "check", 2),
@@ -525,6 +543,10 @@ ERROR_CASES = [
     ("a catalogue that yields no candidate", [], [(ERROR_CATALOG[ERROR_CATALOG.index("[[family]]"):], "")], "check", 2),
     ("an infeasible fit (exit 1)", [], [("[[1, 0], [0, 1], [1, 1]]", "[[1, 0]]")], "fit", 1),
     ("an unwritable output folder", [], [], "fit --out plainfile/out", 2),
+    ("an unknown spring material", [(SWEEP_END, SWEEP_END + '\n[parts]\nmaterial = "unobtainium"\n')], [], "check", 2),
+    ("an EN 15800 grade outside 1–3", [(SWEEP_END, SWEEP_END + "\n[parts]\ngrade = 4\n")], [], "check", 2),
+    ("a stock list without its columns", [(SWEEP_END, SWEEP_END + '\n[parts]\nstock = "catalog.toml"\n')], [],
+     "parts --out out", 2),
 ]
 
 # Longer messages are cut here in the table (the full text is in the case's stderr file).
@@ -754,6 +776,14 @@ FIGURES = {
     "ur5_3.sweep.tol5": ur5_tolerance("sweep.ur5_3"),
     "ur5_3.sweep.shift": ur5_shift("sweep.ur5_3"),
     "errors.table": error_table,
+    "parts.dp.realised.p99": lambda r: deg(r.json("fit.dp", "summary.json")["realised"]["residual_deg"]["p99_abs"], 4),
+    "parts.dp.ideal.p99": lambda r: deg(r.json("fit.dp", "summary.json")["residual_deg"]["p99_abs"], 4),
+    "parts.dp.change.p99": lambda r: deg(r.json("fit.dp", "summary.json")["realised"]["p99_change_deg"], 2),
+    "parts.dp.mass": lambda r: sig(r.json("fit.dp", "summary.json")["realised"]["spring_mass_kg"]) + " kg",
+    "parts.cams.count": parts_count("fit.cams"),
+    "parts.cams.missing": parts_missing("fit.cams"),
+    "parts.window_cams16.count": parts_count("fit.window_cams16"),
+    "parts.window_cams16.missing": parts_missing("fit.window_cams16"),
     "compare.window": compare_table("compare.window"),
     "fit.window_cams16.p99": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["p99_abs"]),
     "fit.window_cams16.max": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["max_abs"]),

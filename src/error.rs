@@ -48,6 +48,10 @@ pub enum Error {
     /// The fit's constraints cannot all be met.
     #[error("the fit is infeasible: {}: {}", tidy(constraint), tidy(reason))]
     Infeasible { constraint: String, reason: String },
+    /// No spring meets an element's limits within the design's `[parts]` (the reason names the
+    /// element, the limit, by how much, and the setting that would keep a part possible).
+    #[error("{}: [parts]: {reason}", path.display())]
+    NoPart { path: PathBuf, reason: String },
     /// A numerical method failed (integrator step-size underflow, a singular mass matrix, a log
     /// map that did not converge, a solver that stopped early).
     #[error("{}: {}", tidy(context), tidy(reason))]
@@ -66,7 +70,7 @@ impl Error {
             | Error::Invalid { .. }
             | Error::Setting { .. }
             | Error::Plot { .. } => ErrorKind::BadInput,
-            Error::Infeasible { .. } | Error::Numerical { .. } => ErrorKind::NotMet,
+            Error::Infeasible { .. } | Error::NoPart { .. } | Error::Numerical { .. } => ErrorKind::NotMet,
         }
     }
 

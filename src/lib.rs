@@ -25,6 +25,7 @@ pub mod input;
 pub mod limits;
 pub mod model;
 pub mod numerics;
+pub mod parts;
 pub mod potential;
 pub mod realise;
 pub mod report;

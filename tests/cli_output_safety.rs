@@ -49,6 +49,7 @@ fn a_folder_of_user_files_is_refused_by_every_command_and_left_untouched() {
         vec!["sweep", d, "--shard", "1/2", "--out", "documents"],
         vec!["compare", d, "--out", "documents"],
         vec!["pareto", d, "--k-max", "3", "--radii", "1", "--out", "documents"],
+        vec!["parts", d, "--out", "documents"],
     ];
     for args in runs {
         let run = springfit(&dir, &args)

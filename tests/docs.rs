@@ -83,6 +83,9 @@ fn every_design_key_is_documented_in_its_section() {
     documented(file, &doc, "`[controllers]`", &keys(&ControllerSettings::default()));
     documented(file, &doc, "`[sweep]`", &keys(&SweepSettings::default()));
     documented(file, &doc, "`[identify]`", &keys(&springfit::design::identify::IdentifySettings::default()));
+    documented(file, &doc, "`[parts]`", &keys(&springfit::design::parts::PartsSettings::default()));
+    let envelope: springfit::design::parts::ElementEnvelope = toml::from_str("id = \"S01\"").expect("an envelope");
+    documented(file, &doc, "`[parts]`", &keys(&envelope));
     let scenario: ScenarioSpec = toml::from_str("name = \"s\"\nkind = \"free\"").expect("a minimal scenario");
     documented(file, &doc, "`[[scenario]]`", &keys(&scenario));
 }
@@ -102,6 +105,20 @@ fn every_catalogue_key_is_documented_in_its_section() {
     {
         assert!(doc.contains(written), "{file} does not show `{written}`");
     }
+}
+
+/// Every column of `parts.csv` and of a stock list is named (in backquotes) in its table of
+/// `docs/outputs.md` and `docs/parts.md`.
+#[test]
+fn every_parts_column_is_documented() {
+    let outputs = read("docs/outputs.md");
+    let start = outputs.find("### `parts.csv`").expect("docs/outputs.md has a `parts.csv` section");
+    let table = &outputs[start..outputs[start..].find("\n## ").map_or(outputs.len(), |i| start + i)];
+    let missing: Vec<&str> =
+        springfit::files::parts::HEADER.split(',').filter(|c| !table.contains(&format!("`{c}`"))).collect();
+    assert!(missing.is_empty(), "docs/outputs.md, `parts.csv`: undocumented columns {missing:?}");
+    let parts = read("docs/parts.md");
+    assert!(parts.contains(springfit::files::stock::HEADER), "docs/parts.md does not show the stock list's header");
 }
 
 /// README.md and every page under docs/ (read from the directory, so a new page is covered).

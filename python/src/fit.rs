@@ -190,7 +190,7 @@ impl PyFit {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
         let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits);
         let (design, outcome, as_built) = (&self.design, &self.outcome, self.as_built.as_ref());
-        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built)).py()
+        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built, None)).py()
     }
 
     fn __repr__(&self) -> String {

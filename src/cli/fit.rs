@@ -32,6 +32,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
     let plan = session.plan("fit", springfit::report::fit::files(!args.exact));
     springfit::report::output::check(&target, &plan)?;
+    let stock = if args.exact { Vec::new() } else { super::parts::load_stock(&design)? };
     let catalog = match (&validated.catalog, args.exact) {
         (_, true) => None,
         (Some(c), false) => Some(c),
@@ -72,6 +73,23 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         step.finish();
         Some((ab, t.elapsed().as_secs_f64()))
     };
+    let parts = if args.exact {
+        None
+    } else {
+        let step = progress.step("choosing parts");
+        let parts = springfit::parts::choose(
+            &design,
+            &outcome.bom,
+            &outcome.cams,
+            &outcome.evaluation,
+            settings.frequency,
+            &stock,
+            Some(outcome.metrics.stats),
+        )
+        .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
+        step.finish();
+        Some(parts)
+    };
     let step = progress.step("writing outputs");
     let written = springfit::report::fit::write_folder(
         &target,
@@ -79,6 +97,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         &design,
         &outcome,
         as_built.as_ref().and_then(|a| a.0.as_ref()),
+        parts.as_ref(),
     );
     step.finish();
     let written = written?;
@@ -190,10 +209,13 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         ),
         None => {}
     }
+    if let Some(p) = &parts {
+        super::parts::say(p, session);
+    }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md, report.html"
     } else {
-        "bom.csv, bom.md, summary.json, residuals.csv, histogram, potential, report.md, report.html"
+        "bom.csv, bom.md, parts.csv, parts.md, summary.json, residuals.csv, histogram, potential, report.md, report.html"
     };
     let files = if outcome.cams.is_empty() { files.to_string() } else { format!("{files}, cams/") };
     progress.say(format!("wrote {} ({files})", display(&written)));

@@ -7,6 +7,7 @@ mod export;
 mod fit;
 mod geodesics;
 mod identify;
+mod parts;
 mod progress;
 mod simulate;
 mod sweep;
@@ -228,6 +229,24 @@ springfit tune --measured), identify_torque and identify_rates (SVG, PNG) and re
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// A spring for every element of a fitted bill: mechanism, wire, coils, checks, stock parts.
+    #[command(
+        after_help = "Examples:\n  springfit parts\n  springfit parts designs/double_pendulum.toml --bom out/double_pendulum/bom.csv\n\n\
+Fits the design (or reads BOM) and realises every element by EN 13906 within the design's [parts]\n\
+envelope: writes parts.csv, parts.md (a request for quotation) and sketch_<id>.svg, and prints the\n\
+realised design's residual angles beside the ideal ones. Exit code 1 names the limit no spring meets."
+    )]
+    Parts {
+        /// Design file (TOML).
+        #[arg(default_value = DEFAULT_DESIGN)]
+        design: PathBuf,
+        /// Realise the springs of this bill of materials instead of fitting.
+        #[arg(long, value_name = "FILE")]
+        bom: Option<PathBuf>,
+        /// Output folder (default: out/<design name>_parts).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Validate a design and report its robot, equilibrium and region.
     #[command(
         after_help = "Examples:\n  springfit check designs/double_pendulum.toml\n  springfit check designs/ur5_lift_elbow.toml --json\n\n\
@@ -308,6 +327,7 @@ pub fn run() -> Result<()> {
         Command::Identify { design, bom, logs, plan, out } => {
             identify::run(identify::IdentifyArgs { design, bom, logs, plan, out }, &session)
         }
+        Command::Parts { design, bom, out } => parts::run(&design, bom, out, &session),
         Command::Fit { design, out, exact, solver, max_elements } => {
             let solver = solver.map(|s| match s {
                 SolverArg::Nnls => SolverKind::Nnls,

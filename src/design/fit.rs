@@ -96,6 +96,10 @@ pub struct FitSettings {
     /// Upper bound on the total preload Σ|τᵢ(q_eq)| in N·m (0: none). Exact with `qp`; with
     /// `nnls` a fit exceeding it is reported infeasible.
     pub max_preload: f64,
+    /// Upper bound on each spring's largest torque on its coordinate over the region, N·m (0:
+    /// none): its stiffness is capped at this torque over its largest |u′|. The bound that keeps
+    /// a part possible when `springfit parts` finds no spring for an element.
+    pub max_element_torque: f64,
 }
 
 impl Default for FitSettings {
@@ -126,6 +130,7 @@ impl Default for FitSettings {
             trimmed_weight: 0.0,
             shift_weight: 0.0,
             max_preload: 0.0,
+            max_element_torque: 0.0,
         }
     }
 }
@@ -199,6 +204,9 @@ impl FitSettings {
         }
         if !(self.max_preload.is_finite() && self.max_preload >= 0.0) {
             return err("max_preload", "must be ≥ 0 N·m (0: no bound)");
+        }
+        if !(self.max_element_torque.is_finite() && self.max_element_torque >= 0.0) {
+            return err("max_element_torque", "must be ≥ 0 N·m (0: no bound)");
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");

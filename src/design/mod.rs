@@ -34,6 +34,7 @@ pub mod controllers;
 pub mod file;
 pub mod fit;
 pub mod identify;
+pub mod parts;
 pub mod scenario;
 pub mod simulate;
 pub mod sweep;
@@ -325,6 +326,7 @@ impl Design {
         file.controllers.check_max_torque(&holding).map_err(|(field, reason)| invalid(&field, reason))?;
         file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         file.identify.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+        file.parts.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         let mut names = std::collections::HashSet::new();
         for (i, sc) in file.scenario.iter().enumerate() {
             if !names.insert(sc.name.clone()) {

@@ -5,3 +5,5 @@ pub mod bom;
 pub mod cam;
 pub mod fit_folder;
 pub mod log;
+pub mod parts;
+pub mod stock;

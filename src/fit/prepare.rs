@@ -76,8 +76,11 @@ impl<'a> Prepared<'a> {
         };
         let expanded = catalog.expand(q_eq, range);
         let n_expanded = expanded.len();
-        let candidates: Vec<Candidate> =
+        let mut candidates: Vec<Candidate> =
             expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
+        if settings.max_element_torque > 0.0 {
+            bound_torque(&mut candidates, settings.max_element_torque, q_eq, &training, &evaluation);
+        }
         let grouping = Grouping::new(candidates.iter().map(|c| (c.family, &c.element)));
         if candidates.is_empty() {
             return Err(Error::invalid(
@@ -188,7 +191,7 @@ impl Prepared<'_> {
 }
 
 /// The region check and the two fans.
-pub(super) fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fan, Fan)> {
+pub fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fan, Fan)> {
     let region = design.valid_region()?;
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
     let ode = design.geodesics.ode;
@@ -237,6 +240,29 @@ fn engages(c: &Candidate, q_eq: &[f64], training: &Fan, evaluation: &Fan) -> boo
         .iter()
         .chain(&evaluation.geodesics)
         .any(|g| (0..g.len()).any(|i| e.profile.slope(e.deflection(g.q(i))) != 0.0))
+}
+
+/// `[fit] max_element_torque`: caps each spring's stiffness so that its largest torque on x over
+/// the region (the equilibrium and both fans), k · max |u′|, stays within `torque` N·m. A part's
+/// spring is sized by that torque (its stress, its wire), so this is the bound that keeps a part
+/// possible when `springfit parts` finds none. Cams (groups) are left alone: their torque is the
+/// sum of their coefficients'.
+fn bound_torque(candidates: &mut [Candidate], torque: f64, q_eq: &[f64], training: &Fan, evaluation: &Fan) {
+    for c in candidates.iter_mut() {
+        if matches!(c.element.profile, crate::elements::Profile::Spline(_)) {
+            continue;
+        }
+        let mut peak = c.element.profile.slope(c.element.deflection(q_eq)).abs();
+        for g in training.geodesics.iter().chain(&evaluation.geodesics) {
+            for i in 0..g.len() {
+                peak = peak.max(c.element.profile.slope(c.element.deflection(g.q(i))).abs());
+            }
+        }
+        if peak > 0.0 {
+            let cap = torque / peak;
+            c.max_stiffness = Some(c.max_stiffness.map_or(cap, |m| m.min(cap)));
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,8 @@
-//! Realisations: the hardware that gives an element's potential (today the disc cam of a cam
+//! Realisations: the hardware that gives an element's potential (the disc cam of a cam
 //! profile), with its geometry and the limits a maker checks.
 
 pub mod cam;
+pub mod material;
+pub mod mechanism;
+pub mod sketch;
+pub mod spring;

@@ -51,6 +51,9 @@ pub struct Summary {
     /// Monte Carlo builds at the design's tolerance: p50 and p95 over builds (null when the
     /// fit is for the drawing only and no element states a tolerance, or `builds = 0`).
     pub as_built: Option<crate::asbuilt::AsBuilt>,
+    /// The realised design: residual angles with each element's mechanism in place of the ideal
+    /// element, and the parts found (null for the exact reference and when no parts were chosen).
+    pub realised: Option<super::parts::RealisedSummary>,
 }
 
 /// The region part of the summary.
@@ -99,6 +102,7 @@ impl Summary {
             accept_p99_deg: o.settings.accept_p99_deg,
             spring_set: (o.solve.solver != "exact").then(|| crate::fit::bill::fingerprint(&o.springs)),
             as_built: None,
+            realised: None,
         }
     }
 }
@@ -127,7 +131,7 @@ pub fn files(springs: bool) -> Vec<&'static str> {
     bill.iter().chain(FILES).copied().collect()
 }
 
-const BILL_FILES: &[&str] = &["bom.csv", "bom.md", "cams/*"];
+const BILL_FILES: &[&str] = &["bom.csv", "bom.md", "cams/*", "parts.csv", "parts.md", "sketch_*.svg"];
 
 const FILES: &[&str] = &[
     "summary.json",
@@ -150,9 +154,10 @@ pub fn write_folder(
     design: &Design,
     o: &FitOutcome,
     as_built: Option<&crate::asbuilt::AsBuilt>,
+    parts: Option<&crate::parts::Parts>,
 ) -> Result<std::path::PathBuf> {
     let dir = OutputDir::create(target, plan)?;
-    write_with_as_built(&dir, design, o, as_built)?;
+    write_all(&dir, design, o, as_built, parts)?;
     super::html::write_fit(&dir, design)?;
     dir.commit()
 }
@@ -170,6 +175,21 @@ pub fn write_with_as_built(
     o: &FitOutcome,
     as_built: Option<&crate::asbuilt::AsBuilt>,
 ) -> Result<()> {
+    write_all(out, design, o, as_built, None)
+}
+
+/// [`write_with_as_built`] and the parts of the fitted bill (`parts.csv`, `parts.md`, the
+/// sketches, `realised` in `summary.json`).
+pub fn write_all(
+    out: &OutputDir,
+    design: &Design,
+    o: &FitOutcome,
+    as_built: Option<&crate::asbuilt::AsBuilt>,
+    parts: Option<&crate::parts::Parts>,
+) -> Result<()> {
+    if let Some(p) = parts {
+        super::parts::write(out, design, p)?;
+    }
     let exact = o.solve.solver == "exact";
     let label = if exact {
         format!("{} — exact ½ω²r²", o.design)
@@ -192,6 +212,7 @@ pub fn write_with_as_built(
     }
     let mut summary = Summary::new(o, &design.path);
     summary.as_built = as_built.cloned();
+    summary.realised = parts.map(super::parts::RealisedSummary::new);
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
     out.write("summary.json", json + "\n")?;
     out.write("residuals.csv", residuals_csv(o.dof, &o.metrics.residuals))?;
@@ -336,6 +357,17 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     }
     if !exact {
         r.push_str("## Bill of materials\n\nSee [bom.md](bom.md) (table) and [bom.csv](bom.csv) (machine-readable; `springfit` rebuilds the potential from it).\n\n");
+    }
+    if let Some(p) = &s.realised {
+        r.push_str(&format!(
+            "## Parts\n\n{} elements have a part ([parts.md](parts.md), [parts.csv](parts.csv)){}. With each mechanism's own potential in place of the ideal element the residual angle is p99 {:.4}° ({:+.4}°), max {:.4}° ({:+.4}°).\n\n",
+            p.parts,
+            if p.missing.is_empty() { String::new() } else { format!("; no spring found for {}", p.missing.join(", ")) },
+            p.residual_deg.p99_abs,
+            p.p99_change_deg,
+            p.residual_deg.max_abs,
+            p.max_change_deg
+        ));
     }
     r.push_str(&format!(
         "## Files\n\n- [summary.json](summary.json): the figures above\n- [residuals.csv](residuals.csv): every evaluated sample\n\nTimings: geodesics {:.3} s, assemble {:.3} s, solve {:.3} s, evaluate {:.3} s, total {:.3} s.\n",

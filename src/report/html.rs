@@ -279,6 +279,7 @@ pub fn write_fit(out: &OutputDir, design: &Design) -> Result<()> {
     let mut p = Page::new(out, format!("springfit fit: {}", design.name));
     p.markdown_file("report.md")?;
     p.markdown_file("bom.md")?;
+    p.markdown_file("parts.md")?;
     p.remaining_figures("Figures", |_| true)?;
     p.design(design)?;
     p.finish()

@@ -8,6 +8,7 @@ pub mod geodesics;
 pub mod html;
 pub mod identify;
 pub mod output;
+pub mod parts;
 pub mod plot;
 pub mod simulate;
 pub mod sweep;

@@ -1,0 +1,148 @@
+//! Settings of the parts: the design's `[parts]` section (what every spring is made of, how well,
+//! for how long, and the room it has).
+
+use serde::{Deserialize, Serialize};
+
+/// The wire materials `material` may name: the keys of the material table in
+/// `realise::material` (a test there keeps the two lists equal).
+pub const MATERIALS: &[&str] = &["EN10270-1-SM", "ASTM-A228"];
+
+/// `[[parts.element]]`: the room one element has, overriding the defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElementEnvelope {
+    /// The element's id in the bill of materials (`S03`, `C01`).
+    pub id: String,
+    /// Largest outer diameter (or leaf width), mm.
+    pub max_outer_diameter_mm: Option<f64>,
+    /// Largest length, mm.
+    pub max_length_mm: Option<f64>,
+    /// Largest lever or crank radius, mm.
+    pub max_lever_mm: Option<f64>,
+}
+
+/// `[parts]`: how the fitted elements become springs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PartsSettings {
+    /// Wire material, a key of the material table (`EN10270-1-SM`, `ASTM-A228`).
+    pub material: String,
+    /// EN 15800 quality grade 1, 2 or 3 (1 the tightest): each spring's rate tolerance.
+    pub grade: u8,
+    /// Swings every spring must survive (Goodman, at the amplitude of the design's scenarios).
+    pub cycles: f64,
+    /// Factor on every stress limit, static and fatigue (≥ 1).
+    pub safety_factor: f64,
+    /// Largest outer diameter of a spring (or width of a leaf), mm.
+    pub max_outer_diameter_mm: f64,
+    /// Largest length of a spring (a torsion spring's body, a crank's spring and cable run, a
+    /// leaf's clamp travel, a follower's free length), mm.
+    pub max_length_mm: f64,
+    /// Largest crank radius or lever, mm.
+    pub max_lever_mm: f64,
+    /// Shaft a torsion spring sits on, mm (its arbor must clear it when wound).
+    pub shaft_diameter_mm: f64,
+    /// Radius of the rollers a crank's cable runs over, mm (0: an ideal eyelet).
+    pub pulley_radius_mm: f64,
+    /// A stock list (CSV, relative to the design file) to order parts from before winding any.
+    pub stock: Option<String>,
+    /// Per-element envelopes.
+    pub element: Vec<ElementEnvelope>,
+}
+
+impl Default for PartsSettings {
+    fn default() -> Self {
+        PartsSettings {
+            material: "EN10270-1-SM".into(),
+            grade: 2,
+            cycles: 1e6,
+            safety_factor: 1.1,
+            max_outer_diameter_mm: 150.0,
+            max_length_mm: 400.0,
+            max_lever_mm: 100.0,
+            shaft_diameter_mm: 12.0,
+            pulley_radius_mm: 5.0,
+            stock: None,
+            element: Vec::new(),
+        }
+    }
+}
+
+impl PartsSettings {
+    /// Checks the settings, naming the bad field.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let err = |f: &str, r: String| Err((format!("parts.{f}"), r));
+        if !MATERIALS.contains(&self.material.as_str()) {
+            return err(
+                "material",
+                format!("unknown material `{}`: expected one of {}", self.material, MATERIALS.join(", ")),
+            );
+        }
+        if !(1..=3).contains(&self.grade) {
+            return err("grade", format!("must be the EN 15800 quality grade 1, 2 or 3, got {}", self.grade));
+        }
+        if !(self.cycles.is_finite() && (1.0..=1e9).contains(&self.cycles)) {
+            return err("cycles", format!("must be a number of swings from 1 to 10⁹, got {}", self.cycles));
+        }
+        if !(self.safety_factor.is_finite() && (1.0..=10.0).contains(&self.safety_factor)) {
+            return err("safety_factor", format!("must be from 1 to 10, got {}", self.safety_factor));
+        }
+        let positive = |v: f64| v.is_finite() && v > 0.0 && v <= 10_000.0;
+        for (f, v) in [
+            ("max_outer_diameter_mm", self.max_outer_diameter_mm),
+            ("max_length_mm", self.max_length_mm),
+            ("max_lever_mm", self.max_lever_mm),
+            ("shaft_diameter_mm", self.shaft_diameter_mm),
+        ] {
+            if !positive(v) {
+                return err(f, format!("must be a positive size in mm up to 10000, got {v}"));
+            }
+        }
+        if !(self.pulley_radius_mm.is_finite() && (0.0..=1000.0).contains(&self.pulley_radius_mm)) {
+            return err("pulley_radius_mm", format!("must be from 0 to 1000 mm, got {}", self.pulley_radius_mm));
+        }
+        for (i, e) in self.element.iter().enumerate() {
+            for (f, v) in [
+                ("max_outer_diameter_mm", e.max_outer_diameter_mm),
+                ("max_length_mm", e.max_length_mm),
+                ("max_lever_mm", e.max_lever_mm),
+            ] {
+                if let Some(v) = v {
+                    if !positive(v) {
+                        return err(&format!("element[{i}].{f}"), format!("must be a positive size in mm, got {v}"));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_settings_name_their_field() {
+        assert!(PartsSettings::default().validate().is_ok());
+        let bad = |s: PartsSettings, field: &str, words: &str| {
+            let (f, r) = s.validate().unwrap_err();
+            assert_eq!(f, field);
+            assert!(r.contains(words), "{r}");
+        };
+        bad(PartsSettings { material: "unobtainium".into(), ..Default::default() }, "parts.material", "EN10270-1-SM");
+        bad(PartsSettings { grade: 4, ..Default::default() }, "parts.grade", "1, 2 or 3");
+        bad(PartsSettings { safety_factor: 0.5, ..Default::default() }, "parts.safety_factor", "from 1");
+        let e = ElementEnvelope {
+            id: "S01".into(),
+            max_outer_diameter_mm: Some(-1.0),
+            max_length_mm: None,
+            max_lever_mm: None,
+        };
+        bad(
+            PartsSettings { element: vec![e], ..Default::default() },
+            "parts.element[0].max_outer_diameter_mm",
+            "positive",
+        );
+    }
+}

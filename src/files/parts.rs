@@ -1,0 +1,241 @@
+//! `parts.csv` (one row per element's spring, every figure with its unit in the header) and
+//! `parts.md` (a request for quotation: one block per spring with what a maker needs and the
+//! assembly geometry of its element).
+
+use std::fmt::Write as _;
+
+use crate::csv::csv_field;
+use crate::parts::{ElementPart, Parts, limit_message};
+use crate::realise::mechanism::{Mechanism, Part, Spring};
+
+/// The header of `parts.csv`.
+pub const HEADER: &str = "id,family,profile,coupling,offset_rad,mechanism,spring,quantity,material,grade,wire_d_mm,mean_D_mm,outer_D_mm,active_coils,free_length_mm,leg_mm,rate_maker,rate_maker_unit,fitted_stiffness,realised_rate,fit_unit,rate_tolerance,initial_tension_n,position_unit,load_unit,eq_position,eq_load,low_position,low_load,high_position,high_load,max_stress_mpa,allowed_stress_mpa,static_utilisation,fatigue_utilisation,life_cycles,mass_kg,vendor,part_number,source,geometry,limit";
+
+fn mechanism_name(m: &Mechanism) -> &'static str {
+    match m {
+        Mechanism::TorsionPair { .. } => "torsion pair",
+        Mechanism::TorsionStop { .. } => "torsion spring on a leg stop",
+        Mechanism::Crank { .. } => "zero-free-length crank",
+        Mechanism::Leaf { .. } => "leaf spring in a sliding clamp",
+        Mechanism::Follower => "cam follower spring",
+    }
+}
+
+fn units(p: &Part) -> (&'static str, &'static str) {
+    match p.spring {
+        Spring::Torsion(_) => ("deg", "N*mm"),
+        Spring::Leaf { .. } => ("mm tip deflection", "N"),
+        _ => ("mm length", "N"),
+    }
+}
+
+fn fit_unit(e: &ElementPart) -> &'static str {
+    match e.part.as_ref().map(|p| p.mechanism) {
+        Ok(Mechanism::Follower) => "N/mm",
+        _ => e.element.profile.unit(),
+    }
+}
+
+/// The spring's free length (compression, extension) and leg length (torsion), mm.
+fn lengths(s: &Spring) -> (Option<f64>, Option<f64>) {
+    match s {
+        Spring::Torsion(t) => (None, Some(t.leg)),
+        Spring::Extension(h, _) => (Some(h.extension_free_length()), None),
+        Spring::Compression(_, l0) => (Some(*l0), None),
+        Spring::Leaf { lengths, .. } => (Some(lengths[2]), None),
+    }
+}
+
+fn num(x: Option<f64>) -> String {
+    x.map(|v| format!("{v}")).unwrap_or_default()
+}
+
+fn check<'a>(p: &'a Part, name: &str) -> Option<&'a crate::realise::mechanism::Check> {
+    p.checks.iter().find(|c| c.name == name)
+}
+
+/// `parts.csv`.
+/// `safety` is `[parts] safety_factor` (the checks carry it: the stress column is without it).
+pub fn csv(parts: &Parts, grade: u8, safety: f64) -> String {
+    let mut s = format!("{HEADER}\n");
+    for e in &parts.elements {
+        let head = [
+            e.id.clone(),
+            e.family.clone(),
+            format!("{}{}", e.element.profile.name(), e.element.profile.side()),
+            e.element.coupling_text(),
+            format!("{}", e.element.offset),
+        ];
+        let mut f: Vec<String> = head.to_vec();
+        match &e.part {
+            Ok(p) => {
+                let (free, leg) = lengths(&p.spring);
+                let (rate, unit) = p.spring.maker_rate();
+                let (pu, lu) = units(p);
+                let at = |i: usize| p.points.get(i).map(|w| (w.position, w.load));
+                let stress = check(p, "static stress");
+                f.extend([
+                    mechanism_name(&p.mechanism).to_string(),
+                    p.spring.kind().to_string(),
+                    p.quantity.to_string(),
+                    p.spring.material().to_string(),
+                    grade.to_string(),
+                    format!("{}", p.spring.d()),
+                    format!("{}", p.spring.dm()),
+                    match p.spring {
+                        Spring::Leaf { .. } => String::new(),
+                        _ => format!("{}", p.spring.dm() + p.spring.d()),
+                    },
+                    num(p.spring.coils()),
+                    num(free),
+                    num(leg),
+                    format!("{rate}"),
+                    unit.to_string(),
+                    format!("{}", e.stiffness),
+                    format!("{}", p.realised_rate),
+                    fit_unit(e).to_string(),
+                    format!("{}", p.tolerance),
+                    num(match p.spring {
+                        Spring::Extension(_, f0) => Some(f0),
+                        _ => None,
+                    }),
+                    pu.to_string(),
+                    lu.to_string(),
+                ]);
+                for i in 0..3 {
+                    let (a, b) = at(i).map_or((None, None), |(a, b)| (Some(a), Some(b)));
+                    f.push(num(a));
+                    f.push(num(b));
+                }
+                f.extend([
+                    num(stress.map(|c| c.value / safety)),
+                    num(stress.map(|c| c.limit)),
+                    num(stress.map(|c| c.ratio())),
+                    num(check(p, "fatigue (Goodman)").map(|c| c.ratio())),
+                    format!("{}", p.life),
+                    format!("{}", p.mass),
+                    e.stock.as_ref().map(|s| s.vendor.clone()).unwrap_or_default(),
+                    e.stock.as_ref().map(|s| s.part_number.clone()).unwrap_or_else(|| "custom".into()),
+                    e.stock.as_ref().map(|s| s.source.clone()).unwrap_or_default(),
+                    e.geometry(),
+                    String::new(),
+                ]);
+            }
+            Err(l) => {
+                f.extend(std::iter::repeat_n(String::new(), HEADER.split(',').count() - head.len() - 1));
+                f.push(limit_message(e, l));
+            }
+        }
+        let line: Vec<String> = f.iter().map(|x| csv_field(x)).collect();
+        s.push_str(&line.join(","));
+        s.push('\n');
+    }
+    s
+}
+
+/// `parts.md`: the request for quotation.
+pub fn markdown(design: &str, parts: &Parts, settings: &crate::design::parts::PartsSettings) -> String {
+    let mut m = format!("# Parts: {design}\n\n");
+    let _ = writeln!(
+        m,
+        "Request for quotation. Wire {} (EN 15800 grade {}), {} swings at the scenarios' amplitude (largest scenario energy {:.1} J, arc length {:.3} from q_eq), every stress limit divided by the safety factor {}.\n",
+        settings.material, settings.grade, settings.cycles, parts.swing.0, parts.swing.1, settings.safety_factor
+    );
+    let _ = writeln!(
+        m,
+        "**The realised design** (each mechanism's own potential in place of the ideal element): residual angle p99 {:.4}°, max {:.4}° on {} held-out samples; the ideal elements: p99 {:.4}°, max {:.4}°.\n",
+        parts.realised.p99_abs, parts.realised.max_abs, parts.realised.count, parts.ideal.p99_abs, parts.ideal.max_abs
+    );
+    let missing: Vec<String> = parts.missing().map(|(e, l)| limit_message(e, l)).collect();
+    if !missing.is_empty() {
+        m.push_str("**No spring found for:**\n\n");
+        for x in &missing {
+            let _ = writeln!(m, "- {x}");
+        }
+        m.push('\n');
+    }
+    for e in &parts.elements {
+        let _ = writeln!(
+            m,
+            "## {} — {} ({}, coupling ({}), x₀ = {:.4} rad)\n",
+            e.id,
+            e.family,
+            e.element.profile.name(),
+            e.element.coupling_text().replace(';', ", "),
+            e.element.offset
+        );
+        let Ok(p) = &e.part else { continue };
+        let _ = writeln!(m, "{}.\n", e.geometry());
+        let (rate, unit) = p.spring.maker_rate();
+        let (free, leg) = lengths(&p.spring);
+        let order = match &e.stock {
+            Some(s) => format!("stock part **{} {}** ({})", s.vendor, s.part_number, s.source),
+            None => "to be wound to this specification".into(),
+        };
+        let _ =
+            writeln!(m, "{} × {} spring, {order}.\n\n| figure | value |\n| --- | ---: |", p.quantity, p.spring.kind());
+        let mut row = |k: &str, v: String| {
+            let _ = writeln!(m, "| {k} | {v} |");
+        };
+        row("material", p.spring.material().to_string());
+        match p.spring {
+            Spring::Leaf { t, b, lengths, lowest_rate } => {
+                row("strip thickness × width", format!("{t} × {b} mm"));
+                row(
+                    "free length in the clamp (highest rate – lowest)",
+                    format!("{:.1} – {:.1} mm", lengths[0], lengths[1]),
+                );
+                row("free length at mid-range", format!("{:.1} mm", lengths[2]));
+                row(
+                    "lowest rate in the clamp's travel",
+                    format!("{lowest_rate:.4} N·m/rad (below it: lift the leaf off)"),
+                );
+            }
+            _ => {
+                row("wire diameter d", format!("{} mm", p.spring.d()));
+                row(
+                    "mean coil diameter D (outer)",
+                    format!("{:.2} mm ({:.2} mm)", p.spring.dm(), p.spring.dm() + p.spring.d()),
+                );
+                row("active coils n", format!("{:.2}", p.spring.coils().unwrap_or(0.0)));
+            }
+        }
+        if let Some(l) = free {
+            row("free length", format!("{l:.1} mm"));
+        }
+        if let Some(l) = leg {
+            row("leg length", format!("{l:.1} mm"));
+        }
+        if let Spring::Extension(_, f0) = p.spring {
+            row("initial tension F₀", format!("{f0:.2} N"));
+        }
+        row("rate", format!("{rate:.4} {unit} (±{:.1} %, grade {})", 100.0 * p.tolerance, settings.grade));
+        row("element rate (fitted → realised)", format!("{:.4} → {:.4} {}", e.stiffness, p.realised_rate, fit_unit(e)));
+        row("mass", format!("{:.3} kg", p.mass));
+        row(
+            "fatigue life at the swing",
+            if p.life >= 1e8 { "≥ 10⁸ cycles".into() } else { format!("{:.3e} cycles", p.life) },
+        );
+        let (pu, lu) = units(p);
+        let _ = writeln!(m, "\n| working point | position ({pu}) | load ({lu}) |\n| --- | ---: | ---: |");
+        for w in &p.points {
+            let _ = writeln!(m, "| {} | {:.2} | {:.2} |", w.at, w.position, w.load);
+        }
+        let _ = writeln!(m, "\n| check | value | limit | utilisation |\n| --- | ---: | ---: | ---: |");
+        for c in &p.checks {
+            let _ = writeln!(
+                m,
+                "| {} | {:.4} {} | {} {:.4} {} | {:.3} |",
+                c.name,
+                c.value,
+                c.unit,
+                if c.upper { "≤" } else { "≥" },
+                c.limit,
+                c.unit,
+                c.ratio()
+            );
+        }
+        let _ = writeln!(m, "\n![{0}](sketch_{0}.svg)\n", e.id);
+    }
+    m
+}

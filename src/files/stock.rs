@@ -1,0 +1,114 @@
+//! Stock lists: springs a vendor sells, one per line, exactly as the vendor publishes them, each
+//! row naming its source. `[parts] stock` names one; `springfit parts` and `fit` then order a
+//! stock spring wherever one is within the part's grade tolerance of the rate it needs.
+//!
+//! ```text
+//! vendor,part_number,type,material,d_mm,D_mm,n,length_mm,rate,rate_unit,max_deflection,max_deflection_unit,max_load,max_load_unit,source
+//! ```
+//!
+//! `type` is `torsion`, `compression` or `extension`; `D_mm` the mean coil diameter; `length_mm`
+//! the free length (compression, extension) or the leg length (torsion). The units are
+//! columns of their own and must be the ones of the type: `N*mm/deg`, `deg`, `N*mm` for a
+//! torsion spring, `N/mm`, `mm`, `N` otherwise.
+
+use std::path::Path;
+
+use crate::csv::split_csv_line;
+use crate::error::{Error, Result};
+use crate::input::read_text;
+use crate::parts::StockPart;
+
+/// The header a stock list starts with.
+pub const HEADER: &str = "vendor,part_number,type,material,d_mm,D_mm,n,length_mm,rate,rate_unit,max_deflection,max_deflection_unit,max_load,max_load_unit,source";
+
+/// Reads a stock list.
+pub fn read(path: &Path) -> Result<Vec<StockPart>> {
+    parse(path, &read_text(path)?)
+}
+
+/// Parses the text of a stock list (`path` for messages).
+pub fn parse(path: &Path, text: &str) -> Result<Vec<StockPart>> {
+    let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
+    let names: Vec<String> =
+        split_csv_line(header.trim_start_matches('\u{feff}').trim()).map_err(|e| bad(1, "header", e))?;
+    let want: Vec<&str> = HEADER.split(',').collect();
+    if let Some(missing) = want.iter().find(|w| !names.iter().any(|n| n.trim() == **w)) {
+        return Err(bad(1, missing, format!("the column `{missing}` is missing: a stock list's header is `{HEADER}`")));
+    }
+    let col = |name: &str| names.iter().position(|n| n.trim() == name).expect("checked above");
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let ln = i + 1;
+        let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
+        if f.len() != names.len() {
+            return Err(bad(ln, "row", format!("has {} fields, the header {}", f.len(), names.len())));
+        }
+        let text = |name: &str| f[col(name)].trim().to_string();
+        let num = |name: &str| -> Result<f64> {
+            let v = text(name);
+            match v.parse::<f64>() {
+                Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+                _ => Err(bad(ln, name, format!("`{v}` is not a positive number"))),
+            }
+        };
+        let kind = text("type");
+        let units: [&str; 3] = match kind.as_str() {
+            "torsion" => ["N*mm/deg", "deg", "N*mm"],
+            "compression" | "extension" => ["N/mm", "mm", "N"],
+            other => {
+                return Err(bad(ln, "type", format!("`{other}`: expected torsion, compression or extension")));
+            }
+        };
+        for (name, unit) in ["rate_unit", "max_deflection_unit", "max_load_unit"].into_iter().zip(units) {
+            if text(name) != unit {
+                return Err(bad(ln, name, format!("`{}`: a {kind} spring's is `{unit}`", text(name))));
+            }
+        }
+        for name in ["vendor", "part_number", "source"] {
+            if text(name).is_empty() {
+                return Err(bad(ln, name, "is empty: every row names its vendor, part number and source".into()));
+            }
+        }
+        out.push(StockPart {
+            vendor: text("vendor"),
+            part_number: text("part_number"),
+            kind,
+            material: text("material"),
+            d: num("d_mm")?,
+            dm: num("D_mm")?,
+            n: num("n")?,
+            length: num("length_mm")?,
+            rate: num("rate")?,
+            max_deflection: num("max_deflection")?,
+            max_load: num("max_load")?,
+            source: text("source"),
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ROW: &str =
+        "Example,EX-1,torsion,music wire,1,10,5,20,12.5,N*mm/deg,180,deg,2000,N*mm,invented for this test";
+
+    #[test]
+    fn reads_rows_and_names_bad_fields() {
+        let p = Path::new("stock.csv");
+        let rows = parse(p, &format!("{HEADER}\n{ROW}\n")).unwrap();
+        assert_eq!(rows.len(), 1);
+        assert_eq!((rows[0].part_number.as_str(), rows[0].rate), ("EX-1", 12.5));
+        let err = |text: String, field: &str| {
+            let e = parse(p, &text).unwrap_err().to_string();
+            assert!(e.contains("stock.csv") && e.contains(field), "{e}");
+        };
+        err(format!("{}\n{ROW}\n", HEADER.replace(",max_load_unit", "")), "max_load_unit");
+        err(format!("{HEADER}\n{}\n", ROW.replace("N*mm/deg", "N/mm")), "rate_unit");
+        err(format!("{HEADER}\n{}\n", ROW.replace(",12.5,", ",fast,")), "rate");
+        err(format!("{HEADER}\n{}\n", ROW.replace("torsion", "spiral")), "type");
+    }
+}

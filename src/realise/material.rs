@@ -1,0 +1,202 @@
+//! Spring materials: elastic moduli, density and the tensile strength R_m of the wire (or strip)
+//! as a function of its size, each value with the source it was read from.
+//!
+//! Allowable stresses are fractions of R_m (see [`crate::realise::spring`]), so R_m at the wire's
+//! own diameter is what decides whether a spring holds: thin wire is drawn harder than thick.
+//! The EN 10270-1 table lists the minimum R_m at each nominal diameter the standard tabulates;
+//! springfit designs only with those diameters (they are the sizes wire is sold in) and reads the
+//! minimum, never an interpolated value.
+
+/// How R_m depends on the size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Strength {
+    /// Minimum R_m (MPa) at each nominal diameter (mm), as tabulated.
+    Table(&'static [(f64, f64)]),
+    /// R_m = A / d^m (MPa, d in mm) over a diameter range, with the sizes to design with.
+    Power { a: f64, m: f64, sizes: &'static [f64] },
+    /// One R_m (MPa) for every thickness in the listed sizes (mm): strip.
+    Constant { rm: f64, sizes: &'static [f64] },
+}
+
+/// A spring material.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// The key written in `[parts] material`.
+    pub key: &'static str,
+    /// What a spring maker calls it.
+    pub name: &'static str,
+    /// Young's modulus E, MPa.
+    pub e: f64,
+    /// Shear modulus G, MPa.
+    pub g: f64,
+    /// Density, kg/m³.
+    pub density: f64,
+    /// R_m by size.
+    pub strength: Strength,
+    /// Where every value above comes from.
+    pub source: &'static str,
+}
+
+impl Material {
+    /// The sizes (wire diameters or strip thicknesses, mm) springfit designs with, thinnest first.
+    pub fn sizes(&self) -> Vec<f64> {
+        match self.strength {
+            Strength::Table(t) => t.iter().map(|r| r.0).collect(),
+            Strength::Power { sizes, .. } | Strength::Constant { sizes, .. } => sizes.to_vec(),
+        }
+    }
+
+    /// Minimum tensile strength R_m at size `d` (mm), MPa; None outside the tabulated sizes.
+    pub fn tensile_strength(&self, d: f64) -> Option<f64> {
+        match self.strength {
+            Strength::Table(t) => t.iter().find(|r| (r.0 - d).abs() < 1e-9).map(|r| r.1),
+            Strength::Power { a, m, sizes } => {
+                let (lo, hi) = (sizes[0], sizes[sizes.len() - 1]);
+                (lo - 1e-9..=hi + 1e-9).contains(&d).then(|| a / d.powf(m))
+            }
+            Strength::Constant { rm, sizes } => sizes.iter().any(|s| (s - d).abs() < 1e-9).then_some(rm),
+        }
+    }
+}
+
+/// EN 10270-1 grade SM (and DM, which the standard gives the same R_m): the lower bound of the
+/// R_m range at each nominal diameter 0.3–20 mm. The row for 15.0 mm, published as 1160–1260
+/// (above its neighbours 1130 at 14 mm and 1090 at 16 mm, a misprint), is left out.
+const EN10270_1_SM: &[(f64, f64)] = &[
+    (0.3, 2370.0),
+    (0.4, 2270.0),
+    (0.5, 2200.0),
+    (0.6, 2140.0),
+    (0.7, 2090.0),
+    (0.8, 2050.0),
+    (0.9, 2010.0),
+    (1.0, 1980.0),
+    (1.1, 1950.0),
+    (1.2, 1920.0),
+    (1.3, 1900.0),
+    (1.4, 1870.0),
+    (1.5, 1850.0),
+    (1.6, 1830.0),
+    (1.7, 1810.0),
+    (1.8, 1790.0),
+    (1.9, 1770.0),
+    (2.0, 1760.0),
+    (2.1, 1740.0),
+    (2.4, 1700.0),
+    (2.5, 1690.0),
+    (2.6, 1670.0),
+    (2.8, 1650.0),
+    (3.0, 1630.0),
+    (3.2, 1610.0),
+    (3.4, 1590.0),
+    (3.5, 1580.0),
+    (3.6, 1570.0),
+    (3.8, 1550.0),
+    (4.0, 1530.0),
+    (4.5, 1500.0),
+    (5.0, 1460.0),
+    (5.5, 1430.0),
+    (6.0, 1400.0),
+    (6.5, 1380.0),
+    (7.0, 1350.0),
+    (7.5, 1330.0),
+    (8.0, 1310.0),
+    (8.5, 1290.0),
+    (9.0, 1270.0),
+    (9.5, 1260.0),
+    (10.0, 1240.0),
+    (10.5, 1220.0),
+    (11.0, 1210.0),
+    (12.0, 1180.0),
+    (12.5, 1170.0),
+    (13.0, 1160.0),
+    (14.0, 1130.0),
+    (16.0, 1090.0),
+    (17.0, 1070.0),
+    (18.0, 1050.0),
+    (19.0, 1030.0),
+    (20.0, 1020.0),
+];
+
+/// Music-wire sizes (mm) inside the range of the A228 fit (0.10–6.5 mm).
+const MUSIC_WIRE_SIZES: &[f64] = &[
+    0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0,
+    6.5,
+];
+
+/// Strip thicknesses (mm) within the range EN 10132-4 states R_m for (0.3 ≤ t < 3 mm).
+const STRIP_SIZES: &[f64] = &[0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0, 2.5];
+
+/// The material table.
+pub const MATERIALS: &[Material] = &[
+    Material {
+        key: "EN10270-1-SM",
+        name: "patented cold-drawn unalloyed spring steel wire EN 10270-1 grade SM/DM",
+        e: 206_000.0,
+        g: 81_500.0,
+        density: 7850.0,
+        strength: Strength::Table(EN10270_1_SM),
+        source: "EN 10270-1 grade SM: density 7.85 kg/dm³, E = 206 kN/mm², G = 81.5 kN/mm² and the R_m ranges by \
+                 diameter as published by Mollificio Modenese, https://www.mollificiomodenese.it/en/glossary/\
+                 acciaio-uni-en-10270-1-scarbon-steel-uni-en-10270-1-sm-sh-dhm-sh-dh/ (lower bounds used); DM has the \
+                 same R_m (EN 10270-1 table as published by Hengming, https://hengmingsteelwire.com/\
+                 patented-cold-drawn-unalloyed-spring-steel-wire.html)",
+    },
+    Material {
+        key: "ASTM-A228",
+        name: "music wire ASTM A228",
+        e: 196_500.0,
+        g: 81_000.0,
+        density: 7850.0,
+        strength: Strength::Power { a: 2211.0, m: 0.145, sizes: MUSIC_WIRE_SIZES },
+        source: "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
+                 A = 2211 MPa·mm^m, m = 0.145 for A228 music wire 0.10–6.5 mm; Table 10-5: E = 196.5 GPa, \
+                 G = 81.0 GPa for 1.61–3.18 mm (the middle of the range); density of steel 7850 kg/m³",
+    },
+    Material {
+        key: "EN10132-4-C67S",
+        name: "spring steel strip EN 10132-4 C67S, hardened and tempered",
+        e: 206_000.0,
+        g: 81_500.0,
+        density: 7850.0,
+        strength: Strength::Constant { rm: 1200.0, sizes: STRIP_SIZES },
+        source: "EN 10132-4 C67S after hardening and tempering, 0.3 ≤ t < 3 mm: R_m 1200–1700 MPa (lower bound used), \
+                 as published by Akrostal, https://akrostal.pl/cs/?p=2577; E, G and density as for EN 10270-1 steel",
+    },
+];
+
+/// The wire materials a spring may be wound from (the strip is for leaf springs only).
+pub fn wire_keys() -> Vec<&'static str> {
+    MATERIALS.iter().filter(|m| !matches!(m.strength, Strength::Constant { .. })).map(|m| m.key).collect()
+}
+
+/// The material of `key`, or None.
+pub fn by_key(key: &str) -> Option<&'static Material> {
+    MATERIALS.iter().find(|m| m.key == key)
+}
+
+/// The strip for leaf springs.
+pub fn strip() -> &'static Material {
+    by_key("EN10132-4-C67S").expect("the table has the strip")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thin_wire_is_stronger_and_lookups_are_exact() {
+        for m in MATERIALS {
+            let sizes = m.sizes();
+            assert!(sizes.windows(2).all(|w| w[0] < w[1]), "{}: sizes ascend", m.key);
+            let rm: Vec<f64> = sizes.iter().map(|&d| m.tensile_strength(d).unwrap()).collect();
+            assert!(rm.windows(2).all(|w| w[0] >= w[1]), "{}: R_m falls with size: {rm:?}", m.key);
+        }
+        let sm = by_key("EN10270-1-SM").unwrap();
+        assert_eq!(sm.tensile_strength(1.0), Some(1980.0));
+        assert_eq!(sm.tensile_strength(1.05), None, "only tabulated diameters");
+        // Shigley's fit at 1 mm is A itself.
+        assert_eq!(by_key("ASTM-A228").unwrap().tensile_strength(1.0), Some(2211.0));
+        assert_eq!(wire_keys(), crate::design::parts::MATERIALS, "the design file accepts exactly the table's wires");
+    }
+}

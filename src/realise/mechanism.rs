@@ -1,0 +1,796 @@
+//! The mechanism behind each element: what a maker winds or a buyer orders, how it is mounted,
+//! the checks it must pass, and the potential it really has (judged in place of the ideal one).
+//!
+//! | element | mechanism |
+//! | --- | --- |
+//! | linear (on a joint or, through a bevel-gear differential, on a coupling) | two equal torsion springs wound against each other, so neither leg ever leaves its stop: a rate k/2 each, preloaded by the largest deflection |
+//! | one-sided compression | a torsion spring whose free leg meets a stop at the engagement angle x₀ |
+//! | crank | an extension spring in a zero-free-length arrangement: a cable from a pin at radius r on the crank over a fairlead of two rollers at distance R from the axis to the spring beyond it, k_s r R = k |
+//! | trim | a leaf spring in a sliding clamp, loaded at its tip by a lever geared to x: the clamp position sets the rate |
+//! | cam follower | a compression spring with the follower's rate, preload and stroke |
+//!
+//! Every design function searches the material's wire sizes and spring indices for the lightest
+//! spring that meets the rate, the static and fatigue limits and the envelope, or returns the
+//! [`Limit`] that the best candidate misses and by how much.
+
+use std::f64::consts::PI;
+
+use super::material::{Material, strip};
+use super::spring::{HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, TorsionSpring, rate_tolerance};
+
+/// Spring indices w = D/d tried, from [`INDEX_RANGE`]'s lower end up to 16.
+fn indices() -> impl Iterator<Item = f64> {
+    (0..=48).map(|i| INDEX_RANGE.0 + 0.25 * i as f64)
+}
+
+/// Crank radii tried, mm.
+const CRANK_RADII: &[f64] = &[10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0, 150.0, 200.0];
+
+/// Anchor distance over crank radius, R/r, tried.
+const ANCHOR_RATIOS: &[f64] = &[1.5, 2.0, 2.5, 3.0, 4.0];
+
+/// Largest lever angle of a trim's leaf (rad): its tip deflects at most this times the lever.
+pub const LEAF_LEVER_ANGLE: f64 = 0.25;
+
+/// What a part must meet: the `[parts]` settings resolved for one element.
+#[derive(Debug, Clone, Copy)]
+pub struct Requirements {
+    /// The wire's material.
+    pub material: &'static Material,
+    /// EN 15800 quality grade, 1–3.
+    pub grade: u8,
+    /// Swings the part must survive.
+    pub cycles: f64,
+    /// Factor on every stress limit (static and fatigue).
+    pub safety: f64,
+    /// Largest outer diameter, mm.
+    pub max_outer_diameter: f64,
+    /// Largest length (spring body, or spring and cable run beyond a crank's anchor), mm.
+    pub max_length: f64,
+    /// Largest lever or crank radius, mm.
+    pub max_lever: f64,
+    /// Shaft a torsion spring sits on, mm.
+    pub shaft_diameter: f64,
+    /// Radius of a crank cable's fairlead rollers, mm.
+    pub pulley_radius: f64,
+}
+
+/// The deflections an element sees, x − x₀ in rad: at the equilibrium, over the region, and over
+/// the swings of the design's scenarios (for fatigue).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Duty {
+    /// At q_eq.
+    pub at_eq: f64,
+    /// Smallest and largest over the region.
+    pub range: [f64; 2],
+    /// Smallest and largest over the scenarios' swings.
+    pub swing: [f64; 2],
+}
+
+/// One check of a part: a utilisation (value / limit) that must be ≤ 1.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Check {
+    /// What is checked (`static stress`, `fatigue (Goodman)`, `outer diameter`, …).
+    pub name: &'static str,
+    /// The value, in `unit`.
+    pub value: f64,
+    /// Its limit, in `unit`.
+    pub limit: f64,
+    /// Unit of value and limit.
+    pub unit: &'static str,
+    /// True when a larger value is worse (stresses, sizes); false for minimums (coils, clearances).
+    pub upper: bool,
+}
+
+impl Check {
+    /// value / limit for an upper bound, limit / value for a lower bound: ≤ 1 passes.
+    pub fn ratio(&self) -> f64 {
+        if self.upper { self.value / self.limit } else { self.limit / self.value.max(1e-300) }
+    }
+}
+
+/// The limit no spring meets: the best candidate's worst check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Limit {
+    /// The check the best candidate fails.
+    pub check: Check,
+    /// The best candidate in words (`d = 8 mm, D = 64 mm, n = 7.7`).
+    pub best: String,
+    /// The largest torque on x (N·m) the element could carry with a part that passes (the
+    /// parts stage finds it by bisection on the element's stiffness); None when no stiffness
+    /// gets a part (a geometric limit) or the element is no fit candidate (trims, cams).
+    pub torque_bound: Option<f64>,
+}
+
+/// The spring of a part.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Spring {
+    /// A helical torsion spring.
+    Torsion(TorsionSpring),
+    /// A helical extension spring with its initial tension F₀ (N).
+    Extension(HelicalSpring, f64),
+    /// A helical compression spring with its free length L₀ (mm).
+    Compression(HelicalSpring, f64),
+    /// A leaf: thickness t, width b and clamp positions (free lengths, mm) for the rate range
+    /// and at mid-range.
+    Leaf { t: f64, b: f64, lengths: [f64; 3], lowest_rate: f64 },
+}
+
+impl Spring {
+    /// `torsion`, `extension`, `compression` or `leaf`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Spring::Torsion(_) => "torsion",
+            Spring::Extension(..) => "extension",
+            Spring::Compression(..) => "compression",
+            Spring::Leaf { .. } => "leaf",
+        }
+    }
+
+    /// Wire diameter (leaf: thickness), mm.
+    pub fn d(&self) -> f64 {
+        match self {
+            Spring::Torsion(s) => s.d,
+            Spring::Extension(s, _) | Spring::Compression(s, _) => s.d,
+            Spring::Leaf { t, .. } => *t,
+        }
+    }
+
+    /// Mean coil diameter (leaf: width), mm.
+    pub fn dm(&self) -> f64 {
+        match self {
+            Spring::Torsion(s) => s.dm,
+            Spring::Extension(s, _) | Spring::Compression(s, _) => s.dm,
+            Spring::Leaf { b, .. } => *b,
+        }
+    }
+
+    /// Active coils (leaf: none).
+    pub fn coils(&self) -> Option<f64> {
+        match self {
+            Spring::Torsion(s) => Some(s.n),
+            Spring::Extension(s, _) | Spring::Compression(s, _) => Some(s.n),
+            Spring::Leaf { .. } => None,
+        }
+    }
+
+    /// The spring's own rate in the maker's unit (N·mm/° torsion, N/mm otherwise) and the unit.
+    pub fn maker_rate(&self) -> (f64, &'static str) {
+        match self {
+            Spring::Torsion(s) => (s.rate_per_degree(), "N*mm/deg"),
+            Spring::Extension(s, _) | Spring::Compression(s, _) => (s.rate(), "N/mm"),
+            Spring::Leaf { t, b, lengths, .. } => (strip().e * b * t.powi(3) / (4.0 * lengths[2].powi(3)), "N/mm"),
+        }
+    }
+
+    /// The material's name.
+    pub fn material(&self) -> &'static str {
+        match self {
+            Spring::Torsion(s) => s.material.key,
+            Spring::Extension(s, _) | Spring::Compression(s, _) => s.material.key,
+            Spring::Leaf { .. } => strip().key,
+        }
+    }
+}
+
+/// A working point of a part: where it is and what it carries.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkingPoint {
+    /// `q_eq`, `range low`, `range high`.
+    pub at: &'static str,
+    /// Wind angle (°) of a torsion spring, length (mm) of a helical spring, tip deflection
+    /// (mm) of a leaf.
+    pub position: f64,
+    /// Torque (N·mm) or force (N).
+    pub load: f64,
+}
+
+/// How the spring is mounted and its geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Mechanism {
+    /// Two equal torsion springs wound against each other; each is wound `preload` rad at
+    /// x = x₀ and the pair's rate is twice one spring's.
+    TorsionPair { preload: f64 },
+    /// A torsion spring engaged for x − x₀ of the sign `plus` (true: x > x₀).
+    TorsionStop { plus: bool },
+    /// A crank of radius `r` and an anchor at `big_r` (mm) with fairlead rollers of radius
+    /// `pulley`; the spring's extension is the cable path less F₀/k_s. The pin sits `phase` rad
+    /// ahead of x₀ (set at assembly, with the spring's rate, so that the realised torque and
+    /// stiffness at q_eq are the fitted element's).
+    Crank { r: f64, big_r: f64, pulley: f64, phase: f64 },
+    /// A leaf on a lever of radius `lever` (mm) geared `gear` : 1 down from x.
+    Leaf { lever: f64, gear: f64 },
+    /// A cam's follower spring.
+    Follower,
+}
+
+/// A realised element: its mechanism, the spring to order (and how many), its figures and checks.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Part {
+    /// The mechanism and its geometry.
+    pub mechanism: Mechanism,
+    /// The spring.
+    pub spring: Spring,
+    /// How many of it (2 for a torsion pair).
+    pub quantity: usize,
+    /// The element's realised rate in the fit's unit (N·m/rad; N·m for a crank: k_s r R).
+    pub realised_rate: f64,
+    /// Working points.
+    pub points: Vec<WorkingPoint>,
+    /// Every check with its utilisation.
+    pub checks: Vec<Check>,
+    /// EN 15800 rate tolerance of the grade (± fraction).
+    pub tolerance: f64,
+    /// Mass of the springs, kg.
+    pub mass: f64,
+    /// Fatigue life at the swing, cycles (10⁸ and above reported as 10⁸).
+    pub life: f64,
+}
+
+impl Part {
+    /// The worst utilisation among the checks.
+    pub fn worst(&self) -> f64 {
+        self.checks.iter().map(Check::ratio).fold(0.0, f64::max)
+    }
+
+    /// The potential of the mechanism on x at deflection d = x − x₀: (U in J, dU/dx in N·m,
+    /// d²U/dx² in N·m/rad). For the crank this is the cable geometry's, not k (1 − cos d).
+    pub fn potential(&self, d: f64) -> (f64, f64, f64) {
+        let k = self.realised_rate;
+        match self.mechanism {
+            Mechanism::TorsionPair { .. } | Mechanism::Leaf { .. } | Mechanism::Follower => (0.5 * k * d * d, k * d, k),
+            Mechanism::TorsionStop { plus } => {
+                let e = if plus { d.max(0.0) } else { d.min(0.0) };
+                (0.5 * k * e * e, k * e, if e != 0.0 { k } else { 0.0 })
+            }
+            Mechanism::Crank { r, big_r, pulley, phase } => {
+                let ks = k * 1000.0 / (r * big_r);
+                let u = |d: f64| 0.5 * ks * cable_path(r, big_r, pulley, d - phase).powi(2) / 1000.0;
+                let h = 1e-4;
+                let (um, u0, up) = (u(d - h), u(d), u(d + h));
+                // The constant ½k_s (R − r)² is dropped so that U(0) ≈ 0 like k (1 − cos d).
+                let base = 0.5 * ks * (big_r - r).powi(2) / 1000.0;
+                (u0 - base, (up - um) / (2.0 * h), (up - 2.0 * u0 + um) / (h * h))
+            }
+        }
+    }
+}
+
+/// Length of the cable from the crank pin at angle `d` (radius `r`) to where it leaves the
+/// fairlead at distance `big_r`, over the roller (radius `pulley`) on the side the pin is on, mm.
+/// With `pulley` = 0 it is the distance |P − A| of the ideal zero-free-length spring.
+pub fn cable_path(r: f64, big_r: f64, pulley: f64, d: f64) -> f64 {
+    let (px, py) = (r * d.cos(), (r * d.sin()).abs());
+    if pulley <= 0.0 {
+        return (px - big_r).hypot(py);
+    }
+    // The roller above the exit line (the lower one by symmetry); the cable leaves its bottom
+    // point heading outwards, running counter-clockwise round it.
+    let (vx, vy) = (px - big_r, py - pulley);
+    let dist = vx.hypot(vy).max(pulley * (1.0 + 1e-12));
+    let phi = vy.atan2(vx).rem_euclid(2.0 * PI);
+    let wrap = 1.5 * PI - phi - (pulley / dist).acos();
+    (dist * dist - pulley * pulley).sqrt() + pulley * wrap
+}
+
+/// The best candidate of a search: the lightest part that passes, else the one closest to passing.
+struct Search {
+    best_pass: Option<Part>,
+    best_fail: Option<(f64, Part, String)>,
+}
+
+impl Search {
+    fn new() -> Search {
+        Search { best_pass: None, best_fail: None }
+    }
+
+    /// Offers the candidate `build` makes, of spring mass `mass`: skipped unbuilt when a lighter
+    /// part already passes (most of a search, as sizes grow), which keeps it fast.
+    fn consider(&mut self, mass: f64, build: impl FnOnce() -> Part, describe: impl FnOnce() -> String) {
+        if self.best_pass.as_ref().is_some_and(|b| mass >= b.mass) {
+            return;
+        }
+        self.offer(build(), describe);
+    }
+
+    fn offer(&mut self, part: Part, describe: impl FnOnce() -> String) {
+        let worst = part.worst();
+        if worst <= 1.0 {
+            if self.best_pass.as_ref().is_none_or(|b| part.mass < b.mass) {
+                self.best_pass = Some(part);
+            }
+        } else if self.best_fail.as_ref().is_none_or(|b| worst < b.0) {
+            self.best_fail = Some((worst, part, describe()));
+        }
+    }
+
+    /// The part, or the limit.
+    fn finish(self) -> Result<Part, Limit> {
+        if let Some(p) = self.best_pass {
+            return Ok(p);
+        }
+        let Some((_, part, best)) = self.best_fail else {
+            return Err(Limit {
+                check: Check { name: "wire size", value: 0.0, limit: 0.0, unit: "mm", upper: true },
+                best: "no wire size of the material gives the rate".into(),
+                torque_bound: None,
+            });
+        };
+        let check =
+            part.checks.iter().max_by(|a, b| a.ratio().total_cmp(&b.ratio())).cloned().expect("a part has checks");
+        Err(Limit { torque_bound: None, check, best })
+    }
+}
+
+fn upper(name: &'static str, value: f64, limit: f64, unit: &'static str) -> Check {
+    Check { name, value, limit, unit, upper: true }
+}
+
+fn lower(name: &'static str, value: f64, limit: f64, unit: &'static str) -> Check {
+    Check { name, value, limit, unit, upper: false }
+}
+
+/// The checks every torsion spring gets at wind angles `wind` (rad: at q_eq, over the range, and
+/// the swing's two ends) under torques `rate · wind`.
+fn torsion_checks(s: &TorsionSpring, wind: [f64; 2], swing: [f64; 2], req: &Requirements) -> (Vec<Check>, f64) {
+    let k = s.rate();
+    let rm = s.rm();
+    let stress = s.stress(k * wind[1]) * req.safety;
+    let (lo, hi) = (s.stress(k * swing[0]), s.stress(k * swing[1]));
+    let fatigue = Loading::Bending.goodman(rm, lo, hi, req.cycles) * req.safety;
+    let life = Loading::Bending.life(rm, lo, hi, 1.0 / req.safety);
+    let checks = vec![
+        lower("active coils", s.n, MIN_COILS, "coils"),
+        upper("static stress", stress, s.allowed(), "MPa"),
+        upper("fatigue (Goodman)", fatigue, 1.0, "utilisation"),
+        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+        upper("body length wound", s.body_length(wind[1]), req.max_length, "mm"),
+        lower("arbor clearance: shaft / arbor allowed when wound", s.arbor(wind[1]), req.shaft_diameter, "mm"),
+    ];
+    (checks, life)
+}
+
+/// Searches torsion springs of rate `rate` (N·mm/rad), `quantity` of them, wound `wind` =
+/// [least, most] rad over the region and `swing` over the scenarios.
+fn torsion(
+    rate: f64,
+    quantity: f64,
+    wind: [f64; 2],
+    swing: [f64; 2],
+    req: &Requirements,
+    build: impl Fn(TorsionSpring, Vec<Check>, f64) -> Part,
+) -> Search {
+    let mut search = Search::new();
+    for d in req.material.sizes() {
+        for w in indices() {
+            let dm = w * d;
+            let n = req.material.e * d.powi(4) / (64.0 * dm * rate);
+            if !(0.5..=400.0).contains(&n) {
+                continue;
+            }
+            let s = TorsionSpring { material: req.material, d, dm, n, leg: dm };
+            search.consider(
+                quantity * s.mass(),
+                || {
+                    let (checks, life) = torsion_checks(&s, wind, swing, req);
+                    build(s, checks, life)
+                },
+                || format!("d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+            );
+        }
+    }
+    search
+}
+
+fn tolerance_of_torsion(s: &TorsionSpring, torque: f64, grade: u8) -> f64 {
+    // EN 15800 is written for compression springs: applied at the force on the leg's mean radius.
+    rate_tolerance(s.d, s.dm, s.n, torque / (0.5 * s.dm), grade)
+}
+
+/// A linear element of rate `k` (N·m/rad): two torsion springs of k/2 against each other.
+pub fn linear(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let reach = duty.range[0].abs().max(duty.range[1].abs());
+    // Each spring is wound by the preload ± d and must never unwind to its free position.
+    let preload = reach * 1.1 + 0.05;
+    let rate = 0.5 * k * 1000.0;
+    let wind = [preload - reach, preload + reach];
+    let sw = duty.swing[0].abs().max(duty.swing[1].abs());
+    let swing = [preload - sw, preload + sw];
+    let search = torsion(rate, 2.0, wind, swing, req, |s, checks, life| {
+        let r = s.rate();
+        let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+            .into_iter()
+            .map(|(at, d)| WorkingPoint { at, position: (preload + d).to_degrees(), load: r * (preload + d) })
+            .collect();
+        Part {
+            mechanism: Mechanism::TorsionPair { preload },
+            spring: Spring::Torsion(s),
+            quantity: 2,
+            realised_rate: 2.0 * r / 1000.0,
+            points,
+            tolerance: tolerance_of_torsion(&s, r * wind[1], req.grade),
+            mass: 2.0 * s.mass(),
+            checks,
+            life,
+        }
+    });
+    search.finish()
+}
+
+/// A one-sided compression element of rate `k` (N·m/rad) engaged on side `plus`: a torsion
+/// spring against a leg stop.
+pub fn stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let engaged = |d: f64| if plus { d.max(0.0) } else { (-d).max(0.0) };
+    let wind = [engaged(duty.range[0]).min(engaged(duty.range[1])), engaged(duty.range[0]).max(engaged(duty.range[1]))];
+    // The range may straddle x₀: the least wind is then 0.
+    let wind = if duty.range[0] < 0.0 && duty.range[1] > 0.0 { [0.0, wind[1]] } else { wind };
+    let sw = [engaged(duty.swing[0]), engaged(duty.swing[1])];
+    let swing = if duty.swing[0] < 0.0 && duty.swing[1] > 0.0 {
+        [0.0, sw[0].max(sw[1])]
+    } else {
+        [sw[0].min(sw[1]), sw[0].max(sw[1])]
+    };
+    let rate = k * 1000.0;
+    let search = torsion(rate, 1.0, wind, swing, req, |s, checks, life| {
+        let r = s.rate();
+        let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+            .into_iter()
+            .map(|(at, d)| WorkingPoint { at, position: engaged(d).to_degrees(), load: r * engaged(d) })
+            .collect();
+        Part {
+            mechanism: Mechanism::TorsionStop { plus },
+            spring: Spring::Torsion(s),
+            quantity: 1,
+            realised_rate: r / 1000.0,
+            points,
+            tolerance: tolerance_of_torsion(&s, r * wind[1].max(1e-3), req.grade),
+            mass: s.mass(),
+            checks,
+            life,
+        }
+    });
+    search.finish()
+}
+
+/// Smallest and largest of `f` over [a, b] (sampled, with the ends).
+fn extremes(a: f64, b: f64, f: impl Fn(f64) -> f64) -> [f64; 2] {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..=400 {
+        let v = f(a + (b - a) * i as f64 / 400.0);
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    [lo, hi]
+}
+
+/// A crank of stiffness `k` (N·m): an extension spring of rate k_s = k/(r R) on a cable.
+pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let mut search = Search::new();
+    let pulley = req.pulley_radius;
+    for &r in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
+        for &ratio in ANCHOR_RATIOS {
+            let big_r = ratio * r;
+            if big_r - r < 2.0 * pulley + 2.0 {
+                continue;
+            }
+            let (phase, scale) = compensate(k, r, big_r, pulley, duty.at_eq);
+            let ks = scale * k * 1000.0 / (r * big_r);
+            let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
+            let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
+            let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+            for d in req.material.sizes() {
+                for w in indices() {
+                    let dm = w * d;
+                    let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * ks);
+                    if !(0.5..=400.0).contains(&n) {
+                        continue;
+                    }
+                    let s = HelicalSpring { material: req.material, d, dm, n };
+                    search.consider(
+                        s.mass(),
+                        || {
+                            let f0 = s.initial_tension();
+                            // Extension beyond the free length: the cable path less F₀/k_s.
+                            let extension = lmax - f0 / ks;
+                            let rm = s.rm();
+                            let fmax = ks * lmax;
+                            let life =
+                                Loading::Shear.life(rm, s.stress(ks * smin), s.stress(ks * smax), 1.0 / req.safety);
+                            let checks = vec![
+                                lower("active coils", n, MIN_COILS + 1.0, "coils"),
+                                upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
+                                upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
+                                upper(
+                                    "fatigue (Goodman)",
+                                    Loading::Shear.goodman(rm, s.stress(ks * smin), s.stress(ks * smax), req.cycles)
+                                        * req.safety,
+                                    1.0,
+                                    "utilisation",
+                                ),
+                                upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+                                upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
+                                upper("crank radius", r, req.max_lever, "mm"),
+                            ];
+                            let points =
+                                [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+                                    .into_iter()
+                                    .map(|(at, d)| WorkingPoint {
+                                        at,
+                                        position: s.extension_free_length() + path(d) - f0 / ks,
+                                        load: ks * path(d),
+                                    })
+                                    .collect();
+                            Part {
+                                mechanism: Mechanism::Crank { r, big_r, pulley, phase },
+                                spring: Spring::Extension(s, f0),
+                                quantity: 1,
+                                realised_rate: s.rate() * r * big_r / 1000.0,
+                                points,
+                                checks,
+                                tolerance: rate_tolerance(d, dm, n, fmax, req.grade),
+                                mass: s.mass(),
+                                life,
+                            }
+                        },
+                        || format!("r = {r} mm, R = {big_r} mm, d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+                    );
+                }
+            }
+        }
+    }
+    search.finish()
+}
+
+/// The pin's phase δ and the rate factor s that make the crank's cable geometry give the fitted
+/// element's torque k sin d and stiffness k cos d at the equilibrium deflection `at_eq`: the
+/// rollers bend the cable, so the realised torque s k_s ℓ(d − δ) ℓ′(d − δ) differs a little
+/// from k sin d, and without this the equilibrium would move (the elements' preloads, which
+/// cancel at q_eq, no longer would). Solved by Newton on δ (finite differences), then s.
+fn compensate(k: f64, r: f64, big_r: f64, pulley: f64, at_eq: f64) -> (f64, f64) {
+    if pulley <= 0.0 {
+        return (0.0, 1.0);
+    }
+    let ks = k * 1000.0 / (r * big_r);
+    let h = 1e-5;
+    let length = |d: f64| cable_path(r, big_r, pulley, d);
+    let torque = |d: f64| ks * length(d) * (length(d + h) - length(d - h)) / (2.0 * h) / 1000.0;
+    let stiffness = |d: f64| (torque(d + h) - torque(d - h)) / (2.0 * h);
+    let (t, c) = (k * at_eq.sin(), k * at_eq.cos());
+    // g(δ) = 0 ⇔ the torque/stiffness ratio at d − δ is the ideal one.
+    let g = |delta: f64| torque(at_eq - delta) * c - stiffness(at_eq - delta) * t;
+    let mut delta = 0.0;
+    for _ in 0..30 {
+        let slope = (g(delta + 1e-4) - g(delta - 1e-4)) / 2e-4;
+        if slope == 0.0 || !slope.is_finite() {
+            break;
+        }
+        let step = g(delta) / slope;
+        delta -= step.clamp(-0.05, 0.05);
+        if step.abs() < 1e-12 {
+            break;
+        }
+    }
+    let scale = if t.abs() > c.abs() { t / torque(at_eq - delta) } else { c / stiffness(at_eq - delta) };
+    if delta.is_finite() && scale.is_finite() && scale > 0.0 { (delta, scale) } else { (0.0, 1.0) }
+}
+
+/// A trim of rates `range` (N·m/rad) set at `mid` (N·m/rad): a leaf spring in a sliding clamp.
+pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let m = strip();
+    let reach = duty.range[0].abs().max(duty.range[1].abs()).max(1e-3);
+    let gear = (reach / LEAF_LEVER_ANGLE).max(1.0);
+    let hi = range[1].max(mid) * 1000.0;
+    let mut search = Search::new();
+    for &lever in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
+        for t in m.sizes() {
+            for b in [10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0] {
+                // Rate on x: E b t³ r² / (4 L³ g²) (N·mm/rad), so L at a rate k is:
+                let length = |k: f64| (m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * k)).cbrt();
+                let shortest = length(hi);
+                let longest = if range[0] > 0.0 { length(range[0] * 1000.0) } else { f64::INFINITY };
+                let travel_end = longest.min(req.max_length);
+                let lowest = m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * travel_end.powi(3)) / 1000.0;
+                let tip = lever * reach / gear;
+                let sigma = |l: f64, delta: f64| 1.5 * m.e * t * delta / (l * l);
+                let rm = m.tensile_strength(t).unwrap_or(0.0);
+                let tip_swing = lever * duty.swing[0].abs().max(duty.swing[1].abs()) / gear;
+                let mid_length = length(mid.max(lowest) * 1000.0);
+                // Static at the shortest setting; fatigue at mid-range, where the trim is drawn
+                // (a build moves it by a fraction of the range).
+                let swing_stress = sigma(mid_length, tip_swing);
+                let mut checks = vec![
+                    upper("static stress", sigma(shortest, tip) * req.safety, 0.7 * rm, "MPa"),
+                    upper(
+                        "fatigue (Goodman)",
+                        Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles) * req.safety,
+                        1.0,
+                        "utilisation",
+                    ),
+                    lower("leaf length / thickness at the highest rate", shortest / t, 10.0, ""),
+                    upper("leaf width", b, req.max_outer_diameter, "mm"),
+                ];
+                if range[0] > 0.0 {
+                    checks.push(upper("clamp travel to the lowest rate", longest, req.max_length, "mm"));
+                }
+                let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety);
+                let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+                    .into_iter()
+                    .map(|(at, d)| {
+                        let delta = lever * d / gear;
+                        WorkingPoint {
+                            at,
+                            position: delta,
+                            load: 3.0 * m.e * b * t.powi(3) / 12.0 * delta / mid_length.powi(3),
+                        }
+                    })
+                    .collect();
+                let part = Part {
+                    mechanism: Mechanism::Leaf { lever, gear },
+                    spring: Spring::Leaf { t, b, lengths: [shortest, travel_end, mid_length], lowest_rate: lowest },
+                    quantity: 1,
+                    realised_rate: mid,
+                    points,
+                    checks,
+                    // The clamp is set on the built arm: the leaf's own tolerance is tuned out.
+                    tolerance: 0.0,
+                    mass: m.density * b * t * (travel_end + 20.0) * 1e-9,
+                    life,
+                };
+                search.offer(part, || format!("lever {lever} mm, gear {gear:.2}, t = {t} mm, b = {b} mm"));
+            }
+        }
+    }
+    search.finish()
+}
+
+/// A cam follower's compression springs: rate `rate` (N/mm) shared by one to four equal springs
+/// round the stem, preload `preload` (mm) at the base circle and the cam's largest `stroke` (mm).
+pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Result<Part, Limit> {
+    let mut search = Search::new();
+    // Up to four equal springs side by side round the follower's stem share the rate.
+    for quantity in 1..=4usize {
+        let q = quantity as f64;
+        let rate = rate / q;
+        let (f1, f2) = (rate * preload, rate * (preload + stroke));
+        for d in req.material.sizes() {
+            for w in indices() {
+                let dm = w * d;
+                let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
+                if !(0.5..=400.0).contains(&n) {
+                    continue;
+                }
+                let s = HelicalSpring { material: req.material, d, dm, n };
+                search.consider(
+                    q * s.mass(),
+                    || {
+                        let l0 = s.solid_length() + s.min_gaps() + preload + stroke;
+                        let rm = s.rm();
+                        let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
+                        let checks = vec![
+                            lower("active coils", n, MIN_COILS, "coils"),
+                            upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
+                            upper(
+                                "fatigue (Goodman)",
+                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles) * req.safety,
+                                1.0,
+                                "utilisation",
+                            ),
+                            upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+                            upper("free length", l0, req.max_length, "mm"),
+                            lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
+                        ];
+                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety);
+                        let points = vec![
+                            WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
+                            WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
+                        ];
+                        Part {
+                            mechanism: Mechanism::Follower,
+                            spring: Spring::Compression(s, l0),
+                            quantity,
+                            realised_rate: q * s.rate(),
+                            points,
+                            checks,
+                            tolerance: rate_tolerance(d, dm, n, f2, req.grade),
+                            mass: q * s.mass(),
+                            life,
+                        }
+                    },
+                    || format!("{quantity} × d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+                );
+            }
+        }
+    }
+    search.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::realise::material::by_key;
+
+    fn req() -> Requirements {
+        Requirements {
+            material: by_key("EN10270-1-SM").unwrap(),
+            grade: 2,
+            cycles: 1e6,
+            safety: 1.1,
+            max_outer_diameter: 120.0,
+            max_length: 400.0,
+            max_lever: 100.0,
+            shaft_diameter: 10.0,
+            pulley_radius: 0.0,
+        }
+    }
+
+    /// Without rollers the cable is the straight line of the ideal zero-free-length spring, and
+    /// the realised crank potential is exactly k (1 − cos d) (the closed form of the design notes).
+    #[test]
+    fn crank_without_rollers_is_the_closed_form() {
+        let duty = Duty { at_eq: 0.4, range: [-2.5, 2.8], swing: [-1.0, 1.2] };
+        let part = crank(20.0, &duty, &req()).expect("a spring");
+        let Mechanism::Crank { r, big_r, .. } = part.mechanism else { panic!() };
+        let k = part.realised_rate;
+        for d in [-2.5, -1.0, 0.0, 0.3, 1.7, 2.8] {
+            let (u, t, c) = part.potential(d);
+            assert!((u - k * (1.0 - f64::cos(d))).abs() < 1e-9 * k, "U at {d}");
+            assert!((t - k * d.sin()).abs() < 1e-6 * k, "torque at {d}: {t} vs {}", k * d.sin());
+            assert!((c - k * d.cos()).abs() < 1e-3 * k, "stiffness at {d}");
+        }
+        assert!((k / 20.0 - 1.0).abs() < 1e-12 && r < big_r);
+        assert!(part.worst() <= 1.0);
+    }
+
+    /// With rollers the pin's phase and the spring's rate are set so that the realised torque
+    /// and stiffness at the equilibrium deflection are k sin d and k cos d, the fitted element's.
+    #[test]
+    fn a_crank_over_rollers_keeps_the_torque_and_stiffness_at_the_equilibrium() {
+        let duty = Duty { at_eq: -1.1, range: [-3.0, 2.0], swing: [-2.0, 0.5] };
+        let part = crank(15.0, &duty, &Requirements { pulley_radius: 5.0, ..req() }).expect("a spring");
+        let Mechanism::Crank { phase, .. } = part.mechanism else { panic!() };
+        assert!(phase != 0.0 && phase.abs() < 0.05, "{phase}");
+        let (_, t, c) = part.potential(duty.at_eq);
+        assert!((t - 15.0 * duty.at_eq.sin()).abs() < 1e-6 * 15.0, "{t}");
+        assert!((c - 15.0 * duty.at_eq.cos()).abs() < 1e-3 * 15.0, "{c}");
+        // Elsewhere the rollers show: close to, not equal to, the ideal torque.
+        let (_, t2, _) = part.potential(1.5);
+        let err = (t2 - 15.0 * 1.5f64.sin()).abs() / 15.0;
+        assert!(err > 1e-6 && err < 0.02, "{err}");
+    }
+
+    /// Rollers of radius ρ: the path is continuous across the exit line, equals the straight
+    /// line there, and its derivative matches finite differences on either side.
+    #[test]
+    fn cable_over_rollers() {
+        let (r, big_r, rho) = (40.0, 100.0, 8.0);
+        assert!((cable_path(r, big_r, rho, 0.0) - 60.0).abs() < 1e-9);
+        assert!((cable_path(r, big_r, rho, PI) - 140.0).abs() < 1e-9);
+        let h = 1e-7;
+        let slope = |d: f64| (cable_path(r, big_r, rho, d + h) - cable_path(r, big_r, rho, d - h)) / (2.0 * h);
+        assert!(slope(1e-5).abs() < 1e-3 && (slope(1e-5) + slope(-1e-5)).abs() < 1e-9);
+        // Longer than the straight line (the cable bends round the roller the line would cut),
+        // by less than half the roller's circumference.
+        for d in [0.5, 1.5, 2.5] {
+            let straight = cable_path(r, big_r, 0.0, d);
+            let over = cable_path(r, big_r, rho, d);
+            assert!(over > straight && over < straight + rho * PI, "{d}: {over} vs {straight}");
+        }
+    }
+
+    /// A torsion pair and a stop give their rate, and a torque too large for any wire in the
+    /// envelope is refused with the stress limit and the largest torque that would fit.
+    #[test]
+    fn torsion_parts_and_their_limit() {
+        let duty = Duty { at_eq: 0.0, range: [-0.8, 0.9], swing: [-0.5, 0.5] };
+        let pair = linear(5.0, &duty, &req()).unwrap();
+        assert!((pair.realised_rate / 5.0 - 1.0).abs() < 1e-12);
+        let Spring::Torsion(s) = pair.spring else { panic!() };
+        assert!((2.0 * s.rate() / 5000.0 - 1.0).abs() < 1e-12);
+        let stop = stop(3.0, true, &duty, &req()).unwrap();
+        assert_eq!(stop.potential(-0.3), (0.0, 0.0, 0.0));
+        let small = Requirements { max_outer_diameter: 30.0, ..req() };
+        let err = super::stop(400.0, true, &duty, &small).unwrap_err();
+        assert_eq!(err.check.name, "outer diameter", "{err:?}");
+        assert!(err.check.ratio() > 1.0 && err.best.contains("d = "), "{err:?}");
+    }
+}

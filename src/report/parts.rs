@@ -1,0 +1,59 @@
+//! The files of the parts stage, written by `springfit parts` and by `fit` into its folder:
+//! `parts.csv`, `parts.md` (the request for quotation) and a sketch per mechanism.
+
+use serde::Serialize;
+
+use super::output::OutputDir;
+use crate::design::Design;
+use crate::error::Result;
+use crate::parts::Parts;
+use crate::residual::AngleStats;
+
+/// The names the parts stage may write.
+pub const FILES: &[&str] = &["parts.csv", "parts.md", "sketch_*.svg"];
+
+/// What `summary.json` says of the realised design (`realised`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RealisedSummary {
+    /// Residual angles with each mechanism's own potential in place of the ideal element.
+    pub residual_deg: AngleStats,
+    /// p99 and max of the realised design less the ideal one's, degrees.
+    pub p99_change_deg: f64,
+    pub max_change_deg: f64,
+    /// Elements with a part, and the ids of those without.
+    pub parts: usize,
+    pub missing: Vec<String>,
+    /// Parts ordered from a stock list.
+    pub stock_parts: usize,
+    /// Total mass of the springs, kg.
+    pub spring_mass_kg: f64,
+}
+
+impl RealisedSummary {
+    /// The summary of `parts`.
+    pub fn new(parts: &Parts) -> RealisedSummary {
+        RealisedSummary {
+            residual_deg: parts.realised,
+            p99_change_deg: parts.realised.p99_abs - parts.ideal.p99_abs,
+            max_change_deg: parts.realised.max_abs - parts.ideal.max_abs,
+            parts: parts.elements.iter().filter(|e| e.part.is_ok()).count(),
+            missing: parts.missing().map(|(e, _)| e.id.clone()).collect(),
+            stock_parts: parts.elements.iter().filter(|e| e.stock.is_some()).count(),
+            spring_mass_kg: parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum(),
+        }
+    }
+}
+
+/// Writes `parts.csv`, `parts.md` and the sketches into `out`.
+pub fn write(out: &OutputDir, design: &Design, parts: &Parts) -> Result<()> {
+    let s = &design.file.parts;
+    out.write("parts.csv", crate::files::parts::csv(parts, s.grade, s.safety_factor))?;
+    out.write("parts.md", crate::files::parts::markdown(&design.name, parts, s))?;
+    for e in &parts.elements {
+        if let Ok(p) = &e.part {
+            let title = format!("{} {}: {}", design.name, e.id, crate::parts::on_axis(&e.element.coupling));
+            out.write(&format!("sketch_{}.svg", e.id), crate::realise::sketch::svg(p, &title))?;
+        }
+    }
+    Ok(())
+}

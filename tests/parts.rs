@@ -1,0 +1,280 @@
+//! Parts: the spring calculations against a textbook's worked examples, the stock list, a design
+//! whose element needs an impossible spring (the named limit and the `[fit]` bound that keeps a
+//! part possible), and bad input.
+
+mod util;
+
+use springfit::design::Design;
+use springfit::elements::catalog::Catalog;
+use springfit::realise::material::{Material, Strength, by_key};
+use springfit::realise::mechanism::{self, Duty, Mechanism, Requirements, cable_path};
+use springfit::realise::spring::{HelicalSpring, TorsionSpring, shear_k};
+use util::{design_text_anywhere, repo, springfit, temp_dir, write};
+
+/// A material with a textbook's moduli (the examples state E and G, not a wire standard).
+fn textbook(e: f64, g: f64) -> &'static Material {
+    Box::leak(Box::new(Material {
+        key: "textbook",
+        name: "as the example states",
+        e,
+        g,
+        density: 7850.0,
+        strength: Strength::Constant { rm: 1000.0, sizes: &[1.0] },
+        source: "the example",
+    }))
+}
+
+/// V. B. Bhandari, *Design of Machine Elements* (3rd ed.), Example 10.19 (a composite spring,
+/// as worked in FOSSEE's Scilab Textbook Companion, CH10/EX10.19): outer spring d = 6 mm,
+/// D = 36 mm, 10 active coils, inner d = 5 mm, D = 30 mm, 8 coils, G = 81370 N/mm²; the book finds
+/// the outer spring carries 706.021 N at 24.989 mm, the inner 293.979 N at 9.989 mm, and the
+/// outer's stress 375.305 N/mm² with Wahl's factor (4C − 1)/(4C − 4) + 0.615/C.
+#[test]
+fn compression_springs_against_bhandari_example_10_19() {
+    let m = textbook(207_000.0, 81_370.0);
+    let outer = HelicalSpring { material: m, d: 6.0, dm: 36.0, n: 10.0 };
+    let inner = HelicalSpring { material: m, d: 5.0, dm: 30.0, n: 8.0 };
+    let close = |a: f64, b: f64| (a / b - 1.0).abs() < 2e-5;
+    assert!(close(outer.rate(), 706.021471 / 24.988839), "{}", outer.rate());
+    assert!(close(inner.rate(), 293.978529 / 9.988839), "{}", inner.rate());
+    // Our stress uses EN 13906's k; with the book's factor in its place it is the book's figure.
+    let c: f64 = 6.0;
+    let wahl = (4.0 * c - 1.0) / (4.0 * c - 4.0) + 0.615 / c;
+    let tau = outer.stress(706.021471) / shear_k(c) * wahl;
+    assert!((tau - 375.305136).abs() < 1e-3, "{tau}");
+}
+
+/// Bhandari, Example 10.21 (a helical torsion spring, FOSSEE CH10/EX10.21): D = 18 mm,
+/// E = 207000 N/mm², a rate of 3 N·mm/rad with d = 1.6 mm takes 393 active coils (392.5 rounded
+/// up), from the same E d⁴ / (64 D n) as EN 13906-3.
+#[test]
+fn torsion_spring_against_bhandari_example_10_21() {
+    let m = textbook(207_000.0, 81_370.0);
+    let exact = TorsionSpring { material: m, d: 1.6, dm: 18.0, n: 1.0, leg: 0.0 }.rate() / 3.0;
+    assert!((exact - 392.53).abs() < 0.01, "{exact}");
+    let book = TorsionSpring { material: m, d: 1.6, dm: 18.0, n: 393.0, leg: 0.0 };
+    assert!((book.rate() / 3.0 - 1.0).abs() < 2e-3);
+}
+
+/// A vendor's catalogue: the stock torsion springs springfit ships in
+/// `catalogs/stock/springs_co_za_torsion.csv`, copied from springs.co.za's published table
+/// (music wire; d, outside diameter, arm length, approximate coils, the angular deflection and
+/// the torque at it). EN 13906-3's E d⁴ / (3667 D n) with music wire's E (196.5 GPa, the
+/// `ASTM-A228` row of the material table) gives T10110 (d = 0.35 mm, D = 4.9 mm, n = 6.55,
+/// 4.5 N·mm at 180°: 0.025 N·mm/°) to 0.22 %, T10150 to 0.22 %, the 90°, 270° and 360° springs
+/// of both wires to 1.00 % (the page's coil counts are "approximate") and the 0.51 mm T10180 to
+/// 1.6 %.
+#[test]
+fn a_vendors_torsion_springs_are_reproduced_from_their_geometry() {
+    let rows = springfit::files::stock::read(&repo().join("catalogs/stock/springs_co_za_torsion.csv")).unwrap();
+    assert_eq!(rows.len(), 9);
+    let music = by_key("ASTM-A228").unwrap();
+    let mut worst: f64 = 0.0;
+    for r in &rows {
+        assert!(r.source.starts_with("http://springs.co.za/"), "{}: {}", r.part_number, r.source);
+        let s = TorsionSpring { material: music, d: r.d, dm: r.dm, n: r.n, leg: r.length };
+        let err = s.rate_per_degree() / r.rate - 1.0;
+        if r.part_number == "T10110" || r.part_number == "T10150" {
+            assert!(err.abs() < 0.0025, "{}: {:+.3} %", r.part_number, 100.0 * err);
+        } else if r.d < 0.5 {
+            assert!(err.abs() < 0.0101, "{}: {:+.3} %", r.part_number, 100.0 * err);
+        }
+        worst = worst.max(err.abs());
+    }
+    assert!(worst < 0.017, "{worst}");
+}
+
+/// The crank's cable over a roller of radius ρ is the shortest path from the pin round the roller
+/// to where it leaves the fairlead (a straight run to the roller and an arc on it): found here
+/// by brute force over the point where the cable meets the roller, against `cable_path`'s
+/// closed form (tangent length + ρ × wrap angle). The realised crank's torque is the
+/// derivative of its potential, and without rollers the potential is the ideal
+/// k (1 − cos(x − x₀)) at every crank radius and anchor distance the search picks.
+#[test]
+fn the_realised_crank_against_its_closed_form() {
+    let (r, big_r, rho) = (30.0, 90.0, 5.0);
+    for d in [0.3f64, 1.0, 2.0, 2.9] {
+        let (px, py) = (r * d.cos(), r * d.sin());
+        // Roller centre C = (R, ρ); the cable leaves its lowest point (R, 0) heading outwards
+        // after running counter-clockwise round it from the point T(θ) where the straight run
+        // meets it. The run must not cut into the roller: T is visible from the pin,
+        // (T − C)·(P − C) ≥ ρ².
+        let (cx, cy) = (big_r, rho);
+        let brute = (0..=400_000)
+            .map(|i| -0.5 * std::f64::consts::PI + 2.0 * std::f64::consts::PI * f64::from(i) / 400_000.0)
+            .map(|t| (t, cx + rho * t.cos(), cy + rho * t.sin()))
+            .filter(|&(_, tx, ty)| (tx - cx) * (px - cx) + (ty - cy) * (py - cy) >= rho * rho)
+            .map(|(t, tx, ty)| (px - tx).hypot(py - ty) + rho * (1.5 * std::f64::consts::PI - t))
+            .fold(f64::INFINITY, f64::min);
+        let closed = cable_path(r, big_r, rho, d);
+        assert!((closed - brute).abs() < 1e-6 * closed, "{d}: {closed} vs {brute}");
+    }
+    let material = by_key("EN10270-1-SM").unwrap();
+    let req = |pulley: f64| Requirements {
+        material,
+        grade: 2,
+        cycles: 1e6,
+        safety: 1.1,
+        max_outer_diameter: 150.0,
+        max_length: 400.0,
+        max_lever: 100.0,
+        shaft_diameter: 12.0,
+        pulley_radius: pulley,
+    };
+    let duty = Duty { at_eq: -0.7, range: [-2.6, 1.9], swing: [-1.5, 0.4] };
+    for k in [4.0, 12.0, 30.0] {
+        let ideal = mechanism::crank(k, &duty, &req(0.0)).unwrap();
+        let Mechanism::Crank { r, big_r, .. } = ideal.mechanism else { panic!() };
+        for d in [-2.6, -0.7, 0.0, 1.2, 1.9] {
+            let (u, t, _) = ideal.potential(d);
+            assert!((u - k * (1.0 - f64::cos(d))).abs() < 1e-9 * k, "k {k}, r {r}, R {big_r}: U({d})");
+            assert!((t - k * d.sin()).abs() < 1e-6 * k, "k {k}: torque at {d}");
+        }
+        let rollers = mechanism::crank(k, &duty, &req(5.0)).unwrap();
+        for d in [-2.0, 0.5, 1.5] {
+            let h = 1e-4;
+            let (um, _, _) = rollers.potential(d - h);
+            let (up, _, _) = rollers.potential(d + h);
+            let (_, t, _) = rollers.potential(d);
+            assert!(((up - um) / (2.0 * h) - t).abs() < 1e-5 * k, "k {k}: torque at {d}");
+            // The rollers lengthen the cable by a little: the torque stays within 3 % of k.
+            assert!((t - k * d.sin()).abs() < 0.03 * k, "k {k}: {t} vs {}", k * d.sin());
+        }
+    }
+}
+
+/// A small fit of the paper's design (fans and restarts reduced: the test checks the parts, not
+/// the fit's accuracy).
+fn quick_design(extra: &str) -> Design {
+    let text = design_text_anywhere("double_pendulum.toml")
+        .replace("tolerance = 0.05", "tolerance = \"none\"")
+        .replace("restarts = 16", "restarts = 0\ntraining_directions = 36\ntraining_samples = 20\nevaluation_directions = 36\nevaluation_samples = 20\nbuilds = 0\npair_swaps = false")
+        + extra;
+    Design::parse(&repo().join("designs/double_pendulum.toml"), &text).expect("the design parses")
+}
+
+fn parts_of(design: &Design) -> (springfit::fit::FitOutcome, springfit::parts::Parts) {
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    let o = springfit::fit::fit(design, &catalog, &design.fit, &|_| {}).unwrap();
+    let p = choose(design, &o);
+    (o, p)
+}
+
+/// The shipped envelope gives every element a part near the ideal; an envelope too small for the
+/// largest elements names each one's limit and a torque bound; fitted again with
+/// `[fit] max_element_torque` at the smallest bound, no element carries more, and no element
+/// fails by its load any more.
+#[test]
+fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible() {
+    // Ideal eyelets (no rollers): every mechanism's potential is then its element's, with the
+    // rate recomputed from the spring's geometry, so the realised residuals are the ideal ones.
+    let mut design = quick_design("");
+    design.file.parts.pulley_radius_mm = 0.0;
+    let (o, parts) = parts_of(&design);
+    let messages = |p: &springfit::parts::Parts| -> Vec<String> {
+        p.missing().map(|(e, l)| springfit::parts::limit_message(e, l)).collect()
+    };
+    assert_eq!(parts.missing().count(), 0, "{:?}", messages(&parts));
+    assert!((parts.realised.p99_abs - parts.ideal.p99_abs).abs() < 1e-6, "{:?} vs {:?}", parts.realised, parts.ideal);
+    assert!((parts.realised.max_abs - parts.ideal.max_abs).abs() < 1e-6);
+    for e in &parts.elements {
+        let p = e.part.as_ref().unwrap();
+        // Each spring's rate recomputed from its geometry is the fitted one within its grade.
+        assert!(
+            (p.realised_rate / e.stiffness - 1.0).abs() <= p.tolerance,
+            "{}: {} vs {}",
+            e.id,
+            p.realised_rate,
+            e.stiffness
+        );
+        assert!(p.worst() <= 1.0, "{}", e.id);
+    }
+    let mut small = design.clone();
+    small.file.parts.max_outer_diameter_mm = 40.0;
+    let tight = choose(&small, &o);
+    let failed: Vec<_> = tight.missing().collect();
+    assert!(!failed.is_empty(), "a 40 mm envelope is too small for the largest elements");
+    for (e, l) in &failed {
+        let m = springfit::parts::limit_message(e, l);
+        assert!(m.contains(&e.id) && m.contains(l.check.name) && l.check.ratio() > 1.0, "{m}");
+        assert_eq!(l.torque_bound.is_some(), m.contains("max_element_torque"), "{m}");
+    }
+    let bound = failed.iter().filter_map(|(_, l)| l.torque_bound).fold(f64::INFINITY, f64::min);
+    assert!(bound.is_finite(), "{:?}", messages(&tight));
+    let mut bounded = small.clone();
+    bounded.fit.max_element_torque = bound;
+    let (ob, pb) = parts_of(&bounded);
+    for r in ob.bom.iter().filter(|r| r.adjust.trim_range.is_none()) {
+        assert!(r.max_torque_nm <= bound * (1.0 + 1e-6), "{}: {} > {bound}", r.id, r.max_torque_nm);
+    }
+    assert!(pb.missing().all(|(_, l)| l.torque_bound.is_none()), "{:?}", messages(&pb));
+}
+
+fn choose(design: &Design, o: &springfit::fit::FitOutcome) -> springfit::parts::Parts {
+    springfit::parts::choose(design, &o.bom, &o.cams, &o.evaluation, o.settings.frequency, &[], Some(o.metrics.stats))
+        .unwrap()
+}
+
+/// Bad input, each one clear error naming the file and the field, before any work; a stock list
+/// round trip: a stock spring within the grade's tolerance is ordered by its part number.
+#[test]
+fn bad_parts_input_and_a_stock_part() {
+    let dir = temp_dir("parts");
+    let base = design_text_anywhere("double_pendulum_workshop.toml");
+    for (name, section, needles) in [
+        (
+            "material.toml",
+            "[parts]\nmaterial = \"unobtainium\"\n",
+            vec!["material.toml", "parts.material", "EN10270-1-SM"],
+        ),
+        ("grade.toml", "[parts]\ngrade = 4\n", vec!["grade.toml", "parts.grade", "1, 2 or 3"]),
+        ("nostock.toml", "[parts]\nstock = \"missing.csv\"\n", vec!["nostock.toml", "parts.stock", "missing.csv"]),
+    ] {
+        let design = write(&dir, name, &format!("{base}\n{section}"));
+        springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"]).fails(2, &needles);
+        assert!(!dir.join("out").exists());
+    }
+    let fixture = std::fs::read_to_string(repo().join("tests/data/stock_invented.csv")).unwrap();
+    write(&dir, "columns.csv", &fixture.replace(",max_load_unit", ""));
+    let design = write(&dir, "columns.toml", &format!("{base}\n[parts]\nstock = \"columns.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"]).fails(2, &["columns.csv", "max_load_unit"]);
+    write(&dir, "units.csv", &fixture.replace("4.2,N/mm", "4.2,lbf/in"));
+    let design = write(&dir, "units.toml", &format!("{base}\n[parts]\nstock = \"units.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
+        .fails(2, &["units.csv", "line 5: rate_unit", "lbf/in", "N/mm"]);
+    assert!(!dir.join("out").exists());
+    // An envelope no spring fits: exit 1, the limit named.
+    let design = write(&dir, "tiny.toml", &format!("{base}\n[parts]\nmax_outer_diameter_mm = 3.0\n"));
+    springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "fit"]).ok();
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--bom", "fit/bom.csv", "--out", "tiny"])
+        .fails(1, &["tiny.toml: [parts]", "no spring meets", "max_outer_diameter_mm"]);
+    // The shipped envelope: every element has a part; a stock row at 1 % off the first torsion
+    // spring's rate is ordered instead.
+    let design = write(&dir, "ok.toml", &base);
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--bom", "fit/bom.csv", "--out", "ok"]).ok();
+    let csv = std::fs::read_to_string(dir.join("ok/parts.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let row = csv
+        .lines()
+        .skip(1)
+        .map(|l| springfit::csv::split_csv_line(l).unwrap())
+        .find(|f| f[col("spring")] == "torsion")
+        .expect("a torsion spring");
+    let rate: f64 = row[col("rate_maker")].parse().unwrap();
+    let stock = format!(
+        "{}\nNobody,TEST-T-RT,torsion,EN10270-1-SM,{},{},{},20,{},N*mm/deg,720,deg,1e9,N*mm,invented for the tests\n",
+        springfit::files::stock::HEADER,
+        row[col("wire_d_mm")],
+        row[col("mean_D_mm")],
+        row[col("active_coils")],
+        rate * 1.01
+    );
+    write(&dir, "stock.csv", &stock);
+    let design = write(&dir, "stock.toml", &format!("{base}\n[parts]\nstock = \"stock.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--bom", "fit/bom.csv", "--out", "stock"]).ok();
+    let csv = std::fs::read_to_string(dir.join("stock/parts.csv")).unwrap();
+    assert!(csv.contains("TEST-T-RT"), "{csv}");
+    // The shipped fixture reads.
+    assert_eq!(springfit::files::stock::read(&repo().join("tests/data/stock_invented.csv")).unwrap().len(), 2);
+}
