@@ -6,7 +6,8 @@
 #
 # Checks, on the DOM as Chromium built it (--dump-dom): the number of inlined <svg> figures equals
 # the page's <meta name="springfit-figures">, every SVG file in the folder is one of them, and
-# every figure has drawn content. Writes a full-page screenshot (default OUT_DIR/report.png is NOT
+# every figure has drawn content; at 1200 px and at 500 px (a phone; the narrowest window headless Chromium draws) the page stays within the
+# window and no figure is shrunk below 3/4 of its size. Writes a full-page screenshot (default OUT_DIR/report.png is NOT
 # used, so the folder stays as springfit wrote it: /tmp/springfit-report-<folder>.png).
 # Exit 0 ok, 1 a missing figure, 2 usage or no browser.
 set -euo pipefail
@@ -46,6 +47,31 @@ if grep -q '<svg[^>]*>[[:space:]]*</svg>' "$dom"; then
   echo "render_report: $html: an empty <svg>" >&2
   status=1
 fi
+
+# Layout at a desktop width and at a phone width: the page itself must not run past the window
+# (wide tables and figures scroll inside their own boxes), and no figure may be drawn smaller than
+# 3/4 of its size (its text would be unreadable). A copy of the page with a measuring script is
+# rendered; the page as written stays script-free.
+probe=$(mktemp --suffix=.html)
+sed 's|</body>|<script>addEventListener("load",()=>{const w=innerWidth,d=document.documentElement.scrollWidth;let s=1;for(const g of document.querySelectorAll("figure.sf-figure svg")){const n=g.width.baseVal.value;if(n>0)s=Math.min(s,g.getBoundingClientRect().width/n)}document.body.setAttribute("data-layout",`width ${w} scroll ${d} scale ${s.toFixed(3)}`)})</script></body>|' "$html" >"$probe"
+for width in 1200 500; do
+  layout=$("$browser" "${flags[@]}" --window-size=$width,900 --dump-dom "file://$probe" 2>/dev/null |
+           sed -n 's/.*data-layout="\([^"]*\)".*/\1/p' | head -1)
+  read -r _ w _ d _ scale <<<"${layout:-width 0 scroll 0 scale 0}"
+  if [[ -z $layout ]]; then
+    echo "render_report: $html at $width px: the layout could not be measured" >&2
+    status=1
+  elif (( d > w )); then
+    echo "render_report: $html at $width px: the page is $d px wide, past the window's $w px" >&2
+    status=1
+  elif awk "BEGIN{exit !($scale < 0.75)}"; then
+    echo "render_report: $html at $width px: a figure is drawn at $scale of its size" >&2
+    status=1
+  else
+    echo "render_report: $html at $width px: fits (page $d px, figures at ≥ $scale of their size)"
+  fi
+done
+rm -f "$probe"
 
 # Full-page screenshot: the page height from the DOM is unknown to the CLI, so take a tall window.
 height=$(( 1500 + 1000 * expected ))

@@ -84,8 +84,35 @@ impl Serialize for Angle {
     }
 }
 
+/// `x` in scientific notation with `digits` decimals for messages and tables, reading as people
+/// write it: exact zero is `0` (not `0.000e0`), and no `-0`.
+pub fn sci(x: f64, digits: usize) -> String {
+    if x == 0.0 { "0".to_string() } else { format!("{x:.digits$e}") }
+}
+
+/// A residual angle in degrees for tables and legends: four decimals, or scientific notation
+/// below 0.001° (the exact potential's 1e-7° would read `0.0000°`, as if it were nothing).
+pub fn deg(x: f64) -> String {
+    if x != 0.0 && x.abs() < 1e-3 { format!("{}°", sci(x, 2)) } else { format!("{x:.4}°") }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn tiny_angles_keep_their_digits() {
+        assert_eq!(super::deg(0.38531), "0.3853°");
+        assert_eq!(super::deg(1.234e-7), "1.23e-7°");
+        assert_eq!(super::deg(0.0), "0.0000°");
+    }
+
+    #[test]
+    fn sci_reads_as_written() {
+        assert_eq!(super::sci(0.0, 3), "0");
+        assert_eq!(super::sci(-0.0, 3), "0");
+        assert_eq!(super::sci(4.45e-4, 2), "4.45e-4");
+        assert_eq!(super::sci(-12345.0, 1), "-1.2e4");
+    }
+
     use super::*;
     use std::f64::consts::PI;
 

@@ -153,3 +153,30 @@ fn tune_says_when_nothing_can_restore_the_equilibrium() {
     assert!(!t.equilibrium_restored);
     assert!(t.binding.iter().any(|b| b.contains("offset ranges of") && b.contains("bind")), "{:?}", t.binding);
 }
+
+/// A measured rate on a trim row is the arm before tuning (its Hessian mismatch grows when the
+/// trim is off), tune says so per trim, and the rates it sets do not depend on where it started.
+#[test]
+fn a_trims_measured_rate_is_where_tuning_starts() {
+    let (design, o) = fitted();
+    let trims: Vec<usize> = (0..o.bom.len()).filter(|&j| o.bom[j].adjust.trim_range.is_some()).collect();
+    assert!(!trims.is_empty(), "the design has trims");
+    let as_designed: Vec<Option<f64>> = o.bom.iter().map(|r| Some(r.stiffness)).collect();
+    let mut off = as_designed.clone();
+    for &j in &trims {
+        off[j] = Some(o.bom[j].stiffness * 1.5 + 1.0);
+    }
+    let a = springfit::asbuilt::tune::tune(&design, &o.bom, &as_designed).unwrap();
+    let b = springfit::asbuilt::tune::tune(&design, &o.bom, &off).unwrap();
+    assert!(
+        b.before.hessian_mismatch > 2.0 * a.before.hessian_mismatch + 1e-6,
+        "trims off by half: mismatch {} against {}",
+        b.before.hessian_mismatch,
+        a.before.hessian_mismatch
+    );
+    assert_eq!(b.measured_trims.len(), trims.len(), "{:?}", b.measured_trims);
+    assert!(b.measured_trims.iter().all(|s| s.contains("is a trim") && s.contains("set it to")));
+    for (sa, sb) in a.settings.iter().zip(&b.settings) {
+        assert!((sa.set - sb.set).abs() <= 1e-6 * (1.0 + sa.set.abs()), "{}: {} vs {}", sa.id, sa.set, sb.set);
+    }
+}

@@ -28,6 +28,21 @@ fn every_command(name: &str) {
     for f in ["sweep.csv", "sweep.json", "tolerance.md"] {
         assert!(dir.join("sweep").join(f).is_file(), "sweep wrote no {f}\n{}", sweep.report());
     }
+    // tune on the bill as designed (a blank measured_stiffness column: every rate as designed).
+    let bom = std::fs::read_to_string(dir.join("fit/bom.csv")).unwrap();
+    let measured: String = bom
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i == 0 { format!("{l},measured_stiffness\n") } else { format!("{l},\n") })
+        .collect();
+    std::fs::write(dir.join("measured.csv"), measured).unwrap();
+    let tune = springfit(&dir, &["tune", d, "--measured", "measured.csv", "--out", "tune"]).ok();
+    assert!(dir.join("tune/bom_tuned.csv").is_file(), "{}", tune.report());
+    // MuJoCo export takes planar chains typed into the design file (URDF arms: not yet).
+    if !std::fs::read_to_string(&design).unwrap().contains("urdf") {
+        let export = springfit(&dir, &["export", d, "--bom", "fit/bom.csv", "--mujoco", "--out", "mj"]).ok();
+        assert!(dir.join("mj").join(format!("{name}.xml")).is_file(), "{}", export.report());
+    }
     springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
     assert!(dir.join("cmp/compare.csv").is_file());
     let pareto = springfit(&dir, &["pareto", d, "--k-max", "3", "--radii", "0.5", "--out", "pareto"]).ok();

@@ -81,7 +81,7 @@ const DOUBLE_PENDULUM: &str = r#"<?xml version="1.0"?>
   <link name="link2a">
     <inertial>
       <origin xyz="0.5 0 0"/><mass value="0.5"/>
-      <inertia ixx="0.05" ixy="0" ixz="0" iyy="0.3" iyz="0" izz="0.375"/>
+      <inertia ixx="0.075" ixy="0" ixz="0" iyy="0.3" iyz="0" izz="0.375"/>
     </inertial>
   </link>
   <joint name="joint2" type="revolute">
@@ -92,7 +92,7 @@ const DOUBLE_PENDULUM: &str = r#"<?xml version="1.0"?>
   <link name="link2b">
     <inertial>
       <origin xyz="0 -0.5 0"/><mass value="0.5"/>
-      <inertia ixx="0.3" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.375"/>
+      <inertia ixx="0.3" ixy="0" ixz="0" iyy="0.075" iyz="0" izz="0.375"/>
     </inertial>
   </link>
   <joint name="split" type="fixed">
@@ -230,7 +230,7 @@ fn bad_urdfs_and_joint_lists_give_one_clear_error_each() {
         ("mimic", mimic, two.into(), "<joint name=\"joint2\">", "mimic"),
         ("locked", dp.into(), format!("{two}\nlocked = {{ wrist = 0.0 }}"), "<joint name=\"wrist\">", "no such joint"),
         ("both", dp.into(), format!("{two}\nlocked = {{ joint1 = 0.0 }}"), "<joint name=\"joint1\">", "both chosen"),
-        ("syntax", dp.replace("</robot>", ""), two.into(), "arm.urdf", "not a URDF"),
+        ("syntax", dp.replace("</robot>", ""), two.into(), "arm.urdf", "cannot be read as a URDF"),
         ("gravity", dp.into(), format!("{two}\ngravity = [0.0, -9.81]"), "robot.gravity", "3 numbers"),
         (
             "links",

@@ -73,6 +73,9 @@ pub struct TuneOutcome {
     pub w2: f64,
     /// What binds, in words (empty when everything was restored).
     pub binding: Vec<String>,
+    /// Trims given a measured rate: tune starts from it (the `before` figures are the arm with
+    /// its trims as measured) and sets a new rate; one sentence per trim.
+    pub measured_trims: Vec<String>,
     /// The tuned bill of materials: measured rates, new offsets and trim rates.
     #[serde(skip)]
     pub bom: Vec<BomRow>,
@@ -267,7 +270,8 @@ fn state(design: &Design, extent: f64, springs: &SpringSet) -> Result<State> {
 }
 
 /// Tunes a built arm. `bom` is the bill of materials as designed; `measured[j]` the measured
-/// rate of row j (None: as designed; ignored for trims, whose rate tune sets).
+/// rate of row j (None: as designed). A trim's measured rate is where tuning starts (the
+/// `before` figures use it); tune then sets the trim's rate.
 pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result<TuneOutcome> {
     let region = design.valid_region()?;
     let extent = region.extent;
@@ -294,7 +298,8 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
     let p = Problem { design, bom, k, adjustable, trims, fan };
     let na = p.adjustable.len();
     let nv = na + p.trims.len();
-    let mut z: Vec<f64> = (0..na).map(|_| 0.0).chain(p.trims.iter().map(|&j| bom[j].stiffness)).collect();
+    let mut z: Vec<f64> =
+        (0..na).map(|_| 0.0).chain(p.trims.iter().map(|&j| measured[j].unwrap_or(bom[j].stiffness))).collect();
     let before = state(design, extent, &p.springs(&z))?;
 
     p.restore_equilibrium(&mut z)?;
@@ -449,6 +454,21 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
             row
         })
         .collect();
+    let measured_trims = p
+        .trims
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &j)| {
+            measured[j].map(|k| {
+                format!(
+                    "{} is a trim: its measured {:.6} N·m/rad is the arm before tuning; set it to {:.6}",
+                    bom[j].id,
+                    k,
+                    z[na + i]
+                )
+            })
+        })
+        .collect();
     Ok(TuneOutcome {
         before,
         after,
@@ -457,6 +477,7 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
         hessian_restored,
         w2: sol.w2,
         binding,
+        measured_trims,
         bom: tuned_bom,
     })
 }

@@ -100,11 +100,11 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
     let written = springfit::report::compare::write_compare_folder(&target, &plan, &records)?;
     for r in &records {
         progress.say(format!(
-            "{}: {} springs, p99 {:.4}°, max {:.4}°{}",
+            "{}: {} springs, p99 {}, max {}{}",
             r.label,
             r.used,
-            r.stats.p99_abs,
-            r.stats.max_abs,
+            springfit::units::deg(r.stats.p99_abs),
+            springfit::units::deg(r.stats.max_abs),
             r.actuator_share.map(|a| format!(", actuator share {:.3} %", 100.0 * a)).unwrap_or_default()
         ));
         if let Some(b) = &r.as_built {

@@ -191,9 +191,9 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         None => {}
     }
     let files = if args.exact {
-        "summary.json, residuals.csv, histogram, potential, report.md"
+        "summary.json, residuals.csv, histogram, potential, report.md, report.html"
     } else {
-        "bom.csv, bom.md, summary.json, residuals.csv, histogram, potential, report.md"
+        "bom.csv, bom.md, summary.json, residuals.csv, histogram, potential, report.md, report.html"
     };
     let files = if outcome.cams.is_empty() { files.to_string() } else { format!("{files}, cams/") };
     progress.say(format!("wrote {} ({files})", display(&written)));

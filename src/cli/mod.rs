@@ -29,7 +29,8 @@ pub const DEFAULT_DESIGN: &str = "designs/double_pendulum.toml";
     name = "springfit",
     version,
     about = "Designs spring layouts for robot arms so that strict normal modes fill a region",
-    long_about = "springfit designs spring layouts for planar robot arms: released from rest anywhere in a \
+    long_about = "springfit designs spring layouts for robot arms (planar chains typed into the design file, or \
+serial arms from a URDF): released from rest anywhere in a \
 region, the arm swings back and forth through its equilibrium on a fixed geodesic of its inertia \
 metric (a strict normal mode). It fits non-negative stiffnesses of real elastic elements from a \
 spring catalogue and checks the design before it is built.",

@@ -157,8 +157,8 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
             if m.flux.compensation > 0.0 {
                 parts.push(format!("with damping compensation {:.3} %", 100.0 * m.actuator_share_with_compensation));
             }
-            if let Some(d) = m.mode_drift_deg {
-                parts.push(format!("label drift {d:.3}°"));
+            if let (Some(d), Some(w)) = (m.mode_drift_deg, m.mode_drift_wrapped_deg) {
+                parts.push(format!("label drift {d:.3}° cumulative, {w:.3}° wrapped"));
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 parts.push(format!("E − E_d over the last 5 s {:+.2} %", 100.0 * e));

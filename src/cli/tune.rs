@@ -6,6 +6,7 @@ use anyhow::Result;
 use springfit::asbuilt::tune::{State, TuneOutcome, tune};
 use springfit::files::bom::load_measured;
 use springfit::report::output::OutputDir;
+use springfit::units::sci;
 
 use super::Session;
 
@@ -50,8 +51,11 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, session: &Sessi
 
 fn state_line(name: &str, s: &State) -> String {
     format!(
-        "{name}: p99 {:.4}°, max {:.4}° about its own equilibrium; shift {:.3e} rad; Hessian mismatch {:.2e}",
-        s.p99_deg, s.max_deg, s.shift_rad, s.hessian_mismatch
+        "{name}: p99 {:.4}°, max {:.4}° about its own equilibrium; shift {} rad; Hessian mismatch {}",
+        s.p99_deg,
+        s.max_deg,
+        sci(s.shift_rad, 3),
+        sci(s.hessian_mismatch, 2)
     )
 }
 
@@ -77,6 +81,7 @@ fn summary_lines(o: &TuneOutcome) -> Vec<String> {
         o.w2
     ));
     v.extend(o.binding.iter().cloned());
+    v.extend(o.measured_trims.iter().cloned());
     v
 }
 
@@ -86,8 +91,11 @@ fn markdown(name: &str, o: &TuneOutcome) -> String {
     );
     for (label, st) in [("before", &o.before), ("after", &o.after)] {
         s.push_str(&format!(
-            "| {label} | {:.4}° | {:.4}° | {:.3e} | {:.2e} |\n",
-            st.p99_deg, st.max_deg, st.shift_rad, st.hessian_mismatch
+            "| {label} | {:.4}° | {:.4}° | {} | {} |\n",
+            st.p99_deg,
+            st.max_deg,
+            sci(st.shift_rad, 3),
+            sci(st.hessian_mismatch, 2)
         ));
     }
     s.push_str("\nResidual angles on held-out geodesics from the arm's own equilibrium; shift |q′ − q_eq|₂.\n\n## Settings to make\n\n| id | what | designed | set | at the end of its range |\n| --- | --- | ---: | ---: | --- |\n");
@@ -107,7 +115,7 @@ fn markdown(name: &str, o: &TuneOutcome) -> String {
         if o.hessian_restored { "holds" } else { "not restored" },
         o.w2
     ));
-    for b in &o.binding {
+    for b in o.binding.iter().chain(&o.measured_trims) {
         s.push_str(&format!("\n- {b}\n"));
     }
     s

@@ -206,7 +206,7 @@ impl Design {
 
         let q = &file.equilibrium.q;
         if q.len() != n {
-            return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} links", q.len())));
+            return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} joints", q.len())));
         }
         let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
         // M and U_g take sums of joint angles: finite angles of 1e308 rad still overflow.
@@ -262,7 +262,7 @@ impl Design {
                     if v.len() != n {
                         return Err(invalid(
                             &format!("region.{name}"),
-                            format!("has {} angles but the robot has {n} links", v.len()),
+                            format!("has {} angles but the robot has {n} joints", v.len()),
                         ));
                     }
                     Ok(DVector::from_iterator(n, v.iter().map(|a| a.0)))

@@ -30,8 +30,12 @@ pub struct Scenario {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunMetrics {
     /// Largest |label − label at start| outside the ε-ball, degrees (free runs). For two joints
-    /// the label θ is unwrapped over the run first, so a drift past ±180° shows as such.
+    /// the label θ is unwrapped over the run first, so this is the label's *cumulative* drift: a
+    /// motion that leaves its mode and turns round the equilibrium shows as such (past 360°).
     pub mode_drift_deg: Option<f64>,
+    /// The same with every difference wrapped to (−180°, 180°]: how far the label ever is from
+    /// the start's, whatever the turns (three or more joints: equal to `mode_drift_deg`).
+    pub mode_drift_wrapped_deg: Option<f64>,
     /// How far q(t) leaves the geodesic of its start's mode (free runs): the headline figure.
     pub geodesic_deviation: Option<GeodesicDeviation>,
     /// Seconds from each mode step until |Δθ| < 3° for the rest of the step (None: never).
@@ -313,6 +317,10 @@ pub fn metrics(
             outside.iter().map(|&i| deg(label_dev(i, 0.0))).fold(0.0, f64::max)
         }
     });
+    let mode_drift_wrapped_deg = (kind == ScenarioKind::Free).then(|| {
+        let start = outside.first().map(|&i| tr.label[i]).unwrap_or(f64::NAN);
+        outside.iter().map(|&i| deg(label_dev(i, if two { start } else { 0.0 }).abs())).fold(0.0, f64::max)
+    });
     let mut settling_s = Vec::new();
     if let Some(mode) = &spec.mode {
         if kind == ScenarioKind::Switch {
@@ -339,6 +347,7 @@ pub fn metrics(
     let p = result.peak_torque;
     RunMetrics {
         mode_drift_deg,
+        mode_drift_wrapped_deg,
         settling_s,
         energy_rel_error_last5s: energy_rel,
         energy_signed_error_last5s: energy_signed,

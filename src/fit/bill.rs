@@ -256,16 +256,20 @@ pub fn bill_of_materials(
     let used: Vec<usize> =
         (0..candidates.len()).filter(|&j| k[j] > 0.0 && (in_group(j) || peaks[j].0 > threshold * max_peak)).collect();
     let coefficient = grouping.coefficient_of();
+    // Springs are numbered S01, S02, … among themselves: a group's columns carry the group's id.
+    let mut springs = 0;
     used.iter()
-        .enumerate()
-        .map(|(i, &j)| {
+        .map(|&j| {
             let c = &candidates[j];
             let stock_rate = nearest(&c.stock_rates, k[j]);
             let id = match (grouping.of[j], coefficient[j]) {
                 (Some(g), Some((c, negative))) => {
                     format!("{}.{c:02}{}", grouping.groups[g].id(g), if negative { "-" } else { "+" })
                 }
-                _ => format!("S{:02}", i + 1),
+                _ => {
+                    springs += 1;
+                    format!("S{springs:02}")
+                }
             };
             BomRow {
                 id,

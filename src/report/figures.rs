@@ -233,10 +233,10 @@ pub fn nice_ceil(x: f64) -> f64 {
 pub fn stats_notes(st: &AngleStats) -> Vec<String> {
     vec![
         format!("{} samples", st.count),
-        format!("median |angle| = {:.4}°", st.median_abs),
-        format!("p95 |angle| = {:.4}°", st.p95_abs),
-        format!("p99 |angle| = {:.4}°", st.p99_abs),
-        format!("max |angle| = {:.4}°", st.max_abs),
+        format!("median |angle| = {}", crate::units::deg(st.median_abs)),
+        format!("p95 |angle| = {}", crate::units::deg(st.p95_abs)),
+        format!("p99 |angle| = {}", crate::units::deg(st.p99_abs)),
+        format!("max |angle| = {}", crate::units::deg(st.max_abs)),
     ]
 }
 

@@ -277,7 +277,7 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
         r.push_str(&format!("{}\n\n", design.description));
     }
     r.push_str(&format!(
-        "- robot: {} links; equilibrium q_eq = {}; region: {} (largest valid geodesic-ball radius {}{:.3})\n",
+        "- robot: {} joints; equilibrium q_eq = {}; region: {} (largest valid geodesic-ball radius {}{:.3})\n",
         o.dof,
         fmt_q(&design.q_eq),
         o.region.region,

@@ -29,12 +29,13 @@ use crate::model::Chain;
 /// The file name.
 pub const FILE: &str = "report.html";
 
-const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width:1000px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{border-bottom:2px solid #446;padding-bottom:.2em}h2{border-bottom:1px solid #ccd;margin-top:2em}
-table{border-collapse:collapse;margin:1em 0;font-size:.9em}th,td{border:1px solid #ccd;padding:.25em .6em}
+table{border-collapse:collapse;margin:1em 0;font-size:.9em;display:block;max-width:100%;overflow-x:auto}th,td{border:1px solid #ccd;padding:.25em .6em}
 th{background:#eef}tr:nth-child(even) td{background:#f8f8fc}code{background:#f2f2f6;padding:0 .2em}
-figure.sf-figure{margin:1.5em 0}figure.sf-figure svg{max-width:100%;height:auto;display:block}
-figcaption{font-size:.8em;color:#666}nav ul{columns:3;font-size:.9em}.note{color:#555;font-size:.9em}";
+figure.sf-figure{margin:1.5em 0;overflow-x:auto}figure.sf-figure svg{height:auto;display:block}
+figcaption{font-size:.8em;color:#666}nav ul{columns:3;font-size:.9em}.note{color:#555;font-size:.9em}a,code{overflow-wrap:anywhere}
+@media (max-width:700px){nav ul{columns:1}}";
 
 /// A page under construction, over the files in `dir`.
 struct Page {
@@ -147,9 +148,14 @@ impl Page {
             return Ok(false);
         }
         let text = self.read(name)?;
-        // The page has one h1; every file's headings move one level down.
+        // The page has one h1; every file's headings move one level down, and a file's title that
+        // repeats the page's is dropped.
+        let mut lines = text.lines().peekable();
+        if lines.peek().is_some_and(|l| l.strip_prefix("# ").is_some_and(|t| t.trim() == self.title)) {
+            lines.next();
+        }
         let demoted: String =
-            text.lines().map(|l| if l.starts_with('#') { format!("#{l}\n") } else { format!("{l}\n") }).collect();
+            lines.map(|l| if l.starts_with('#') { format!("#{l}\n") } else { format!("{l}\n") }).collect();
         let _ = writeln!(self.body, "<section data-source=\"{}\">", escape(name));
         self.markdown(&demoted)?;
         self.body.push_str("</section>\n");
@@ -187,12 +193,12 @@ impl Page {
         };
         let _ = writeln!(
             md,
-            "- file: `{}`\n- equilibrium q_eq = ({}) rad; region: {}\n- gravity {gravity} m/s²; fit: ω = {} rad/s, solver {:?}, element budget {}\n",
+            "- file: `{}`\n- equilibrium q_eq = ({}) rad; region: {}\n- gravity {gravity} m/s²; fit: ω = {} rad/s, solver {}, element budget {}\n",
             design.path.display(),
             q.join(", "),
             design.region.describe(),
             design.fit.frequency,
-            design.fit.solver,
+            design.fit.solver.name(),
             if design.fit.max_elements == 0 { "none".to_string() } else { design.fit.max_elements.to_string() }
         );
         if let Chain::Planar(c) = &design.chain {
@@ -225,14 +231,18 @@ impl Page {
                         };
                         let _ = writeln!(
                             md,
-                            "| {} | {} | {} | {} | {} | {} | ±{} % |",
+                            "| {} | {} | {} | {} | {} | {} | {} |",
                             f.name,
                             profiles.join(", "),
                             f.couplings.len(),
                             offsets,
                             f.max_stiffness.map(|k| k.to_string()).unwrap_or_else(|| "–".into()),
-                            f.stock_rates.len(),
-                            100.0 * f.tolerance
+                            if f.stock_rates.is_empty() { "–".to_string() } else { f.stock_rates.len().to_string() },
+                            if f.tolerance > 0.0 {
+                                format!("±{} %", crate::elements::fmt_number(100.0 * f.tolerance))
+                            } else {
+                                "–".to_string()
+                            }
                         );
                     }
                 }
@@ -287,11 +297,15 @@ fn scenario_md(json: &Value) -> String {
     if let Some(e) = json["label_error_deg"].as_f64() {
         let _ = write!(md, " (largest error {e:.2e}°)");
     }
-    md.push_str(".\n\n| run | mode drift | actuator share | last 5 s | energy error, last 5 s | slowest settling |\n| --- | ---: | ---: | ---: | ---: | ---: |\n");
+    md.push_str(".\n\n| run | mode drift (cumulative, wrapped) | actuator share | last 5 s | energy error, last 5 s | slowest settling |\n| --- | ---: | ---: | ---: | ---: | ---: |\n");
     let pct = |v: &Value| v.as_f64().map(|x| format!("{:.3} %", 100.0 * x)).unwrap_or_else(|| "–".into());
     if let Some(runs) = json["runs"].as_object() {
         for (name, m) in runs {
-            let drift = m["mode_drift_deg"].as_f64().map(|d| format!("{d:.3}°")).unwrap_or_else(|| "–".into());
+            let drift = match (m["mode_drift_deg"].as_f64(), m["mode_drift_wrapped_deg"].as_f64()) {
+                (Some(d), Some(w)) => format!("{d:.3}°, {w:.3}°"),
+                (Some(d), None) => format!("{d:.3}°"),
+                _ => "–".into(),
+            };
             let energy = m
                 .get("energy_signed_error_last5s")
                 .or_else(|| m.get("energy_rel_error_last5s"))

@@ -36,8 +36,10 @@ pub struct ScenarioSummary {
     pub energy_handling: String,
     /// Worst distance to the mode's geodesic over the runs, √(kg·m²)·rad (free scenarios).
     pub geodesic_deviation_max: Option<f64>,
-    /// Worst label drift over the runs, degrees (free scenarios).
+    /// Worst cumulative label drift over the runs, degrees (free scenarios).
     pub mode_drift_deg: Option<f64>,
+    /// Worst wrapped label drift over the runs, degrees (free scenarios).
+    pub mode_drift_wrapped_deg: Option<f64>,
     /// Largest actuator torque over the runs, N·m.
     pub peak_actuator_torque_nm: f64,
     /// Metrics per run.
@@ -146,6 +148,7 @@ pub fn summary(
         energy_handling: outcome.scenario.energy_handling.clone(),
         geodesic_deviation_max: worst(&|m| m.geodesic_deviation.as_ref().map(|d| d.max)),
         mode_drift_deg: worst(&|m| m.mode_drift_deg),
+        mode_drift_wrapped_deg: worst(&|m| m.mode_drift_wrapped_deg),
         peak_actuator_torque_nm: worst(&|m| Some(m.peak_actuator_torque_nm)).unwrap_or(0.0),
         runs,
         spring_set: match potential {
@@ -502,8 +505,8 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
                 notes.push(format!("geodesic deviation ≤ {:.2e}", d.max));
                 notes.push(format!("  √(kg·m²)·rad ({:.2e} of r₀)", d.max_rel));
             }
-            if let Some(d) = m.mode_drift_deg {
-                notes.push(format!("label drift {d:.3}°"));
+            if let (Some(d), Some(w)) = (m.mode_drift_deg, m.mode_drift_wrapped_deg) {
+                notes.push(format!("label drift {d:.3}° ({w:.3}° wrapped)"));
             }
             if let Some(e) = m.energy_signed_error_last5s {
                 notes.push(format!("E − E_d (last 5 s) {:+.2} %", 100.0 * e));

@@ -98,14 +98,14 @@ pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
         for l in &t.tolerance_levels {
             let Some(u) = &l.tuned else { continue };
             s.push_str(&format!(
-                "| {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {:.2e} rad | {:.2e} rad |\n",
+                "| {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {} rad | {} rad |\n",
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
                 100.0 * u.actuator_share.p50,
                 100.0 * u.actuator_share.p95,
                 u.residual_p99_deg.p50,
                 u.residual_p99_deg.p95,
-                u.equilibrium_shift_rad.p50,
-                u.equilibrium_shift_rad.p95
+                crate::units::sci(u.equilibrium_shift_rad.p50, 2),
+                crate::units::sci(u.equilibrium_shift_rad.p95, 2)
             ));
         }
     }

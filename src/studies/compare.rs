@@ -112,10 +112,10 @@ pub fn table_csv(records: &[FitRecord]) -> String {
             r.solver,
             r.used,
             csv_field(&totals),
-            r.stats.median_abs,
-            r.stats.p95_abs,
-            r.stats.p99_abs,
-            r.stats.max_abs,
+            crate::units::deg(r.stats.median_abs),
+            crate::units::deg(r.stats.p95_abs),
+            crate::units::deg(r.stats.p99_abs),
+            crate::units::deg(r.stats.max_abs),
             r.actuator_share.map(|a| a.to_string()).unwrap_or_default(),
             as_built_csv(r.as_built.as_ref())
         ));
@@ -152,7 +152,7 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.totals.iter().map(|(u, t)| format!("{t:.2} {u}")).collect::<Vec<_>>().join(", ")
         };
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.label.replace('|', "/"),
             r.catalog,
             r.solver,

@@ -55,7 +55,7 @@ fn round_trips_bit_for_bit() {
     let back = parse(Path::new("bom.csv"), &text).unwrap();
     assert_eq!(back, rows());
     let md = to_markdown("t", &rows());
-    assert!(md.contains("N*m/rad: 14.5000 over 2 element(s)"));
+    assert!(md.contains("N·m/rad: 14.5000 over 2 elements"));
     assert!(md.contains("Σ|τ(q_eq)| = 2.625 N·m"), "{md}");
 }
 
@@ -182,7 +182,7 @@ fn a_cam_is_one_row_and_a_file_and_comes_back_bit_for_bit() {
     assert_eq!(fingerprint(&spring_set(&back)), fingerprint(&spring_set(&rows)));
     let md = to_markdown("t", &rows);
     assert!(md.contains("| C01 | disc, cam | cam, gear ratio 0.7000, cams/C01.toml | (1, -1) |"), "{md}");
-    assert!(md.contains("**4 elements.**") && md.contains("N/mm: 12.3450 over 1 element(s)"), "{md}");
+    assert!(md.contains("**4 elements.**") && md.contains("N/mm: 12.3450 over 1 element"), "{md}");
     // Beside another bill of materials the cam's file has that one's name in it.
     assert_eq!(files("bom_tuned.csv", &rows)[1].0, "cams/C01_bom_tuned.toml");
     // An older file, one row per signed coefficient (side `±j/N/h`, stiffness in J), is read

@@ -416,6 +416,24 @@ mod tests {
     }
 
     #[test]
+    fn png_wide_shallow_lines_are_continuous() {
+        // A shallow line sampled every pixel, 2 px wide: plotters' polygon fill drew it as dots.
+        let (w, h) = (300u32, 60u32);
+        let mut buf = vec![255u8; (w * h * 3) as usize];
+        {
+            let font = FontRef::try_from_slice(FONT_BYTES).unwrap();
+            let root = TextFix { inner: BitMapBackend::with_buffer(&mut buf, (w, h)), font }.into_drawing_area();
+            let line: Vec<(i32, i32)> = (10..290).map(|x| (x, 20 + (x - 10) / 14)).collect();
+            root.draw(&PathElement::new(line, ShapeStyle { color: BLACK.into(), filled: false, stroke_width: 2 }))
+                .unwrap();
+            root.present().unwrap();
+        }
+        let inked = |x: u32| (0..h).filter(|&y| buf[((y * w + x) * 3) as usize] < 128).count();
+        let gaps: Vec<u32> = (11..289).filter(|&x| inked(x) < 2).collect();
+        assert!(gaps.is_empty(), "columns without two inked pixels: {gaps:?}");
+    }
+
+    #[test]
     fn histogram_bins() {
         let counts = histogram(&[-1.0, -0.5, 0.0, 0.2, 1.0, 2.0, f64::NAN], &[-1.0, 0.0, 1.0]);
         // [-1, 0) holds -1 and -0.5; the last bin [0, 1] is closed and holds 0, 0.2 and 1.

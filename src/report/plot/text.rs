@@ -26,6 +26,18 @@ pub(super) fn register_font() {
     });
 }
 
+/// A one-pixel pen of a colour, for [`TextFix::draw_path`].
+struct Pen(BackendColor);
+
+impl BackendStyle for Pen {
+    fn color(&self) -> BackendColor {
+        self.0
+    }
+    fn stroke_width(&self) -> u32 {
+        1
+    }
+}
+
 /// The bitmap backend with correct glyph placement (see the module docs): every call but
 /// `draw_text` goes to plotters' `BitMapBackend`.
 pub(super) struct TextFix<'a> {
@@ -71,12 +83,30 @@ impl DrawingBackend for TextFix<'_> {
     ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
         self.inner.draw_rect(upper_left, bottom_right, style, fill)
     }
+    /// Wide lines as `w` one-pixel lines side by side: plotters fills a wide path as a polygon
+    /// with vertices truncated to whole pixels, so a shallow line of short segments (a geodesic
+    /// sampled finely) loses most of its pixels and shows as sparse dots.
     fn draw_path<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
         &mut self,
         path: I,
         style: &S,
     ) -> std::result::Result<(), DrawingErrorKind<Self::ErrorType>> {
-        self.inner.draw_path(path, style)
+        let w = style.stroke_width() as i32;
+        if w <= 1 {
+            return self.inner.draw_path(path, style);
+        }
+        let pen = Pen(style.color());
+        let points: Vec<BackendCoord> = path.into_iter().collect();
+        for seg in points.windows(2) {
+            let (a, b) = (seg[0], seg[1]);
+            let steep = (b.1 - a.1).abs() > (b.0 - a.0).abs();
+            for k in 0..w {
+                let o = k - (w - 1) / 2;
+                let (p, q) = if steep { ((a.0 + o, a.1), (b.0 + o, b.1)) } else { ((a.0, a.1 + o), (b.0, b.1 + o)) };
+                self.inner.draw_line(p, q, &pen)?;
+            }
+        }
+        Ok(())
     }
     fn draw_circle<S: BackendStyle>(
         &mut self,
