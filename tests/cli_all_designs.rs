@@ -38,11 +38,9 @@ fn every_command(name: &str) {
     std::fs::write(dir.join("measured.csv"), measured).unwrap();
     let tune = springfit(&dir, &["tune", d, "--measured", "measured.csv", "--out", "tune"]).ok();
     assert!(dir.join("tune/bom_tuned.csv").is_file(), "{}", tune.report());
-    // MuJoCo export takes planar chains typed into the design file (URDF arms: not yet).
-    if !std::fs::read_to_string(&design).unwrap().contains("urdf") {
-        let export = springfit(&dir, &["export", d, "--bom", "fit/bom.csv", "--mujoco", "--out", "mj"]).ok();
-        assert!(dir.join("mj").join(format!("{name}.xml")).is_file(), "{}", export.report());
-    }
+    // MuJoCo export, planar chains and URDF arms alike.
+    let export = springfit(&dir, &["export", d, "--bom", "fit/bom.csv", "--mujoco", "--out", "mj"]).ok();
+    assert!(dir.join("mj").join(format!("{name}.xml")).is_file(), "{}", export.report());
     springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
     assert!(dir.join("cmp/compare.csv").is_file());
     let pareto = springfit(&dir, &["pareto", d, "--k-max", "3", "--radii", "0.5", "--out", "pareto"]).ok();
