@@ -94,6 +94,10 @@ JOBS = {
     "fit.ur5_3_dense": ["fit", "designs/ur5_pan_lift_elbow.toml", "--max-elements", "0"],
     "sim.ur5_3_dense": ["simulate", "designs/ur5_pan_lift_elbow.toml", "--bom", "{bom:fit.ur5_3_dense}", "--scenario", "free"],
     "sweep.ur5_3": ["sweep", "designs/ur5_pan_lift_elbow.toml"],
+    "export.ur5": ["export", "designs/ur5_lift_elbow.toml", "--bom", "{bom:fit.ur5}", "--mujoco"],
+    "free.ur5": ["simulate", "designs/ur5_lift_elbow.toml", "--bom", "{bom:fit.ur5}", "--scenario", "free"],
+    "export.ur5_3": ["export", "designs/ur5_pan_lift_elbow.toml", "--bom", "{bom:fit.ur5_3}", "--mujoco"],
+    "free.ur5_3": ["simulate", "designs/ur5_pan_lift_elbow.toml", "--bom", "{bom:fit.ur5_3}", "--scenario", "free"],
 }
 
 # Jobs that write no folder (`check` prints its report): run without --out, stdout kept.
@@ -756,6 +760,8 @@ FIGURES = {
     "sweep.dense_robust.tol10": sweep_row("sweep.dense_robust", 0.1),
     "mujoco.dp": mujoco_row("dp"),
     "mujoco.dense": mujoco_row("dense"),
+    "mujoco.ur5": mujoco_row("ur5"),
+    "mujoco.ur5_3": mujoco_row("ur5_3"),
     "ur5.mass": lambda r: matrix2(check_json("check.ur5")(r)["mass_matrix"]),
     "ur5.radius": lambda r: radius(check_json("check.ur5")(r)["region"]["largest_radius"]),
     "ur5.gravity": lambda r: "(" + ", ".join(sig(x, 4) for x in check_json("check.ur5")(r)["gravity_torque"]) + ")",

@@ -136,6 +136,27 @@ fn inputs_that_passed_are_refused_with_the_file_the_field_and_the_reason() {
             &["robot.urdf", "<link name=\"upper_arm_link\">", "triangle inequality"],
         ),
         case(
+            "a coupling family naming a joint the arm does not have",
+            catalog_with(
+                "couplings = [[1, 0], [0, 1], [1, 1], [1, -1], [1, 2], [2, -1], [2, 1], [1, -2]]",
+                "couplings = { all_pairs = [[1, 1]], on = [\"q1\", \"q3\"] }",
+            ),
+            &check,
+            &["catalog.toml", "family[0].couplings.on[1]", "`q3` is not a joint of the arm", "q1, q2"],
+        ),
+        case(
+            "a URDF whose held joint is out of its limits (wrist 1 held at -pi/2, lower limit -1)",
+            urdf_with("<limit effort=\"28.0\" lower=\"-6.28318530718\"", "<limit effort=\"28.0\" lower=\"-1.0\""),
+            &check,
+            &[
+                "robot.urdf",
+                "<joint name=\"wrist_1_joint\">",
+                "-1.5707963267948966 rad",
+                "[-1, 6.28318530718]",
+                "robot.locked",
+            ],
+        ),
+        case(
             "a URDF with a link defined twice",
             urdf_with("<link name=\"ee_link\">", "<link name=\"forearm_link\"/>\n  <link name=\"ee_link\">"),
             &check,

@@ -68,6 +68,49 @@ fn fit_export_verify_with(design: &str, extra: &str) -> Option<(String, String)>
     Some((text, std::fs::read_to_string(dir.join("mj/elements.md")).unwrap()))
 }
 
+/// Exports and simulates the free releases of a URDF design with its fitted bill of materials
+/// kept in `tests/data/<design>_bom.csv` (what `springfit fit` wrote for it: the test is about the
+/// export, so it does not refit), replays them in MuJoCo and returns the script's output and
+/// `elements.md`.
+fn export_verify_fitted(design: &str) -> Option<(String, String)> {
+    if let Some(why) = mujoco_missing() {
+        eprintln!("SKIPPED: MuJoCo verification of {design}: {why}");
+        return None;
+    }
+    let dir = temp_dir("mujoco-urdf");
+    let d = repo().join("designs").join(format!("{design}.toml"));
+    let d = d.to_str().unwrap();
+    let bom = repo().join("tests/data").join(format!("{design}_bom.csv"));
+    let bom = bom.to_str().unwrap();
+    let run = springfit(&dir, &["export", d, "--bom", bom, "--mujoco", "--out", "mj"]).ok();
+    springfit(&dir, &["simulate", d, "--bom", bom, "--scenario", "free", "--out", "sim"]).ok();
+    let (code, text) = verify(&dir, &dir.join("mj").join(format!("{design}.xml")), "sim/sim_free.csv");
+    println!("{text}");
+    assert_eq!(code, 0, "MuJoCo disagrees with springfit\n{text}\n{}", run.report());
+    let last = text.lines().find(|l| l.starts_with("PASS")).expect("a PASS line").to_string();
+    let largest: f64 = last.split("largest difference ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+    assert!(largest < 1e-9, "{last}");
+    Some((text, std::fs::read_to_string(dir.join("mj/elements.md")).unwrap()))
+}
+
+#[test]
+fn mujoco_reproduces_the_ur5_in_a_vertical_plane() {
+    // Two joints of the URDF moving, four held (wrist 1 at −π/2): joint springs, tendons, cranks
+    // as spatial tendons about the URDF's axes, dead bands and callbacks.
+    let Some((text, md)) = export_verify_fitted("ur5_lift_elbow") else { return };
+    assert!(text.contains("2 joints") && text.contains("3 runs over 5"), "{text}");
+    assert!(md.contains("`q1` = `shoulder_lift_joint`") && md.contains("spatial tendon"), "{md}");
+    assert!(md.contains("dead band") && md.contains("callback |"), "{md}");
+}
+
+#[test]
+fn mujoco_reproduces_the_ur5_in_space() {
+    // Three joints with non-parallel axes (the pan axis vertical, lift and elbow horizontal).
+    let Some((text, md)) = export_verify_fitted("ur5_pan_lift_elbow") else { return };
+    assert!(text.contains("3 joints") && text.contains("3 runs over 5"), "{text}");
+    assert!(md.contains("`q1` = `shoulder_pan_joint`"), "{md}");
+}
+
 #[test]
 fn mujoco_reproduces_the_default_design() {
     let Some((text, md)) = fit_export_verify("double_pendulum.toml") else { return };

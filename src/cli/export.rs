@@ -48,7 +48,7 @@ pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
             let catalog_path = design.catalog.clone().ok_or_else(|| {
                 Error::invalid(&design.path, "catalog", "the design names no spring catalogue; give --bom")
             })?;
-            let catalog = Catalog::load(&catalog_path, design.dof())?;
+            let catalog = Catalog::load_for(&catalog_path, &design.chain.joint_names())?;
             let step = progress.step("fitting the springs");
             let outcome = fit(&design, &catalog, &design.fit, &|_| {});
             step.finish();

@@ -158,7 +158,7 @@ fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
             ),
         ));
     }
-    Catalog::load(path, design.dof())
+    Catalog::load_for(path, &design.chain.joint_names())
 }
 
 /// Legal input that is probably a mistake.

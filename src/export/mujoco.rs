@@ -1,4 +1,10 @@
-//! MJCF export: the planar chain and its springs as a MuJoCo model.
+//! MJCF export: the chain and its springs as a MuJoCo model.
+//!
+//! A URDF arm becomes springfit's own bodies (`model::urdf`): one per moving joint, carrying
+//! every link that moves rigidly with it, the held joints welded at their held values, placed by
+//! the joint frames and turning about the URDF's axes, with the merged masses, centres of mass and
+//! full inertia tensors. So MuJoCo integrates the dynamics springfit fits and simulates, and
+//! `qpos` is the design's q. What follows describes a planar chain typed into the design file.
 //!
 //! The chain becomes nested bodies in the x–y plane with hinge joints about z (parallel axes), so
 //! MuJoCo's `qpos` is springfit's q: qᵢ relative to the previous link, q₁ from the x axis. Each
@@ -32,10 +38,13 @@
 
 use std::fmt::Write as _;
 
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+
 use crate::design::Design;
 use crate::elements::{Profile, Side};
 use crate::error::{Error, Result};
 use crate::fit::bill::BomRow;
+use crate::model::Chain;
 
 /// Prefix of the `<numeric>` entries that describe callback elements.
 pub const CALLBACK_PREFIX: &str = "springfit_callback_";
@@ -166,14 +175,143 @@ fn sanitize(id: &str) -> String {
     id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect()
 }
 
-/// The planar chain of a design; spatial chains (URDF designs) are not exported yet.
-fn planar_chain(design: &Design) -> Result<&crate::model::PlanarChain> {
-    design.chain.planar().ok_or_else(|| Error::Setting {
-        field: "robot.urdf".into(),
-        reason:
-            "MuJoCo export handles planar chains typed into the design file; exporting a URDF arm is not supported yet"
-                .into(),
-    })
+/// The two sites of a crank on joint `j` with phase `phase`: (the parent's, in the parent body's
+/// frame, or the world's for the first joint; the child's, in the child body's frame). Both lie in
+/// the plane through the joint origin orthogonal to its axis, the parent's at angle `phase` from
+/// the child's direction at q = 0, so L² = r² + d² − 2 r d cos(q − phase).
+fn crank_sites(chain: &Chain, j: usize, phase: f64) -> ([f64; 3], [f64; 3]) {
+    let (s, c) = phase.sin_cos();
+    match chain {
+        Chain::Planar(p) => {
+            let base = if j == 0 { 0.0 } else { p.links()[j - 1].length };
+            ([base + CRANK_PARENT_RADIUS * c, CRANK_PARENT_RADIUS * s, 0.0], [CRANK_CHILD_RADIUS, 0.0, 0.0])
+        }
+        Chain::Spatial(sp) => {
+            let body = &sp.bodies()[j];
+            let [e1, e2] = perpendicular_pair(&body.axis);
+            let parent = body.translation + body.rotation * (CRANK_PARENT_RADIUS * (c * e1 + s * e2));
+            (parent.into(), (CRANK_CHILD_RADIUS * e1).into())
+        }
+    }
+}
+
+/// Two unit vectors (e₁, e₂ = u × e₁) completing the unit axis `u` to a right-handed frame: a
+/// turn by q about u takes e₁ to cos q e₁ + sin q e₂.
+fn perpendicular_pair(u: &Vector3<f64>) -> [Vector3<f64>; 2] {
+    // The coordinate axis least aligned with u, its part orthogonal to u.
+    let helper = if u.x.abs() <= u.y.abs() && u.x.abs() <= u.z.abs() {
+        Vector3::x()
+    } else if u.y.abs() <= u.z.abs() {
+        Vector3::y()
+    } else {
+        Vector3::z()
+    };
+    let e1 = (helper - u * u.dot(&helper)).normalize();
+    [e1, u.cross(&e1)]
+}
+
+/// A site's position: planar chains keep their two-number form with z written as `0`.
+fn site_pos(chain: &Chain, p: [f64; 3]) -> String {
+    match chain {
+        Chain::Planar(_) => format!("{} {} 0", num(p[0]), num(p[1])),
+        Chain::Spatial(_) => format!("{} {} {}", num(p[0]), num(p[1]), num(p[2])),
+    }
+}
+
+/// What qpos means, for the model's header comment.
+fn joint_meaning(chain: &Chain) -> String {
+    match chain {
+        Chain::Planar(_) => "q1 from the x axis, qi relative to link i-1".into(),
+        Chain::Spatial(sp) => {
+            let names: Vec<String> =
+                sp.bodies().iter().enumerate().map(|(i, b)| format!("q{} = {}", i + 1, b.joint)).collect();
+            format!("the URDF joint angles, {}", names.join(", "))
+        }
+    }
+}
+
+/// Gravity in MuJoCo's world frame (the planar chain's plane is x–y; the URDF's base frame).
+fn gravity(chain: &Chain) -> Vec<f64> {
+    match chain {
+        Chain::Planar(p) => p.gravity().to_vec(),
+        Chain::Spatial(sp) => sp.gravity().to_vec(),
+    }
+}
+
+/// One body's MJCF attributes and children.
+struct BodyText {
+    /// `pos="…"` and, when turned, `quat="…"`: the joint frame in the parent body's frame.
+    placement: String,
+    /// ` axis="…"` for a spatial joint (planar ones take the default z).
+    axis: String,
+    /// The `<inertial>` element.
+    inertial: String,
+    /// A capsule for viewing (massless: `inertiafromgeom="false"`).
+    geom: String,
+}
+
+/// The bodies of the chain. Planar links lie along their body's x axis. A spatial chain's bodies
+/// are springfit's: each is every URDF link that moves rigidly with its joint (held joints
+/// welded at their held values), with the merged mass, centre of mass and full inertia tensor in
+/// the frame of the joint's child link, which at q = 0 is the joint frame.
+fn body_texts(chain: &Chain) -> Vec<BodyText> {
+    match chain {
+        Chain::Planar(p) => {
+            let links = p.links();
+            links
+                .iter()
+                .enumerate()
+                .map(|(i, link)| BodyText {
+                    placement: format!("pos=\"{} 0 0\"", num(if i == 0 { 0.0 } else { links[i - 1].length })),
+                    axis: String::new(),
+                    inertial: format!(
+                        "<inertial pos=\"{} 0 0\" mass=\"{}\" diaginertia=\"{} {} {}\"/>",
+                        num(link.com),
+                        num(link.mass),
+                        num(AXIAL_INERTIA_RATIO * link.inertia),
+                        num(link.inertia),
+                        num(link.inertia)
+                    ),
+                    geom: format!("<geom fromto=\"0 0 0 {} 0 0\"/>", num(link.length)),
+                })
+                .collect()
+        }
+        Chain::Spatial(sp) => {
+            let bodies = sp.bodies();
+            let v = |v: &Vector3<f64>| format!("{} {} {}", num(v.x), num(v.y), num(v.z));
+            bodies
+                .iter()
+                .enumerate()
+                .map(|(i, b)| {
+                    let mut placement = format!("pos=\"{}\"", v(&b.translation));
+                    if b.rotation != Matrix3::identity() {
+                        let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(b.rotation));
+                        let _ = write!(placement, " quat=\"{} {} {} {}\"", num(q.w), num(q.i), num(q.j), num(q.k));
+                    }
+                    let j = &b.inertia;
+                    let inertial = format!(
+                        "<inertial pos=\"{}\" mass=\"{}\" fullinertia=\"{} {} {} {} {} {}\"/>",
+                        v(&b.com),
+                        num(b.mass),
+                        num(j[(0, 0)]),
+                        num(j[(1, 1)]),
+                        num(j[(2, 2)]),
+                        num(j[(0, 1)]),
+                        num(j[(0, 2)]),
+                        num(j[(1, 2)])
+                    );
+                    // To the next joint's origin (the last body: to its centre of mass).
+                    let end = bodies.get(i + 1).map_or(b.com, |next| next.translation);
+                    let geom = if end.norm() > 1e-6 {
+                        format!("<geom fromto=\"0 0 0 {}\"/>", v(&end))
+                    } else {
+                        "<geom type=\"sphere\" size=\"0.03\"/>".into()
+                    };
+                    BodyText { placement, axis: format!(" axis=\"{}\"", v(&b.axis)), inertial, geom }
+                })
+                .collect()
+        }
+    }
 }
 
 /// Builds the MJCF model of `design` with the springs of `rows`, integrated by RK4 with step
@@ -189,8 +327,7 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
         });
     }
-    let planar = planar_chain(design)?;
-    let links = planar.links();
+    let chain = &design.chain;
     // Joint attributes, sites per body (index 0 is the world), tendons, callbacks.
     let mut joint_attrs: Vec<Option<String>> = vec![None; n];
     let mut sites: Vec<Vec<String>> = vec![Vec::new(); n + 1];
@@ -297,17 +434,11 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
                 // 1 − cos(a q − x₀) = 1 − cos(q − a x₀) for a = ±1.
                 let phase = e.coupling[j] * e.offset;
                 let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
-                let base = if j == 0 { 0.0 } else { links[j - 1].length };
-                let (s, c) = phase.sin_cos();
-                sites[j].push(format!(
-                    "<site name=\"{name}_parent\" pos=\"{} {} 0\" size=\"0.01\"/>",
-                    num(base + CRANK_PARENT_RADIUS * c),
-                    num(CRANK_PARENT_RADIUS * s)
-                ));
-                sites[j + 1].push(format!(
-                    "<site name=\"{name}_child\" pos=\"{} 0 0\" size=\"0.01\"/>",
-                    num(CRANK_CHILD_RADIUS)
-                ));
+                let (parent, child) = crank_sites(chain, j, phase);
+                sites[j]
+                    .push(format!("<site name=\"{name}_parent\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, parent)));
+                sites[j + 1]
+                    .push(format!("<site name=\"{name}_child\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, child)));
                 let _ = write!(
                     tendons,
                     "    <spatial name=\"{name}\" stiffness=\"{}\" springlength=\"0\" width=\"0.003\">\n      <site site=\"{name}_parent\"/>\n      <site site=\"{name}_child\"/>\n    </spatial>\n",
@@ -339,25 +470,28 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
         });
     }
 
-    let [gx, gy] = planar.gravity();
     let mut x = String::new();
     let _ = writeln!(
         x,
-        "<mujoco model=\"{}\">\n  <!-- Exported by springfit from {}: {} links, {} springs ({} exact, {} by passive-force callback).\n       Angles in radians; q = qpos (q1 from the x axis, qi relative to link i-1). See elements.md. -->",
+        "<mujoco model=\"{}\">\n  <!-- Exported by springfit from {}: {} links, {} springs ({} exact, {} by passive-force callback).\n       Angles in radians; q = qpos ({}). See elements.md. -->",
         escape(&design.name),
         escape(&design.path.display().to_string().replace("--", "-")),
         n,
         elements.len(),
         elements.iter().filter(|e| e.representation.is_exact()).count(),
-        elements.iter().filter(|e| !e.representation.is_exact()).count()
+        elements.iter().filter(|e| !e.representation.is_exact()).count(),
+        escape(&joint_meaning(chain).replace("--", "-"))
     );
     x.push_str("  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\"/>\n");
+    let g: Vec<String> = gravity(chain).into_iter().map(num).collect();
     let _ = writeln!(
         x,
-        "  <option timestep=\"{}\" integrator=\"RK4\" gravity=\"{} {} 0\">\n    <flag contact=\"disable\" energy=\"enable\"/>\n  </option>",
+        "  <option timestep=\"{}\" integrator=\"RK4\" gravity=\"{}\">\n    <flag contact=\"disable\" energy=\"enable\"/>\n  </option>",
         num(timestep),
-        num(gx),
-        num(gy)
+        match chain {
+            Chain::Planar(_) => format!("{} {} 0", g[0], g[1]),
+            Chain::Spatial(_) => g.join(" "),
+        }
     );
     x.push_str(
         "  <default>\n    <joint type=\"hinge\" axis=\"0 0 1\" damping=\"0\" armature=\"0\" frictionloss=\"0\" limited=\"false\"/>\n    <geom type=\"capsule\" size=\"0.02\" contype=\"0\" conaffinity=\"0\" rgba=\"0.4 0.5 0.7 1\"/>\n  </default>\n",
@@ -367,21 +501,13 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
         let _ = writeln!(x, "    {s}");
     }
     let mut indent = String::from("    ");
-    for (i, link) in links.iter().enumerate() {
-        let pos = if i == 0 { 0.0 } else { links[i - 1].length };
-        let _ = writeln!(x, "{indent}<body name=\"link{}\" pos=\"{} 0 0\">", i + 1, num(pos));
+    for (i, body) in body_texts(chain).iter().enumerate() {
+        let _ = writeln!(x, "{indent}<body name=\"link{}\" {}>", i + 1, body.placement);
         indent.push_str("  ");
-        let _ = writeln!(x, "{indent}<joint name=\"q{}\"{}/>", i + 1, joint_attrs[i].as_deref().unwrap_or(""));
-        let _ = writeln!(
-            x,
-            "{indent}<inertial pos=\"{} 0 0\" mass=\"{}\" diaginertia=\"{} {} {}\"/>",
-            num(link.com),
-            num(link.mass),
-            num(AXIAL_INERTIA_RATIO * link.inertia),
-            num(link.inertia),
-            num(link.inertia)
-        );
-        let _ = writeln!(x, "{indent}<geom fromto=\"0 0 0 {} 0 0\"/>", num(link.length));
+        let _ =
+            writeln!(x, "{indent}<joint name=\"q{}\"{}{}/>", i + 1, body.axis, joint_attrs[i].as_deref().unwrap_or(""));
+        let _ = writeln!(x, "{indent}{}", body.inertial);
+        let _ = writeln!(x, "{indent}{}", body.geom);
         for s in &sites[i + 1] {
             let _ = writeln!(x, "{indent}{s}");
         }
@@ -452,24 +578,53 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
             if e.representation.is_exact() { "exact" } else { "callback" }
         );
     }
-    let _ = write!(
-        s,
-        "
-## What the model contains
-
-- Bodies `link1` … `link{n}` in the x–y plane, hinge joints `q1` … `q{n}` about z (parallel axes);
+    s.push_str("\n## What the model contains\n\n");
+    match &design.chain {
+        Chain::Planar(p) => {
+            let [gx, gy] = p.gravity();
+            let _ = write!(
+                s,
+                "- Bodies `link1` … `link{n}` in the x–y plane, hinge joints `q1` … `q{n}` about z (parallel axes);
   `qpos` is springfit's q (q1 from the x axis, qi relative to the previous link), angles in radians
   (`<compiler angle=\"radian\"/>`).
 - Each body: the link's mass, its centre of mass on the link's x axis, and `diaginertia` =
   ({r} I, I, I) with I the link's inertia about its centre of mass. Only I (about z, the joint
   axis) acts in a planar motion; the others are a slender link's (small about its long axis x,
   equal to I about y) so that MuJoCo gets a valid inertia.
-- Gravity ({gx}, {gy}, 0) m/s² as in the design; no damping, armature or friction loss; contacts
+- Gravity ({gx}, {gy}, 0) m/s² as in the design; ",
+                n = design.dof(),
+                r = AXIAL_INERTIA_RATIO,
+            );
+        }
+        Chain::Spatial(sp) => {
+            let [gx, gy, gz] = sp.gravity();
+            let joints: Vec<String> =
+                sp.bodies().iter().enumerate().map(|(i, b)| format!("`q{}` = `{}`", i + 1, b.joint)).collect();
+            let _ = write!(
+                s,
+                "- Bodies `link1` … `link{n}`, hinge joints {joints} about the URDF's axes; `qpos` is springfit's
+  q (the URDF joint angles), angles in radians (`<compiler angle=\"radian\"/>`). The world is the
+  URDF's base frame; links before the first moving joint do not move and are left out.
+- Each body is everything that moves rigidly with its joint: the joint's child link and every link
+  hanging below it through fixed or held joints, the held joints welded at their held values
+  (`robot.locked`; others at 0). Its `pos` and `quat` are the joint frame in the previous body's
+  frame, its `<inertial>` the merged mass, centre of mass and full inertia tensor in the body frame
+  (the frame of the joint's child link), exactly what springfit integrates.
+- Gravity ({gx}, {gy}, {gz}) m/s² in the base frame, as in the design; ",
+                n = design.dof(),
+                joints = joints.join(", "),
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        "no damping, armature or friction loss; contacts
   off (the capsules are for viewing only); `integrator=\"RK4\"`, `timestep` = {dt} s (springfit's step,
   1 / `simulate.rate`).
-- Cranks on one joint: a zero-rest-length spatial tendon from a site at {d} m on the parent (at
-  the crank's phase) to a site at {r2} m on the child, stiffness κ = k / ({r2} · {d}): ½κL² =
-  const + k (1 − cos(q − x₀)), exactly.
+- Cranks on one joint: a zero-rest-length spatial tendon from a site at {d} m from the joint axis
+  on the parent (at the crank's phase) to a site at {r2} m on the child, both in the plane through
+  the joint orthogonal to its axis, stiffness κ = k / ({r2} · {d}): ½κL² = const + k (1 − cos(q − x₀)),
+  exactly.
 - Dead bands: compression side + is `springlength=\"-{far} x₀\"` (force only for x > x₀), side − is
   `\"x₀ {far}\"`.
 - Callback elements are listed as `<custom><numeric name=\"{prefix}<name>\">` with data
@@ -481,10 +636,6 @@ pub fn elements_md(design: &Design, model: &MujocoModel, springs_from: &str, xml
   knots of spacing h (continued beyond the knots by their second-order Taylor polynomials); add
   −a V′(a·q) in the same callback.
 ",
-        n = design.dof(),
-        r = AXIAL_INERTIA_RATIO,
-        gx = design.chain.planar().map_or(0.0, |c| c.gravity()[0]),
-        gy = design.chain.planar().map_or(0.0, |c| c.gravity()[1]),
         dt = model.timestep,
         d = CRANK_PARENT_RADIUS,
         r2 = CRANK_CHILD_RADIUS,
@@ -588,6 +739,40 @@ mod tests {
         for q in [-2.0, -0.3, 0.7, 1.9, 3.0] {
             let want = k * (1.0 - (q - x0).cos());
             assert!((half_l2(q) - offset - want).abs() < 1e-12, "q = {q}");
+        }
+    }
+
+    #[test]
+    fn spatial_crank_sites_reproduce_k_sin_about_a_tilted_axis() {
+        // A joint frame turned and moved in its parent, its axis tilted: the child site, carried
+        // by the turn about the axis, and the parent site, brought into the joint frame, keep
+        // ½κL² − const = k (1 − cos(q − x₀)).
+        use crate::model::{Body, SpatialChain};
+        let rotation = *Rotation3::from_euler_angles(0.3, -0.7, 1.1).matrix();
+        let translation = Vector3::new(0.2, -0.1, 0.4);
+        let axis = Vector3::new(0.3, -0.5, 0.8).normalize();
+        let body = Body {
+            joint: "j".into(),
+            rotation,
+            translation,
+            axis,
+            mass: 1.0,
+            com: Vector3::zeros(),
+            inertia: Matrix3::identity(),
+        };
+        let chain = Chain::Spatial(SpatialChain::new(vec![body], [0.0, 0.0, -9.81], [0.0, 0.0, 0.0]));
+        let (k, x0): (f64, f64) = (2.5, 0.7);
+        let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
+        let (parent, child) = crank_sites(&chain, 0, x0);
+        let parent = rotation.transpose() * (Vector3::from(parent) - translation);
+        let half_l2 = |q: f64| {
+            let turn = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), q);
+            0.5 * kappa * (turn * Vector3::from(child) - parent).norm_squared()
+        };
+        let offset = half_l2(x0);
+        for q in [-2.0, -0.3, 0.7, 1.9, 3.0] {
+            let want = k * (1.0 - (q - x0).cos());
+            assert!((half_l2(q) - offset - want).abs() < 1e-12, "q = {q}: {} vs {want}", half_l2(q) - offset);
         }
     }
 

@@ -12,8 +12,9 @@
 //! order; a moving joint's link without inertial data; a mimic joint that follows a moving joint
 //! (it would couple joints, which springfit does not model). A mimic joint that follows a held
 //! joint is held too, at `multiplier · leader + offset` (a gripper's second finger), unless the
-//! design locks it itself. Inertial data must be physical: positive mass, an inertia tensor that
-//! is positive definite and satisfies the triangle inequality of its principal moments, every
+//! design locks it itself. Every held joint must sit within its `<limit>` (a pose the arm cannot
+//! take is refused, naming the joint, the value and the limits). Inertial data must be physical:
+//! positive mass, an inertia tensor that is positive definite and satisfies the triangle inequality of its principal moments, every
 //! value finite and within [`crate::limits`].
 
 use std::collections::HashMap;
@@ -210,6 +211,34 @@ pub fn parse(
         })?;
         let value = m.multiplier.unwrap_or(1.0) * held.get(&leader).copied().unwrap_or(0.0) + m.offset.unwrap_or(0.0);
         held.insert(j, value);
+    }
+
+    // Every held joint within its limits: a hold outside them is a pose the arm cannot take.
+    // Continuous joints have none; a revolute or prismatic joint without `<limit>` reads as
+    // lower = upper = 0 and is not checked (only lower < upper is a range).
+    for (j, joint) in robot.joints.iter().enumerate() {
+        if chosen.contains_key(&j) || !matches!(joint.joint_type, JointType::Revolute | JointType::Prismatic) {
+            continue;
+        }
+        let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+        let value = held.get(&j).copied().unwrap_or(0.0);
+        if lower < upper && !(lower..=upper).contains(&value) {
+            let unit = if joint.joint_type == JointType::Prismatic { "m" } else { "rad" };
+            let how = match (&joint.mimic, locked.iter().any(|(n, _)| n == &joint.name)) {
+                (_, true) => "robot.locked holds it".to_string(),
+                (Some(m), false) => format!("it mimics `{}`, which holds it", m.joint),
+                (None, false) => "it is neither moving nor in robot.locked, so it is held".to_string(),
+            };
+            return Err(bad(
+                joint_el(&joint.name),
+                format!(
+                    "{how} at {} {unit}, outside its <limit> [{}, {}] {unit}: hold it within its limits (robot.locked)",
+                    show(value),
+                    show(lower),
+                    show(upper)
+                ),
+            ));
+        }
     }
 
     // Walk the tree from the base: which moving body each link rides on, and where.

@@ -211,7 +211,7 @@ impl Page {
         }
         if let Some(path) = &design.catalog {
             md.push('\n');
-            match Catalog::load(path, design.dof()) {
+            match Catalog::load_for(path, &design.chain.joint_names()) {
                 Ok(c) => {
                     let _ = writeln!(
                         md,

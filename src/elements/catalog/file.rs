@@ -115,44 +115,96 @@ impl<'de> Deserialize<'de> for Smoothing {
 /// Where a family can be mounted.
 #[derive(Debug, Clone, Serialize)]
 pub enum CouplingSpec {
-    /// Every single joint (a = eᵢ).
-    Joints,
-    /// Every pair of adjacent joints (i, i+1) with each gear-ratio pattern (r₁, r₂):
-    /// a = r₁ eᵢ + r₂ eᵢ₊₁.
-    Pairs(Vec<[f64; 2]>),
-    /// Every pair of joints (i < j), adjacent or not, with each ratio pattern.
-    AllPairs(Vec<[f64; 2]>),
+    /// A pattern of gear ratios put on every group of joints of one kind, among the joints `on`
+    /// names (every joint of the arm when None), so a catalogue fits an arm of any size.
+    Groups {
+        /// Which groups of joints.
+        kind: GroupKind,
+        /// The gear-ratio patterns, one entry per joint of a group (`[1.0]` for single joints).
+        ratios: Vec<Vec<f64>>,
+        /// Joint names (the arm's, or `q1` … `qn`) the groups are taken among, in any order.
+        on: Option<Vec<String>>,
+    },
     /// Explicit coupling vectors, one entry per joint.
     List(Vec<Vec<f64>>),
+}
+
+/// The groups of joints a [`CouplingSpec::Groups`] family is put on; "adjacent" is among the
+/// joints it is taken among, in the arm's order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum GroupKind {
+    /// Every single joint (a = eᵢ).
+    Joints,
+    /// Every pair of adjacent joints (i, i+1): a = r₁ eᵢ + r₂ eᵢ₊₁.
+    Pairs,
+    /// Every pair of joints (i < j), adjacent or not.
+    AllPairs,
+    /// Every triple of adjacent joints (i, i+1, i+2): a = r₁ eᵢ + r₂ eᵢ₊₁ + r₃ eᵢ₊₂.
+    Triples,
+}
+
+impl GroupKind {
+    /// The key that writes it.
+    pub fn key(self) -> &'static str {
+        match self {
+            GroupKind::Joints => "joints",
+            GroupKind::Pairs => "pairs",
+            GroupKind::AllPairs => "all_pairs",
+            GroupKind::Triples => "triples",
+        }
+    }
+
+    /// Joints in one group.
+    pub fn size(self) -> usize {
+        match self {
+            GroupKind::Joints => 1,
+            GroupKind::Pairs | GroupKind::AllPairs => 2,
+            GroupKind::Triples => 3,
+        }
+    }
 }
 
 impl<'de> Deserialize<'de> for CouplingSpec {
     fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
         #[derive(Deserialize)]
         #[serde(deny_unknown_fields)]
-        struct PairsTable {
-            pairs: Vec<[f64; 2]>,
-        }
-        #[derive(Deserialize)]
-        #[serde(deny_unknown_fields)]
-        struct AllPairsTable {
-            all_pairs: Vec<[f64; 2]>,
+        struct Table {
+            joints: Option<Vec<String>>,
+            pairs: Option<Vec<[f64; 2]>>,
+            all_pairs: Option<Vec<[f64; 2]>>,
+            triples: Option<Vec<[f64; 3]>>,
+            on: Option<Vec<String>>,
         }
         #[derive(Deserialize)]
         #[serde(untagged)]
         enum Raw {
             Word(String),
-            Pairs(PairsTable),
-            AllPairs(AllPairsTable),
+            Table(Table),
             List(Vec<Vec<f64>>),
         }
-        let msg = "couplings must be \"joints\", { pairs = [[r1, r2], ...] } (adjacent joints), \
-                   { all_pairs = [[r1, r2], ...] } (every pair) or a list of coupling vectors such as [[1, 0], [1, -1]]";
-        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(msg))? {
-            Raw::Word(w) if w == "joints" => Ok(CouplingSpec::Joints),
-            Raw::Word(_) => Err(serde::de::Error::custom(msg)),
-            Raw::Pairs(p) => Ok(CouplingSpec::Pairs(p.pairs)),
-            Raw::AllPairs(p) => Ok(CouplingSpec::AllPairs(p.all_pairs)),
+        let msg = "couplings must be \"joints\", { joints = [\"name\", ...] } (these joints), \
+                   { pairs = [[r1, r2], ...] } (adjacent joints), { all_pairs = [[r1, r2], ...] } (every pair), \
+                   { triples = [[r1, r2, r3], ...] } (adjacent triples), each of the last three optionally with \
+                   on = [\"name\", ...], or a list of coupling vectors such as [[1, 0], [1, -1]]";
+        let bad = || serde::de::Error::custom(msg);
+        let wide = |r: Vec<[f64; 2]>| r.into_iter().map(|r| r.to_vec()).collect::<Vec<_>>();
+        match Raw::deserialize(d).map_err(|_| bad())? {
+            Raw::Word(w) if w == "joints" => {
+                Ok(CouplingSpec::Groups { kind: GroupKind::Joints, ratios: vec![vec![1.0]], on: None })
+            }
+            Raw::Word(_) => Err(bad()),
+            Raw::Table(t) => {
+                let (kind, ratios, on) = match (t.joints, t.pairs, t.all_pairs, t.triples, t.on) {
+                    (Some(j), None, None, None, None) => (GroupKind::Joints, vec![vec![1.0]], Some(j)),
+                    (None, Some(r), None, None, on) => (GroupKind::Pairs, wide(r), on),
+                    (None, None, Some(r), None, on) => (GroupKind::AllPairs, wide(r), on),
+                    (None, None, None, Some(r), on) => {
+                        (GroupKind::Triples, r.into_iter().map(|r| r.to_vec()).collect(), on)
+                    }
+                    _ => return Err(bad()),
+                };
+                Ok(CouplingSpec::Groups { kind, ratios, on })
+            }
             Raw::List(l) => Ok(CouplingSpec::List(l)),
         }
     }

@@ -11,7 +11,8 @@
 //! [[family]]
 //! name = "joint torsion spring"
 //! profile = "linear"              # linear | cubic | crank | compression
-//! couplings = "joints"            # "joints", { pairs = [[1, 1]] }, { all_pairs = … } or [[1, -2]]
+//! couplings = "joints"            # "joints", { pairs = [[1, 1]] }, { all_pairs = … }, { triples = … }
+//!                                 # (each optionally on = ["q2", "q3"]), { joints = ["q1"] } or [[1, -2]]
 //! offsets = "equilibrium"         # "equilibrium", { grid = 9 }, { phases = 12 } or angles
 //! unit = "N*m/rad"                # optional; must match the profile
 //! max_stiffness = 40.0            # optional, in the profile's unit
@@ -39,7 +40,8 @@ use crate::elements::{Element, Profile, Side};
 mod file;
 mod resolve;
 
-pub use file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
+pub use file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing};
+pub use resolve::numbered_joints;
 
 /// A validated cam family's settings (see [`crate::elements::spline`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -319,6 +321,55 @@ offsets = { phases = 4 }
         let c3 = load(&text3, 3).unwrap();
         let cands3 = c3.expand(&[0.0, 0.0, 0.0], |_| (-1.0, 1.0));
         assert_eq!(cands3.iter().filter(|c| c.element.profile == Profile::Crank).count(), 2 * 2 * 3 + 4);
+    }
+
+    /// Families for n joints: every joint, every pair, every adjacent triple, each among all
+    /// joints or the ones `on` names (the arm's names or q1 … qn), with the vectors they stand for.
+    #[test]
+    fn group_families_expand_for_any_number_of_joints() {
+        let couplings = |spec: &str, joints: &[&str]| -> Result<Vec<Vec<f64>>> {
+            let text = format!(
+                "[[family]]\nname = \"f\"\nprofile = \"linear\"\ncouplings = {spec}\noffsets = \"equilibrium\"\n"
+            );
+            let names: Vec<String> = joints.iter().map(|s| s.to_string()).collect();
+            Ok(Catalog::parse_for(Path::new("catalogs/test.toml"), &text, &names)?.families[0].couplings.clone())
+        };
+        let five = ["q1", "q2", "q3", "q4", "q5"];
+        let e = |i: usize| (0..5).map(|k| if k == i { 1.0 } else { 0.0 }).collect::<Vec<f64>>();
+        assert_eq!(couplings("\"joints\"", &five).unwrap(), (0..5).map(e).collect::<Vec<_>>());
+        // Adjacent triples of five joints: three of them per pattern, patterns outermost.
+        let t = couplings("{ triples = [[1, -1, 1], [1, 2, 3]] }", &five).unwrap();
+        assert_eq!(t.len(), 6);
+        assert_eq!(t[0], vec![1.0, -1.0, 1.0, 0.0, 0.0]);
+        assert_eq!(t[2], vec![0.0, 0.0, 1.0, -1.0, 1.0]);
+        assert_eq!(t[4], vec![0.0, 1.0, 2.0, 3.0, 0.0]);
+        // All pairs of five joints: ten.
+        assert_eq!(couplings("{ all_pairs = [[1, 1]] }", &five).unwrap().len(), 10);
+        // Among named joints, in the arm's order whatever the order written: pairs adjacent
+        // among them (q2, q4) and (q4, q5).
+        let urdf = ["pan", "lift", "elbow", "wrist_1", "wrist_2"];
+        let p = couplings("{ pairs = [[1, 2]], on = [\"wrist_2\", \"lift\", \"q4\"] }", &urdf).unwrap();
+        assert_eq!(p, vec![vec![0.0, 1.0, 0.0, 2.0, 0.0], vec![0.0, 0.0, 0.0, 1.0, 2.0]]);
+        assert_eq!(couplings("{ joints = [\"elbow\"] }", &urdf).unwrap(), vec![vec![0.0, 0.0, 1.0, 0.0, 0.0]]);
+        // Refused, naming the entry: a joint the arm does not have, twice the same, too few joints
+        // for the group, a zero ratio, `on` with "joints".
+        let cases: [(&str, &[&str], &str, &str); 6] = [
+            (
+                "{ all_pairs = [[1, 1]], on = [\"lift\", \"wrist_3\"] }",
+                &urdf,
+                "couplings.on[1]",
+                "`wrist_3` is not a joint",
+            ),
+            ("{ joints = [\"q6\"] }", &five, "couplings.joints[0]", "its joints are q1, q2, q3, q4, q5"),
+            ("{ joints = [\"q2\", \"q2\"] }", &five, "couplings.joints[1]", "listed twice"),
+            ("{ triples = [[1, 1, 1]] }", &five[..2], "family[0].couplings", "triples need at least 3 joints"),
+            ("{ triples = [[1, 0, 1]] }", &five, "couplings.triples[0]", "non-zero"),
+            ("{ joints = [\"q1\"], on = [\"q1\"] }", &five, "test.toml", "couplings must be"),
+        ];
+        for (spec, joints, field, reason) in cases {
+            let err = couplings(spec, joints).unwrap_err().to_string();
+            assert!(err.contains(field) && err.contains(reason), "{spec}: expected {field} / {reason} in {err}");
+        }
     }
 
     /// Inputs run through the fuzz target fuzz/fuzz_targets/catalog.rs by hand: a phase count

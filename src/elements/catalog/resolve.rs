@@ -5,27 +5,49 @@
 use crate::limits::{MAX_CANDIDATES, MAX_COUPLING, MAX_KNOTS, MAX_OFFSETS, MAX_STIFFNESS, show, within};
 use std::path::Path;
 
-use super::file::{CatalogFile, CouplingSpec, FamilySpec, OffsetSpec, Smoothing};
+use super::file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing};
 use super::*;
 use crate::error::{Error, Result};
 use crate::input::{parse_toml, read_text};
 
+/// The joint names `q1` … `qn` every arm answers to.
+pub fn numbered_joints(dof: usize) -> Vec<String> {
+    (1..=dof).map(|i| format!("q{i}")).collect()
+}
+
 impl Catalog {
-    /// Reads and validates a catalogue for a robot with `dof` joints.
+    /// Reads and validates a catalogue for a robot with `dof` joints named `q1` … `qn`.
     pub fn load(path: &Path, dof: usize) -> Result<Catalog> {
-        Catalog::parse(path, &read_text(path)?, dof)
+        Catalog::load_for(path, &numbered_joints(dof))
+    }
+
+    /// Reads and validates a catalogue for a robot with these joints (base first; a design's
+    /// [`crate::model::Chain::joint_names`]), which families may name.
+    pub fn load_for(path: &Path, joints: &[String]) -> Result<Catalog> {
+        Catalog::parse_for(path, &read_text(path)?, joints)
     }
 
     /// Parses and validates the text of a catalogue for a robot with `dof` joints (what
     /// [`Catalog::load`] does once the file is read). Never panics: every problem in `text` is
     /// an [`Error`].
     pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Catalog> {
-        let file: CatalogFile = parse_toml(path, text)?;
-        Catalog::from_file(path, file, dof)
+        Catalog::parse_for(path, text, &numbered_joints(dof))
     }
 
-    /// Validates a parsed catalogue.
+    /// [`Catalog::parse`] for a robot with these joints.
+    pub fn parse_for(path: &Path, text: &str, joints: &[String]) -> Result<Catalog> {
+        let file: CatalogFile = parse_toml(path, text)?;
+        Catalog::from_file_for(path, file, joints)
+    }
+
+    /// Validates a parsed catalogue for a robot with `dof` joints named `q1` … `qn`.
     pub fn from_file(path: &Path, file: CatalogFile, dof: usize) -> Result<Catalog> {
+        Catalog::from_file_for(path, file, &numbered_joints(dof))
+    }
+
+    /// Validates a parsed catalogue for a robot with these joints.
+    pub fn from_file_for(path: &Path, file: CatalogFile, joints: &[String]) -> Result<Catalog> {
+        let dof = joints.len();
         let invalid = |field: String, reason: String| Error::invalid(path, field, reason);
         if file.family.is_empty() {
             return Err(invalid(
@@ -70,38 +92,41 @@ impl Catalog {
                 }
             }
             let couplings = match &f.couplings {
-                CouplingSpec::Joints => {
-                    (0..dof).map(|j| (0..dof).map(|k| if j == k { 1.0 } else { 0.0 }).collect()).collect()
-                }
-                CouplingSpec::Pairs(ratios) | CouplingSpec::AllPairs(ratios) => {
-                    if dof < 2 {
-                        return Err(invalid(field("couplings"), "pairs need at least two joints".into()));
+                CouplingSpec::Groups { kind, ratios, on } => {
+                    let key = kind.key();
+                    let among = match on {
+                        None => (0..dof).collect(),
+                        Some(list) => {
+                            let at = if *kind == GroupKind::Joints { key } else { "on" };
+                            named_joints(list, joints)
+                                .map_err(|(k, reason)| invalid(format!("family[{i}].couplings.{at}[{k}]"), reason))?
+                        }
+                    };
+                    let size = kind.size();
+                    if among.len() < size {
+                        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
+                        return Err(invalid(
+                            field("couplings"),
+                            format!("{key} need at least {size} joints but {whose} {}", among.len()),
+                        ));
                     }
-                    let all = matches!(f.couplings, CouplingSpec::AllPairs(_));
                     let mut out = Vec::new();
                     for (k, r) in ratios.iter().enumerate() {
-                        if !(r[0].is_finite() && r[1].is_finite())
-                            || r[0] == 0.0
-                            || r[1] == 0.0
-                            || r[0].abs().max(r[1].abs()) > MAX_COUPLING
-                        {
-                            let key = if all { "all_pairs" } else { "pairs" };
+                        if r.iter().any(|x| !x.is_finite() || *x == 0.0 || x.abs() > MAX_COUPLING) {
                             return Err(invalid(
                                 format!("family[{i}].couplings.{key}[{k}]"),
                                 format!(
-                                    "both gear ratios must be finite and non-zero, at most {} in magnitude",
+                                    "every gear ratio must be finite and non-zero, at most {} in magnitude",
                                     show(MAX_COUPLING)
                                 ),
                             ));
                         }
-                        for j in 0..dof - 1 {
-                            let last = if all { dof - 1 } else { j + 1 };
-                            for l in j + 1..=last {
-                                let mut a = vec![0.0; dof];
-                                a[j] = r[0];
-                                a[l] = r[1];
-                                out.push(a);
+                        for group in groups(*kind, &among) {
+                            let mut a = vec![0.0; dof];
+                            for (&j, &x) in group.iter().zip(r) {
+                                a[j] = x;
                             }
+                            out.push(a);
                         }
                     }
                     out
@@ -372,4 +397,46 @@ fn normalise_unit(u: &str) -> String {
         .collect::<String>()
         .replace("^", "")
         .to_lowercase()
+}
+
+/// The arm's indices of the joints `list` names (the arm's names or `q1` … `qn`), in the arm's
+/// order; or the index in `list` of the first bad name and why.
+fn named_joints(list: &[String], joints: &[String]) -> std::result::Result<Vec<usize>, (usize, String)> {
+    let numbered = numbered_joints(joints.len());
+    let mut out = Vec::with_capacity(list.len());
+    for (k, name) in list.iter().enumerate() {
+        let j = joints.iter().position(|n| n == name).or_else(|| numbered.iter().position(|n| n == name));
+        let Some(j) = j else {
+            let mut names = joints.to_vec();
+            if joints != numbered.as_slice() {
+                names.push(format!("or q1 … q{}", joints.len()));
+            }
+            return Err((k, format!("`{name}` is not a joint of the arm; its joints are {}", names.join(", "))));
+        };
+        if out.contains(&j) {
+            return Err((k, format!("`{name}` is listed twice")));
+        }
+        out.push(j);
+    }
+    out.sort_unstable();
+    Ok(out)
+}
+
+/// The groups of joint indices of `kind` among `among` (ascending): adjacent ones are
+/// neighbours in `among`.
+fn groups(kind: GroupKind, among: &[usize]) -> Vec<Vec<usize>> {
+    match kind {
+        GroupKind::Joints => among.iter().map(|&j| vec![j]).collect(),
+        GroupKind::Pairs => among.windows(2).map(<[usize]>::to_vec).collect(),
+        GroupKind::Triples => among.windows(3).map(<[usize]>::to_vec).collect(),
+        GroupKind::AllPairs => {
+            let mut out = Vec::new();
+            for (t, &j) in among.iter().enumerate() {
+                for &l in &among[t + 1..] {
+                    out.push(vec![j, l]);
+                }
+            }
+            out
+        }
+    }
 }
