@@ -53,6 +53,9 @@ class InfeasibleError(NotMetError):
 class NumericalError(NotMetError):
     """A numerical method failed (a log map that did not converge, a singular mass matrix)."""
 
+class NoPartError(NotMetError):
+    """An element of the fitted bill has no spring within the design's [parts] envelope."""
+
 class Design:
     """A validated design: robot, equilibrium, region and every settings section."""
 

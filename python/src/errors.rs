@@ -51,6 +51,12 @@ create_exception!(springfit, PlotError, BadInputError, "A plot could not be draw
 create_exception!(springfit, InfeasibleError, NotMetError, "The fit's constraints cannot all be met.");
 create_exception!(
     springfit,
+    NoPartError,
+    NotMetError,
+    "An element of the fitted bill has no spring within the design's [parts] envelope (the message names the limit and the setting that would keep a part possible)."
+);
+create_exception!(
+    springfit,
     NumericalError,
     NotMetError,
     "A numerical method failed (a log map that did not converge, a singular mass matrix)."
@@ -93,6 +99,7 @@ fn build(e: &Error, message: String, file: Option<String>) -> PyErr {
         Error::Setting { .. } => SettingError::new_err(message),
         Error::Plot { .. } => PlotError::new_err(message),
         Error::Infeasible { .. } => InfeasibleError::new_err(message),
+        Error::NoPart { .. } => NoPartError::new_err(message),
         Error::Numerical { .. } => NumericalError::new_err(message),
     };
     Python::attach(|py| {
@@ -137,5 +144,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("PlotError", py.get_type::<PlotError>())?;
     m.add("InfeasibleError", py.get_type::<InfeasibleError>())?;
     m.add("NumericalError", py.get_type::<NumericalError>())?;
+    m.add("NoPartError", py.get_type::<NoPartError>())?;
     Ok(())
 }

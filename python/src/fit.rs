@@ -28,6 +28,8 @@ pub struct PyFit {
     pub design: Arc<Design>,
     pub outcome: Arc<FitOutcome>,
     as_built: Option<AsBuilt>,
+    /// The parts of the fitted bill, as `springfit fit` chooses them (None: the exact reference).
+    parts: Option<springfit::parts::Parts>,
     exact: bool,
 }
 
@@ -61,6 +63,7 @@ impl PyFit {
                 "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
             )?)
         };
+        let stock = if exact { Vec::new() } else { springfit::files::stock::of_design(&design).py()? };
         let progress = Progress::new(progress);
         let result = py.detach(|| {
             let stage = |name: &str| progress.stage(name);
@@ -82,11 +85,25 @@ impl PyFit {
                 progress.stage("as-built Monte Carlo builds");
                 springfit::asbuilt::of_fit(&design, &outcome)?
             };
-            Ok((outcome, as_built))
+            let parts = if exact {
+                None
+            } else {
+                progress.stage("choosing parts");
+                Some(springfit::parts::choose(
+                    &design,
+                    &outcome.bom,
+                    &outcome.cams,
+                    &outcome.evaluation,
+                    settings.frequency,
+                    &stock,
+                    Some(outcome.metrics.stats),
+                )?)
+            };
+            Ok((outcome, as_built, parts))
         });
         progress.raised()?;
-        let (outcome, as_built) = result.map_err(|e| in_design(e, &design.path))?;
-        Ok(PyFit { design, outcome: Arc::new(outcome), as_built, exact })
+        let (outcome, as_built, parts) = result.map_err(|e| in_design(e, &design.path))?;
+        Ok(PyFit { design, outcome: Arc::new(outcome), as_built, parts, exact })
     }
 }
 
@@ -162,6 +179,7 @@ impl PyFit {
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let mut s = springfit::report::fit::Summary::new(&self.outcome, &self.design.path);
         s.as_built = self.as_built;
+        s.realised = self.parts.as_ref().map(springfit::report::parts::RealisedSummary::new);
         json(py, &s)
     }
 
@@ -181,7 +199,7 @@ impl PyFit {
         self.potential_springs()
     }
 
-    /// Writes every file `springfit fit` writes into `folder` (bom.csv, bom.md, summary.json,
+    /// Writes every file `springfit fit` writes into `folder` (bom.csv, bom.md, parts.csv, parts.md, summary.json,
     /// residuals.csv, plots, report.md, report.html, cams/), through the command's output folder:
     /// refused before writing if the folder holds files springfit did not write, or edited since
     /// (unless `overwrite_edits`). Returns the folder.
@@ -190,7 +208,8 @@ impl PyFit {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
         let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits);
         let (design, outcome, as_built) = (&self.design, &self.outcome, self.as_built.as_ref());
-        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built, None)).py()
+        let parts = self.parts.as_ref();
+        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built, parts)).py()
     }
 
     fn __repr__(&self) -> String {

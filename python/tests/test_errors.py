@@ -87,5 +87,5 @@ def test_an_infeasible_fit_is_the_commands_message(tmp_path):
 
 def test_every_error_is_a_springfit_error():
     for cls in [springfit.FileError, springfit.ParseError, springfit.InvalidError, springfit.SettingError,
-                springfit.PlotError, springfit.InfeasibleError, springfit.NumericalError]:
+                springfit.PlotError, springfit.InfeasibleError, springfit.NumericalError, springfit.NoPartError]:
         assert issubclass(cls, springfit.Error)

@@ -12,21 +12,9 @@ use springfit::report::output::OutputDir;
 
 use super::Session;
 
-/// The stock list `[parts] stock` names (relative to the design file), read before any work.
+/// The stock list `[parts] stock` names, read before any work ([`springfit::files::stock::of_design`]).
 pub fn load_stock(design: &Design) -> springfit::Result<Vec<StockPart>> {
-    let Some(name) = &design.file.parts.stock else { return Ok(Vec::new()) };
-    let path = design.path.parent().unwrap_or(Path::new(".")).join(name);
-    if !path.is_file() {
-        return Err(Error::invalid(
-            &design.path,
-            "parts.stock",
-            format!(
-                "`{name}` names no file ({} does not exist; the path is relative to the design file)",
-                path.display()
-            ),
-        ));
-    }
-    springfit::files::stock::read(&path)
+    springfit::files::stock::of_design(design)
 }
 
 /// The lines `parts` and `fit` print about the parts.

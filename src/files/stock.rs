@@ -21,6 +21,24 @@ use crate::parts::StockPart;
 /// The header a stock list starts with.
 pub const HEADER: &str = "vendor,part_number,type,material,d_mm,D_mm,n,length_mm,rate,rate_unit,max_deflection,max_deflection_unit,max_load,max_load_unit,source";
 
+/// The stock list the design's `[parts] stock` names (relative to the design file; none: empty),
+/// read before any work so that a missing file is refused first.
+pub fn of_design(design: &crate::design::Design) -> Result<Vec<StockPart>> {
+    let Some(name) = &design.file.parts.stock else { return Ok(Vec::new()) };
+    let path = design.path.parent().unwrap_or(Path::new(".")).join(name);
+    if !path.is_file() {
+        return Err(Error::invalid(
+            &design.path,
+            "parts.stock",
+            format!(
+                "`{name}` names no file ({} does not exist; the path is relative to the design file)",
+                path.display()
+            ),
+        ));
+    }
+    read(&path)
+}
+
 /// Reads a stock list.
 pub fn read(path: &Path) -> Result<Vec<StockPart>> {
     parse(path, &read_text(path)?)
