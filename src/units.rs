@@ -90,6 +90,12 @@ pub fn sci(x: f64, digits: usize) -> String {
     if x == 0.0 { "0".to_string() } else { format!("{x:.digits$e}") }
 }
 
+/// A unit as people read it (`N·m/rad³`); `bom.csv` and `compare.csv` keep the ASCII spelling
+/// (`N*m/rad^3`) that every CSV reader takes.
+pub fn shown(unit: &str) -> String {
+    unit.replace('*', "·").replace("^3", "³")
+}
+
 /// A residual angle in degrees for tables and legends: four decimals, or scientific notation
 /// below 0.001° (the exact potential's 1e-7° would read `0.0000°`, as if it were nothing).
 pub fn deg(x: f64) -> String {

@@ -581,12 +581,6 @@ fn after_assembly(a: &Adjustment) -> String {
     }
 }
 
-/// A unit as people read it (`N·m/rad³`); `bom.csv` keeps the ASCII spelling (`N*m/rad^3`) that
-/// every CSV reader takes.
-fn shown_unit(unit: &str) -> String {
-    unit.replace('*', "·").replace("^3", "³")
-}
-
 /// The bill of materials as a Markdown table with totals per unit (a cam is one row, its
 /// stiffness the follower rate).
 pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
@@ -608,7 +602,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
             l.coupling.iter().map(|a| fmt_number(*a)).collect::<Vec<_>>().join(", "),
             l.offset,
             l.stiffness,
-            shown_unit(l.unit),
+            crate::units::shown(l.unit),
             l.max_torque_nm,
             l.max_deflection_rad,
             l.stock_rate.map(|x| format!("{x}")).unwrap_or_else(|| "–".into()),
@@ -629,7 +623,7 @@ pub fn to_markdown(title: &str, rows: &[BomRow]) -> String {
     for u in units {
         let (count, total) = lines.iter().filter(|l| l.unit == u).fold((0, 0.0), |(c, t), l| (c + 1, t + l.stiffness));
         let noun = if count == 1 { "element" } else { "elements" };
-        s.push_str(&format!("- {}: {total:.4} over {count} {noun}\n", shown_unit(u)));
+        s.push_str(&format!("- {}: {total:.4} over {count} {noun}\n", crate::units::shown(u)));
     }
     if lines.iter().all(|l| l.preload_nm.is_some()) {
         let total: f64 = lines.iter().filter_map(|l| l.preload_nm).map(f64::abs).sum();

@@ -149,11 +149,7 @@ pub fn table_md(records: &[FitRecord]) -> String {
         let totals = if r.totals.is_empty() {
             "–".to_string()
         } else {
-            r.totals
-                .iter()
-                .map(|(u, t)| format!("{t:.2} {}", u.replace('*', "·").replace("^3", "³")))
-                .collect::<Vec<_>>()
-                .join(", ")
+            r.totals.iter().map(|(u, t)| format!("{t:.2} {}", crate::units::shown(u))).collect::<Vec<_>>().join(", ")
         };
         s.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
