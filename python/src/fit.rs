@@ -89,15 +89,7 @@ impl PyFit {
                 None
             } else {
                 progress.stage("choosing parts");
-                Some(springfit::parts::choose(
-                    &design,
-                    &outcome.bom,
-                    &outcome.cams,
-                    &outcome.evaluation,
-                    settings.frequency,
-                    &stock,
-                    Some(outcome.metrics.stats),
-                )?)
+                Some(springfit::parts::of_fit(&design, &outcome, settings.frequency, &stock)?)
             };
             Ok((outcome, as_built, parts))
         });

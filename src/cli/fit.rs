@@ -77,16 +77,8 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         None
     } else {
         let step = progress.step("choosing parts");
-        let parts = springfit::parts::choose(
-            &design,
-            &outcome.bom,
-            &outcome.cams,
-            &outcome.evaluation,
-            settings.frequency,
-            &stock,
-            Some(outcome.metrics.stats),
-        )
-        .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
+        let parts = springfit::parts::of_fit(&design, &outcome, settings.frequency, &stock)
+            .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
         step.finish();
         Some(parts)
     };

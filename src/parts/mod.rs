@@ -200,6 +200,12 @@ fn duty(e: &Element, q_eq: &[f64], fan: &Fan, swing: f64) -> Duty {
     Duty { at_eq, range, swing: sw }
 }
 
+/// The parts of a fit's bill, over its evaluation fan, judged against its residual angles:
+/// what `springfit fit` and the Python package's `fit()` both write.
+pub fn of_fit(design: &Design, outcome: &crate::fit::FitOutcome, frequency: f64, stock: &[StockPart]) -> Result<Parts> {
+    choose(design, &outcome.bom, &outcome.cams, &outcome.evaluation, frequency, stock, Some(outcome.metrics.stats))
+}
+
 /// Chooses the parts of `bom` (the fit's rows, trims included) and its realised `cams`, and
 /// judges the realised design on `evaluation` beside the ideal elements' figures (`ideal`, the
 /// fit's when it has just been judged on the same fan; computed when None).
