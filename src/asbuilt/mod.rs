@@ -12,12 +12,15 @@
 //! set so that ∇²U = w² M holds there again; the trimmed build is judged the same way.
 //!
 //! A cam's basis columns are one part, a cam on one follower spring: they share one δ per build
-//! ([`factors`]).
+//! ([`factors`]). Designs with cams are also built *preload-trimmed* ([`preload`]): each
+//! follower's preload screw set to the drawing's force on the base circle, which removes the
+//! part of the cam's error its preload carries.
 //!
 //! Every build draws from its own SplitMix64 stream (seed, build index), and builds run in
 //! parallel with results collected in build order, so the figures do not depend on the thread
 //! count. The sweep judges its tolerance builds with the same functions.
 
+pub mod preload;
 pub mod tune;
 
 use nalgebra::{DMatrix, DVector};
@@ -184,6 +187,13 @@ pub struct Trimmed {
     pub builds_not_restored: usize,
 }
 
+/// The preload-trimmed part of the as-built figures (designs with cams; see [`preload`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PreloadTrimmed {
+    pub p99_deg: Spread,
+    pub max_deg: Spread,
+}
+
 /// `"as_built"` of `summary.json`: p50 and p95 over the builds.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AsBuilt {
@@ -204,6 +214,8 @@ pub struct AsBuilt {
     pub shift_metric: Spread,
     /// After each build's trim (designs with trim springs only).
     pub trimmed: Option<Trimmed>,
+    /// After each cam's preload is re-set (and the trims, if any): designs with cams only.
+    pub preload_trimmed: Option<PreloadTrimmed>,
 }
 
 /// The tolerance the as-built figures are drawn at: the fit's, or — when the fit is for the
@@ -390,6 +402,7 @@ pub fn summarise(s: &BuildSettings, builds: &[Build]) -> AsBuilt {
         shift_rad: Spread::of(builds.iter().map(|b| b.shift_rad)),
         shift_metric: Spread::of(builds.iter().map(|b| b.shift_metric)),
         trimmed,
+        preload_trimmed: None,
     }
 }
 
@@ -445,5 +458,18 @@ pub fn of_fit(design: &Design, fit: &crate::fit::FitOutcome) -> Result<Option<As
         samples: SAMPLES,
     };
     let builds = run_builds(design, &fit.bom, &fit.springs, &s)?;
-    Ok(Some(summarise(&s, &builds)))
+    let mut ab = summarise(&s, &builds);
+    if !fit.cams.is_empty() {
+        let terms: Vec<preload::PreloadTerm> = fit.cams.iter().map(preload::term).collect();
+        let out: Vec<Result<(f64, f64)>> = (0..s.builds)
+            .into_par_iter()
+            .map(|i| preload::run_build(design, &fit.bom, &fit.springs, &terms, &s, i))
+            .collect();
+        let out: Vec<(f64, f64)> = out.into_iter().collect::<Result<_>>()?;
+        ab.preload_trimmed = Some(PreloadTrimmed {
+            p99_deg: Spread::of(out.iter().map(|o| o.0)),
+            max_deg: Spread::of(out.iter().map(|o| o.1)),
+        });
+    }
+    Ok(Some(ab))
 }

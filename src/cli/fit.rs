@@ -183,6 +183,17 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
                     plural(t.builds_not_restored, "build")
                 ));
             }
+            if let Some(t) = &ab.preload_trimmed {
+                progress.say(format!(
+                    "as built, each cam's follower preload re-set to the drawing's force{}: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°",
+                    if ab.trimmed.is_some() { " and the trims re-set" } else { "" },
+                    t.p99_deg.p50,
+                    t.p99_deg.p95,
+                    t.p99_deg.p95_interval(3),
+                    t.max_deg.p50,
+                    t.max_deg.p95,
+                ));
+            }
             if ab.builds_without_equilibrium > 0 {
                 progress.say(format!(
                     "{} no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",

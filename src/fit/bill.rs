@@ -104,10 +104,10 @@ pub fn fitted_cams(catalog: &Catalog, rows: &[BomRow]) -> Vec<FittedCam> {
     let mut cams = grouped(rows);
     for c in &mut cams {
         let spec = catalog.families.iter().find(|f| f.name == c.family).and_then(|f| f.cam);
-        let (rate, stroke, rb, rr, alpha) = spec.map_or(DEFAULT_REALISATION, |s| {
-            (s.follower_rate, s.max_stroke, s.base_radius, s.roller_radius, s.max_pressure_angle)
+        let (rate, stroke, preload, rb, rr, alpha) = spec.map_or(DEFAULT_REALISATION, |s| {
+            (s.follower_rate, s.max_stroke, s.preload_fraction, s.base_radius, s.roller_radius, s.max_pressure_angle)
         });
-        c.realisation = realise(&c.knots, &c.coefficients, rate, stroke, rb, rr, alpha, 1000);
+        c.realisation = realise(&c.knots, &c.coefficients, rate, stroke, preload, rb, rr, alpha, 1000);
     }
     cams
 }

@@ -106,9 +106,13 @@ impl ElementPart {
                     lengths[1] - lengths[0]
                 )
             }
-            mechanism::Mechanism::Follower => {
-                format!("{on}: the cam's roller follower, pressed by a compression spring")
-            }
+            mechanism::Mechanism::Follower => match self.follower {
+                Some([rate, preload, _]) => format!(
+                    "{on}: the cam's roller follower, pressed by a compression spring; set its preload screw so the follower presses the base circle with {:.1} N (the drawing's {preload:.2} mm at {rate:.3} N/mm: set by force, it also takes out most of the spring's rate error)",
+                    rate * preload
+                ),
+                None => format!("{on}: the cam's roller follower, pressed by a compression spring"),
+            },
             mechanism::Mechanism::CubicCam { span, gear, base_radius, max_pressure_angle } => format!(
                 "{on}: a disc cam geared {gear:.4} : 1 from x (it turns {}° over x = {:.4} … {:.4} rad), base circle {base_radius} mm, \
                  its pitch curve storing k (x − x₀)⁴ / 4 in the follower spring (x₀ = {:.4} rad; largest pressure angle {max_pressure_angle:.1}°); \
@@ -343,6 +347,7 @@ pub fn choose(
 /// cubic element is built as: the cam catalogue's defaults (docs/catalogue.md), as a cubic family
 /// states no cam geometry.
 const CUBIC_CAM: (f64, f64, f64, f64) = (20.0, 40.0, 8.0, 30.0);
+const CUBIC_PRELOAD: f64 = crate::realise::cam::PRELOAD_FRACTION;
 
 /// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
 /// (`duty.range`) with a roller follower on compression springs: the cam stores the cubic's
@@ -359,8 +364,7 @@ fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::resul
     let cam = crate::realise::cam::realise_profile(
         span,
         profile,
-        None,
-        max_stroke,
+        (None, max_stroke, CUBIC_PRELOAD),
         base_radius,
         roller_radius,
         max_angle,
@@ -593,7 +597,8 @@ mod tests {
         // The follower of that cam stores V − min V = ½ k_f ((p₀ + s)² − p₀²) at every point.
         let profile =
             |x: f64| (0.25 * k * f64::powi(x - x0, 4), k * f64::powi(x - x0, 3), 3.0 * k * f64::powi(x - x0, 2));
-        let cam = realise_profile(span, profile, None, 20.0, 40.0, 8.0, 30.0, 1000);
+        let follower = (None, 20.0, crate::realise::cam::PRELOAD_FRACTION);
+        let cam = realise_profile(span, profile, follower, 40.0, 8.0, 30.0, 1000);
         let (kf, p0) = (cam.build.follower_rate * 1000.0, cam.build.preload / 1000.0);
         for p in &cam.points {
             let stored = 0.5 * kf * ((p0 + p.stroke / 1000.0).powi(2) - p0 * p0);

@@ -9,9 +9,11 @@ use crate::elements::spline::Knots;
 /// Cam angle the coupling's range is geared to: 300°, so the cam never turns a full turn.
 pub const CAM_TURN_DEG: f64 = 300.0;
 
-/// Follower preload at the base circle as a fraction of the largest stroke. Without preload
-/// s(x) = sqrt(2 (V − min V)/k_f) has a corner at the minimum of V (infinite curvature).
-pub const PRELOAD_FRACTION: f64 = 0.5;
+/// Follower preload at the base circle as a fraction of the largest stroke, unless the family
+/// states its `preload_fraction`. Without preload s(x) = sqrt(2 (V − min V)/k_f) has a corner at
+/// the minimum of V (infinite curvature); a larger preload makes the follower's force nearly
+/// constant and lets its preload screw take out most of a rate error (`asbuilt::preload`).
+pub const PRELOAD_FRACTION: f64 = crate::elements::catalog::DEFAULT_PRELOAD_FRACTION;
 
 /// Smallest allowed margin between the pitch curve's radius of curvature (where convex) and the
 /// roller radius, in mm: below it the cam profile undercuts.
@@ -70,8 +72,9 @@ pub struct Realisation {
 ///
 /// The follower spring stores V − min V = ½ k_f ((p₀ + s)² − p₀²), so
 /// s = sqrt(p₀² + 2 (V − min V)/k_f) − p₀ (k_f in N/m, lengths in m inside). Given no rate, k_f
-/// is chosen so the largest stroke is `max_stroke` with p₀ = [`PRELOAD_FRACTION`] · `max_stroke`;
-/// given a rate, p₀ is that fraction of the stroke the rate gives. The cam turns
+/// is chosen so the largest stroke is `max_stroke` with p₀ = `preload_fraction` · `max_stroke`
+/// ([`PRELOAD_FRACTION`] by default); given a rate, p₀ is that fraction of the stroke the rate
+/// gives. The cam turns
 /// [`CAM_TURN_DEG`] over the span: g = (x_hi − x_lo)/300°. With φ the cam angle,
 /// R(φ) = R_b + ρ_r + s, the pressure angle is atan(R′/R) and the pitch curve's radius of
 /// curvature (R² + R′²)^{3/2} / (R² + 2R′² − R R″).
@@ -81,6 +84,7 @@ pub fn realise(
     c: &[f64],
     follower_rate: Option<f64>,
     max_stroke: f64,
+    preload_fraction: f64,
     base_radius: f64,
     roller_radius: f64,
     max_pressure_angle: f64,
@@ -88,7 +92,8 @@ pub fn realise(
 ) -> Realisation {
     let profile = |x: f64| knots.eval(c, x);
     let (span, angle) = ([knots.lo, knots.hi()], max_pressure_angle);
-    realise_profile(span, profile, follower_rate, max_stroke, base_radius, roller_radius, angle, samples)
+    let follower = (follower_rate, max_stroke, preload_fraction);
+    realise_profile(span, profile, follower, base_radius, roller_radius, angle, samples)
 }
 
 /// Realises any potential `profile(x) = (V, V′, V″)` over `span` as [`realise`] does a fitted
@@ -98,8 +103,7 @@ pub fn realise(
 pub fn realise_profile(
     span: [f64; 2],
     profile: impl Fn(f64) -> (f64, f64, f64),
-    follower_rate: Option<f64>,
-    max_stroke: f64,
+    (follower_rate, max_stroke, preload_fraction): (Option<f64>, f64, f64),
     base_radius: f64,
     roller_radius: f64,
     max_pressure_angle: f64,
@@ -116,12 +120,12 @@ pub fn realise_profile(
         Some(rate) => {
             let k = rate * 1000.0;
             // Stroke S with p₀ = f S: ΔV = ½ k S² (1 + 2f).
-            let stroke = (2.0 * dv_max / (k * (1.0 + 2.0 * PRELOAD_FRACTION))).sqrt();
-            (k, PRELOAD_FRACTION * stroke.max(1e-6))
+            let stroke = (2.0 * dv_max / (k * (1.0 + 2.0 * preload_fraction))).sqrt();
+            (k, preload_fraction * stroke.max(1e-6))
         }
         None => {
             let stroke = max_stroke / 1000.0;
-            let p0 = PRELOAD_FRACTION * stroke;
+            let p0 = preload_fraction * stroke;
             ((2.0 * dv_max / ((p0 + stroke).powi(2) - p0 * p0)).max(1e-9), p0)
         }
     };
@@ -236,14 +240,14 @@ pub struct FittedCam {
     pub realisation: Realisation,
 }
 
-/// Follower rate, largest stroke (mm), base and roller radius (mm) and pressure-angle limit (°)
+/// Follower rate, largest stroke (mm), preload fraction, base and roller radius (mm) and pressure-angle limit (°)
 /// of a cam whose family is unknown: the catalogue's defaults.
-pub const DEFAULT_REALISATION: (Option<f64>, f64, f64, f64, f64) = (None, 20.0, 40.0, 8.0, 30.0);
+pub const DEFAULT_REALISATION: (Option<f64>, f64, f64, f64, f64, f64) = (None, 20.0, PRELOAD_FRACTION, 40.0, 8.0, 30.0);
 
 /// A cam realised with [`DEFAULT_REALISATION`].
 pub fn realise_default(knots: &Knots, c: &[f64]) -> Realisation {
-    let (rate, stroke, rb, rr, alpha) = DEFAULT_REALISATION;
-    realise(knots, c, rate, stroke, rb, rr, alpha, 1000)
+    let (rate, stroke, preload, rb, rr, alpha) = DEFAULT_REALISATION;
+    realise(knots, c, rate, stroke, preload, rb, rr, alpha, 1000)
 }
 
 #[cfg(test)]
@@ -258,7 +262,7 @@ mod tests {
     fn follower_stroke_stores_the_potential() {
         let k = knots();
         let c: Vec<f64> = (0..k.basis_count()).map(|j| 3.0 * (j as f64 * 0.7).sin() + 0.2 * j as f64).collect();
-        let r = realise(&k, &c, None, 20.0, 40.0, 8.0, 30.0, 1000);
+        let r = realise(&k, &c, None, 20.0, PRELOAD_FRACTION, 40.0, 8.0, 30.0, 1000);
         assert_eq!(r.points.len(), 1000);
         let (kf, p0) = (r.build.follower_rate * 1000.0, r.build.preload / 1000.0);
         let max_s = r.points.iter().map(|p| p.stroke).fold(0.0, f64::max);
@@ -270,7 +274,7 @@ mod tests {
             assert!((stored - p.potential).abs() <= 1e-9 * p.potential.max(1e-12), "{stored} vs {}", p.potential);
         }
         // A given rate: the same identity, another stroke.
-        let r2 = realise(&k, &c, Some(2.0), 20.0, 40.0, 8.0, 30.0, 1000);
+        let r2 = realise(&k, &c, Some(2.0), 20.0, PRELOAD_FRACTION, 40.0, 8.0, 30.0, 1000);
         assert_eq!(r2.build.follower_rate, 2.0);
         let p0 = r2.build.preload / 1000.0;
         for p in &r2.points {
@@ -286,12 +290,12 @@ mod tests {
     fn too_steep_a_profile_is_flagged() {
         let k = knots();
         let gentle: Vec<f64> = (0..k.basis_count()).map(|j| 0.05 * (j as f64 - 6.0).powi(2)).collect();
-        let r = realise(&k, &gentle, None, 10.0, 60.0, 5.0, 30.0, 1000);
+        let r = realise(&k, &gentle, None, 10.0, PRELOAD_FRACTION, 60.0, 5.0, 30.0, 1000);
         assert!(r.violations.is_empty(), "{:?}", r.violations);
         assert!(r.max_pressure_angle > 0.0 && r.max_pressure_angle < 30.0);
         // A jump in V over one knot on a small base circle: the follower climbs steeply.
         let steep: Vec<f64> = (0..k.basis_count()).map(|j| if j < 7 { 0.0 } else { 50.0 }).collect();
-        let r = realise(&k, &steep, None, 30.0, 10.0, 5.0, 30.0, 1000);
+        let r = realise(&k, &steep, None, 30.0, PRELOAD_FRACTION, 10.0, 5.0, 30.0, 1000);
         assert!(r.violations.iter().any(|v| v.contains("pressure angle")), "{:?}", r.violations);
         assert!(r.max_pressure_angle > 30.0);
         // The pressure angle matches its definition by finite differences of R(φ).

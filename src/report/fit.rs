@@ -281,6 +281,13 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
             t.builds_not_restored, ab.builds
         ));
     }
+    if let Some(t) = &ab.preload_trimmed {
+        r.push_str(&row("preloads re-set: p99 \\|residual angle\\|", &t.p99_deg, "°", 3));
+        r.push_str(&row("preloads re-set: max \\|residual angle\\|", &t.max_deg, "°", 3));
+        r.push_str(
+            "\nPreloads re-set: the same builds with each cam follower's preload screw set so the follower presses the base circle with the drawing's force (which leaves δ · ½ k_f s² of a cam's error δ · (V − min V)), and the trim springs, if any, re-set after it.\n",
+        );
+    }
     if ab.builds_without_equilibrium > 0 {
         r.push_str(&format!(
             "\n{} builds have no stable equilibrium within 0.5 rad of q_eq (counted as the worst).\n",

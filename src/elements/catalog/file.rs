@@ -61,6 +61,10 @@ pub struct FamilySpec {
     /// Cams: largest follower stroke in mm when the rate is chosen (default 20).
     #[serde(default)]
     pub max_stroke: Option<f64>,
+    /// Cams: follower preload at the base circle as a fraction of the largest stroke (default
+    /// 0.5; larger makes the preload screw a better trim, see docs/catalogue.md).
+    #[serde(default)]
+    pub preload_fraction: Option<f64>,
     /// Cams: base-circle radius in mm (default 40).
     #[serde(default)]
     pub base_radius: Option<f64>,

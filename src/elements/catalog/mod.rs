@@ -56,6 +56,8 @@ pub struct CamSpec {
     pub follower_rate: Option<f64>,
     /// Largest stroke in mm.
     pub max_stroke: f64,
+    /// Follower preload at the base circle as a fraction of the largest stroke.
+    pub preload_fraction: f64,
     /// Base-circle radius in mm.
     pub base_radius: f64,
     /// Roller radius in mm.
@@ -63,6 +65,10 @@ pub struct CamSpec {
     /// Largest pressure angle in degrees.
     pub max_pressure_angle: f64,
 }
+
+/// A cam family's follower preload at the base circle, as a fraction of the largest stroke, when
+/// it states none.
+pub const DEFAULT_PRELOAD_FRACTION: f64 = 0.5;
 
 /// A validated family.
 #[derive(Debug, Clone)]

@@ -338,12 +338,13 @@ impl Catalog {
 /// The cam keys of a family: validated for `profile = "cam"`, refused for any other profile.
 fn cam_spec(path: &Path, f: &FamilySpec, field: &dyn Fn(&str) -> String) -> Result<Option<CamSpec>> {
     let invalid = |name: &str, reason: String| Error::invalid(path, field(name), reason);
-    let keys: [(&str, bool); 8] = [
+    let keys: [(&str, bool); 9] = [
         ("knots", f.knots.is_some()),
         ("smoothing", f.smoothing.is_some()),
         ("margin", f.margin.is_some()),
         ("follower_rate", f.follower_rate.is_some()),
         ("max_stroke", f.max_stroke.is_some()),
+        ("preload_fraction", f.preload_fraction.is_some()),
         ("base_radius", f.base_radius.is_some()),
         ("roller_radius", f.roller_radius.is_some()),
         ("max_pressure_angle", f.max_pressure_angle.is_some()),
@@ -374,12 +375,20 @@ fn cam_spec(path: &Path, f: &FamilySpec, field: &dyn Fn(&str) -> String) -> Resu
     if angle >= 90.0 {
         return Err(invalid("max_pressure_angle", format!("must be below 90°, got {angle}")));
     }
+    let preload_fraction = positive("preload_fraction", f.preload_fraction, super::DEFAULT_PRELOAD_FRACTION)?;
+    if preload_fraction > 20.0 {
+        return Err(invalid(
+            "preload_fraction",
+            format!("must be at most 20 (a preload of 20 strokes), got {preload_fraction}"),
+        ));
+    }
     Ok(Some(CamSpec {
         knots: knots as u16,
         smoothing: f.smoothing.unwrap_or(Smoothing::Auto),
         margin,
         follower_rate,
         max_stroke: positive("max_stroke", f.max_stroke, 20.0)?,
+        preload_fraction,
         base_radius: positive("base_radius", f.base_radius, 40.0)?,
         roller_radius: positive("roller_radius", f.roller_radius, 8.0)?,
         max_pressure_angle: angle,
