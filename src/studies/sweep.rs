@@ -301,7 +301,15 @@ impl<'a> SweepContext<'a> {
         let measured: Vec<Option<f64>> = built.stiffness.iter().map(|k| Some(*k)).collect();
         let Ok(t) = crate::asbuilt::tune::tune(self.design, bom, &measured) else { return Ok(Some(failed)) };
         let tuned = crate::fit::bill::spring_set(&t.bom);
-        let (p99, shift) = self.residual_about_own_equilibrium(&tuned)?;
+        // `tune` has judged the tuned arm about its own equilibrium already, on the fan the
+        // sweep would trace when its evaluation settings are the as-built defaults.
+        let (p99, shift) = if (self.settings.evaluation_directions, self.settings.evaluation_samples)
+            == (crate::asbuilt::DIRECTIONS, crate::asbuilt::SAMPLES)
+        {
+            (t.after.p99_deg, t.after.shift_rad)
+        } else {
+            self.residual_about_own_equilibrium(&tuned)?
+        };
         let mut spec = spec.clone();
         spec.name = format!("{}_tuned", spec.name);
         spec.stiffness_scale = None;
