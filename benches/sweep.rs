@@ -22,8 +22,8 @@ fn main() {
     let out = std::env::temp_dir().join(format!("springfit-bench-sweep-{}", std::process::id()));
     println!("springfit sweep benchmarks (default design; each run includes the fit and the label table)");
     for (builds, what) in [
-        (100, "6 ε + 2 levels × 100 builds = 206 runs of 20 s"),
-        (200, "6 ε + 2 levels × 200 builds = 406 runs of 20 s (the design's default)"),
+        (100, "6 ε + 2 levels × 100 builds (the first 72 of each also tuned) = 206 items"),
+        (200, "6 ε + 2 levels × 200 builds (the first 72 of each also tuned) = 406 items (the design's default)"),
     ] {
         let mut t = Vec::new();
         for threads in [1, 2] {

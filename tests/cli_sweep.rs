@@ -52,15 +52,16 @@ fn shards_merge_into_the_same_tables_and_threads_do_not_matter() {
 }
 
 /// The shipped design has trim springs and adjustable offsets: every build is reported as built
-/// (untuned) and tuned after assembly as `springfit tune` would tune it, on stdout and in every
-/// file. Tuned builds rest at q_eq again and need less of the actuators than untuned ones.
+/// (untuned), the first `tuned_builds` also tuned after assembly as `springfit tune` would tune
+/// them, on stdout and in every file. Tuned builds rest at q_eq again and need less of the
+/// actuators than untuned ones.
 #[test]
 fn builds_are_reported_untuned_and_tuned() {
     let dir = temp_dir("sweep-tuned");
     let text = util::design_text_anywhere("double_pendulum.toml")
         .replace("epsilons = [0.0, 0.01, 0.05, 0.1, 0.5, 1.0]", "epsilons = [0.0]")
         .replace("builds = 200", "builds = 4")
-        .replace("tolerances = [0.05, 0.1]", "tolerances = [0.1]")
+        .replace("tolerances = [0.05, 0.1]", "tolerances = [0.1]\ntuned_builds = 3")
         .replace(
             "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 20.0",
             "name = \"sensitivity\"\nkind = \"swingup\"\nduration = 6.0",
@@ -75,6 +76,7 @@ fn builds_are_reported_untuned_and_tuned() {
     let level = &json["tolerance_levels"][0];
     let tuned = &level["tuned"];
     let share = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert_eq!(tuned["builds"], 3, "{tuned}");
     assert!(share(&tuned["equilibrium_shift_rad"]["p95"]) < 1e-6, "{tuned}");
     assert!(share(&level["equilibrium_shift_rad_p50"]) > 1e-3, "{level}");
     assert!(share(&tuned["actuator_share"]["p50"]) < share(&level["actuator_share_p50"]), "{level}");
@@ -84,8 +86,13 @@ fn builds_are_reported_untuned_and_tuned() {
     let col = header.iter().position(|h| *h == "actuator_share_tuned").unwrap();
     let builds: Vec<&str> = csv.lines().filter(|l| l.split(',').nth(1) == Some("build")).collect();
     assert_eq!(builds.len(), 4);
-    for b in builds {
-        let v: f64 = b.split(',').nth(col).unwrap().parse().unwrap();
-        assert!(v.is_finite() && v >= 0.0, "{b}");
+    for (i, b) in builds.iter().enumerate() {
+        let cell = b.split(',').nth(col).unwrap();
+        if i < 3 {
+            let v: f64 = cell.parse().unwrap();
+            assert!(v.is_finite() && v >= 0.0, "{b}");
+        } else {
+            assert!(cell.is_empty(), "build {i} is past tuned_builds = 3 and should not be tuned: {b}");
+        }
     }
 }

@@ -264,7 +264,9 @@ fn finish(
         }
         if let Some(u) = &l.tuned {
             progress.say(format!(
-                "  tuned after the build (offsets and trims set from the measured rates, as `springfit tune`): actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
+                "  tuned after the build (offsets and trims set from the measured rates, as `springfit tune`; the first {} of the {} builds): actuator share p50 {:.3} %, p95 {:.3} %; residual p99 p50 {}, p95 {}; equilibrium shift p50 {}",
+                u.builds,
+                l.builds,
                 100.0 * u.actuator_share.p50,
                 100.0 * u.actuator_share.p95,
                 or_none(u.residual_p99_deg.p50, "°", 3),

@@ -85,6 +85,18 @@ pub struct Design {
     pub controllers: ControllerSettings,
     /// The file as written (for sections later steps read).
     pub file: DesignFile,
+    /// The last region check, with what it was computed from (see [`Design::region_report`]).
+    region_memo: std::sync::OnceLock<RegionMemo>,
+}
+
+/// A region report and the inputs it depends on besides the arm: the chain is fixed once a design
+/// is loaded, while a caller may change the region on a copy (e.g. to probe a larger radius).
+#[derive(Debug, Clone)]
+struct RegionMemo {
+    q_eq: DVector<f64>,
+    region: Region,
+    geodesics: GeodesicSettings,
+    report: RegionReport,
 }
 
 impl Design {
@@ -357,6 +369,7 @@ impl Design {
             simulate: file.simulate,
             controllers: file.controllers.clone(),
             file,
+            region_memo: std::sync::OnceLock::new(),
         })
     }
 
@@ -375,16 +388,33 @@ impl Design {
     }
 
     /// Checks the region: where exp is one-to-one and the largest valid geodesic-ball radius.
+    ///
+    /// The check traces Jacobi fields over the whole region (about 0.1 s for the default design)
+    /// and the fit, the label, `tune` and every build of a sweep ask for it, so the first report
+    /// is kept and handed out again while q_eq, the region and the geodesic settings are those
+    /// it was computed from (a copy with another region checks afresh).
     pub fn region_report(&self) -> Result<RegionReport> {
+        if let Some(m) = self.region_memo.get() {
+            if m.q_eq == self.q_eq && m.region == self.region && m.geodesics == self.geodesics {
+                return Ok(m.report.clone());
+            }
+        }
         // A numerical failure deep in the check (Jacobi fields, the integrator) names the design
         // and the step, so the message says what it concerns.
-        check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics).map_err(|e| match e {
+        let report = check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics).map_err(|e| match e {
             Error::Numerical { context, reason } => Error::Numerical {
                 context: format!("{}: region check ({})", self.path.display(), self.region.describe()),
                 reason: format!("{context}: {reason}"),
             },
             other => other,
-        })
+        })?;
+        let _ = self.region_memo.set(RegionMemo {
+            q_eq: self.q_eq.clone(),
+            region: self.region.clone(),
+            geodesics: self.geodesics,
+            report: report.clone(),
+        });
+        Ok(report)
     }
 
     /// The region report, or an error naming the region field when the region is not valid.
@@ -506,6 +536,21 @@ radius = 2.0
         assert_eq!(d.region, Region::Ball { radius: 2.0 });
         let m = d.chain.mass_matrix(&d.q_eq);
         assert!((m[(0, 0)] - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_kept_region_report_serves_only_the_region_it_was_computed_for() {
+        let d = load(PAPER).unwrap();
+        let first = d.region_report().unwrap();
+        assert!(first.valid, "{}", first.reason);
+        assert_eq!(d.region_report().unwrap(), first);
+        // A copy probing a ball far past the largest valid radius must be checked afresh.
+        let mut wide = d.clone();
+        wide.region = Region::Ball { radius: 9.0 };
+        let report = wide.region_report().unwrap();
+        assert!(!report.valid, "{}", report.reason);
+        assert_eq!(report, check_region(&wide.chain, &wide.q_eq, &wide.region, &wide.geodesics).unwrap());
+        assert_eq!(d.region_report().unwrap(), first);
     }
 
     #[test]

@@ -164,6 +164,9 @@ pub struct Dynamics<'a> {
     /// the springs the arm actually has when they differ (built or scaled).
     nominal: Option<GroupedSet>,
     actual: Option<GroupedSet>,
+    /// Whether `actual` has the nominal elements with other rates (a build as built): then the
+    /// nominal U and the built ∇U come from one pass over the profiles.
+    actual_shares_elements: bool,
     omega2_m_eq: Vec<f64>,
     controller: Controller<'a>,
     spec: &'a RunSpec,
@@ -204,6 +207,7 @@ impl<'a> Dynamics<'a> {
             }
             ElasticPotential::Exact { .. } => (None, None),
         };
+        let actual_shares_elements = matches!((&nominal, &actual), (Some(n), Some(a)) if n.same_elements(a));
         let mut controller = Controller::new(chain, q_eq, potential, controllers, field)?;
         controller.set_mode(spec.mode.clone());
         controller.set_energy(spec.energy.clone());
@@ -214,6 +218,7 @@ impl<'a> Dynamics<'a> {
             potential,
             nominal,
             actual,
+            actual_shares_elements,
             omega2_m_eq: chain.mass_matrix(q_eq).iter().map(|m| m * omega2).collect(),
             controller,
             spec,
@@ -269,7 +274,13 @@ impl<'a> Dynamics<'a> {
         match self.potential {
             ElasticPotential::Springs(_) => {
                 if let Some(actual) = &self.actual {
-                    actual.gradient_into(q, &mut self.buf);
+                    if self.actual_shares_elements {
+                        let nominal = self.nominal.as_ref().expect("set in new");
+                        let ue = nominal.value_and_gradient_of(actual, q, &mut self.buf);
+                        nominal_u = Some(ue + self.chain.gravity_potential(q));
+                    } else {
+                        actual.gradient_into(q, &mut self.buf);
+                    }
                 } else {
                     let ue = self.nominal.as_ref().expect("set in new").value_gradient_into(q, &mut self.buf);
                     nominal_u = Some(ue + self.chain.gravity_potential(q));

@@ -154,6 +154,58 @@ impl GroupedSet {
 }
 
 /// x = a·q, summed as [`Element::deflection`] does.
+impl GroupedSet {
+    /// Whether `other` has the same terms as this set up to the stiffnesses (element for element,
+    /// cam for cam): a build of these springs, whose rates alone differ.
+    pub fn same_elements(&self, other: &GroupedSet) -> bool {
+        self.dof == other.dof
+            && self.terms.len() == other.terms.len()
+            && self.terms.iter().zip(&other.terms).all(|(a, b)| match (a, b) {
+                (Term::Element(e, _), Term::Element(f, _)) => e == f,
+                (
+                    Term::Cam { coupling, offset, count, width_bits, .. },
+                    Term::Cam { coupling: c2, offset: o2, count: n2, width_bits: w2, .. },
+                ) => coupling == c2 && offset.to_bits() == o2.to_bits() && count == n2 && width_bits == w2,
+                _ => false,
+            })
+    }
+
+    /// U of this set and ∇U of `other` (same elements, see [`GroupedSet::same_elements`]) at q,
+    /// with each element's profile evaluated once: a closed-loop run of a build needs the
+    /// built springs' torque for the plant and the nominal U for the energy controller. The
+    /// figures are those of [`Potential::value`] and [`GroupedSet::gradient_into`] bit for bit.
+    pub fn value_and_gradient_of(&self, other: &GroupedSet, q: &[f64], out: &mut [f64]) -> f64 {
+        debug_assert!(self.same_elements(other));
+        out.fill(0.0);
+        // −0.0: the neutral element `Iterator::sum` starts from, so U matches `value` exactly.
+        let mut u = -0.0;
+        for (mine, theirs) in self.terms.iter().zip(&other.terms) {
+            match (mine, theirs) {
+                (Term::Element(e, k), Term::Element(_, k_other)) => {
+                    let (v, slope, _) = e.profile.eval(e.deflection(q));
+                    u += k * v;
+                    if *k_other != 0.0 {
+                        let slope = k_other * slope;
+                        for (o, a) in out.iter_mut().zip(&e.coupling) {
+                            *o += slope * a;
+                        }
+                    }
+                }
+                (Term::Cam { coupling, offset, count, width_bits, coef }, Term::Cam { coef: coef_other, .. }) => {
+                    let (width, d) = (f64::from_bits(*width_bits), x(coupling, q) - offset);
+                    u += spline_sum(coef, *count, width, d).0;
+                    let (_, slope, _) = spline_sum(coef_other, *count, width, d);
+                    for (o, a) in out.iter_mut().zip(coupling) {
+                        *o += slope * a;
+                    }
+                }
+                _ => unreachable!("same_elements checked by the caller"),
+            }
+        }
+        u
+    }
+}
+
 #[inline]
 fn x(coupling: &[f64], q: &[f64]) -> f64 {
     coupling.iter().zip(q).map(|(a, q)| a * q).sum::<f64>()

@@ -201,6 +201,29 @@ mod tests {
     }
 
     #[test]
+    fn a_build_and_its_nominal_set_evaluate_in_one_pass_bit_for_bit() {
+        let mut seed = 41;
+        for n in [2, 3] {
+            let set = springs_and_cams(n, &mut seed);
+            let scale: Vec<f64> = set.stiffness.iter().map(|_| 1.0 + 0.1 * lcg(&mut seed)).collect();
+            let (nominal, built) = (set.grouped(), set.scaled(&scale).grouped());
+            assert!(nominal.same_elements(&built));
+            for _ in 0..200 {
+                let q: Vec<f64> = (0..n).map(|_| 2.5 * lcg(&mut seed)).collect();
+                let (mut fused, mut apart) = (vec![0.0; n], vec![0.0; n]);
+                let u = nominal.value_and_gradient_of(&built, &q, &mut fused);
+                built.gradient_into(&q, &mut apart);
+                assert_eq!(u.to_bits(), nominal.value(&q).unwrap().to_bits(), "U at {q:?}");
+                assert_eq!(fused, apart, "∇U at {q:?}");
+            }
+            // A tuned build moves offsets: its elements are not the nominal ones.
+            let mut moved = set.clone();
+            moved.elements[0].offset += 1e-3;
+            assert!(!nominal.same_elements(&moved.grouped()));
+        }
+    }
+
+    #[test]
     fn grouped_cams_equal_the_sum_of_their_basis_elements() {
         let mut seed = 23;
         for n in [2, 3] {

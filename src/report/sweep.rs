@@ -94,12 +94,13 @@ pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
         }
     }
     if t.tolerance_levels.iter().any(|l| l.tuned.is_some()) {
-        s.push_str("\nAfter the tuning a builder would make (each build's rates measured exactly; adjustable offsets put the equilibrium back at q_eq and trims restore ∇²U = w² M, as `springfit tune` does), the same closed-loop run with the controllers unchanged. The untuned figures above are what the build does before that.\n\n| tolerance | tuned actuator share p50 | p95 | tuned residual p99 p50 | p95 | equilibrium shift p50 | p95 |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+        s.push_str("\nAfter the tuning a builder would make (each build's rates measured exactly; adjustable offsets put the equilibrium back at q_eq and trims restore ∇²U = w² M, as `springfit tune` does), the same closed-loop run with the controllers unchanged. The untuned figures above are what the build does before that; the first `tuned_builds` builds of each level are tuned.\n\n| tolerance | tuned builds | tuned actuator share p50 | p95 | tuned residual p99 p50 | p95 | equilibrium shift p50 | p95 |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
         for l in &t.tolerance_levels {
             let Some(u) = &l.tuned else { continue };
             s.push_str(&format!(
-                "| {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {} rad | {} rad |\n",
+                "| {} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {} rad | {} rad |\n",
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
+                u.builds,
                 100.0 * u.actuator_share.p50,
                 100.0 * u.actuator_share.p95,
                 u.residual_p99_deg.p50,
