@@ -93,7 +93,8 @@ pub fn validate(design: &Design) -> Result<Validated> {
 /// direction of [γ̇]^⊥, n − 1 per sample) × the candidates, and the Gram matrix, in f64.
 pub fn fit_memory(design: &Design, catalog: &Catalog) -> u64 {
     let s = &design.fit;
-    let rows = (s.training_directions as u64) * (s.training_samples as u64 + 1) * (design.dof().max(2) as u64 - 1);
+    let rows =
+        (s.training_count(design.dof()) as u64) * (s.training_samples as u64 + 1) * (design.dof().max(2) as u64 - 1);
     let columns = catalog.candidate_bound as u64;
     8 * (rows * columns + columns * columns)
 }
@@ -109,7 +110,7 @@ pub fn check_fit_memory(design: &Design, catalog: &Catalog, available: u64) -> R
             format!(
                 "the fit's dense rows would take {:.1} GiB ({} training directions × {} samples × {} rows per sample × up to {} candidates of {}, 8 bytes each) and this machine has {:.1} GiB available: lower fit.training_directions or fit.training_samples, or use a smaller catalogue",
                 gib(need),
-                design.fit.training_directions,
+                design.fit.training_count(design.dof()),
                 design.fit.training_samples,
                 design.dof().max(2) - 1,
                 catalog.candidate_bound,
