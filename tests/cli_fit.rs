@@ -175,6 +175,10 @@ fn a_fit_gets_a_plain_verdict_against_the_design_threshold() {
     let s = summary(&dir.join("good"));
     assert_eq!(s["verdict"], "acceptable");
     assert_eq!(s["accept_p99_deg"].as_f64(), Some(2.0));
+    // Two joints keep the counts of before they grew with n (72 / 360 / 720 directions).
+    let sampling = &s["sampling"];
+    let counts = ["training_directions", "evaluation_directions", "check_directions"].map(|k| sampling[k].as_u64());
+    assert_eq!(counts, [Some(72), Some(360), Some(720)], "{sampling}");
     // Five springs (around the three trims) cannot follow the geodesics (p99 ≈ 5°): poor, with
     // what to try. (Four springs around the trims: the selected support cannot meet the Hessian
     // match exactly, and the QP reports the fit infeasible.)

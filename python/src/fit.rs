@@ -166,7 +166,7 @@ impl PyFit {
     /// `summary.json` as a dict (with the as-built figures).
     #[getter]
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let mut s = springfit::report::fit::Summary::new(&self.outcome, &self.design.path);
+        let mut s = springfit::report::fit::Summary::new(&self.outcome, &self.design);
         s.as_built = self.as_built;
         s.realised = self.parts.as_ref().map(springfit::report::parts::RealisedSummary::new);
         json(py, &s)

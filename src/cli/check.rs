@@ -76,7 +76,8 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     let bound = if report.largest_radius_is_lower_bound { "≥ " } else { "" };
     progress.say(format!(
         "region check ({secs:.2} s, {} directions): largest valid geodesic-ball radius {bound}{:.4}",
-        design.geodesics.check_directions, report.largest_radius
+        design.geodesics.check_count(design.dof()),
+        report.largest_radius
     ));
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));

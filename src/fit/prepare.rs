@@ -210,7 +210,7 @@ pub fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fa
         &design.chain,
         &design.q_eq,
         FanSpec {
-            count: settings.training_directions,
+            count: settings.training_count(design.dof()),
             phase: 0.0,
             stop,
             spacing: region.extent / settings.training_samples as f64,
@@ -224,7 +224,7 @@ pub fn fans(design: &Design, settings: &FitSettings) -> Result<(RegionReport, Fa
         &design.chain,
         &design.q_eq,
         FanSpec {
-            count: settings.evaluation_directions,
+            count: settings.evaluation_count(design.dof()),
             phase: 0.5,
             stop,
             spacing: region.extent / settings.evaluation_samples as f64,

@@ -102,7 +102,7 @@ pub fn group_smoothing(
         &design.chain,
         &design.q_eq,
         FanSpec {
-            count: settings.evaluation_directions,
+            count: settings.evaluation_count(design.dof()),
             phase: 0.25,
             stop,
             spacing: extent / settings.evaluation_samples as f64,

@@ -100,6 +100,16 @@ pub fn unit_vectors(n: usize, count: usize, phase: f64) -> Vec<DVector<f64>> {
     }
 }
 
+/// How a fan's directions grow with the joints: `at_two` directions for n ≤ 2, times
+/// `per_joint` = (numerator, denominator) for every joint beyond the second, rounded down at each
+/// step. The directions cover the unit sphere of dimension n − 1, which a fixed count covers ever
+/// more thinly. The count grows geometrically rather than as the h^(1−n) an even spacing h would
+/// need: the residual is a smooth function of the direction, and every training direction adds
+/// `training_samples` × (n − 1) rows to the fit's dense problem.
+pub fn directions_for_joints(at_two: usize, n: usize, (num, den): (usize, usize)) -> usize {
+    (2..n).fold(at_two, |count, _| count * num / den)
+}
+
 fn halton(mut i: u64, base: u64) -> f64 {
     let mut f = 1.0;
     let mut r = 0.0;
@@ -124,6 +134,13 @@ mod tests {
             assert!((v.dot(&(&m * &v)) - 1.0).abs() < 1e-14);
             assert!((frame.to_frame(&v) - &u).norm() < 1e-14);
         }
+    }
+
+    #[test]
+    fn direction_counts_keep_two_joints_and_grow_per_joint() {
+        let counts: Vec<usize> = (1..=7).map(|n| directions_for_joints(72, n, (2, 1))).collect();
+        assert_eq!(counts, [72, 72, 144, 288, 576, 1152, 2304]);
+        assert_eq!(directions_for_joints(720, 6, (3, 2)), 3645);
     }
 
     #[test]

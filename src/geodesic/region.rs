@@ -90,7 +90,7 @@ pub fn check_region(
     settings: &GeodesicSettings,
 ) -> Result<RegionReport> {
     let n = chain.dof();
-    let count = settings.check_directions;
+    let count = settings.check_count(n);
     // Extent and per-direction exit arc lengths.
     let exits: Vec<f64> = match region {
         Region::Ball { radius } => vec![*radius; if n == 1 { 2 } else { count }],

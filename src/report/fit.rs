@@ -42,6 +42,9 @@ pub struct Summary {
     /// Residual statistics by distance band from q_eq.
     pub bands: Vec<BandStats>,
     pub region: RegionSummary,
+    /// The directions and samples the fit used (counts of 0 in the design resolved from the
+    /// number of joints).
+    pub sampling: Sampling,
     /// `acceptable` (p99 residual ≤ `accept_p99_deg`) or `poor`.
     pub verdict: String,
     /// The verdict's threshold, degrees (`fit.accept_p99_deg`).
@@ -65,9 +68,20 @@ pub struct RegionSummary {
     pub largest_radius_is_lower_bound: bool,
 }
 
+/// The sampling part of the summary: the fans as traced.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sampling {
+    pub training_directions: usize,
+    pub training_samples: usize,
+    pub evaluation_directions: usize,
+    pub evaluation_samples: usize,
+    pub check_directions: usize,
+}
+
 impl Summary {
-    /// The summary of a fit of the design in `design_file`.
-    pub fn new(o: &FitOutcome, design_file: &std::path::Path) -> Summary {
+    /// The summary of a fit of `design`.
+    pub fn new(o: &FitOutcome, design: &Design) -> Summary {
+        let design_file = &design.path;
         Summary {
             design: o.design.clone(),
             design_file: std::fs::canonicalize(design_file)
@@ -97,6 +111,13 @@ impl Summary {
                 extent: o.region.extent,
                 largest_radius: o.region.largest_radius,
                 largest_radius_is_lower_bound: o.region.largest_radius_is_lower_bound,
+            },
+            sampling: Sampling {
+                training_directions: o.settings.training_count(o.dof),
+                training_samples: o.settings.training_samples,
+                evaluation_directions: o.settings.evaluation_count(o.dof),
+                evaluation_samples: o.settings.evaluation_samples,
+                check_directions: design.geodesics.check_count(o.dof),
             },
             verdict: crate::fit::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
@@ -210,7 +231,7 @@ pub fn write_all(
             out.write(&format!("cams/{}.svg", cam.id), crate::realise::cam::svg(&cam.realisation, &title))?;
         }
     }
-    let mut summary = Summary::new(o, &design.path);
+    let mut summary = Summary::new(o, design);
     summary.as_built = as_built.cloned();
     summary.realised = parts.map(super::parts::RealisedSummary::new);
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
