@@ -7,7 +7,7 @@ mod util;
 use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
 use springfit::realise::material::{Material, Strength, by_key};
-use springfit::realise::mechanism::{self, Duty, Mechanism, Requirements, cable_path};
+use springfit::realise::mechanism::{self, Duty, Mechanism, Requirements, Spring, cable_path};
 use springfit::realise::spring::{HelicalSpring, TorsionSpring, shear_k};
 use util::{design_text_anywhere, repo, springfit, temp_dir, write};
 
@@ -189,6 +189,22 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
         );
         assert!(p.worst() <= 1.0, "{}", e.id);
     }
+    // Stainless wire (weaker, softer in shear) still gives every element a part, wound from it,
+    // with the rate from its own moduli within the grade.
+    let mut stainless = design.clone();
+    stainless.file.parts.material = "ASTM-A313-302".into();
+    let ss = choose(&stainless, &o);
+    assert_eq!(ss.missing().count(), 0, "{:?}", messages(&ss));
+    for e in &ss.elements {
+        let p = e.part.as_ref().unwrap();
+        let material = match &p.spring {
+            Spring::Torsion(t) => Some(t.material),
+            Spring::Extension(h, _) | Spring::Compression(h, _) => Some(h.material),
+            Spring::Leaf { .. } => None, // trims are leaves of strip, whatever the wire
+        };
+        assert!(material.is_none_or(|m| m.key == "ASTM-A313-302"), "{}", e.id);
+        assert!((p.realised_rate / e.stiffness - 1.0).abs() <= p.tolerance, "{}", e.id);
+    }
     let mut small = design.clone();
     small.file.parts.max_outer_diameter_mm = 40.0;
     let tight = choose(&small, &o);
@@ -277,4 +293,50 @@ fn bad_parts_input_and_a_stock_part() {
     assert!(csv.contains("TEST-T-RT"), "{csv}");
     // The shipped fixture reads.
     assert_eq!(springfit::files::stock::read(&repo().join("tests/data/stock_invented.csv")).unwrap().len(), 2);
+}
+
+/// `[fit] tolerance = "parts"`: the fit is solved again at the chosen springs' EN 15800
+/// tolerances, the bill carries each part's (a leaf trim's 0: it is set on the built arm), and
+/// the builds are drawn within exactly those tolerances.
+#[test]
+fn tolerance_parts_draws_builds_at_the_chosen_springs_tolerances() {
+    let text = design_text_anywhere("double_pendulum.toml")
+        .replace("tolerance = 0.05", "tolerance = \"parts\"")
+        .replace("restarts = 16", "restarts = 0\ntraining_directions = 36\ntraining_samples = 20\nevaluation_directions = 36\nevaluation_samples = 20\nbuilds = 0\npair_swaps = false");
+    let design = Design::parse(&repo().join("designs/double_pendulum.toml"), &text).expect("the design parses");
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    let (o, parts) = springfit::parts::fit_with_parts(&design, &catalog, &design.fit, &[], &|_| {}).unwrap();
+    assert_eq!(parts.missing().count(), 0);
+    let mut wound = 0;
+    for r in &o.bom {
+        let t = springfit::parts::part_tolerance(&parts, r).expect("every row has a part");
+        assert_eq!(r.tolerance, t, "{}", r.id);
+        if r.adjust.trim_range.is_some() {
+            assert_eq!(t, 0.0, "{}: a trim's leaf is set on the built arm", r.id);
+        } else {
+            // EN 15800 grade 2 for springs of these sizes: a few per cent to some 15 %.
+            assert!((0.01..0.3).contains(&t), "{}: {t}", r.id);
+            wound += 1;
+        }
+    }
+    assert!(wound >= 10);
+    let s = springfit::asbuilt::BuildSettings {
+        tolerance: springfit::design::tolerance::ToleranceSpec::Parts,
+        distribution: springfit::design::tolerance::Distribution::Uniform,
+        builds: 200,
+        seed: 1,
+        extent: 1.0,
+        directions: 8,
+        samples: 8,
+    };
+    let mut widest = vec![0.0f64; o.bom.len()];
+    for i in 0..200 {
+        for ((f, r), w) in springfit::asbuilt::draw(&o.bom, &s, i).iter().zip(&o.bom).zip(&mut widest) {
+            assert!((f - 1.0).abs() <= r.tolerance + 1e-15, "{}: {f}", r.id);
+            *w = w.max((f - 1.0).abs());
+        }
+    }
+    for (r, w) in o.bom.iter().zip(&widest) {
+        assert!(r.tolerance == 0.0 || *w > 0.9 * r.tolerance, "{}: uniform draws reach the tolerance", r.id);
+    }
 }

@@ -218,6 +218,12 @@ class ControlOutput:
     in_ball: bool
     energy: float
     weight: float
+    saturated: bool
+    """Whether [controllers] max_torque scaled the torques down at this call."""
+    saturation: tuple[float, float]
+    """The factors applied on τ_θ and on τ_E + τ_comp (1, 1 when the torques fitted)."""
+    demand: float
+    """Largest |τ_c,i| over the joints as the laws asked, before saturation, N·m."""
 
 class Controller:
     """Mode selection and energy regulation exactly as `springfit simulate` runs them."""

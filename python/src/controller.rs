@@ -62,6 +62,17 @@ pub struct PyControlOutput {
     /// The blend weight of the mode torque.
     #[pyo3(get)]
     weight: f64,
+    /// Whether `[controllers] max_torque` scaled the torques down at this call (the mode law's
+    /// and the energy law's directions are kept; see `saturation`).
+    #[pyo3(get)]
+    saturated: bool,
+    /// The factors the saturation applied: (on τ_θ, on τ_E + τ_comp), both 1 when it fitted.
+    #[pyo3(get)]
+    saturation: (f64, f64),
+    /// Largest |τ_θ,i + τ_E,i + τ_comp,i| over the joints as the laws asked, before saturation,
+    /// N·m.
+    #[pyo3(get)]
+    demand: f64,
 }
 
 #[pymethods]
@@ -220,12 +231,25 @@ impl PyController {
         st.last_t = t;
         st.cell
             .with_dependent_mut(|_, c| -> springfit::Result<PyControlOutput> {
-                let (mode, energy_torque, compensation, weight, energy) = {
+                let (mode, energy_torque, compensation, weight, energy, sat, demand) = {
                     let out = c.torque(t, &q, &qd)?;
-                    (out.mode.clone(), out.energy.clone(), out.compensation.clone(), out.weight, out.energy_value)
+                    let (m, e, comp) = (out.mode.clone(), out.energy.clone(), out.compensation.clone());
+                    (m, e, comp, out.weight, out.energy_value, out.saturation, out.demand)
                 };
                 let (label, label_target, in_ball) = c.label(t, &q)?;
-                Ok(PyControlOutput { mode, energy_torque, compensation, label, label_target, in_ball, energy, weight })
+                Ok(PyControlOutput {
+                    mode,
+                    energy_torque,
+                    compensation,
+                    label,
+                    label_target,
+                    in_ball,
+                    energy,
+                    weight,
+                    saturated: sat.active(),
+                    saturation: (sat.mode, sat.energy),
+                    demand,
+                })
             })
             .py()
     }

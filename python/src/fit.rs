@@ -67,15 +67,18 @@ impl PyFit {
         let progress = Progress::new(progress);
         let result = py.detach(|| {
             let stage = |name: &str| progress.stage(name);
+            // The parts are chosen with the fit: `tolerance = "parts"` refits at their tolerances.
             let outcome = match catalog {
-                None => springfit::fit::run::exact_reference(&design, &settings, &stage),
-                Some(c) => springfit::fit::run::fit(&design, c, &settings, &stage),
+                None => springfit::fit::run::exact_reference(&design, &settings, &stage).map(|o| (o, None)),
+                Some(c) => {
+                    springfit::parts::fit_with_parts(&design, c, &settings, &stock, &stage).map(|(o, p)| (o, Some(p)))
+                }
             };
             let outcome = outcome.map_err(|e| match catalog {
                 Some(c) => springfit::fit::hints::explain(&design, &settings, c, settings.max_elements, e),
                 None => e,
             });
-            let outcome = match outcome {
+            let (outcome, parts) = match outcome {
                 Ok(o) => o,
                 Err(e) => return Err(e),
             };
@@ -84,12 +87,6 @@ impl PyFit {
             } else {
                 progress.stage("as-built Monte Carlo builds");
                 springfit::asbuilt::of_fit(&design, &outcome)?
-            };
-            let parts = if exact {
-                None
-            } else {
-                progress.stage("choosing parts");
-                Some(springfit::parts::of_fit(&design, &outcome, settings.frequency, &stock)?)
             };
             Ok((outcome, as_built, parts))
         });

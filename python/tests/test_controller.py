@@ -87,6 +87,16 @@ def test_targets_are_settable_between_calls(design, fit):
     more = c.torque(q, qd, 0.0)
     # τ_E = β_E M (E_d − E) q̇ injects power when E < E_d.
     assert float(more.energy_torque @ qd) > 0.0
+    assert not more.saturated and more.saturation == (1.0, 1.0)
+    # An energy deficit far beyond what the motors give: [controllers] max_torque holds every
+    # joint within its limit, and the energy law keeps its direction (it still injects power).
+    limit = np.array(design.controllers["max_torque"])
+    c.energy_target = off.energy + 1e5
+    big = c.torque(q, qd, 0.0)
+    assert big.saturated and big.demand > limit.max() and big.saturation[1] < 1.0
+    assert np.all(np.abs(big.tau) <= limit * (1.0 + 1e-12))
+    assert float(big.energy_torque @ qd) > 0.0
+    c.energy_target = off.energy + 5.0
     assert c.energy_law == "energy"
     c.energy_law = "negative_damping"
     nd = c.torque(q, qd, 0.0)

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use springfit::design::fit::SolverKind;
 use springfit::error::Error;
-use springfit::fit::run::{exact_reference, fit};
+use springfit::fit::run::exact_reference;
 
 use super::Session;
 
@@ -45,7 +45,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             .into());
         }
     };
-    let outcome = {
+    let (outcome, parts) = {
         let step = std::cell::RefCell::new(None::<super::progress::Step>);
         let stage = |name: &str| {
             if let Some(s) = step.borrow_mut().take() {
@@ -53,9 +53,12 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             }
             *step.borrow_mut() = Some(progress.step(name));
         };
+        // The parts are chosen with the fit: `tolerance = "parts"` refits at their tolerances.
         let result = match catalog {
-            None => exact_reference(&design, &settings, &stage),
-            Some(catalog) => fit(&design, catalog, &settings, &stage),
+            None => exact_reference(&design, &settings, &stage).map(|o| (o, None)),
+            Some(catalog) => {
+                springfit::parts::fit_with_parts(&design, catalog, &settings, &stock, &stage).map(|(o, p)| (o, Some(p)))
+            }
         };
         let result = result.map_err(|e| super::fit_failed(&design, &settings, catalog, e));
         if let Some(s) = step.borrow_mut().take() {
@@ -72,15 +75,6 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
         step.finish();
         Some((ab, t.elapsed().as_secs_f64()))
-    };
-    let parts = if args.exact {
-        None
-    } else {
-        let step = progress.step("choosing parts");
-        let parts = springfit::parts::of_fit(&design, &outcome, settings.frequency, &stock)
-            .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
-        step.finish();
-        Some(parts)
     };
     let step = progress.step("writing outputs");
     let written = springfit::report::fit::write_folder(

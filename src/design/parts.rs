@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 /// The wire materials `material` may name: the keys of the material table in
 /// `realise::material` (a test there keeps the two lists equal).
-pub const MATERIALS: &[&str] = &["EN10270-1-SM", "ASTM-A228"];
+pub const MATERIALS: &[&str] = &["EN10270-1-SM", "ASTM-A228", "ASTM-A313-302"];
 
 /// `[[parts.element]]`: the room one element has, overriding the defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -25,7 +25,7 @@ pub struct ElementEnvelope {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PartsSettings {
-    /// Wire material, a key of the material table (`EN10270-1-SM`, `ASTM-A228`).
+    /// Wire material, a key of the material table (`EN10270-1-SM`, `ASTM-A228`, `ASTM-A313-302`).
     pub material: String,
     /// EN 15800 quality grade 1, 2 or 3 (1 the tightest): each spring's rate tolerance.
     pub grade: u8,

@@ -56,7 +56,8 @@ impl Distribution {
 /// Which rate tolerance the fit designs for and the as-built figures assume.
 ///
 /// In a design file: `tolerance = "none"` (the drawing only), `"catalogue"` (each family's
-/// `tolerance`), or a number (± fraction for every element, e.g. `0.05`).
+/// `tolerance`), `"parts"` (each chosen spring's EN 15800 tolerance), or a number (± fraction
+/// for every element, e.g. `0.05`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum ToleranceSpec {
     /// Fit and report the drawing only.
@@ -66,6 +67,10 @@ pub enum ToleranceSpec {
     Catalogue,
     /// The same ± fraction for every element.
     Fraction(f64),
+    /// The EN 15800 rate tolerance of the spring chosen for each element (`parts::fit_with_parts`
+    /// sets it on the candidates and the bill); the catalogue's until the parts are chosen, and
+    /// for an element no spring meets.
+    Parts,
 }
 
 impl ToleranceSpec {
@@ -73,7 +78,7 @@ impl ToleranceSpec {
     pub fn for_element(self, catalogue: f64) -> f64 {
         match self {
             ToleranceSpec::None => 0.0,
-            ToleranceSpec::Catalogue => catalogue,
+            ToleranceSpec::Catalogue | ToleranceSpec::Parts => catalogue,
             ToleranceSpec::Fraction(t) => t,
         }
     }
@@ -87,17 +92,18 @@ impl ToleranceSpec {
     pub fn validate(self) -> Result<(), String> {
         match self {
             ToleranceSpec::Fraction(t) if !(t.is_finite() && (0.0..1.0).contains(&t)) => {
-                Err(format!("must be \"none\", \"catalogue\" or a fraction in [0, 1), got {t}"))
+                Err(format!("must be \"none\", \"catalogue\", \"parts\" or a fraction in [0, 1), got {t}"))
             }
             _ => Ok(()),
         }
     }
 
-    /// How it is written in files and reports: `none`, `catalogue` or the fraction.
+    /// How it is written in files and reports: `none`, `catalogue`, `parts` or the fraction.
     pub fn label(self) -> String {
         match self {
             ToleranceSpec::None => "none".into(),
             ToleranceSpec::Catalogue => "catalogue".into(),
+            ToleranceSpec::Parts => "parts".into(),
             ToleranceSpec::Fraction(t) => format!("±{}%", t * 100.0),
         }
     }
@@ -108,6 +114,7 @@ impl Serialize for ToleranceSpec {
         match self {
             ToleranceSpec::None => s.serialize_str("none"),
             ToleranceSpec::Catalogue => s.serialize_str("catalogue"),
+            ToleranceSpec::Parts => s.serialize_str("parts"),
             ToleranceSpec::Fraction(t) => s.serialize_f64(*t),
         }
     }
@@ -121,15 +128,16 @@ impl<'de> Deserialize<'de> for ToleranceSpec {
             Word(String),
             Number(f64),
         }
-        match Raw::deserialize(d)
-            .map_err(|_| serde::de::Error::custom("expected \"none\", \"catalogue\" or a ± fraction such as 0.05"))?
-        {
+        match Raw::deserialize(d).map_err(|_| {
+            serde::de::Error::custom("expected \"none\", \"catalogue\", \"parts\" or a ± fraction such as 0.05")
+        })? {
             Raw::Number(t) => Ok(ToleranceSpec::Fraction(t)),
             Raw::Word(w) => match w.as_str() {
                 "none" => Ok(ToleranceSpec::None),
                 "catalogue" | "catalog" => Ok(ToleranceSpec::Catalogue),
+                "parts" => Ok(ToleranceSpec::Parts),
                 other => Err(serde::de::Error::custom(format!(
-                    "unknown tolerance \"{other}\", expected \"none\", \"catalogue\" or a ± fraction such as 0.05"
+                    "unknown tolerance \"{other}\", expected \"none\", \"catalogue\", \"parts\" or a ± fraction such as 0.05"
                 ))),
             },
         }

@@ -18,6 +18,7 @@ fn mechanism_name(m: &Mechanism) -> &'static str {
         Mechanism::Crank { .. } => "zero-free-length crank",
         Mechanism::Leaf { .. } => "leaf spring in a sliding clamp",
         Mechanism::Follower => "cam follower spring",
+        Mechanism::CubicCam { .. } => "disc cam of the cubic profile, follower spring",
     }
 }
 

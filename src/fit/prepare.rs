@@ -157,6 +157,17 @@ impl Prepared<'_> {
         &self.grouping
     }
 
+    /// Sets each candidate's rate tolerance to `tolerance(candidate)` where it gives one: the
+    /// chosen springs' EN 15800 tolerances for `tolerance = "parts"`. The next solve's
+    /// tolerance-aware penalty and its bill use them; the assembled rows do not depend on them.
+    pub fn set_tolerances(&mut self, tolerance: impl Fn(&Candidate) -> Option<f64>) {
+        for c in &mut self.candidates {
+            if let Some(t) = tolerance(c) {
+                c.tolerance = t;
+            }
+        }
+    }
+
     /// What the tolerance-aware fit adds to the normal equations, from the nominal stiffnesses
     /// `k`: the diagonal Dᵢᵢ of the springs and one block per group (one deviation per part),
     /// plus the optional shift penalty (see `fit::robust`).

@@ -109,6 +109,15 @@ impl ElementPart {
             mechanism::Mechanism::Follower => {
                 format!("{on}: the cam's roller follower, pressed by a compression spring")
             }
+            mechanism::Mechanism::CubicCam { span, gear, base_radius, max_pressure_angle } => format!(
+                "{on}: a disc cam geared {gear:.4} : 1 from x (it turns {}° over x = {:.4} … {:.4} rad), base circle {base_radius} mm, \
+                 its pitch curve storing k (x − x₀)⁴ / 4 in the follower spring (x₀ = {:.4} rad; largest pressure angle {max_pressure_angle:.1}°); \
+                 the roller follower is pressed by a compression spring",
+                crate::realise::cam::CAM_TURN_DEG,
+                span[0],
+                span[1],
+                self.element.offset
+            ),
         }
     }
 }
@@ -206,6 +215,53 @@ pub fn of_fit(design: &Design, outcome: &crate::fit::FitOutcome, frequency: f64,
     choose(design, &outcome.bom, &outcome.cams, &outcome.evaluation, frequency, stock, Some(outcome.metrics.stats))
 }
 
+/// The EN 15800 rate tolerance of the part a bill row belongs to (a cam's rows `C01.07+`: its
+/// follower's), None where the element has no part.
+pub fn part_tolerance(parts: &Parts, row: &BomRow) -> Option<f64> {
+    let id = row.id.split('.').next().unwrap_or(&row.id);
+    parts.elements.iter().find(|e| e.id == id).and_then(|e| e.part.as_ref().ok()).map(|p| p.tolerance)
+}
+
+/// Fits `design` and chooses its parts. With `[fit] tolerance = "parts"` the springs are not
+/// known before the fit, so the first solve designs for the catalogue's tolerances; the parts of
+/// its bill then give each chosen element its spring's EN 15800 tolerance, the fit is solved
+/// once more on the same preparation with those tolerances, its parts are chosen again, and the
+/// bill carries each part's tolerance, which the as-built figures then draw at. An element no
+/// spring meets keeps its catalogue tolerance; a trim's leaf is set on the built arm (tolerance
+/// 0). Other tolerance settings: one fit, then its parts.
+pub fn fit_with_parts(
+    design: &Design,
+    catalog: &crate::elements::catalog::Catalog,
+    settings: &crate::design::fit::FitSettings,
+    stock: &[StockPart],
+    stage: &dyn Fn(&str),
+) -> Result<(crate::fit::FitOutcome, Parts)> {
+    let t0 = std::time::Instant::now();
+    let mut prepared = crate::fit::prepare::Prepared::new(design, catalog, settings, stage)?;
+    let mut outcome = prepared.solve(settings, stage)?;
+    // The fit's own time (what `fit::run::fit` reports), the refit's added below.
+    let mut total = t0.elapsed().as_secs_f64();
+    stage("choosing parts");
+    let mut parts = of_fit(design, &outcome, settings.frequency, stock)?;
+    if settings.tolerance == crate::design::tolerance::ToleranceSpec::Parts {
+        let chosen: Vec<(Element, f64)> =
+            outcome.bom.iter().filter_map(|r| part_tolerance(&parts, r).map(|t| (r.element.clone(), t))).collect();
+        prepared.set_tolerances(|c| chosen.iter().find(|(e, _)| *e == c.element).map(|&(_, t)| t));
+        let t1 = std::time::Instant::now();
+        outcome = prepared.solve(settings, stage)?;
+        total += t1.elapsed().as_secs_f64();
+        stage("choosing parts");
+        parts = of_fit(design, &outcome, settings.frequency, stock)?;
+        for r in &mut outcome.bom {
+            if let Some(t) = part_tolerance(&parts, r) {
+                r.tolerance = t;
+            }
+        }
+    }
+    outcome.timings.total = total;
+    Ok((outcome, parts))
+}
+
 /// Chooses the parts of `bom` (the fit's rows, trims included) and its realised `cams`, and
 /// judges the realised design on `evaluation` beside the ideal elements' figures (`ideal`, the
 /// fit's when it has just been judged on the same fan; computed when None).
@@ -240,11 +296,7 @@ pub fn choose(
             (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
                 design_at(k).map_err(|l| Limit { torque_bound: torque_bound(&r.element, k, &duty, design_at), ..l })
             }
-            (Profile::Cubic, _) => Err(Limit {
-                check: mechanism::Check { name: "mechanism", value: 1.0, limit: 0.0, unit: "", upper: true },
-                best: "a hardening (cubic) element has no spring mechanism here: realise it as a cam (a cam family in the catalogue)".into(),
-                torque_bound: None,
-            }),
+            (Profile::Cubic, _) => cubic_cam(k, r.element.offset, &duty, &req),
             (Profile::Spline(_), _) => unreachable!("filtered above"),
         };
         let (part, stock) = snap(part, stock);
@@ -285,6 +337,59 @@ pub fn choose(
         None => stats(&fan_angles(&design.chain, evaluation, &spring_set(bom).grouped())?),
     };
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
+}
+
+/// Stroke (mm), base circle and roller radii (mm) and largest pressure angle (°) of the disc cam a
+/// cubic element is built as: the cam catalogue's defaults (docs/catalogue.md), as a cubic family
+/// states no cam geometry.
+const CUBIC_CAM: (f64, f64, f64, f64) = (20.0, 40.0, 8.0, 30.0);
+
+/// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
+/// (`duty.range`) with a roller follower on compression springs: the cam stores the cubic's
+/// potential exactly, so the part's realised rate is k scaled by the follower springs' rate
+/// from their geometry over the rate asked. A cam whose pressure angle or curvature fails is the
+/// limit named.
+fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
+    let (max_stroke, base_radius, roller_radius, max_angle) = CUBIC_CAM;
+    let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
+    let profile = |x: f64| {
+        let d = x - offset;
+        (0.25 * k * d.powi(4), k * d.powi(3), 3.0 * k * d * d)
+    };
+    let cam = crate::realise::cam::realise_profile(
+        span,
+        profile,
+        None,
+        max_stroke,
+        base_radius,
+        roller_radius,
+        max_angle,
+        1000,
+    );
+    if let Some(v) = cam.violations.first() {
+        return Err(Limit {
+            check: mechanism::Check {
+                name: "cam profile",
+                value: cam.max_pressure_angle,
+                limit: max_angle,
+                unit: "°",
+                upper: true,
+            },
+            best: format!("the disc cam of the cubic profile: {v}"),
+            torque_bound: None,
+        });
+    }
+    let b = cam.build;
+    let stroke = cam.points.iter().map(|p| p.stroke).fold(0.0, f64::max);
+    let mut part = mechanism::follower(b.follower_rate, b.preload, stroke, req)?;
+    part.realised_rate = k * part.realised_rate / b.follower_rate;
+    part.mechanism = mechanism::Mechanism::CubicCam {
+        span,
+        gear: b.gear_ratio,
+        base_radius,
+        max_pressure_angle: cam.max_pressure_angle,
+    };
+    Ok(part)
 }
 
 /// The largest torque on x (N·m) element `e` of stiffness `k` may carry and still get a part:
@@ -448,4 +553,53 @@ pub fn limit_message(e: &ElementPart, l: &Limit) -> String {
         ));
     }
     m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::realise::cam::realise_profile;
+
+    /// A hardening element built as a disc cam: the follower spring stores exactly the cubic's
+    /// potential over the region's deflections (the cam's pitch curve is solved for it), the
+    /// part's rate from the spring's geometry is the fitted k within its grade, and the
+    /// mechanism's potential is k d⁴/4 scaled by that rate.
+    #[test]
+    fn a_cubic_element_is_a_cam_that_stores_its_potential() {
+        let req = Requirements {
+            material: by_key("EN10270-1-SM").unwrap(),
+            grade: 2,
+            cycles: 1e6,
+            safety: 1.1,
+            max_outer_diameter: 120.0,
+            max_length: 400.0,
+            max_lever: 100.0,
+            shaft_diameter: 10.0,
+            pulley_radius: 0.0,
+        };
+        let (k, x0) = (2.5, 0.3);
+        let duty = Duty { at_eq: 0.0, range: [-1.2, 0.9], swing: [-0.8, 0.8] };
+        let part = cubic_cam(k, x0, &duty, &req).expect("a 2.5 N·m/rad³ cubic gets a cam and springs");
+        assert!(part.worst() <= 1.0);
+        assert!((part.realised_rate / k - 1.0).abs() <= part.tolerance, "{} vs {k}", part.realised_rate);
+        let s = part.realised_rate / k;
+        for d in [-1.1, -0.4, 0.0, 0.5, 0.9] {
+            let (u, du, ddu) = part.potential(d);
+            assert!((u - s * 0.25 * k * f64::powi(d, 4)).abs() < 1e-12 && (du - s * k * f64::powi(d, 3)).abs() < 1e-12);
+            assert!((ddu - s * 3.0 * k * d * d).abs() < 1e-12);
+        }
+        let mechanism::Mechanism::CubicCam { span, .. } = part.mechanism else { panic!("{:?}", part.mechanism) };
+        assert_eq!(span, [x0 - 1.2, x0 + 0.9]);
+        // The follower of that cam stores V − min V = ½ k_f ((p₀ + s)² − p₀²) at every point.
+        let profile =
+            |x: f64| (0.25 * k * f64::powi(x - x0, 4), k * f64::powi(x - x0, 3), 3.0 * k * f64::powi(x - x0, 2));
+        let cam = realise_profile(span, profile, None, 20.0, 40.0, 8.0, 30.0, 1000);
+        let (kf, p0) = (cam.build.follower_rate * 1000.0, cam.build.preload / 1000.0);
+        for p in &cam.points {
+            let stored = 0.5 * kf * ((p0 + p.stroke / 1000.0).powi(2) - p0 * p0);
+            assert!((stored - p.potential).abs() < 1e-9 * (1.0 + p.potential), "{stored} vs {}", p.potential);
+        }
+        let largest = cam.points.iter().map(|p| p.stroke).fold(0.0, f64::max);
+        assert!((largest - 20.0).abs() < 1e-9, "the largest stroke is the cam default's 20 mm: {largest}");
+    }
 }

@@ -86,10 +86,29 @@ pub fn realise(
     max_pressure_angle: f64,
     samples: usize,
 ) -> Realisation {
+    let profile = |x: f64| knots.eval(c, x);
+    let (span, angle) = ([knots.lo, knots.hi()], max_pressure_angle);
+    realise_profile(span, profile, follower_rate, max_stroke, base_radius, roller_radius, angle, samples)
+}
+
+/// Realises any potential `profile(x) = (V, V′, V″)` over `span` as [`realise`] does a fitted
+/// B-spline: what a hardening (cubic) element is built as, since no wound spring's torque grows
+/// as the cube of its deflection.
+#[allow(clippy::too_many_arguments)]
+pub fn realise_profile(
+    span: [f64; 2],
+    profile: impl Fn(f64) -> (f64, f64, f64),
+    follower_rate: Option<f64>,
+    max_stroke: f64,
+    base_radius: f64,
+    roller_radius: f64,
+    max_pressure_angle: f64,
+    samples: usize,
+) -> Realisation {
     let samples = samples.max(1000);
-    let (lo, hi) = (knots.lo, knots.hi());
+    let [lo, hi] = span;
     let xs: Vec<f64> = (0..samples).map(|i| lo + (hi - lo) * i as f64 / (samples - 1) as f64).collect();
-    let vals: Vec<(f64, f64, f64)> = xs.iter().map(|&x| knots.eval(c, x)).collect();
+    let vals: Vec<(f64, f64, f64)> = xs.iter().map(|&x| profile(x)).collect();
     let v_min = vals.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
     let dv_max = vals.iter().map(|v| v.0 - v_min).fold(0.0, f64::max);
     // Rate in N/m and preload in m.

@@ -14,6 +14,10 @@ pub enum Strength {
     Table(&'static [(f64, f64)]),
     /// R_m = A / d^m (MPa, d in mm) over a diameter range, with the sizes to design with.
     Power { a: f64, m: f64, sizes: &'static [f64] },
+    /// R_m = A / d^m piece by piece: `(upper diameter, A, m)` from the thinnest piece up, each
+    /// piece reaching from the previous piece's upper diameter (or the first size) to its own;
+    /// a diameter on a boundary takes the thinner piece, as the source's ranges are written.
+    PowerPieces { pieces: &'static [(f64, f64, f64)], sizes: &'static [f64] },
     /// One R_m (MPa) for every thickness in the listed sizes (mm): strip.
     Constant { rm: f64, sizes: &'static [f64] },
 }
@@ -42,7 +46,9 @@ impl Material {
     pub fn sizes(&self) -> Vec<f64> {
         match self.strength {
             Strength::Table(t) => t.iter().map(|r| r.0).collect(),
-            Strength::Power { sizes, .. } | Strength::Constant { sizes, .. } => sizes.to_vec(),
+            Strength::Power { sizes, .. } | Strength::PowerPieces { sizes, .. } | Strength::Constant { sizes, .. } => {
+                sizes.to_vec()
+            }
         }
     }
 
@@ -53,6 +59,11 @@ impl Material {
             Strength::Power { a, m, sizes } => {
                 let (lo, hi) = (sizes[0], sizes[sizes.len() - 1]);
                 (lo - 1e-9..=hi + 1e-9).contains(&d).then(|| a / d.powf(m))
+            }
+            Strength::PowerPieces { pieces, sizes } => {
+                let inside = (sizes[0] - 1e-9..=pieces[pieces.len() - 1].0 + 1e-9).contains(&d);
+                let piece = pieces.iter().find(|p| d <= p.0 + 1e-9);
+                piece.filter(|_| inside).map(|&(_, a, m)| a / d.powf(m))
             }
             Strength::Constant { rm, sizes } => sizes.iter().any(|s| (s - d).abs() < 1e-9).then_some(rm),
         }
@@ -124,6 +135,15 @@ const MUSIC_WIRE_SIZES: &[f64] = &[
     6.5,
 ];
 
+/// Stainless wire sizes (mm) inside the range of the A313 fit (0.3–10 mm).
+const STAINLESS_WIRE_SIZES: &[f64] = &[
+    0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0,
+    9.0, 10.0,
+];
+
+/// Shigley's fit of ASTM A313 type 302 by diameter range: (upper diameter mm, A MPa·mm^m, m).
+const A313_302_PIECES: &[(f64, f64, f64)] = &[(2.5, 1867.0, 0.146), (5.0, 2065.0, 0.263), (10.0, 2911.0, 0.478)];
+
 /// Strip thicknesses (mm) within the range EN 10132-4 states R_m for (0.3 ≤ t < 3 mm).
 const STRIP_SIZES: &[f64] = &[0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0, 2.5];
 
@@ -152,6 +172,20 @@ pub const MATERIALS: &[Material] = &[
         source: "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
                  A = 2211 MPa·mm^m, m = 0.145 for A228 music wire 0.10–6.5 mm; Table 10-5: E = 196.5 GPa, \
                  G = 81.0 GPa for 1.61–3.18 mm (the middle of the range); density of steel 7850 kg/m³",
+    },
+    Material {
+        key: "ASTM-A313-302",
+        name: "stainless spring wire ASTM A313 type 302 (X10CrNi18-8, 1.4310, the steel of EN 10270-3 grade NS)",
+        e: 193_000.0,
+        g: 69_000.0,
+        density: 7900.0,
+        strength: Strength::PowerPieces { pieces: A313_302_PIECES, sizes: STAINLESS_WIRE_SIZES },
+        source: "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m for \
+                 A313 302 stainless, 0.3–2.5 mm A = 1867 MPa·mm^m, m = 0.146; 2.5–5 mm A = 2065, m = 0.263; 5–10 mm \
+                 A = 2911, m = 0.478; Table 10-5: E = 193 GPa, G = 69.0 GPa; density 7.9 kg/dm³ (EN 10088-1 for \
+                 X10CrNi18-8); 1.4310 = AISI 302 (EN 10270-3 grades as published by Metalle Schmidt, \
+                 https://metalleschmidt.de/en/wire/stainless-steel). EN 10270-3's own R_m table is not reproduced: \
+                 the A313 fit is what springfit designs with",
     },
     Material {
         key: "EN10132-4-C67S",
@@ -197,6 +231,15 @@ mod tests {
         assert_eq!(sm.tensile_strength(1.05), None, "only tabulated diameters");
         // Shigley's fit at 1 mm is A itself.
         assert_eq!(by_key("ASTM-A228").unwrap().tensile_strength(1.0), Some(2211.0));
+        // Shigley's A313 pieces meet within 1 % at 2.5 and 5 mm, and a boundary takes the thinner piece.
+        let ss = by_key("ASTM-A313-302").unwrap();
+        assert!((ss.tensile_strength(2.5).unwrap() - 1867.0 / 2.5f64.powf(0.146)).abs() < 1e-9);
+        assert!((ss.tensile_strength(3.0).unwrap() - 2065.0 / 3.0f64.powf(0.263)).abs() < 1e-9);
+        for (d, lo, hi) in [(2.5, (1867.0, 0.146), (2065.0, 0.263)), (5.0, (2065.0, 0.263), (2911.0, 0.478))] {
+            let (a, b) = (lo.0 / f64::powf(d, lo.1), hi.0 / f64::powf(d, hi.1));
+            assert!((a - b).abs() / a < 0.01, "pieces meet at {d} mm: {a} vs {b}");
+        }
+        assert_eq!(ss.tensile_strength(10.5), None);
         assert_eq!(wire_keys(), crate::design::parts::MATERIALS, "the design file accepts exactly the table's wires");
     }
 }

@@ -202,6 +202,9 @@ pub enum Mechanism {
     Leaf { lever: f64, gear: f64 },
     /// A cam's follower spring.
     Follower,
+    /// A hardening (cubic) element built as a disc cam storing k (x − x₀)⁴ / 4 over `span`
+    /// (rad of x), geared `gear` : 1, its roller follower on the part's compression springs.
+    CubicCam { span: [f64; 2], gear: f64, base_radius: f64, max_pressure_angle: f64 },
 }
 
 /// A realised element: its mechanism, the spring to order (and how many), its figures and checks.
@@ -239,6 +242,8 @@ impl Part {
         let k = self.realised_rate;
         match self.mechanism {
             Mechanism::TorsionPair { .. } | Mechanism::Leaf { .. } | Mechanism::Follower => (0.5 * k * d * d, k * d, k),
+            // The cam's profile is the cubic's; the follower's rate scales it.
+            Mechanism::CubicCam { .. } => (0.25 * k * d.powi(4), k * d.powi(3), 3.0 * k * d * d),
             Mechanism::TorsionStop { plus } => {
                 let e = if plus { d.max(0.0) } else { d.min(0.0) };
                 (0.5 * k * e * e, k * e, if e != 0.0 { k } else { 0.0 })
@@ -579,64 +584,79 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
     let m = strip();
     let reach = duty.range[0].abs().max(duty.range[1].abs()).max(1e-3);
     let gear = (reach / LEAF_LEVER_ANGLE).max(1.0);
-    let hi = range[1].max(mid) * 1000.0;
     let mut search = Search::new();
-    for &lever in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
-        for t in m.sizes() {
-            for b in [10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0] {
-                // Rate on x: E b t³ r² / (4 L³ g²) (N·mm/rad), so L at a rate k is:
-                let length = |k: f64| (m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * k)).cbrt();
-                let shortest = length(hi);
-                let longest = if range[0] > 0.0 { length(range[0] * 1000.0) } else { f64::INFINITY };
-                let travel_end = longest.min(req.max_length);
-                let lowest = m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * travel_end.powi(3)) / 1000.0;
-                let tip = lever * reach / gear;
-                let sigma = |l: f64, delta: f64| 1.5 * m.e * t * delta / (l * l);
-                let rm = m.tensile_strength(t).unwrap_or(0.0);
-                let tip_swing = lever * duty.swing[0].abs().max(duty.swing[1].abs()) / gear;
-                let mid_length = length(mid.max(lowest) * 1000.0);
-                // Static at the shortest setting; fatigue at mid-range, where the trim is drawn
-                // (a build moves it by a fraction of the range).
-                let swing_stress = sigma(mid_length, tip_swing);
-                let mut checks = vec![
-                    upper("static stress", sigma(shortest, tip) * req.safety, 0.7 * rm, "MPa"),
-                    upper(
-                        "fatigue (Goodman)",
-                        Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles) * req.safety,
-                        1.0,
-                        "utilisation",
-                    ),
-                    lower("leaf length / thickness at the highest rate", shortest / t, 10.0, ""),
-                    upper("leaf width", b, req.max_outer_diameter, "mm"),
-                ];
-                if range[0] > 0.0 {
-                    checks.push(upper("clamp travel to the lowest rate", longest, req.max_length, "mm"));
+    // A stack of up to four equal leaves in the one clamp, free to slide on each other, shares
+    // the rate: each leaf is then longer for its rate, and its stress at a given tip swing falls
+    // as quantity^(−2/3) (σ ∝ t δ / L², L ∝ (rate per leaf)^(−1/3)).
+    for quantity in 1..=4usize {
+        let q = quantity as f64;
+        let (range, mid) = ([range[0] / q, range[1] / q], mid / q);
+        let hi = range[1].max(mid) * 1000.0;
+        for &lever in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
+            for t in m.sizes() {
+                for b in [10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0] {
+                    // Rate on x: E b t³ r² / (4 L³ g²) (N·mm/rad), so L at a rate k is:
+                    let length = |k: f64| (m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * k)).cbrt();
+                    let shortest = length(hi);
+                    let longest = if range[0] > 0.0 { length(range[0] * 1000.0) } else { f64::INFINITY };
+                    let travel_end = longest.min(req.max_length);
+                    let lowest =
+                        m.e * b * t.powi(3) * lever * lever / (4.0 * gear * gear * travel_end.powi(3)) / 1000.0;
+                    let tip = lever * reach / gear;
+                    let sigma = |l: f64, delta: f64| 1.5 * m.e * t * delta / (l * l);
+                    let rm = m.tensile_strength(t).unwrap_or(0.0);
+                    let tip_swing = lever * duty.swing[0].abs().max(duty.swing[1].abs()) / gear;
+                    let mid_length = length(mid.max(lowest) * 1000.0);
+                    // Static at the shortest setting; fatigue at mid-range, where the trim is drawn
+                    // (a build moves it by a fraction of the range).
+                    let swing_stress = sigma(mid_length, tip_swing);
+                    let mut checks = vec![
+                        upper("static stress", sigma(shortest, tip) * req.safety, 0.7 * rm, "MPa"),
+                        upper(
+                            "fatigue (Goodman)",
+                            Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles) * req.safety,
+                            1.0,
+                            "utilisation",
+                        ),
+                        lower("leaf length / thickness at the highest rate", shortest / t, 10.0, ""),
+                        upper("leaf width", b, req.max_outer_diameter, "mm"),
+                    ];
+                    if range[0] > 0.0 {
+                        checks.push(upper("clamp travel to the lowest rate", longest, req.max_length, "mm"));
+                    }
+                    let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety);
+                    let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+                        .into_iter()
+                        .map(|(at, d)| {
+                            let delta = lever * d / gear;
+                            WorkingPoint {
+                                at,
+                                position: delta,
+                                load: 3.0 * m.e * b * t.powi(3) / 12.0 * delta / mid_length.powi(3),
+                            }
+                        })
+                        .collect();
+                    let part = Part {
+                        mechanism: Mechanism::Leaf { lever, gear },
+                        spring: Spring::Leaf {
+                            t,
+                            b,
+                            lengths: [shortest, travel_end, mid_length],
+                            lowest_rate: lowest * q,
+                        },
+                        quantity,
+                        realised_rate: mid * q,
+                        points,
+                        checks,
+                        // The clamp is set on the built arm: the leaf's own tolerance is tuned out.
+                        tolerance: 0.0,
+                        mass: q * m.density * b * t * (travel_end + 20.0) * 1e-9,
+                        life,
+                    };
+                    search.offer(part, || {
+                        format!("{quantity} × leaf on lever {lever} mm, gear {gear:.2}, t = {t} mm, b = {b} mm")
+                    });
                 }
-                let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety);
-                let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
-                    .into_iter()
-                    .map(|(at, d)| {
-                        let delta = lever * d / gear;
-                        WorkingPoint {
-                            at,
-                            position: delta,
-                            load: 3.0 * m.e * b * t.powi(3) / 12.0 * delta / mid_length.powi(3),
-                        }
-                    })
-                    .collect();
-                let part = Part {
-                    mechanism: Mechanism::Leaf { lever, gear },
-                    spring: Spring::Leaf { t, b, lengths: [shortest, travel_end, mid_length], lowest_rate: lowest },
-                    quantity: 1,
-                    realised_rate: mid,
-                    points,
-                    checks,
-                    // The clamp is set on the built arm: the leaf's own tolerance is tuned out.
-                    tolerance: 0.0,
-                    mass: m.density * b * t * (travel_end + 20.0) * 1e-9,
-                    life,
-                };
-                search.offer(part, || format!("lever {lever} mm, gear {gear:.2}, t = {t} mm, b = {b} mm"));
             }
         }
     }

@@ -88,7 +88,7 @@ pub fn svg(part: &Part, title: &str) -> String {
             text(&mut body, cx, y - 25.0, &format!("leaf {t} × {b} mm, set at {:.1} mm for mid-range", lengths[2]));
             text(&mut body, cx, y + 60.0, &format!("tip roller on a {lever} mm lever, geared {gear:.2} : 1"));
         }
-        Mechanism::Follower => {
+        Mechanism::Follower | Mechanism::CubicCam { .. } => {
             let Spring::Compression(c, l0) = *s else { return String::new() };
             let scale = 300.0 / l0.max(1.0);
             body.push_str(&zigzag(
