@@ -75,6 +75,38 @@ fn as_built_figures_do_not_depend_on_the_thread_count() {
     assert!(t.p99_deg.p50 < sum.p99_deg.p50, "trimmed {} vs {}", t.p99_deg.p50, sum.p99_deg.p50);
 }
 
+/// A build is judged on [`asbuilt::DIRECTIONS`] × [`asbuilt::SAMPLES`] samples traced at
+/// [`asbuilt::ODE_TOLERANCE`]: each build's p99 stays within 0.1° of the one twice the geodesics
+/// traced at the design's 1e-10 give (the resolution error the as-built figures accept, well below
+/// their Monte Carlo error), and the figures do change with the resolution (so the check bites).
+#[test]
+fn a_builds_resolution_moves_its_p99_by_less_than_a_tenth_of_a_degree() {
+    use springfit::geodesic::{Fan, FanSpec, Stop};
+    let (design, o) = fitted();
+    let s = build_settings(&o, 6);
+    let stop = Stop::Arc(o.region.extent);
+    let mut moved = 0.0f64;
+    for i in 0..s.builds {
+        let built = o.springs.scaled(&asbuilt::draw(&o.bom, &s, i));
+        let q = asbuilt::equilibrium(&design, &built).unwrap();
+        let (p99, _) =
+            asbuilt::residual_about(&design, o.region.extent, asbuilt::DIRECTIONS, asbuilt::SAMPLES, &built, &q)
+                .unwrap();
+        let spec = FanSpec {
+            count: 2 * asbuilt::DIRECTIONS,
+            phase: 0.5,
+            stop,
+            spacing: o.region.extent / asbuilt::SAMPLES as f64,
+        };
+        let fan = Fan::trace(&design.chain, &q, spec, design.geodesics.ode).unwrap();
+        let angles = springfit::residual::fan_angle_values(&design.chain, &fan, &built.grouped()).unwrap();
+        let fine = springfit::residual::stats_of(&angles).p99_abs;
+        assert!((p99 - fine).abs() <= 0.1, "build {i}: p99 {p99}° against {fine}° at twice the geodesics");
+        moved = moved.max((p99 - fine).abs());
+    }
+    assert!(moved > 1e-4, "{moved}");
+}
+
 /// Trimming a build with known rate errors: the trims, relaxed at the equilibrium of the other
 /// built springs, restore ∇²U = w² M there to 1e-9 and keep that point an equilibrium.
 #[test]

@@ -81,7 +81,8 @@ pub struct FitSettings {
     pub tolerance: ToleranceSpec,
     /// How build deviations are drawn: `uniform` in ±t or `normal` with σ = t/3 clipped at ±t.
     pub distribution: Distribution,
-    /// Monte Carlo builds behind the as-built figures (0: none).
+    /// Monte Carlo builds behind the as-built figures (0: none). 1,000 by default: the p95 over
+    /// builds is then known to about ±0.05° on the default design (200 left it ±0.1–0.3°).
     pub builds: usize,
     /// Seed of the as-built builds and of the selection's restarts (each build and each restart
     /// has its own stream, so results do not depend on the thread count).
@@ -131,7 +132,7 @@ impl Default for FitSettings {
             bands: 4,
             tolerance: ToleranceSpec::None,
             distribution: Distribution::Uniform,
-            builds: 200,
+            builds: 1000,
             seed: 1,
             accept_p99_deg: 2.0,
             tolerance_weight: 1.0,
