@@ -734,6 +734,8 @@ FIGURES = {
     "asbuilt.cams4.p99": as_built("fit.cams4", "p99_deg"),
     "asbuilt.cams.p99": as_built("fit.cams", "p99_deg"),
     "asbuilt.cams.trimmed": as_built("fit.cams", "trimmed.p99_deg"),
+    "asbuilt.window_cams.p99": as_built("fit.window_cams", "p99_deg"),
+    "asbuilt.window_cams.preload": as_built("fit.window_cams", "preload_trimmed.p99_deg"),
     "sweep.dp.eps0.share": parasitic_share(0.0),
     "sweep.dp.eps1.share": parasitic_share(1.0),
     "sweep.dp.tol5": tolerance_cell(0.05),
