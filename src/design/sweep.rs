@@ -22,7 +22,9 @@ pub struct SweepSettings {
     /// Tolerance levels applied to every element (fractions); empty: each element's catalogue
     /// tolerance.
     pub tolerances: Vec<f64>,
-    /// Held-out geodesics per build (from the build's own equilibrium).
+    /// Held-out geodesics per build (from the build's own equilibrium). The default is the
+    /// as-built figures' (`asbuilt::DIRECTIONS`, whose resolution is bounded there), so a tuned
+    /// build's residual is the one `tune` has already computed.
     pub evaluation_directions: usize,
     /// Samples per geodesic per build.
     pub evaluation_samples: usize,
@@ -45,7 +47,7 @@ impl Default for SweepSettings {
             seed: 1,
             distribution: Distribution::Uniform,
             tolerances: Vec::new(),
-            evaluation_directions: 120,
+            evaluation_directions: 60,
             evaluation_samples: 50,
             tune_builds: true,
             tuned_builds: 72,

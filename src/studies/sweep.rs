@@ -603,6 +603,17 @@ pub fn shard_indices(count: usize, shard: (usize, usize)) -> Vec<usize> {
 mod tests {
     use super::*;
 
+    /// The sweep judges builds on the as-built figures' fan by default, the fan whose resolution
+    /// `asbuilt::DIRECTIONS` bounds and on which `tune` judges a tuned build.
+    #[test]
+    fn the_sweeps_builds_are_judged_on_the_as_built_fan() {
+        let s = crate::design::sweep::SweepSettings::default();
+        assert_eq!(
+            (s.evaluation_directions, s.evaluation_samples),
+            (crate::asbuilt::DIRECTIONS, crate::asbuilt::SAMPLES)
+        );
+    }
+
     #[test]
     fn shards_cover_every_item_once() {
         for n in 1..6 {
