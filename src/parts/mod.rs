@@ -343,19 +343,15 @@ pub fn choose(
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
 }
 
-/// Stroke (mm), base circle and roller radii (mm) and largest pressure angle (°) of the disc cam a
-/// cubic element is built as: the cam catalogue's defaults (docs/catalogue.md), as a cubic family
-/// states no cam geometry.
-const CUBIC_CAM: (f64, f64, f64, f64) = (20.0, 40.0, 8.0, 30.0);
-const CUBIC_PRELOAD: f64 = crate::realise::cam::PRELOAD_FRACTION;
-
 /// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
 /// (`duty.range`) with a roller follower on compression springs: the cam stores the cubic's
 /// potential exactly, so the part's realised rate is k scaled by the follower springs' rate
 /// from their geometry over the rate asked. A cam whose pressure angle or curvature fails is the
 /// limit named.
 fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
-    let (max_stroke, base_radius, roller_radius, max_angle) = CUBIC_CAM;
+    // A cubic family states no cam geometry: the cam catalogue's defaults, as for a cam whose
+    // family is unknown.
+    let (_, max_stroke, preload, base_radius, roller_radius, max_angle) = crate::realise::cam::DEFAULT_REALISATION;
     let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
     let profile = |x: f64| {
         let d = x - offset;
@@ -364,7 +360,7 @@ fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::resul
     let cam = crate::realise::cam::realise_profile(
         span,
         profile,
-        (None, max_stroke, CUBIC_PRELOAD),
+        (None, max_stroke, preload),
         base_radius,
         roller_radius,
         max_angle,
