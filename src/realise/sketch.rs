@@ -85,7 +85,10 @@ pub fn svg(part: &Part, title: &str) -> String {
                 y + 35.0,
                 &format!("sliding clamp: free length {:.1}–{:.1} mm", lengths[0], lengths[1]),
             );
-            text(&mut body, cx, y - 25.0, &format!("leaf {t} × {b} mm, set at {:.1} mm for mid-range", lengths[2]));
+            // A stack of leaves in the one clamp is drawn as one leaf and counted in the label.
+            let stack = if part.quantity > 1 { format!("{} × ", part.quantity) } else { String::new() };
+            let label = format!("{stack}leaf {t} × {b} mm, set at {:.1} mm for mid-range", lengths[2]);
+            text(&mut body, cx, y - 25.0, &label);
             text(&mut body, cx, y + 60.0, &format!("tip roller on a {lever} mm lever, geared {gear:.2} : 1"));
         }
         Mechanism::Follower | Mechanism::CubicCam { .. } => {
