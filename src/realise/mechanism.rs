@@ -814,5 +814,10 @@ mod tests {
         let err = super::stop(400.0, true, &duty, &small).unwrap_err();
         assert_eq!(err.check.name, "outer diameter", "{err:?}");
         assert!(err.check.ratio() > 1.0 && err.best.contains("d = "), "{err:?}");
+        // A crank so soft that every wire size would need more than 400 coils: no candidate is
+        // built, and the limit is a sentence, not a check against a zero limit (a NaN ratio).
+        let err = super::crank(1e-9, &duty, &req()).unwrap_err();
+        assert_eq!(err.check.name, "mechanism", "{err:?}");
+        assert!(err.best.contains("no wire size"), "{err:?}");
     }
 }
