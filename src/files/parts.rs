@@ -237,6 +237,9 @@ pub fn markdown(design: &str, parts: &Parts, settings: &crate::design::parts::Pa
             );
         }
         let _ = writeln!(m, "\n![{0}](sketch_{0}.svg)\n", e.id);
+        if let crate::realise::mechanism::Mechanism::CubicCam { .. } = p.mechanism {
+            let _ = writeln!(m, "The disc cam, 1:1 in mm:\n\n![{0} cam](cams/{0}.svg)\n", e.id);
+        }
     }
     m
 }

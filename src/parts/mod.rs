@@ -343,21 +343,18 @@ pub fn choose(
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
 }
 
-/// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
-/// (`duty.range`) with a roller follower on compression springs: the cam stores the cubic's
-/// potential exactly, so the part's realised rate is k scaled by the follower springs' rate
-/// from their geometry over the rate asked. A cam whose pressure angle or curvature fails is the
-/// limit named.
-fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
-    // A cubic family states no cam geometry: the cam catalogue's defaults, as for a cam whose
-    // family is unknown.
+/// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
+/// gives (and x₀ itself): its pitch curve, pressure angles and follower, for [`cubic_cam`] and for
+/// the drawing `cams/<id>.svg`. A cubic family states no cam geometry, so the cam catalogue's
+/// defaults apply, as for a cam whose family is unknown.
+pub fn cubic_cam_profile(k: f64, offset: f64, duty: &Duty) -> crate::realise::cam::Realisation {
     let (_, max_stroke, preload, base_radius, roller_radius, max_angle) = crate::realise::cam::DEFAULT_REALISATION;
     let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
     let profile = |x: f64| {
         let d = x - offset;
         (0.25 * k * d.powi(4), k * d.powi(3), 3.0 * k * d * d)
     };
-    let cam = crate::realise::cam::realise_profile(
+    crate::realise::cam::realise_profile(
         span,
         profile,
         (None, max_stroke, preload),
@@ -365,7 +362,18 @@ fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::resul
         roller_radius,
         max_angle,
         1000,
-    );
+    )
+}
+
+/// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
+/// (`duty.range`) with a roller follower on compression springs: the cam stores the cubic's
+/// potential exactly, so the part's realised rate is k scaled by the follower springs' rate
+/// from their geometry over the rate asked. A cam whose pressure angle or curvature fails is the
+/// limit named.
+fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
+    let (_, _, _, base_radius, _, max_angle) = crate::realise::cam::DEFAULT_REALISATION;
+    let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
+    let cam = cubic_cam_profile(k, offset, duty);
     if let Some(v) = cam.violations.first() {
         return Err(Limit {
             check: mechanism::Check {
@@ -595,6 +603,13 @@ mod tests {
             |x: f64| (0.25 * k * f64::powi(x - x0, 4), k * f64::powi(x - x0, 3), 3.0 * k * f64::powi(x - x0, 2));
         let follower = (None, 20.0, crate::realise::cam::PRELOAD_FRACTION);
         let cam = realise_profile(span, profile, follower, 40.0, 8.0, 30.0, 1000);
+        // The cam drawn in cams/<id>.svg is this one, over the same span.
+        let drawn = cubic_cam_profile(k, x0, &duty);
+        assert_eq!(
+            (drawn.points.len(), drawn.points[0].x, drawn.max_pressure_angle),
+            (1000, span[0], cam.max_pressure_angle)
+        );
+        assert!(crate::realise::cam::svg(&drawn, "S01").starts_with("<svg"));
         let (kf, p0) = (cam.build.follower_rate * 1000.0, cam.build.preload / 1000.0);
         for p in &cam.points {
             let stored = 0.5 * kf * ((p0 + p.stroke / 1000.0).powi(2) - p0 * p0);

@@ -10,7 +10,7 @@ use crate::parts::Parts;
 use crate::residual::AngleStats;
 
 /// The names the parts stage may write.
-pub const FILES: &[&str] = &["parts.csv", "parts.md", "sketch_*.svg"];
+pub const FILES: &[&str] = &["cams/*", "parts.csv", "parts.md", "sketch_*.svg"];
 
 /// What `summary.json` says of the realised design (`realised`).
 #[derive(Debug, Clone, Serialize)]
@@ -53,6 +53,12 @@ pub fn write(out: &OutputDir, design: &Design, parts: &Parts) -> Result<()> {
         if let Ok(p) = &e.part {
             let title = format!("{} {}: {}", design.name, e.id, crate::parts::on_axis(&e.element.coupling));
             out.write(&format!("sketch_{}.svg", e.id), crate::realise::sketch::svg(p, &title))?;
+            // A cubic element's disc cam is drawn as the fitted cams are (their drawings are
+            // written with the bill), so the maker has its pitch curve too.
+            if let crate::realise::mechanism::Mechanism::CubicCam { .. } = p.mechanism {
+                let cam = crate::parts::cubic_cam_profile(e.stiffness, e.element.offset, &e.duty);
+                out.write(&format!("cams/{}.svg", e.id), crate::realise::cam::svg(&cam, &title))?;
+            }
         }
     }
     Ok(())
