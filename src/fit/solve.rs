@@ -20,6 +20,7 @@ use crate::solve::LinearGroup;
 use crate::solve::lsq::Gram;
 use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
 use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
+use crate::solve::screen::qp_screened;
 use crate::solve::selection::{
     Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
     subset_nnls_warm,
@@ -28,6 +29,12 @@ use crate::solve::selection::{
 /// Largest equality residual (scaled units: ω²·mean diag M(q_eq)) NNLS may leave before the fit
 /// counts as infeasible.
 const NNLS_EQUALITY_TOLERANCE: f64 = 1e-3;
+
+/// From this many unknowns (springs only, no cam coefficients) the QP is solved on a working set
+/// ([`crate::solve::screen`]) instead of by Clarabel over all of them. Above the 402 candidates
+/// of the shipped dense designs, whose fits stay as they were; BENCHMARKS.md "Fit time against
+/// the number of joints" has the measurement.
+const SCREEN_FROM: usize = 600;
 
 /// Solves the assembled problem with the chosen solver and, with `max_elements`, the sparse
 /// selection. Returns the stiffness of every candidate.
@@ -216,15 +223,21 @@ fn solve_qp(
             rhs: DVector::from_element(1, -1.0),
         });
     }
-    let sol = qp_signed(
-        &gram.subset(support),
-        &restrict(&problem.equalities),
-        &restrict(&inequalities),
-        upper,
-        &unknowns.signed,
-        settings.l1,
-        &QpSettings::default(),
-    )?;
+    let (sub, equalities, inequalities) =
+        (gram.subset(support), restrict(&problem.equalities), restrict(&inequalities));
+    let sol = if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
+        // Many springs: the QP on a working set started from the weighted NNLS support.
+        let mut weighted = sub.clone();
+        let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
+        for eq in &equalities {
+            weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
+        }
+        let start = nnls(&weighted, settings.l1, &NnlsSettings::default())?;
+        let start: Vec<usize> = (0..support.len()).filter(|&a| start.k[a] > 0.0).collect();
+        qp_screened(&sub, &equalities, &inequalities, upper, settings.l1, &QpSettings::default(), &start)?.solution
+    } else {
+        qp_signed(&sub, &equalities, &inequalities, upper, &unknowns.signed, settings.l1, &QpSettings::default())?
+    };
     report.cut_rounds = sol.cut_rounds;
     if sol.status == QpStatus::AlmostSolved {
         report.status = "almost_solved".into();

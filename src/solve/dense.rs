@@ -12,7 +12,7 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, MatMut, MatRef, Par};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 fn view(m: &DMatrix<f64>) -> MatRef<'_, f64> {
     MatRef::from_column_major_slice(m.as_slice(), m.nrows(), m.ncols())
@@ -64,6 +64,36 @@ pub fn gram_of(a: &DMatrix<f64>) -> DMatrix<f64> {
         }
     }
     g
+}
+
+/// AᵀA and Aᵀb over the rows `r0 .. r0 + rows` of `a`: the lower triangle by faer's triangular
+/// product on a view of the rows (no copy), mirrored, and Aᵀb by faer's product. One block of
+/// [`crate::solve::lsq::Gram::from_row_blocks`].
+pub fn gram_of_rows(a: &DMatrix<f64>, r0: usize, rows: usize, b: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+    let p = a.ncols();
+    let av = view(a).subrows(r0, rows);
+    let mut g = DMatrix::zeros(p, p);
+    faer::linalg::matmul::triangular::matmul(
+        view_mut(&mut g),
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        av.transpose(),
+        BlockStructure::Rectangular,
+        av,
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    for j in 1..p {
+        for i in 0..j {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
+    let mut c = DVector::zeros(p);
+    let bv = MatRef::from_column_major_slice(&b.as_slice()[r0..r0 + rows], rows, 1);
+    let cv = MatMut::from_column_major_slice_mut(c.as_mut_slice(), p, 1);
+    faer::linalg::matmul::matmul(cv, Accum::Replace, av.transpose(), bv, 1.0, Par::Seq);
+    (g, c)
 }
 
 /// The implementations the kernels above are measured and checked against: nalgebra's (the

@@ -6,6 +6,15 @@
 
 use nalgebra::{DMatrix, DVector};
 
+/// Rows of one block of the blockwise normal equations ([`Gram::from_row_blocks`]), and the
+/// most rows [`Gram::from_rows`] takes in one nalgebra product: 16 384, above the 11 520 rows of
+/// the three-joint designs (144 directions × 40 samples × 2), so their fits keep their bits.
+pub const GRAM_BLOCK: usize = 16_384;
+
+/// Blocks computed in parallel at a time: fixed, so that memory does not grow with the thread
+/// count or the rows.
+pub const GRAM_WAVE: usize = 4;
+
 /// A least-squares problem as its normal equations.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gram {
@@ -20,17 +29,50 @@ pub struct Gram {
 impl Gram {
     /// The normal equations of rows `a` (m × p) and right-hand side `b`.
     ///
-    /// Computed with nalgebra's single-threaded matrix product, so the result is bit-identical
-    /// whatever the thread count (a parallel product would change the summation order).
+    /// Up to [`GRAM_BLOCK`] rows (every shipped design of up to three joints) with nalgebra's
+    /// single-threaded matrix product, bit-identical whatever the thread count. faer's triangular
+    /// product ([`super::dense::gram_of`]) is 2.3× faster on the default design's 2880 × 402 rows
+    /// (23 → 10 ms, `cargo bench --bench kernels`) but its other summation order changes G in the
+    /// last bits, and the fits are that sensitive: of the 11 shipped designs without cams, 7
+    /// chose other springs, the others' rates moved by 3e-10 to 3e-6 (BENCHMARKS.md, "Dense
+    /// kernels").
     ///
-    /// Kept although faer's triangular product ([`super::dense::gram_of`]) is 2.3× faster on the
-    /// default design's 2880 × 402 rows (23 → 10 ms, `cargo bench --bench kernels`): its other
-    /// summation order changes G in the last bits, and the fits are that sensitive: of the 11
-    /// shipped designs without cams, 7 chose other springs (the default design among them), the
-    /// others' rates moved by 3e-10 to 3e-6 (BENCHMARKS.md, "Dense kernels").
+    /// More rows go blockwise ([`Gram::from_row_blocks`]): the fits of four or more joints have
+    /// 10⁵ rows and more, where the transposed copy nalgebra's product needs doubles the memory
+    /// and one thread takes minutes.
     pub fn from_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
+        if a.nrows() > GRAM_BLOCK {
+            return Gram::from_row_blocks(a, b);
+        }
         let at = a.transpose();
         Gram { g: &at * a, c: &at * b, bb: b.dot(b) }
+    }
+
+    /// The normal equations summed over blocks of [`GRAM_BLOCK`] rows: each block's AᵀA by
+    /// faer's triangular product and its Aᵀb (views into `a`, no copies), [`GRAM_WAVE`] blocks
+    /// at a time in parallel, and the blocks' sums added in block order. Every block is computed
+    /// sequentially and the order of the additions is fixed, so the bits do not depend on the
+    /// thread count; memory beyond `a` is [`GRAM_WAVE`] + 1 p × p matrices.
+    pub fn from_row_blocks(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
+        use rayon::prelude::*;
+        let (m, p) = a.shape();
+        let starts: Vec<usize> = (0..m).step_by(GRAM_BLOCK).collect();
+        let mut g = DMatrix::zeros(p, p);
+        let mut c = DVector::zeros(p);
+        for wave in starts.chunks(GRAM_WAVE) {
+            let parts: Vec<(DMatrix<f64>, DVector<f64>)> = wave
+                .par_iter()
+                .map(|&r0| {
+                    let rows = GRAM_BLOCK.min(m - r0);
+                    super::dense::gram_of_rows(a, r0, rows, b)
+                })
+                .collect();
+            for (gb, cb) in parts {
+                g += gb;
+                c += cb;
+            }
+        }
+        Gram { g, c, bb: b.dot(b) }
     }
 
     /// [`Gram::from_rows`] for rows that are mostly zero (a cam's B-spline columns: 4 of its
@@ -139,6 +181,32 @@ mod tests {
         with.add_weighted(&e, &f, 3.0);
         let extra = 9.0 * (k.sum() - 2.0).powi(2);
         assert!((with.objective(&k) - direct - extra).abs() < 1e-12);
+    }
+
+    /// Rows over more than one block: the blockwise sum is the one-product normal equations up
+    /// to round-off, and its bits are the same on one thread and on three.
+    #[test]
+    fn row_blocks_sum_to_the_normal_equations_whatever_the_threads() {
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let m = 2 * GRAM_BLOCK + 77;
+        let a = DMatrix::from_fn(m, 9, |_, _| next());
+        let b = DVector::from_fn(m, |_, _| next());
+        let at = a.transpose();
+        let (g0, c0) = (&at * &a, &at * &b);
+        let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        let one = pool(1).install(|| Gram::from_rows(&a, &b));
+        let three = pool(3).install(|| Gram::from_rows(&a, &b));
+        assert_eq!(one, three);
+        assert!((&one.g - &g0).amax() < 1e-11 * g0.amax() && (&one.c - &c0).amax() < 1e-11 * c0.amax());
+        assert_eq!(one.g, one.g.transpose());
+        // At most one block: today's single product, bit for bit.
+        let (a1, b1) = (a.rows(0, GRAM_BLOCK).into_owned(), b.rows(0, GRAM_BLOCK).into_owned());
+        let t1 = a1.transpose();
+        assert_eq!(Gram::from_rows(&a1, &b1).g, &t1 * &a1);
     }
 
     #[test]

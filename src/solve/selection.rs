@@ -38,6 +38,9 @@
 //! **Groups.** The search counts *items*, not columns ([`Items`]): a spring is one column, a cam
 //! all its basis columns, chosen or left out together and counted as one element.
 
+use std::collections::HashMap;
+use std::sync::Mutex;
+
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -360,6 +363,26 @@ where
     let (obj0, _) = objective(&start)?;
     let first = exchange(p, settings, &objective, start, obj0, 1, bound)?;
     let first = pair_refine(p, settings, first, &objective, bound)?;
+    // The pair swaps from each local optimum, by its support: restarts often fall back into an
+    // optimum found before, and the pair swaps from there (K²/2 greedy refills, most of a
+    // restart's refits) would repeat the same refits to the same end. A hit returns that end and
+    // counts the refits it took, so the selection and its counts are as without the memo.
+    let memo: Mutex<HashMap<(Vec<usize>, u64), Selection>> = Mutex::new(HashMap::new());
+    let refine = |local: Selection| -> Result<Selection> {
+        // Keyed by the objective's bits too: the pair swaps' threshold is relative to it.
+        let key = (local.support.clone(), local.objective.to_bits());
+        let known = memo.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
+        let end = match known {
+            Some(end) => end,
+            None => {
+                let from = Selection { evaluations: 0, swaps: 0, ..local.clone() };
+                let end = pair_refine(p, settings, from, &objective, bound)?;
+                memo.lock().unwrap_or_else(|e| e.into_inner()).insert(key, end.clone());
+                end
+            }
+        };
+        Ok(Selection { evaluations: local.evaluations + end.evaluations, swaps: local.swaps + end.swaps, ..end })
+    };
     // Chains of iterated local search, in parallel; restart r belongs to chain (r − 1) mod CHAINS.
     let chains: Vec<Selection> = (0..CHAINS.min(settings.restarts))
         .into_par_iter()
@@ -377,11 +400,7 @@ where
                 let (obj, _) = objective(&s)?;
                 let local = exchange(p, settings, &objective, s, obj, 1, bound)?;
                 // Pair swaps cost K²/2 greedy refills: spent only on optima near the chain's best.
-                let local = if local.objective < current.objective * PAIR_WITHIN {
-                    pair_refine(p, settings, local, &objective, bound)?
-                } else {
-                    local
-                };
+                let local = if local.objective < current.objective * PAIR_WITHIN { refine(local)? } else { local };
                 evaluations += local.evaluations;
                 swaps += local.swaps;
                 if local.objective < current.objective * (1.0 - 1e-9) {
