@@ -315,9 +315,11 @@ impl Search {
             return Ok(p);
         }
         let Some((_, part, best)) = self.best_fail else {
+            // No candidate was built at all, so there is no ratio to state (a check against a
+            // zero limit would print NaN): the sentence is the whole message.
             return Err(Limit {
-                check: Check { name: "wire size", value: 0.0, limit: 0.0, unit: "mm", upper: true },
-                best: "no wire size of the material gives the rate".into(),
+                check: Check { name: "mechanism", value: 0.0, limit: 0.0, unit: "mm", upper: true },
+                best: "no wire size of the material winds a spring of this rate in the envelope (the rate is outside what the smallest and largest wires give); drop the element (raise [fit] used_threshold) or widen [parts]".into(),
                 torque_bound: None,
             });
         };
@@ -812,5 +814,10 @@ mod tests {
         let err = super::stop(400.0, true, &duty, &small).unwrap_err();
         assert_eq!(err.check.name, "outer diameter", "{err:?}");
         assert!(err.check.ratio() > 1.0 && err.best.contains("d = "), "{err:?}");
+        // A crank so soft that every wire size would need more than 400 coils: no candidate is
+        // built, and the limit is a sentence, not a check against a zero limit (a NaN ratio).
+        let err = super::crank(1e-9, &duty, &req()).unwrap_err();
+        assert_eq!(err.check.name, "mechanism", "{err:?}");
+        assert!(err.best.contains("no wire size"), "{err:?}");
     }
 }

@@ -129,6 +129,17 @@ pub enum CouplingSpec {
         /// Joint names (the arm's, or `q1` … `qn`) the groups are taken among, in any order.
         on: Option<Vec<String>>,
     },
+    /// Every run of `length` adjacent joints (among `on`) turned together, a = eᵢ + … + eᵢ₊ₗ₋₁, for
+    /// each length listed: on a planar chain the run from the base is the absolute angle of a link
+    /// (what gravity acts on) and a run inside the chain the angle between two links that are not
+    /// neighbours (what the inertia depends on). Lengths beyond the arm give no run, so one
+    /// catalogue serves arms of any size.
+    Runs {
+        /// Run lengths, each at least 2.
+        lengths: Vec<usize>,
+        /// Joint names the runs are taken among, as for [`CouplingSpec::Groups`].
+        on: Option<Vec<String>>,
+    },
     /// Explicit coupling vectors, one entry per joint.
     List(Vec<Vec<f64>>),
 }
@@ -177,6 +188,7 @@ impl<'de> Deserialize<'de> for CouplingSpec {
             pairs: Option<Vec<[f64; 2]>>,
             all_pairs: Option<Vec<[f64; 2]>>,
             triples: Option<Vec<[f64; 3]>>,
+            runs: Option<Vec<usize>>,
             on: Option<Vec<String>>,
         }
         #[derive(Deserialize)]
@@ -188,8 +200,9 @@ impl<'de> Deserialize<'de> for CouplingSpec {
         }
         let msg = "couplings must be \"joints\", { joints = [\"name\", ...] } (these joints), \
                    { pairs = [[r1, r2], ...] } (adjacent joints), { all_pairs = [[r1, r2], ...] } (every pair), \
-                   { triples = [[r1, r2, r3], ...] } (adjacent triples), each of the last three optionally with \
-                   on = [\"name\", ...], or a list of coupling vectors such as [[1, 0], [1, -1]]";
+                   { triples = [[r1, r2, r3], ...] } (adjacent triples), { runs = [length, ...] } (adjacent \
+                   joints turned together), each of the last four optionally with on = [\"name\", ...], \
+                   or a list of coupling vectors such as [[1, 0], [1, -1]]";
         let bad = || serde::de::Error::custom(msg);
         let wide = |r: Vec<[f64; 2]>| r.into_iter().map(|r| r.to_vec()).collect::<Vec<_>>();
         match Raw::deserialize(d).map_err(|_| bad())? {
@@ -198,6 +211,12 @@ impl<'de> Deserialize<'de> for CouplingSpec {
             }
             Raw::Word(_) => Err(bad()),
             Raw::Table(t) => {
+                if let Some(lengths) = t.runs {
+                    if t.joints.is_some() || t.pairs.is_some() || t.all_pairs.is_some() || t.triples.is_some() {
+                        return Err(bad());
+                    }
+                    return Ok(CouplingSpec::Runs { lengths, on: t.on });
+                }
                 let (kind, ratios, on) = match (t.joints, t.pairs, t.all_pairs, t.triples, t.on) {
                     (Some(j), None, None, None, None) => (GroupKind::Joints, vec![vec![1.0]], Some(j)),
                     (None, Some(r), None, None, on) => (GroupKind::Pairs, wide(r), on),

@@ -11,7 +11,7 @@
 //! [[family]]
 //! name = "joint torsion spring"
 //! profile = "linear"              # linear | cubic | crank | compression
-//! couplings = "joints"            # "joints", { pairs = [[1, 1]] }, { all_pairs = … }, { triples = … }
+//! couplings = "joints"            # "joints", { pairs = [[1, 1]] }, { all_pairs = … }, { triples = … }, { runs = [4] }
 //!                                 # (each optionally on = ["q2", "q3"]), { joints = ["q1"] } or [[1, -2]]
 //! offsets = "equilibrium"         # "equilibrium", { grid = 9 }, { phases = 12 } or angles
 //! unit = "N*m/rad"                # optional; must match the profile
@@ -357,9 +357,16 @@ offsets = { phases = 4 }
         let p = couplings("{ pairs = [[1, 2]], on = [\"wrist_2\", \"lift\", \"q4\"] }", &urdf).unwrap();
         assert_eq!(p, vec![vec![0.0, 1.0, 0.0, 2.0, 0.0], vec![0.0, 0.0, 0.0, 1.0, 2.0]]);
         assert_eq!(couplings("{ joints = [\"elbow\"] }", &urdf).unwrap(), vec![vec![0.0, 0.0, 1.0, 0.0, 0.0]]);
+        // Runs of adjacent joints turned together, shortest lengths first: two of four joints, one
+        // of five; a length beyond the arm (6) gives none, so the family still serves five joints.
+        let r = couplings("{ runs = [4, 5, 6] }", &five).unwrap();
+        assert_eq!(r, vec![vec![1.0, 1.0, 1.0, 1.0, 0.0], vec![0.0, 1.0, 1.0, 1.0, 1.0], vec![1.0; 5]]);
+        // Among named joints a run is of neighbours among them: (lift, wrist_1) skips the elbow.
+        let r = couplings("{ runs = [2], on = [\"wrist_1\", \"lift\"] }", &urdf).unwrap();
+        assert_eq!(r, vec![vec![0.0, 1.0, 0.0, 1.0, 0.0]]);
         // Refused, naming the entry: a joint the arm does not have, twice the same, too few joints
         // for the group, a zero ratio, `on` with "joints".
-        let cases: [(&str, &[&str], &str, &str); 6] = [
+        let cases: [(&str, &[&str], &str, &str); 9] = [
             (
                 "{ all_pairs = [[1, 1]], on = [\"lift\", \"wrist_3\"] }",
                 &urdf,
@@ -371,6 +378,9 @@ offsets = { phases = 4 }
             ("{ triples = [[1, 1, 1]] }", &five[..2], "family[0].couplings", "triples need at least 3 joints"),
             ("{ triples = [[1, 0, 1]] }", &five, "couplings.triples[0]", "non-zero"),
             ("{ joints = [\"q1\"], on = [\"q1\"] }", &five, "test.toml", "couplings must be"),
+            ("{ runs = [3, 1] }", &five, "couplings.runs[1]", "a run is 2 to 8 adjacent joints, got 1"),
+            ("{ runs = [6, 7] }", &five, "family[0].couplings", "the shortest run is 6 joints but the robot has 5"),
+            ("{ runs = [2], pairs = [[1, 1]] }", &five, "test.toml", "couplings must be"),
         ];
         for (spec, joints, field, reason) in cases {
             let err = couplings(spec, joints).unwrap_err().to_string();

@@ -2,7 +2,9 @@
 //! family and the key) and resolved for the robot (couplings for its joints, offsets, cam
 //! settings, trim ranges).
 
-use crate::limits::{MAX_CANDIDATES, MAX_COUPLING, MAX_KNOTS, MAX_OFFSETS, MAX_STIFFNESS, show, within};
+use crate::limits::{
+    MAX_CANDIDATES, MAX_COUPLING, MAX_KNOTS, MAX_LINKS as MAX_RUN, MAX_OFFSETS, MAX_STIFFNESS, show, within,
+};
 use std::path::Path;
 
 use super::file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing};
@@ -128,6 +130,41 @@ impl Catalog {
                             }
                             out.push(a);
                         }
+                    }
+                    out
+                }
+                CouplingSpec::Runs { lengths, on } => {
+                    let among = match on {
+                        None => (0..dof).collect(),
+                        Some(list) => named_joints(list, joints)
+                            .map_err(|(k, reason)| invalid(format!("family[{i}].couplings.on[{k}]"), reason))?,
+                    };
+                    if lengths.is_empty() {
+                        return Err(invalid(field("couplings.runs"), "lists no run length".into()));
+                    }
+                    let mut out = Vec::new();
+                    for (k, &length) in lengths.iter().enumerate() {
+                        if !(2..=MAX_RUN).contains(&length) {
+                            return Err(invalid(
+                                format!("family[{i}].couplings.runs[{k}]"),
+                                format!("a run is 2 to {MAX_RUN} adjacent joints, got {length}"),
+                            ));
+                        }
+                        for run in among.windows(length) {
+                            let mut a = vec![0.0; dof];
+                            for &j in run {
+                                a[j] = 1.0;
+                            }
+                            out.push(a);
+                        }
+                    }
+                    if out.is_empty() {
+                        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
+                        let shortest = lengths.iter().min().copied().unwrap_or(2);
+                        return Err(invalid(
+                            field("couplings"),
+                            format!("the shortest run is {shortest} joints but {whose} {}", among.len()),
+                        ));
                     }
                     out
                 }
