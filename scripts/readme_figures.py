@@ -76,9 +76,8 @@ JOBS = {
     "geo.straight_long": ["geodesics", "{probe:double_pendulum_straight}"],
     "geo.folded_long": ["geodesics", "{probe:double_pendulum_folded}"],
     "sweep.dense_robust": ["sweep", "designs/double_pendulum_dense_robust.toml"],
-    "fit.window_cams16": ["fit", "designs/double_pendulum_paper_window_cams16.toml"],
-    # The paper's window: springs, 8 and 16 cams, the exact potential, side by side.
-    "compare.window": ["compare", "{dir:fit.window}", "{dir:fit.window_cams}", "{dir:fit.window_cams16}", "--exact"],
+    # The paper's window: springs, cams, the exact potential, side by side.
+    "compare.window": ["compare", "{dir:fit.window}", "{dir:fit.window_cams}", "--exact"],
     # MuJoCo: export the fitted springs, simulate the same springs' free releases, compare.
     "export.dp": ["export", "--bom", "{bom:fit.dp}", "--mujoco"],
     "free.dp": ["simulate", "--bom", "{bom:fit.dp}", "--scenario", "free"],
@@ -790,11 +789,7 @@ FIGURES = {
     "parts.dp.mass": lambda r: sig(r.json("fit.dp", "summary.json")["realised"]["spring_mass_kg"]) + " kg",
     "parts.cams.count": parts_count("fit.cams"),
     "parts.cams.missing": parts_missing("fit.cams"),
-    "parts.window_cams16.count": parts_count("fit.window_cams16"),
-    "parts.window_cams16.missing": parts_missing("fit.window_cams16"),
     "compare.window": compare_table("compare.window"),
-    "fit.window_cams16.p99": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["p99_abs"]),
-    "fit.window_cams16.max": lambda r: deg(r.json("fit.window_cams16", "summary.json")["residual_deg"]["max_abs"]),
     "ur5.fit.p99": lambda r: deg(r.json("fit.ur5", "summary.json")["residual_deg"]["p99_abs"], 4),
     "ur5.sweep.p99_p50": lambda r: deg(
         [t for t in r.json("sweep.ur5", "sweep.json")["tolerance_levels"] if t["tolerance"] == 0.05][0][

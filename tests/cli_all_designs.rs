@@ -126,21 +126,6 @@ fn double_pendulum_paper_window_cams() {
     // every_command("double_pendulum_paper_window_cams") is this test (the coverage check reads it).
 }
 
-/// Sixteen cams fitted by the QP with monotonicity (cutting planes): the fit and its outputs only,
-/// since the 1024-column fit is the slow part and the other commands are covered by the 8-cam
-/// design above.
-#[test]
-fn double_pendulum_paper_window_cams16() {
-    let name = "double_pendulum_paper_window_cams16";
-    let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let d = design.to_str().unwrap();
-    springfit(&dir, &["check", d]).ok();
-    let fit = springfit(&dir, &["fit", d, "--out", "fit"]).ok();
-    assert!(dir.join("fit/cams").is_dir(), "{}", fit.report());
-    // every_command("double_pendulum_paper_window_cams16") is this test (the coverage check reads it).
-}
-
 /// The n-joint examples (a five-link planar pendulum, the UR5 with all six joints): `check`
 /// only, with their catalogue expanded for five and six joints, since their fits take minutes on
 /// two cores (issue 25: sampling and the solve for n joints are later work).
