@@ -121,6 +121,15 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
+    if !args.exact {
+        let target = design.chain.mass_matrix(&design.q_eq).norm() * settings.frequency.powi(2);
+        let m = &outcome.metrics;
+        if let Some(w) =
+            springfit::fit::hints::equality_warning(&settings, m.equilibrium_gradient_norm, m.hessian_rel_error, target)
+        {
+            progress.warn(w);
+        }
+    }
     let verdict = springfit::fit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
     progress.say(if verdict == "acceptable" {
         format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
