@@ -346,23 +346,17 @@ pub fn choose(
 /// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
 /// gives (and x₀ itself): its pitch curve, pressure angles and follower, for [`cubic_cam`] and for
 /// the drawing `cams/<id>.svg`. A cubic family states no cam geometry, so the cam catalogue's
-/// defaults apply, as for a cam whose family is unknown.
-pub fn cubic_cam_profile(k: f64, offset: f64, duty: &Duty) -> crate::realise::cam::Realisation {
+/// defaults apply, as for a cam whose family is unknown. Returns the span of x the cam covers
+/// with it.
+pub fn cubic_cam_profile(k: f64, offset: f64, duty: &Duty) -> ([f64; 2], crate::realise::cam::Realisation) {
     let (_, max_stroke, preload, base_radius, roller_radius, max_angle) = crate::realise::cam::DEFAULT_REALISATION;
     let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
     let profile = |x: f64| {
         let d = x - offset;
         (0.25 * k * d.powi(4), k * d.powi(3), 3.0 * k * d * d)
     };
-    crate::realise::cam::realise_profile(
-        span,
-        profile,
-        (None, max_stroke, preload),
-        base_radius,
-        roller_radius,
-        max_angle,
-        1000,
-    )
+    let follower = (None, max_stroke, preload);
+    (span, crate::realise::cam::realise_profile(span, profile, follower, base_radius, roller_radius, max_angle, 1000))
 }
 
 /// A hardening element k (x − x₀)⁴ / 4 as a disc cam over the deflections the region gives
@@ -372,8 +366,7 @@ pub fn cubic_cam_profile(k: f64, offset: f64, duty: &Duty) -> crate::realise::ca
 /// limit named.
 fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
     let (_, _, _, base_radius, _, max_angle) = crate::realise::cam::DEFAULT_REALISATION;
-    let span = [offset + duty.range[0].min(0.0), offset + duty.range[1].max(0.0)];
-    let cam = cubic_cam_profile(k, offset, duty);
+    let (span, cam) = cubic_cam_profile(k, offset, duty);
     if let Some(v) = cam.violations.first() {
         return Err(Limit {
             check: mechanism::Check {
@@ -604,7 +597,7 @@ mod tests {
         let follower = (None, 20.0, crate::realise::cam::PRELOAD_FRACTION);
         let cam = realise_profile(span, profile, follower, 40.0, 8.0, 30.0, 1000);
         // The cam drawn in cams/<id>.svg is this one, over the same span.
-        let drawn = cubic_cam_profile(k, x0, &duty);
+        let (_, drawn) = cubic_cam_profile(k, x0, &duty);
         assert_eq!(
             (drawn.points.len(), drawn.points[0].x, drawn.max_pressure_angle),
             (1000, span[0], cam.max_pressure_angle)

@@ -56,7 +56,7 @@ pub fn write(out: &OutputDir, design: &Design, parts: &Parts) -> Result<()> {
             // A cubic element's disc cam is drawn as the fitted cams are (their drawings are
             // written with the bill), so the maker has its pitch curve too.
             if let crate::realise::mechanism::Mechanism::CubicCam { .. } = p.mechanism {
-                let cam = crate::parts::cubic_cam_profile(e.stiffness, e.element.offset, &e.duty);
+                let (_, cam) = crate::parts::cubic_cam_profile(e.stiffness, e.element.offset, &e.duty);
                 out.write(&format!("cams/{}.svg", e.id), crate::realise::cam::svg(&cam, &title))?;
             }
         }
