@@ -151,7 +151,7 @@ fn an_infeasible_fit_exits_with_1_names_the_constraint_and_keeps_previous_result
     // No trims in that catalogue, so no trimmed builds to weigh.
     let design = design_text("double_pendulum.toml")
         .replace("../catalogs/paper_trim.toml", "../catalogs/joints.toml")
-        .replace("trimmed_weight = 0.3", "trimmed_weight = 0.0");
+        .replace("trimmed_weight = 0.22", "trimmed_weight = 0.0");
     let path = write(&dir, "designs/infeasible.toml", &design);
     write(&dir, "out/bom.csv", "previous results");
     write(&dir, "out/.springfit-manifest.json", r#"{"springfit": "0.1.0", "command": "fit", "files": ["bom.csv"]}"#);

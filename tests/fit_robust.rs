@@ -7,7 +7,7 @@ use nalgebra::DVector;
 use springfit::asbuilt::trim_build;
 use springfit::design::Design;
 use springfit::design::fit::{FitSettings, SolverKind};
-use springfit::design::tolerance::{Distribution, ToleranceSpec};
+use springfit::design::tolerance::{Distribution, ToleranceSpec, TrimRule};
 use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::files::bom;
 use springfit::fit::problem::{Requirements, assemble};
@@ -329,14 +329,23 @@ fn the_tolerance_aware_fit_keeps_the_equalities_and_is_deterministic() {
 }
 
 /// The trim-aware model (`robust::trimmed_spread`): a trimmed build — its trims re-relaxed at
-/// the equilibrium q′ of the other built springs and re-set so that ∇²U = w² M at q′, as
-/// `asbuilt::trim_build` does — changes the training rows about q′ by Σᵢ δᵢ kᵢ uᵢ to first order,
-/// so E‖ΔR‖² = Σᵢ σᵢ² kᵢ² ‖uᵢ‖². Checked against Monte Carlo trimmed builds at a small
-/// tolerance; the untrimmed model's prediction (`spread`, the build's trims left relaxed at q_eq
-/// at their drawn rates) is far off for them, so the test tells the two apart.
+/// the equilibrium q′ of the other built springs and re-set by the design's `trim_rule`, as
+/// `asbuilt::trim_build` does — changes the rows about q′ by Σᵢ δᵢ kᵢ uᵢ to first order, so
+/// E‖ΔR‖² = Σᵢ σᵢ² kᵢ² ‖uᵢ‖². Checked against Monte Carlo trimmed builds at a small tolerance,
+/// for both rules, on the fan the rule is judged on: the fit's training fan for the Hessian rule
+/// (the trims' setting does not depend on a fan), the trims' own fan for the residual rule (the
+/// fan the build's least squares is solved on). The untrimmed model's prediction (`spread`, the
+/// build's trims left relaxed at q_eq at their drawn rates) is far off for them, so the test
+/// tells the two apart.
 #[test]
 fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
-    let (design, catalog) = load("double_pendulum");
+    trimmed_model_against_builds(TrimRule::Hessian);
+    trimmed_model_against_builds(TrimRule::Residual);
+}
+
+fn trimmed_model_against_builds(rule: TrimRule) {
+    let (mut design, catalog) = load("double_pendulum");
+    design.fit.trim_rule = rule;
     let settings = FitSettings {
         tolerance: ToleranceSpec::None,
         max_elements: 8,
@@ -357,23 +366,29 @@ fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
     let chain = &design.chain;
     let ode = design.geodesics.ode;
     let omega = settings.frequency;
-    let spacing = o.region.extent / settings.training_samples as f64;
+    let (training, spacing) = match rule {
+        TrimRule::Hessian => (o.training.clone(), o.region.extent / settings.training_samples as f64),
+        TrimRule::Residual => (
+            springfit::asbuilt::trim_fan(&design, &design.q_eq).unwrap(),
+            o.region.extent / springfit::asbuilt::TRIM_SAMPLES as f64,
+        ),
+    };
     let candidates: Vec<Candidate> = rest
         .elements
         .iter()
         .map(|e| Candidate { element: e.clone(), family: 0, max_stiffness: None, stock_rates: vec![], tolerance: 0.0 })
         .collect();
     let req = Requirements { omega, hessian_match: settings.hessian_match, monotone: false };
-    let problem = assemble(chain, &design.q_eq, &o.training, &candidates, req);
+    let problem = assemble(chain, &design.q_eq, &training, &candidates, req);
     let k = DVector::from_column_slice(&rest.stiffness);
 
     let t = 0.01;
     let dist = Distribution::Uniform;
     let sigma2 = vec![dist.variance(t); candidates.len()];
-    let jac = base_jacobian(chain, &o.training, spacing, springs, omega, ode).unwrap();
+    let jac = base_jacobian(chain, &training, spacing, springs, omega, ode).unwrap();
     let trimmed = trimmed_spread(
         chain,
-        &o.training,
+        &training,
         (&candidates, &grouping_of(&candidates)),
         &problem.rows,
         &rest,
@@ -381,25 +396,19 @@ fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
         &sigma2,
         omega,
         &jac,
+        rule,
     )
     .unwrap();
-    let untrimmed = spread_with(
-        chain,
-        &o.training,
-        (&candidates, &grouping_of(&candidates)),
-        &problem.rows,
-        springs,
-        &sigma2,
-        &jac,
-    )
-    .unwrap();
+    let untrimmed =
+        spread_with(chain, &training, (&candidates, &grouping_of(&candidates)), &problem.rows, springs, &sigma2, &jac)
+            .unwrap();
     let predicted = BuildPenalty::of(&trimmed, 1.0, 0.0).value(k.as_slice());
     let untrimmed_predicted = BuildPenalty::of(&untrimmed, 1.0, 0.0).value(k.as_slice());
 
     // The drawing trimmed (δ = 0): the reference the builds change from.
     let (set0, q0, sol0) = trim_build(&design, &o.bom, springs).unwrap();
-    assert!(sol0.restored() && (&q0 - &design.q_eq).amax() < 1e-9);
-    let r1 = rows_of(chain, &retrace(chain, &q0, &o.training, spacing, ode).unwrap(), &set0, omega);
+    assert!(springfit::asbuilt::trims_reached(&design, &sol0) && (&q0 - &design.q_eq).amax() < 1e-9);
+    let r1 = rows_of(chain, &retrace(chain, &q0, &training, spacing, ode).unwrap(), &set0, omega);
     let builds = 300;
     let mut change = Vec::new();
     for b in 0..builds {
@@ -408,15 +417,15 @@ fn trimmed_expected_spread_matches_monte_carlo_trimmed_builds() {
         let scale: Vec<f64> = (0..is_trim.len()).map(|_| 1.0 + t * dist.draw_unit(&mut rng)).collect();
         let built = springs.scaled(&scale);
         let (set, q_b, sol) = trim_build(&design, &o.bom, &built).expect("a build near the design trims");
-        assert!(sol.restored(), "build {b}: mismatch {}", sol.mismatch);
-        let fan = retrace(chain, &q_b, &o.training, spacing, ode).unwrap();
+        assert!(springfit::asbuilt::trims_reached(&design, &sol), "build {b}: {sol:?}");
+        let fan = retrace(chain, &q_b, &training, spacing, ode).unwrap();
         change.push((rows_of(chain, &fan, &set, omega) - &r1).norm_squared());
     }
     let n = change.len() as f64;
     let m_change = change.iter().sum::<f64>() / n;
     let se = (change.iter().map(|x| (x - m_change).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
     eprintln!(
-        "trimmed builds: rows change predicted {predicted:.4e}, measured {m_change:.4e} ± {se:.1e}; untrimmed model \
+        "{rule:?} trimmed builds: rows change predicted {predicted:.4e}, measured {m_change:.4e} ± {se:.1e}; untrimmed model \
          {untrimmed_predicted:.4e}"
     );
     assert!(predicted > 0.0);
@@ -453,7 +462,7 @@ fn trimmed_weight_zero_leaves_the_bill_of_materials_unchanged() {
 /// matches their mean change of the rows, the untrimmed block's does not.
 #[test]
 fn trimmed_expected_spread_with_a_cam_matches_monte_carlo_trimmed_builds() {
-    let (design, _) = load("double_pendulum");
+    let (mut design, _) = load("double_pendulum");
     let dir = std::env::temp_dir().join(format!("springfit-robust-trimcam-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cat_path = dir.join("one_cam_trims.toml");
@@ -491,6 +500,8 @@ trim_range = [0.0, 4.0]
     )
     .unwrap();
     let catalog = Catalog::load(&cat_path, design.dof()).unwrap();
+    // The cam's block does not depend on the rule (both rules are checked without a cam above).
+    design.fit.trim_rule = TrimRule::Hessian;
     let settings = FitSettings {
         tolerance: ToleranceSpec::None,
         solver: SolverKind::Nnls,
@@ -538,6 +549,7 @@ trim_range = [0.0, 4.0]
         &sigma2,
         omega,
         &jac,
+        TrimRule::Hessian,
     )
     .unwrap();
     let untrimmed = spread_with(

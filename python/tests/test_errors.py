@@ -80,7 +80,7 @@ def test_an_infeasible_fit_is_the_commands_message(tmp_path):
     path = tmp_path / "designs" / "infeasible.toml"
     # No trims in that catalogue, so no trimmed builds to weigh.
     path.write_text(DEFAULT.read_text().replace("../catalogs/paper_trim.toml", "../catalogs/joints.toml")
-                    .replace("trimmed_weight = 0.3", "trimmed_weight = 0.0"))
+                    .replace("trimmed_weight = 0.22", "trimmed_weight = 0.0"))
     with pytest.raises(springfit.InfeasibleError) as e:
         springfit.Design.load(path).fit()
     assert str(e.value) == cli_error("fit", path, "--out", tmp_path / "out", cwd=tmp_path)

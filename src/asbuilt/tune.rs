@@ -1,6 +1,7 @@
 //! Tuning after the build: with the measured rates, set the adjustable offsets and the trim
-//! rates so the built arm rests at q_eq again with ∇²U(q_eq) = w² M(q_eq), then with the
-//! freedom left make the residual of the measured set as small as possible.
+//! rates so the built arm rests at q_eq again with its trims set by the design's rule (the
+//! least-squares residual, or ∇²U(q_eq) = w² M(q_eq)), then with the freedom left make the
+//! residual of the measured set as small as possible.
 //!
 //! Unknowns: an offset change Δx₀ ∈ [−r, r] per element of an adjustable family (a preload
 //! screw, a crank phase), a rate k ∈ [lo, hi] per trim spring (relaxed at q_eq: no torque there),
@@ -10,17 +11,21 @@
 //!    the torque change −kⱼ Δx₀ⱼ aⱼ is linear in Δx₀ⱼ; cranks and the others are linearised and
 //!    iterated (Gauss–Newton with the smallest step, bounded: an offset that reaches the end of
 //!    its range is held there and the others take over).
-//! 2. **Hessian**: the trims' rates from [`crate::elements::trim::solve`] at q_eq, with the Hessian of the
-//!    tuned, measured elements (an offset change alters a crank's curvature).
-//! 3. **Residual**: Levenberg–Marquardt steps on the residual angles of a training fan from q_eq,
-//!    restricted to the null space of (1) and (2) linearised, each step followed by (1) and (2)
-//!    again and kept only if the residual falls.
+//! 2. **Trims**, by the design's `[fit] trim_rule`: with `"residual"` (the default) the trim
+//!    rates within their ranges that make the tangentiality rows of the training fan from q_eq
+//!    smallest in least squares ([`crate::elements::trim::fit_rows`]); with `"hessian"` the rates
+//!    from [`crate::elements::trim::solve`] that give ∇²U(q_eq) = w² M(q_eq). Either with the tuned,
+//!    measured elements (an offset change alters a crank's curvature).
+//! 3. **Residual**: Levenberg–Marquardt steps on the residual angles of the training fan,
+//!    restricted to the null space of (1) — and of (2) under the Hessian rule — linearised, each
+//!    step followed by (1) and (2) again and kept only if the residual falls.
 //!
 //! The outcome says which ranges bind when (1) or (2) cannot be met.
 
 use nalgebra::{DMatrix, DVector};
 
 use crate::design::Design;
+use crate::design::tolerance::TrimRule;
 use crate::error::Result;
 use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, Stop};
@@ -67,8 +72,15 @@ pub struct TuneOutcome {
     pub settings: Vec<Setting>,
     /// Whether the equilibrium is back at q_eq (|∇U(q_eq)| within tolerance).
     pub equilibrium_restored: bool,
+    /// What the trims were set for (`[fit] trim_rule`).
+    pub trim_rule: TrimRule,
     /// Whether ∇²U(q_eq) = w² M(q_eq) holds again (trims; to [`crate::elements::trim::RESTORED`]).
+    /// Under the residual rule the trims trade the Hessian match for the residual farther out,
+    /// so it is not expected to hold; `after.hessian_mismatch` says how near it is.
     pub hessian_restored: bool,
+    /// Whether the trims reached what the rule sets them for within their ranges (no trim range
+    /// binds); true without trims.
+    pub trims_reached: bool,
     /// w² of the tuned arm, (rad/s)².
     pub w2: f64,
     /// What binds, in words (empty when everything was restored).
@@ -93,6 +105,9 @@ struct Problem<'a> {
     trims: Vec<usize>,
     /// Training fan from q_eq for the residual.
     fan: Fan,
+    /// The trims' unit rows on `fan` (residual rule): fixed, since the trims stay relaxed at
+    /// q_eq whatever the offsets.
+    trim_columns: DMatrix<f64>,
 }
 
 /// Variables: Δx₀ per adjustable element, then the trim rates.
@@ -199,7 +214,7 @@ impl Problem<'_> {
         Ok(())
     }
 
-    /// Step 2: trim rates for ∇²U(q_eq) = w² M(q_eq).
+    /// Step 2: trim rates by the design's rule.
     fn restore_hessian(&self, z: &mut [f64]) -> Result<crate::elements::trim::TrimSolution> {
         let q = self.design.q_eq.as_slice();
         let na = self.adjustable.len();
@@ -216,7 +231,21 @@ impl Problem<'_> {
         let couplings: Vec<Vec<f64>> = self.trims.iter().map(|&j| self.bom[j].element.coupling.clone()).collect();
         let ranges: Vec<[f64; 2]> = (0..self.trims.len()).map(|i| self.bounds(na + i)).collect();
         let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
-        let sol = crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal);
+        let sol = match self.design.fit.trim_rule {
+            TrimRule::Residual if !self.trims.is_empty() => {
+                let r0 = super::rows_without_trims(self.design, &self.fan, &s, &self.trims);
+                let (rates, binding) = crate::elements::trim::fit_rows(&self.trim_columns, &r0, &ranges, &nominal);
+                let mut h = h_rest.clone();
+                for (a, k) in couplings.iter().zip(&rates) {
+                    let av = DVector::from_column_slice(a);
+                    h += &av * av.transpose() * *k;
+                }
+                let (w2, mismatch) = crate::elements::trim::hessian_mismatch(&h, &m);
+                crate::elements::trim::TrimSolution { rates, w2, mismatch, binding }
+            }
+            // Without trims the Hessian rule's solve still gives the arm's w² (and its mismatch).
+            _ => crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal),
+        };
         if !self.trims.is_empty() {
             z[na..].copy_from_slice(&sol.rates);
         }
@@ -236,7 +265,7 @@ impl Problem<'_> {
         let s = self.springs(z);
         let g = self.gradient(z)? / self.scale();
         let mut v: Vec<f64> = g.iter().copied().collect();
-        if !self.trims.is_empty() {
+        if !self.trims.is_empty() && self.design.fit.trim_rule == TrimRule::Hessian {
             let m = self.design.chain.mass_matrix(&self.design.q_eq);
             let h = s.hessian(q)? + self.design.chain.gravity_hessian(q) - &m * w2;
             let n = h.nrows();
@@ -295,7 +324,13 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
         FanSpec { count: 48, phase: 0.0, stop, spacing: extent / 20.0 },
         design.geodesics.ode,
     )?;
-    let p = Problem { design, bom, k, adjustable, trims, fan };
+    let designed = crate::fit::bill::spring_set(bom);
+    let trim_columns = if design.fit.trim_rule == TrimRule::Residual && !trims.is_empty() {
+        super::trim_columns(design, &fan, &designed, &trims)
+    } else {
+        DMatrix::zeros(0, 0)
+    };
+    let p = Problem { design, bom, k, adjustable, trims, fan, trim_columns };
     let na = p.adjustable.len();
     let nv = na + p.trims.len();
     let mut z: Vec<f64> =
@@ -375,6 +410,7 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
     let g = p.gradient(&z)?;
     let equilibrium_restored = g.amax() < 1e-9 * p.scale();
     let hessian_restored = p.trims.is_empty() || sol.restored();
+    let trims_reached = p.trims.is_empty() || super::trims_reached(design, &sol);
     let mut binding = Vec::new();
     let at_limit = |v: usize| {
         let [lo, hi] = p.bounds(v);
@@ -402,7 +438,15 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
             )
         });
     }
-    if !hessian_restored {
+    if !trims_reached && design.fit.trim_rule == TrimRule::Residual {
+        let names: Vec<String> = sol.binding.iter().map(|&i| bom[p.trims[i]].id.clone()).collect();
+        binding.push(format!(
+            "the trim ranges of {} bind: the least-squares residual wants rates beyond them (∇²U(q_eq) − w² M(q_eq) at {:.2e} of ‖M‖)",
+            names.join(", "),
+            sol.mismatch
+        ));
+    }
+    if !hessian_restored && design.fit.trim_rule == TrimRule::Hessian {
         let names: Vec<String> = sol.binding.iter().map(|&i| bom[p.trims[i]].id.clone()).collect();
         binding.push(if names.is_empty() {
             format!("the trims cannot reach ∇²U(q_eq) = w² M(q_eq): mismatch {:.2e} remains", sol.mismatch)
@@ -474,7 +518,9 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
         after,
         settings,
         equilibrium_restored,
+        trim_rule: design.fit.trim_rule,
         hessian_restored,
+        trims_reached,
         w2: sol.w2,
         binding,
         measured_trims,

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use springfit::design::fit::SolverKind;
+use springfit::design::tolerance::TrimRule;
 use springfit::error::Error;
 use springfit::fit::run::exact_reference;
 
@@ -181,7 +182,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             ));
             if let Some(t) = &ab.trimmed {
                 progress.say(format!(
-                    "as built and trimmed: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} not fully restored",
+                    "as built and trimmed: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} {}",
                     t.p99_deg.p50,
                     t.p99_deg.p95,
                     t.p99_deg.p95_interval(3),
@@ -189,7 +190,11 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
                     t.max_deg.p95,
                     t.trim_change_nm_per_rad.p50,
                     t.trim_change_nm_per_rad.p95,
-                    plural(t.builds_not_restored, "build")
+                    plural(t.builds_not_restored, "build"),
+                    match t.rule {
+                        TrimRule::Hessian => "not fully restored",
+                        TrimRule::Residual => "with a trim at the end of its range",
+                    }
                 ));
             }
             if let Some(t) = &ab.preload_trimmed {

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use springfit::asbuilt::tune::{State, TuneOutcome, tune};
+use springfit::design::tolerance::TrimRule;
 use springfit::files::bom::load_measured;
 use springfit::report::output::OutputDir;
 use springfit::units::sci;
@@ -75,14 +76,33 @@ fn summary_lines(o: &TuneOutcome) -> Vec<String> {
         v.push("  nothing to set: the bill of materials has no adjustable element and no trim spring".into());
     }
     v.push(format!(
-        "equilibrium {}; ∇²U(q_eq) = w² M(q_eq) {} (w² = {:.4})",
+        "equilibrium {}; {}",
         if o.equilibrium_restored { "restored at q_eq" } else { "NOT restored" },
-        if o.hessian_restored { "holds" } else { "NOT restored" },
-        o.w2
+        trims_sentence(o, true)
     ));
     v.extend(o.binding.iter().cloned());
     v.extend(o.measured_trims.iter().cloned());
     v
+}
+
+/// What the trims were set for and how near ∇²U(q_eq) = w² M(q_eq) the arm is.
+fn trims_sentence(o: &TuneOutcome, loud: bool) -> String {
+    let not = if loud { "NOT restored" } else { "not restored" };
+    match o.trim_rule {
+        TrimRule::Hessian => {
+            format!(
+                "∇²U(q_eq) = w² M(q_eq) {} (w² = {:.4} (rad/s)²)",
+                if o.hessian_restored { "holds" } else { not },
+                o.w2
+            )
+        }
+        TrimRule::Residual => format!(
+            "trims set for the least-squares residual{} (∇²U(q_eq) is w² M(q_eq) to {} of ‖w² M‖, w² = {:.4} (rad/s)²)",
+            if o.trims_reached { "" } else { ", a range binding" },
+            sci(o.after.hessian_mismatch, 2),
+            o.w2
+        ),
+    }
 }
 
 fn markdown(name: &str, o: &TuneOutcome) -> String {
@@ -110,10 +130,9 @@ fn markdown(name: &str, o: &TuneOutcome) -> String {
         ));
     }
     s.push_str(&format!(
-        "\nOffsets in rad, trim rates in N·m/rad. Equilibrium {}; ∇²U(q_eq) = w² M(q_eq) {} (w² = {:.4} (rad/s)²).\n",
+        "\nOffsets in rad, trim rates in N·m/rad. Equilibrium {}; {}.\n",
         if o.equilibrium_restored { "restored" } else { "not restored" },
-        if o.hessian_restored { "holds" } else { "not restored" },
-        o.w2
+        trims_sentence(o, false)
     ));
     for b in o.binding.iter().chain(&o.measured_trims) {
         s.push_str(&format!("\n- {b}\n"));

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::design::tolerance::{Distribution, ToleranceSpec};
+use crate::design::tolerance::{Distribution, ToleranceSpec, TrimRule};
 
 /// Growth per joint beyond the second of the default training and held-out counts: doubled.
 /// Measured on `ur5_pan_lift_elbow` (three joints, 16 springs): 108 training and 540 held-out
@@ -95,9 +95,14 @@ pub struct FitSettings {
     /// accuracy).
     pub tolerance_weight: f64,
     /// With a tolerance and trim springs in the catalogue: weight of the expected spread of the
-    /// *trimmed* builds (each build's trims re-relaxed at its equilibrium and re-set so that
-    /// ∇²U = w² M there), added to `tolerance_weight`'s untrimmed term. 0: off.
+    /// *trimmed* builds (each build's trims re-relaxed at its equilibrium and re-set by
+    /// `trim_rule`), added to `tolerance_weight`'s untrimmed term. 0: off.
     pub trimmed_weight: f64,
+    /// What each build's trims are set for (the as-built figures, `sweep` and `tune`):
+    /// `"residual"` (default: the least-squares residual of a training fan from the build's
+    /// equilibrium) or `"hessian"` (∇²U = w² M at that equilibrium). The trim-aware fit models the
+    /// same rule.
+    pub trim_rule: TrimRule,
     /// With a tolerance: weight w of the expected equilibrium shift, w · m · E‖Δq‖²_M(q_eq) added
     /// to the expected residual (m training rows; a metric shift of 1 costs as much as a residual
     /// of 1 ≈ sin(angle) on every row). 0: off (tuning after the build can restore q_eq).
@@ -137,6 +142,7 @@ impl Default for FitSettings {
             accept_p99_deg: 2.0,
             tolerance_weight: 1.0,
             trimmed_weight: 0.0,
+            trim_rule: TrimRule::Residual,
             shift_weight: 0.0,
             max_preload: 0.0,
             max_element_torque: 0.0,

@@ -8,6 +8,30 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+/// What a build's trims are set for once the arm is assembled and its rates measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum TrimRule {
+    /// The trim rates (within their ranges) that make the tangentiality rows of a training fan
+    /// from the build's equilibrium smallest in least squares: the residual over the whole
+    /// region, near the equilibrium and far from it, which is what the residual angles judge.
+    #[default]
+    Residual,
+    /// The trim rates that make ∇²U = w² M at the build's equilibrium (w² free): every small
+    /// oscillation at one frequency, whatever happens farther out.
+    Hessian,
+}
+
+impl TrimRule {
+    /// The name used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            TrimRule::Residual => "residual",
+            TrimRule::Hessian => "hessian",
+        }
+    }
+}
+
 /// How manufacturing deviations δ are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]

@@ -150,6 +150,86 @@ pub fn solve(
     })
 }
 
+/// Trim rates within `ranges` that make ‖r₀ + Σᵢ kᵢ aᵢ‖ smallest, where the columns of
+/// `columns` are the trims' unit rows aᵢ (the tangentiality rows of one trim at rate 1) and `r0`
+/// the rows of everything else: the residual rule of
+/// `[fit] trim_rule`. Solved exactly as [`solve`] is, by enumerating the faces of the box (a convex
+/// quadratic's minimum over a box is the unconstrained minimum over the affine hull of the face
+/// it lies in); among equal minima, the smallest change from `nominal`. Returns the rates and the
+/// trims whose range binds (at an end, where the unconstrained minimum lies beyond it).
+pub fn fit_rows(
+    columns: &DMatrix<f64>,
+    r0: &DVector<f64>,
+    ranges: &[[f64; 2]],
+    nominal: &[f64],
+) -> (Vec<f64>, Vec<usize>) {
+    let t = columns.ncols();
+    let scale = r0.norm().max(columns.norm()).max(f64::MIN_POSITIVE);
+    let width = ranges.iter().map(|r| r[1] - r[0]).fold(0.0, f64::max).max(1.0);
+    let tol_bound = 1e-12 * width;
+    let mut best: Option<(f64, f64, Vec<f64>, Vec<usize>)> = None;
+    for face in 0..3usize.pow(t as u32) {
+        // State of trim i: 0 free, 1 at the lower end, 2 at the upper end.
+        let state: Vec<usize> = (0..t).map(|i| face / 3usize.pow(i as u32) % 3).collect();
+        let free: Vec<usize> = (0..t).filter(|&i| state[i] == 0).collect();
+        let mut k: Vec<f64> = (0..t)
+            .map(|i| match state[i] {
+                1 => ranges[i][0],
+                2 => ranges[i][1],
+                _ => nominal[i],
+            })
+            .collect();
+        let mut c = -r0 / scale;
+        for i in 0..t {
+            if state[i] != 0 {
+                c -= columns.column(i) * (k[i] / scale);
+            }
+        }
+        let jac = DMatrix::from_fn(columns.nrows(), free.len(), |r, a| columns[(r, free[a])] / scale);
+        let Some((mut z, null)) = min_residual(&jac, &c) else { continue };
+        if null.ncols() > 0 {
+            let target = DVector::from_iterator(free.len(), free.iter().enumerate().map(|(a, &i)| nominal[i] - z[a]));
+            if let Some((y, _)) = min_residual(&null, &target) {
+                z += &null * y;
+            }
+        }
+        if free.iter().enumerate().any(|(a, &i)| z[a] < ranges[i][0] - tol_bound || z[a] > ranges[i][1] + tol_bound) {
+            continue;
+        }
+        for (a, &i) in free.iter().enumerate() {
+            k[i] = z[a].clamp(ranges[i][0], ranges[i][1]);
+        }
+        let mut r = r0 / scale;
+        for i in 0..t {
+            r += columns.column(i) * (k[i] / scale);
+        }
+        let value = r.norm_squared();
+        let change: f64 = (0..t).map(|i| (k[i] - nominal[i]).powi(2)).sum();
+        let better = match &best {
+            None => true,
+            Some((bv, bc, _, _)) => {
+                value < bv * (1.0 - 1e-12) - 1e-300
+                    || (value <= bv * (1.0 + 1e-12) && change < bc * (1.0 - 1e-12) - 1e-300)
+            }
+        };
+        if better {
+            let bound: Vec<usize> = (0..t).filter(|&i| state[i] != 0).collect();
+            best = Some((value, change, k, bound));
+        }
+    }
+    // The face with every trim at an end always qualifies, so `best` is set unless a column
+    // is not finite.
+    best.map(|b| (b.2, b.3)).unwrap_or_else(|| (nominal.to_vec(), Vec::new()))
+}
+
+/// The w² that brings `h` nearest to w² M (Frobenius norm) and the mismatch left,
+/// ‖h − w² M‖_F / ‖M‖_F: what a trim set for the residual leaves of the Hessian match.
+pub fn hessian_mismatch(h: &DMatrix<f64>, m: &DMatrix<f64>) -> (f64, f64) {
+    let mm = m.dot(m).max(f64::MIN_POSITIVE);
+    let w2 = h.dot(m) / mm;
+    (w2, (h - m * w2).norm() / mm.sqrt())
+}
+
 /// The trims' first-order answer to a small change `e` of the Hessian mismatch (ranges ignored:
 /// the interior face of [`solve`]): the rate changes Δt and Δw² with
 /// Σⱼ Δtⱼ aⱼaⱼᵀ − Δw² M = −e as nearly as possible (Frobenius norm) and, among those, the
@@ -320,5 +400,55 @@ mod tests {
         // The same error with room: restored.
         let wide = solve(&(&designed_rest + &error), &m, &a, &[[0.0, 10.0]; 3], &nominal);
         assert!(wide.restored() && wide.binding.is_empty());
+    }
+
+    /// The residual rule's box least squares on a problem with a known answer: inside wide
+    /// ranges it is the normal equations' solution; with a box that cuts it off, the KKT
+    /// conditions hold (zero gradient on the free trims, the gradient pushing outward on those at
+    /// an end, which are named) and no point of the box does better.
+    #[test]
+    fn box_least_squares_meets_its_optimality_conditions() {
+        let mut rng = crate::numerics::rng::SplitMix64::stream(3, 0);
+        let a = DMatrix::from_fn(40, 3, |_, _| rng.uniform() - 0.5);
+        let k_true = [1.2, 2.9, 0.4];
+        let noise = DVector::from_fn(40, |_, _| 0.01 * (rng.uniform() - 0.5));
+        // r₀ = −A k_true + noise: the unconstrained minimum is near k_true.
+        let r0 = -(&a * DVector::from_column_slice(&k_true)) + &noise;
+        let normal = (a.transpose() * &a).lu().solve(&(-(a.transpose() * &r0))).unwrap();
+        let (k, bound) = fit_rows(&a, &r0, &[[0.0, 4.0]; 3], &[2.0; 3]);
+        assert!(bound.is_empty());
+        for i in 0..3 {
+            assert!((k[i] - normal[i]).abs() < 1e-10, "{k:?} vs {normal}");
+            assert!((k[i] - k_true[i]).abs() < 0.05);
+        }
+        // A box that excludes the minimum on trim 1 (2.9 > 2.5) and trim 2 (0.4 < 0.6).
+        let ranges = [[0.0, 4.0], [1.0, 2.5], [0.6, 3.0]];
+        let (k, bound) = fit_rows(&a, &r0, &ranges, &[2.0; 3]);
+        let objective = |k: &[f64]| (&r0 + &a * DVector::from_column_slice(k)).norm_squared();
+        let grad = a.transpose() * (&r0 + &a * DVector::from_column_slice(&k)) * 2.0;
+        assert!(grad[0].abs() < 1e-9, "free trim: gradient {}", grad[0]);
+        assert_eq!(k[1], 2.5);
+        assert!(grad[1] < 0.0, "at the upper end the gradient pushes up: {}", grad[1]);
+        assert!(bound.contains(&1));
+        for &i in &bound {
+            assert!(k[i] == ranges[i][0] || k[i] == ranges[i][1]);
+        }
+        let best = objective(&k);
+        for trial in 0..200 {
+            let p: Vec<f64> = (0..3).map(|i| ranges[i][0] + (ranges[i][1] - ranges[i][0]) * rng.uniform()).collect();
+            assert!(objective(&p) >= best - 1e-12, "box point {trial} beats the solution");
+        }
+    }
+
+    /// The w² nearest a Hessian and what is left: exact for a multiple of M.
+    #[test]
+    fn hessian_mismatch_of_a_multiple_of_m_is_zero() {
+        let chain = Chain::paper_double_pendulum();
+        let m = chain.mass_matrix(&DVector::from_vec(vec![0.2, 1.4]));
+        let (w2, mismatch) = hessian_mismatch(&(&m * 15.5), &m);
+        assert!((w2 - 15.5).abs() < 1e-12 && mismatch < 1e-14);
+        let off = &m * 15.5 + DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 1.0, 0.0]);
+        let (_, mismatch) = hessian_mismatch(&off, &m);
+        assert!(mismatch > 1e-3);
     }
 }

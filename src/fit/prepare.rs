@@ -196,7 +196,18 @@ impl Prepared<'_> {
         let rest = arm(&self.candidates, k, &SpringSet { elements: Vec::new(), stiffness: Vec::new() });
         let (cands, omega) = (&self.candidates, settings.frequency);
         let training = &self.training;
-        let tsp = trimmed_spread(chain, training, (cands, grouping), rows, &rest, &self.trims, &sigma2, omega, &jac)?;
+        let tsp = trimmed_spread(
+            chain,
+            training,
+            (cands, grouping),
+            rows,
+            &rest,
+            &self.trims,
+            &sigma2,
+            omega,
+            &jac,
+            settings.trim_rule,
+        )?;
         Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
     }
 }

@@ -54,6 +54,11 @@
 //!   [`crate::elements::trim::interior_change`] (Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −Eᵢ with the least ‖Δt‖, w² free;
 //!   the ranges are ignored at first order); A_trim,j is trim j's column of the rows.
 //!
+//! That is the model of [`TrimRule::Hessian`]. With [`TrimRule::Residual`] (the default) the
+//! trims are set for the least-squares rows instead: to first order they take out of the moved
+//! rows Aᵢ + J_t Δqᵢ their projection on the trims' columns, uᵢ = (I − P_trim)(Aᵢ + J_t Δqᵢ),
+//! P_trim the orthogonal projector on span{A_trim,j} (ranges again ignored).
+//!
 //! The trimmed spread is then Σ σᵢ² kᵢ² ‖uᵢ‖² over springs plus σ_g² k_gᵀ U_gᵀ U_g k_g per cam: the
 //! same diagonal and blocks with other vectors ([`trimmed_spread`]), weighted by `trimmed_weight`
 //! and added to the untrimmed term. Monte Carlo trimmed builds at ±1 % confirm it (the
@@ -63,6 +68,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::problem::{Requirements, assemble};
+use crate::design::tolerance::TrimRule;
 use crate::elements::catalog::Candidate;
 use crate::elements::group::Columns;
 use crate::error::{Error, Result};
@@ -357,6 +363,7 @@ pub fn trimmed_spread(
     sigma2: &[f64],
     omega: f64,
     jac: &DMatrix<f64>,
+    rule: TrimRule,
 ) -> Result<Spread> {
     let q0 = &training.q_eq;
     let q_eq = q0.as_slice();
@@ -410,12 +417,21 @@ pub fn trimmed_spread(
         let d = unit(&ep) - unit(&em);
         jac_t += d * DVector::from_column_slice(&e.coupling).transpose() * *t;
     }
+    // An orthonormal basis of the trims' columns (the residual rule's projector).
+    let trim_basis =
+        (rule == TrimRule::Residual && !a_trim.is_empty()).then(|| DMatrix::from_columns(&a_trim).qr().q());
     // uᵢ = Aᵢ + J_t Δqᵢ + Σⱼ Δtᵢⱼ A_trim_j, Δqᵢ = −H_rest⁻¹ gᵢ, Δtᵢ the trims' answer to
-    // Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l].
+    // Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l] (Hessian rule), or to the rows
+    // (residual rule).
     let column = |i: usize| -> (DVector<f64>, DVector<f64>) {
         let e = &candidates[i].element;
         let h = &h_inv * e.gradient(q_eq);
         let dq = -&h;
+        if let Some(basis) = &trim_basis {
+            let u = training_rows.column(i) + &jac_t * &dq;
+            let projection = basis * (basis.transpose() * &u);
+            return (u - projection, h);
+        }
         let mut mismatch = e.hessian(q_eq);
         for (l, d) in d_mismatch.iter().enumerate() {
             mismatch += d * dq[l];

@@ -6,6 +6,7 @@ use super::figures::{fmt_q, histogram_figure, potential_figure};
 use super::output::OutputDir;
 use super::plot::render;
 use crate::design::Design;
+use crate::design::tolerance::TrimRule;
 use crate::error::Result;
 use crate::files::bom;
 use crate::fit::{FitOutcome, Timings};
@@ -297,10 +298,16 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
         r.push_str(&row("trimmed: p99 \\|residual angle\\|", &t.p99_deg, "°", 3));
         r.push_str(&row("trimmed: max \\|residual angle\\|", &t.max_deg, "°", 3));
         r.push_str(&row("trimmed: largest \\|trim rate change\\| (N·m/rad)", &t.trim_change_nm_per_rad, "", 3));
-        r.push_str(&format!(
-            "\nTrimmed: after each build the trim springs are re-relaxed at the equilibrium of the other springs and their rates set (within range) so that ∇²U = w² M holds there again; {} of {} builds could not be fully restored within the ranges.\n",
-            t.builds_not_restored, ab.builds
-        ));
+        r.push_str(&match t.rule {
+            TrimRule::Hessian => format!(
+                "\nTrimmed: after each build the trim springs are re-relaxed at the equilibrium of the other springs and their rates set (within range) so that ∇²U = w² M holds there again; {} of {} builds could not be fully restored within the ranges.\n",
+                t.builds_not_restored, ab.builds
+            ),
+            TrimRule::Residual => format!(
+                "\nTrimmed: after each build the trim springs are re-relaxed at the equilibrium of the other springs and their rates set (within range) for the smallest least-squares residual on {} geodesics of their own from there (`trim_rule = \"residual\"`); in {} of {} builds a trim ends at the end of its range.\n",
+                crate::asbuilt::TRIM_DIRECTIONS, t.builds_not_restored, ab.builds
+            ),
+        });
     }
     if let Some(t) = &ab.preload_trimmed {
         r.push_str(&row("preloads re-set: p99 \\|residual angle\\|", &t.p99_deg, "°", 3));
