@@ -12,12 +12,18 @@ use util::{repo, springfit, temp_dir};
 fn check_report(folder: &Path, must_contain: &[&str]) {
     let html = std::fs::read_to_string(folder.join("report.html"))
         .unwrap_or_else(|e| panic!("{}: no report.html: {e}", folder.display()));
-    let svgs: Vec<String> = std::fs::read_dir(folder)
+    // The folder's figures and its cams' drawings (parts.md shows `cams/<id>.svg`).
+    let mut svgs: Vec<String> = std::fs::read_dir(folder)
         .unwrap()
         .flatten()
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .filter(|n| n.ends_with(".svg"))
         .collect();
+    if let Ok(cams) = std::fs::read_dir(folder.join("cams")) {
+        svgs.extend(
+            cams.flatten().map(|e| format!("cams/{}", e.file_name().to_string_lossy())).filter(|n| n.ends_with(".svg")),
+        );
+    }
     assert!(!svgs.is_empty(), "{}: no figures to check", folder.display());
     for s in &svgs {
         assert_eq!(html.matches(&format!("data-file=\"{s}\"")).count(), 1, "{s} not inlined exactly once");

@@ -110,7 +110,8 @@ impl Page {
         )))
     }
 
-    /// Renders markdown, inlining images of staged SVG files.
+    /// Renders markdown, inlining images of staged SVG files (in the folder or a subfolder of
+    /// it, such as parts.md's `cams/<id>.svg`).
     fn markdown(&mut self, md: &str) -> Result<()> {
         let mut events = Vec::new();
         let mut skip_to_image_end = false;
@@ -128,7 +129,7 @@ impl Page {
             };
             if let Event::Start(Tag::Image { dest_url, .. }) = &ev {
                 let dest = dest_url.to_string();
-                if dest.ends_with(".svg") && !dest.contains('/') {
+                if local_svg(&dest) {
                     if let Some(fig) = self.figure(&dest)? {
                         events.push(Event::Html(fig.into()));
                         skip_to_image_end = true;
@@ -395,6 +396,14 @@ pub fn write_pareto(out: &OutputDir, design: &Design) -> Result<()> {
     p.finish()
 }
 
+/// Whether an image reference names an SVG file inside the output folder: a relative path of
+/// plain names (no `..`, no root, no drive), so inlining never reads outside the folder.
+fn local_svg(dest: &str) -> bool {
+    dest.ends_with(".svg")
+        && !dest.contains('\\')
+        && std::path::Path::new(dest).components().all(|c| matches!(c, std::path::Component::Normal(_)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -415,10 +424,12 @@ mod tests {
         w("a.svg", &format!("<?xml version=\"1.0\"?>\n{SVG}"));
         w("a.png", "png");
         w("b.svg", SVG);
+        std::fs::create_dir_all(root.join("cams")).unwrap();
+        w("cams/c.svg", SVG);
         w(".hidden", "not listed");
         w(
             "report.md",
-            "# Title <x>\n\n| k | v |\n| --- | ---: |\n| 1 | a & b |\n\n![a](a.svg)\n\n![gone](missing.svg)\n",
+            "# Title <x>\n\n| k | v |\n| --- | ---: |\n| 1 | a & b |\n\n![a](a.svg)\n\n![gone](missing.svg)\n\n![c](cams/c.svg)\n\n![up](../a.svg)\n",
         );
         let mut p = Page::in_folder(&root, &root, "t".into());
         p.markdown_file("report.md").unwrap();
@@ -427,12 +438,14 @@ mod tests {
         let html = std::fs::read_to_string(root.join(FILE)).unwrap();
         assert!(html.contains("<h2>Title &lt;x&gt;</h2>"), "headings demoted and escaped: {html}");
         assert!(html.contains("<table>") && html.contains("<td style=\"text-align: right\">a &amp; b</td>"), "{html}");
-        // a.svg where the markdown put it (without its XML declaration), b.svg at the end.
-        assert_eq!(html.matches("<svg").count(), 2);
+        // a.svg and cams/c.svg where the markdown put them (without the XML declaration), b.svg
+        // at the end; ../a.svg (outside the folder) is left a reference.
+        assert_eq!(html.matches("<svg").count(), 3);
+        assert!(html.contains("data-file=\"cams/c.svg\"") && html.contains("src=\"../a.svg\""));
         assert!(!html.contains("<?xml"));
         assert!(html.find("data-file=\"a.svg\"").unwrap() < html.find("<h2>Figures</h2>").unwrap());
         assert!(html.find("data-file=\"b.svg\"").unwrap() > html.find("<h2>Figures</h2>").unwrap());
-        assert!(html.contains("<meta name=\"springfit-figures\" content=\"2\">"));
+        assert!(html.contains("<meta name=\"springfit-figures\" content=\"3\">"));
         // A missing image stays a plain reference, not counted as a figure.
         assert!(html.contains("src=\"missing.svg\""));
         assert!(html.contains("href=\"a.png\""));
