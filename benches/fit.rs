@@ -28,6 +28,7 @@ fn main() {
         "double_pendulum_paper_window",
         "ur5_pan_lift_elbow",
         "double_pendulum_paper_window_cams",
+        "double_pendulum_paper_window_built",
     ] {
         if !want(&format!("fit {name}")) {
             continue;

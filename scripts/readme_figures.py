@@ -58,6 +58,7 @@ JOBS = {
     "fit.triple": ["fit", "designs/triple_pendulum.toml"],
     "fit.dense_robust": ["fit", "designs/double_pendulum_dense_robust.toml"],
     "fit.window_cams": ["fit", "designs/double_pendulum_paper_window_cams.toml"],
+    "fit.window_built": ["fit", "designs/double_pendulum_paper_window_built.toml"],
     "fit.cams4": ["fit", "designs/double_pendulum_cams4.toml"],
     "fit.cams": ["fit", "designs/double_pendulum_cams.toml"],
     "fit.dp_trim": ["fit", "designs/double_pendulum_trim.toml"],
@@ -77,7 +78,7 @@ JOBS = {
     "geo.folded_long": ["geodesics", "{probe:double_pendulum_folded}"],
     "sweep.dense_robust": ["sweep", "designs/double_pendulum_dense_robust.toml"],
     # The paper's window: springs, cams, the exact potential, side by side.
-    "compare.window": ["compare", "{dir:fit.window}", "{dir:fit.window_cams}", "--exact"],
+    "compare.window": ["compare", "{dir:fit.window}", "{dir:fit.window_cams}", "{dir:fit.window_built}", "--exact"],
     # MuJoCo: export the fitted springs, simulate the same springs' free releases, compare.
     "export.dp": ["export", "--bom", "{bom:fit.dp}", "--mujoco"],
     "free.dp": ["simulate", "--bom", "{bom:fit.dp}", "--scenario", "free"],
@@ -311,6 +312,7 @@ def fit_figures():
         ("triple", "fit.triple"),
         ("dense_robust", "fit.dense_robust"),
         ("window_cams", "fit.window_cams"),
+        ("window_built", "fit.window_built"),
         ("cams4", "fit.cams4"),
         ("cams", "fit.cams"),
         ("dp_nominal", "fit.dp_nominal"),
@@ -322,7 +324,7 @@ def fit_figures():
         figs[f"fit.{key}.p99"] = lambda r, s=s: deg(s(r)["residual_deg"]["p99_abs"])
         figs[f"fit.{key}.max"] = lambda r, s=s: deg(s(r)["residual_deg"]["max_abs"])
     # Designs with cams count cams and springs together (`used`): the docs quote no count.
-    for key in ("window_cams", "cams4", "cams"):
+    for key in ("window_cams", "window_built", "cams4", "cams"):
         del figs[f"fit.{key}.springs"]
     return figs
 
@@ -336,6 +338,19 @@ def as_built(job, what):
             ab = ab[key]
         unit = (lambda x: f"{x:.4f}") if what.startswith("shift") else deg
         return f"{unit(ab['p50'])} / {unit(ab['p95'])}"
+
+    return f
+
+
+def p95_interval(job, what):
+    """The 95 % confidence interval of the p95 over builds of an as-built figure: `a–b°`."""
+
+    def f(r):
+        ab = r.json(job, "summary.json")["as_built"]
+        for key in what.split("."):
+            ab = ab[key]
+        lo, hi = ab["p95_ci"]
+        return f"{deg(lo)[:-1]}–{deg(hi)}"
 
     return f
 
@@ -735,6 +750,11 @@ FIGURES = {
     "asbuilt.cams.trimmed": as_built("fit.cams", "trimmed.p99_deg"),
     "asbuilt.window_cams.p99": as_built("fit.window_cams", "p99_deg"),
     "asbuilt.window_cams.preload": as_built("fit.window_cams", "preload_trimmed.p99_deg"),
+    "asbuilt.window_built.p99": as_built("fit.window_built", "p99_deg"),
+    "asbuilt.window_built.p95": lambda r: deg(r.json("fit.window_built", "summary.json")["as_built"]["p99_deg"]["p95"]),
+    "asbuilt.window_built.p95_ci": p95_interval("fit.window_built", "p99_deg"),
+    "asbuilt.window_built.preload": as_built("fit.window_built", "preload_trimmed.p99_deg"),
+    "asbuilt.window_built.preload_ci": p95_interval("fit.window_built", "preload_trimmed.p99_deg"),
     "sweep.dp.eps0.share": parasitic_share(0.0),
     "sweep.dp.eps1.share": parasitic_share(1.0),
     "sweep.dp.tol5": tolerance_cell(0.05),
