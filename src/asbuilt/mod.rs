@@ -344,14 +344,7 @@ pub fn trim_build(
         TrimRule::Residual => {
             let fan = trim_fan(design, &q).ok()?;
             let (columns, r0) = trim_rows(design, &fan, &trimmed, &trims);
-            let (rates, binding) = crate::elements::trim::fit_rows(&columns, &r0, &ranges, &nominal);
-            let mut h = h_rest.clone();
-            for (a, k) in couplings.iter().zip(&rates) {
-                let av = DVector::from_column_slice(a);
-                h += &av * av.transpose() * *k;
-            }
-            let (w2, mismatch) = crate::elements::trim::hessian_mismatch(&h, &m);
-            crate::elements::trim::TrimSolution { rates, w2, mismatch, binding }
+            crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &ranges, &nominal)
         }
     };
     for (i, &j) in trims.iter().enumerate() {

@@ -234,14 +234,8 @@ impl Problem<'_> {
         let sol = match self.design.fit.trim_rule {
             TrimRule::Residual if !self.trims.is_empty() => {
                 let r0 = super::rows_without_trims(self.design, &self.fan, &s, &self.trims);
-                let (rates, binding) = crate::elements::trim::fit_rows(&self.trim_columns, &r0, &ranges, &nominal);
-                let mut h = h_rest.clone();
-                for (a, k) in couplings.iter().zip(&rates) {
-                    let av = DVector::from_column_slice(a);
-                    h += &av * av.transpose() * *k;
-                }
-                let (w2, mismatch) = crate::elements::trim::hessian_mismatch(&h, &m);
-                crate::elements::trim::TrimSolution { rates, w2, mismatch, binding }
+                let rows = (&self.trim_columns, &r0);
+                crate::elements::trim::solve_rows(&h_rest, &m, &couplings, rows, &ranges, &nominal)
             }
             // Without trims the Hessian rule's solve still gives the arm's w² (and its mismatch).
             _ => crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal),

@@ -222,9 +222,30 @@ pub fn fit_rows(
     best.map(|b| (b.2, b.3)).unwrap_or_else(|| (nominal.to_vec(), Vec::new()))
 }
 
+/// The residual rule's settings for one build: the rates of [`fit_rows`] on the trims' unit rows
+/// `columns` and the rest's rows `r0`, with the w² and Hessian mismatch they leave at the point
+/// where `h_rest` (everything but the trims, gravity included) and `m` were taken.
+pub fn solve_rows(
+    h_rest: &DMatrix<f64>,
+    m: &DMatrix<f64>,
+    couplings: &[Vec<f64>],
+    (columns, r0): (&DMatrix<f64>, &DVector<f64>),
+    ranges: &[[f64; 2]],
+    nominal: &[f64],
+) -> TrimSolution {
+    let (rates, binding) = fit_rows(columns, r0, ranges, nominal);
+    let mut h = h_rest.clone();
+    for (a, k) in couplings.iter().zip(&rates) {
+        let av = DVector::from_column_slice(a);
+        h += &av * av.transpose() * *k;
+    }
+    let (w2, mismatch) = hessian_mismatch(&h, m);
+    TrimSolution { rates, w2, mismatch, binding }
+}
+
 /// The w² that brings `h` nearest to w² M (Frobenius norm) and the mismatch left,
 /// ‖h − w² M‖_F / ‖M‖_F: what a trim set for the residual leaves of the Hessian match.
-pub fn hessian_mismatch(h: &DMatrix<f64>, m: &DMatrix<f64>) -> (f64, f64) {
+fn hessian_mismatch(h: &DMatrix<f64>, m: &DMatrix<f64>) -> (f64, f64) {
     let mm = m.dot(m).max(f64::MIN_POSITIVE);
     let w2 = h.dot(m) / mm;
     (w2, (h - m * w2).norm() / mm.sqrt())
