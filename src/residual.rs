@@ -82,6 +82,34 @@ pub fn angle_between(v: &[f64], t: &[f64]) -> f64 {
     }
 }
 
+/// ∂θ/∂v of [`angle_between`]`(v, t)` in rad per unit of v (zero where v or t is zero, and, in
+/// more than two dimensions, where v ∥ t: the unsigned angle has a kink there and zero is its
+/// smallest subgradient). Written as θ = atan2(p, d) with d = v·t̂ and p = the 2-D cross product
+/// (signed) or |v − d t̂| (unsigned), so dθ = (d dp − p dd) / |v|², which stays finite at θ = 0
+/// and π where the arccosine's derivative does not.
+pub fn angle_gradient(v: &[f64], t: &[f64], out: &mut [f64]) {
+    out.iter_mut().for_each(|o| *o = 0.0);
+    let nt = t.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let nv2 = v.iter().map(|a| a * a).sum::<f64>();
+    if nv2 == 0.0 || nt == 0.0 {
+        return;
+    }
+    let d = v.iter().zip(t).map(|(a, b)| a * b).sum::<f64>() / nt;
+    if v.len() == 2 {
+        // p = (t₀ v₁ − t₁ v₀) / |t|: ∂p/∂v = (−t₁, t₀) / |t|, ∂d/∂v = t / |t|.
+        let p = (t[0] * v[1] - t[1] * v[0]) / nt;
+        out[0] = (d * -t[1] - p * t[0]) / (nt * nv2);
+        out[1] = (d * t[0] - p * t[1]) / (nt * nv2);
+    } else {
+        let perp: Vec<f64> = v.iter().zip(t).map(|(a, b)| a - d * b / nt).collect();
+        let p = perp.iter().map(|a| a * a).sum::<f64>().sqrt();
+        for ((o, e), b) in out.iter_mut().zip(&perp).zip(t) {
+            let e = if p > 0.0 { e / p } else { 0.0 };
+            *o = (d * e - p * b / nt) / nv2;
+        }
+    }
+}
+
 /// Residual angles of `potential` (elastic part; gravity added from the chain) at every sample
 /// of `fan`, in fan order. Runs in parallel; the result does not depend on the thread count.
 pub fn fan_angles(chain: &Chain, fan: &Fan, potential: &dyn Potential) -> Result<Vec<AngleSample>> {
@@ -247,6 +275,38 @@ mod tests {
         assert!((angle_between(&[-1.0, 0.0], &[1.0, 0.0]).abs() - 180.0).abs() < 1e-12);
         assert!((angle_between(&[0.0, 1.0, 0.0], &[0.0, 0.0, 3.0]) - 90.0).abs() < 1e-12);
         assert_eq!(angle_between(&[0.0, 0.0], &[1.0, 0.0]), 90.0);
+    }
+
+    #[test]
+    fn angle_gradients_match_finite_differences() {
+        // Signed in the plane, unsigned in three and six dimensions; near 0, near 180° and in between.
+        let cases: [(&[f64], &[f64]); 6] = [
+            (&[0.3, 1.1], &[1.0, 0.2]),
+            (&[-2.0, 0.01], &[1.0, 0.0]),
+            (&[1.0, 1e-4], &[2.0, 0.0]),
+            (&[0.3, -0.7, 0.2], &[1.0, 0.5, -0.3]),
+            (&[1.0, 1e-3, -2e-3], &[2.0, 0.0, 0.0]),
+            (&[0.2, -0.1, 0.4, 0.9, -0.3, 0.05], &[0.1, 0.2, -0.3, 0.4, 0.5, -0.6]),
+        ];
+        for (v, t) in cases {
+            let mut g = vec![0.0; v.len()];
+            angle_gradient(v, t, &mut g);
+            for i in 0..v.len() {
+                let h = 1e-7;
+                let (mut a, mut b) = (v.to_vec(), v.to_vec());
+                a[i] += h;
+                b[i] -= h;
+                let fd = (angle_between(&a, t) - angle_between(&b, t)).to_radians() / (2.0 * h);
+                assert!(
+                    (fd - g[i]).abs() < 1e-6 * (1.0 + fd.abs()),
+                    "v {v:?}, t {t:?}, ∂/∂v{i}: {} against {fd}",
+                    g[i]
+                );
+            }
+        }
+        let mut g = vec![1.0; 2];
+        angle_gradient(&[0.0, 0.0], &[1.0, 0.0], &mut g);
+        assert_eq!(g, vec![0.0, 0.0]);
     }
 
     #[test]

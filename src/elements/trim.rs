@@ -157,7 +157,32 @@ pub fn solve(
 /// quadratic's minimum over a box is the unconstrained minimum over the affine hull of the face
 /// it lies in); among equal minima, the smallest change from `nominal`. Returns the rates and the
 /// trims whose range binds (at an end, where the unconstrained minimum lies beyond it).
+///
+/// Only ‖r₀ + C k‖² matters, so a tall system (a fan's hundreds of rows against a few trims) is
+/// first reduced to t + 1 rows with the same value for every k: with C = Q R (thin QR),
+/// ‖r₀ + C k‖² = ‖Qᵀr₀ + R k‖² + ‖r₀ − Q Qᵀr₀‖². The 3ᵗ faces are then solved on that.
 pub fn fit_rows(
+    columns: &DMatrix<f64>,
+    r0: &DVector<f64>,
+    ranges: &[[f64; 2]],
+    nominal: &[f64],
+) -> (Vec<f64>, Vec<usize>) {
+    let t = columns.ncols();
+    if columns.nrows() > t + 1 && t > 0 {
+        let qr = columns.clone().qr();
+        let (q, r) = (qr.q(), qr.r());
+        let along = q.transpose() * r0;
+        let across = (r0 - &q * &along).norm();
+        let mut c = DMatrix::zeros(t + 1, t);
+        c.view_mut((0, 0), (t, t)).copy_from(&r);
+        let r0c = DVector::from_iterator(t + 1, along.iter().copied().chain(std::iter::once(across)));
+        return fit_rows_on(&c, &r0c, ranges, nominal);
+    }
+    fit_rows_on(columns, r0, ranges, nominal)
+}
+
+/// [`fit_rows`] on the rows as given.
+fn fit_rows_on(
     columns: &DMatrix<f64>,
     r0: &DVector<f64>,
     ranges: &[[f64; 2]],
@@ -459,6 +484,35 @@ mod tests {
             let p: Vec<f64> = (0..3).map(|i| ranges[i][0] + (ranges[i][1] - ranges[i][0]) * rng.uniform()).collect();
             assert!(objective(&p) >= best - 1e-12, "box point {trial} beats the solution");
         }
+    }
+
+    /// The reduction to t + 1 rows changes no answer of full rank, with and without a binding
+    /// end; with two identical columns (a null space) it reaches the same minimum, with a change
+    /// from nominal no larger (the tall system's rounding can hide the interior tie there).
+    #[test]
+    fn reduced_rows_give_the_same_trims() {
+        let mut rng = crate::numerics::rng::SplitMix64::stream(5, 0);
+        let a = DMatrix::from_fn(300, 3, |_, _| rng.uniform() - 0.5);
+        let twin =
+            DMatrix::from_columns(&[a.column(0).into_owned(), a.column(0).into_owned(), a.column(2).into_owned()]);
+        let r0 = DVector::from_fn(300, |_, _| rng.uniform() - 0.5) - &a * DVector::from_column_slice(&[1.0, 2.0, 3.0]);
+        let nominal = [0.7, 1.1, 2.0];
+        for ranges in [[[0.0, 4.0]; 3], [[0.0, 4.0], [0.0, 1.5], [3.5, 5.0]]] {
+            let reduced = fit_rows(&a, &r0, &ranges, &nominal);
+            let full = fit_rows_on(&a, &r0, &ranges, &nominal);
+            assert_eq!(reduced.1, full.1, "{:?} against {:?} on {ranges:?}", reduced.0, full.0);
+            for (x, y) in reduced.0.iter().zip(&full.0) {
+                assert!((x - y).abs() < 1e-10, "{:?} against {:?}", reduced.0, full.0);
+            }
+        }
+        let ranges = [[0.0, 4.0]; 3];
+        let (reduced, _) = fit_rows(&twin, &r0, &ranges, &nominal);
+        let (full, _) = fit_rows_on(&twin, &r0, &ranges, &nominal);
+        let value = |k: &[f64]| (&r0 + &twin * DVector::from_column_slice(k)).norm_squared();
+        let change = |k: &[f64]| k.iter().zip(&nominal).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+        assert!((value(&reduced) - value(&full)).abs() < 1e-10 * value(&full));
+        assert!((reduced[0] + reduced[1] - full[0] - full[1]).abs() < 1e-10 && (reduced[2] - full[2]).abs() < 1e-10);
+        assert!(change(&reduced) <= change(&full) + 1e-12, "{reduced:?} against {full:?}");
     }
 
     /// The w² nearest a Hessian and what is left: exact for a multiple of M.

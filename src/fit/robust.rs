@@ -208,6 +208,63 @@ pub fn rows_of(chain: &Chain, fan: &Fan, springs: &SpringSet, omega: f64) -> DVe
     &problem.rows * DVector::from_column_slice(&springs.stiffness) - problem.rhs
 }
 
+/// The training rows of a fixed fan with everything but the springs done once: per sample the
+/// weighted directions w = M⁻¹ (complement of γ̇) / (ω² s |γ̇|) of [`assemble`] and gravity's
+/// share of each row, so that R = A k − b for any spring set on this fan costs one pass over its
+/// elements (no mass matrix, no factorisation). `tune` evaluates the rows of its training fan
+/// at every trial step; [`rows_of`] is the same sum, grouped by candidate.
+pub struct RowFrame {
+    /// Per sample: q, then its n − 1 (at least one) weighted directions.
+    samples: Vec<(Vec<f64>, Vec<Vec<f64>>)>,
+    /// Gravity's part of every row, ∇U_g · w.
+    gravity: Vec<f64>,
+}
+
+impl RowFrame {
+    /// The frame of `fan` for the frequency `omega` (the rows' weighting).
+    pub fn new(chain: &Chain, fan: &Fan, omega: f64) -> RowFrame {
+        let n = chain.dof();
+        let w2 = omega * omega;
+        let mut samples = Vec::new();
+        let mut gravity = Vec::new();
+        for g in &fan.geodesics {
+            for i in 0..g.len() {
+                let (q, qd, s) = (g.q(i), g.qd(i), g.s(i));
+                if s <= 0.0 {
+                    continue;
+                }
+                let m = chain.mass_matrix(&DVector::from_column_slice(q));
+                let chol = m.cholesky().expect("the model's mass matrix is positive definite");
+                let perp = if n == 1 { DMatrix::zeros(1, 0) } else { crate::fit::problem::complement(qd) };
+                let speed = qd.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let weight = 1.0 / (w2 * s * speed);
+                let grav = chain.gravity_gradient(q);
+                let dirs: Vec<Vec<f64>> = (0..perp.ncols())
+                    .map(|c| (chol.solve(&perp.column(c).into_owned()) * weight).as_slice().to_vec())
+                    .collect();
+                gravity.extend(dirs.iter().map(|w| grav.iter().zip(w).map(|(a, b)| a * b).sum::<f64>()));
+                samples.push((q.to_vec(), dirs));
+            }
+        }
+        RowFrame { samples, gravity }
+    }
+
+    /// R = A k − b of `springs` on the frame's fan: (∇U_springs + ∇U_g) · w per row.
+    pub fn rows(&self, springs: &SpringSet) -> DVector<f64> {
+        let n = self.samples.first().map_or(0, |(q, _)| q.len());
+        let mut grad = vec![0.0; n];
+        let mut out = Vec::with_capacity(self.gravity.len());
+        for (q, dirs) in &self.samples {
+            springs.gradient_into(q, &mut grad);
+            out.extend(dirs.iter().map(|w| grad.iter().zip(w).map(|(a, b)| a * b).sum::<f64>()));
+        }
+        for (r, g) in out.iter_mut().zip(&self.gravity) {
+            *r += g;
+        }
+        DVector::from_vec(out)
+    }
+}
+
 /// J = ∂R/∂(base point) (m × n) of the nominal spring set's rows, by central differences of fans
 /// retraced from q_eq ± [`BASE_STEP`] eⱼ.
 pub fn base_jacobian(
