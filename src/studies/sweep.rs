@@ -192,7 +192,7 @@ impl<'a> SweepContext<'a> {
             design,
             fit,
             label,
-            sim: design.simulate,
+            sim: SimSettings { rate: settings.rate.unwrap_or(design.simulate.rate / 2.0), ..design.simulate },
             controllers: design.controllers.clone(),
             settings,
             kappa: kappa(design, &fit.springs, fit),
