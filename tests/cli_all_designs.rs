@@ -179,7 +179,7 @@ fn pendulum5() {
 
 #[test]
 fn ur5_six() {
-    n_joint_example("ur5_six", "chain, 9 families");
+    n_joint_example("ur5_six", "ur5_span, 10 families");
     // every_command("ur5_six") is this test (the coverage check reads it).
 }
 
