@@ -381,36 +381,27 @@ pub fn trim_fan(design: &Design, q0: &DVector<f64>) -> Result<Fan> {
 /// The tangentiality rows (weighted as in the fit) on `fan` of each trim (rows `trims` of
 /// `springs`) at rate 1, as columns, and of everything else at its rate, gravity included.
 pub fn trim_rows(design: &Design, fan: &Fan, springs: &SpringSet, trims: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
-    (trim_columns(design, fan, springs, trims), rows_without_trims(design, fan, springs, trims))
+    let frame = crate::fit::robust::RowFrame::new(&design.chain, fan, design.fit.frequency);
+    trim_rows_on(&frame, springs, trims)
 }
 
-/// The rows on `fan` of everything but the trims (rows `trims` of `springs`), gravity included.
-pub fn rows_without_trims(design: &Design, fan: &Fan, springs: &SpringSet, trims: &[usize]) -> DVector<f64> {
+/// [`trim_rows`] on a fan whose [`RowFrame`](crate::fit::robust::RowFrame) is built already
+/// (`tune` evaluates the rows of one fan at every step).
+pub fn trim_rows_on(
+    frame: &crate::fit::robust::RowFrame,
+    springs: &SpringSet,
+    trims: &[usize],
+) -> (DMatrix<f64>, DVector<f64>) {
+    (frame.columns(trims.iter().map(|&j| &springs.elements[j])), rows_without_trims(frame, springs, trims))
+}
+
+/// The rows on `frame` of everything but the trims (rows `trims` of `springs`), gravity included.
+pub fn rows_without_trims(frame: &crate::fit::robust::RowFrame, springs: &SpringSet, trims: &[usize]) -> DVector<f64> {
     let mut rest = springs.clone();
     for &j in trims {
         rest.stiffness[j] = 0.0;
     }
-    crate::fit::robust::rows_of(&design.chain, fan, &rest, design.fit.frequency)
-}
-
-/// The rows on `fan` of each trim (rows `trims` of `springs`) at rate 1, as columns.
-pub fn trim_columns(design: &Design, fan: &Fan, springs: &SpringSet, trims: &[usize]) -> DMatrix<f64> {
-    let omega = design.fit.frequency;
-    let unit = |j: usize, k: f64| SpringSet { elements: vec![springs.elements[j].clone()], stiffness: vec![k] };
-    // rows_of includes gravity's right-hand side: the difference of rate 1 and rate 0 is the
-    // trim's own rows.
-    let cols: Vec<DVector<f64>> = trims
-        .iter()
-        .map(|&j| {
-            crate::fit::robust::rows_of(&design.chain, fan, &unit(j, 1.0), omega)
-                - crate::fit::robust::rows_of(&design.chain, fan, &unit(j, 0.0), omega)
-        })
-        .collect();
-    if cols.is_empty() {
-        let none = SpringSet { elements: Vec::new(), stiffness: Vec::new() };
-        return DMatrix::zeros(crate::fit::robust::rows_of(&design.chain, fan, &none, omega).len(), 0);
-    }
-    DMatrix::from_columns(&cols)
+    frame.rows(&rest)
 }
 
 /// Where a held-out or trim geodesic stops: the ball's radius, or the region's boundary.

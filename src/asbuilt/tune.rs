@@ -237,12 +237,8 @@ impl Problem<'_> {
         let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
         let sol = match self.design.fit.trim_rule {
             TrimRule::Residual if !self.trims.is_empty() => {
-                let mut without = s.clone();
-                for &j in &self.trims {
-                    without.stiffness[j] = 0.0;
-                }
                 let frame = self.row_frame.as_ref().expect("built with the residual rule's trims");
-                let r0 = frame.rows(&without);
+                let r0 = crate::asbuilt::rows_without_trims(frame, &s, &self.trims);
                 let rows = (&self.trim_columns, &r0);
                 crate::elements::trim::solve_rows(&h_rest, &m, &couplings, rows, &ranges, &nominal)
             }
@@ -384,15 +380,9 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
     let designed = crate::fit::bill::spring_set(bom);
     let row_frame = (design.fit.trim_rule == TrimRule::Residual && !trims.is_empty())
         .then(|| crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency));
+    // The trims' own rows: they sit relaxed at q_eq whatever tune sets, so their columns are fixed.
     let trim_columns = match &row_frame {
-        // A trim's unit rows: its rows at rate 1 less gravity's (its rows at rate 0).
-        Some(frame) => {
-            let unit =
-                |j: usize, k: f64| SpringSet { elements: vec![designed.elements[j].clone()], stiffness: vec![k] };
-            let cols: Vec<DVector<f64>> =
-                trims.iter().map(|&j| frame.rows(&unit(j, 1.0)) - frame.rows(&unit(j, 0.0))).collect();
-            DMatrix::from_columns(&cols)
-        }
+        Some(frame) => frame.columns(trims.iter().map(|&j| &designed.elements[j])),
         None => DMatrix::zeros(0, 0),
     };
     let p = Problem { design, bom, k, adjustable, trims, fan, trim_columns, row_frame };
@@ -607,7 +597,7 @@ mod tests {
             evaluation_directions: 24,
             evaluation_samples: 10,
             builds: 0,
-            ..design.fit.clone()
+            ..design.fit
         };
         crate::fit::run::fit(design, &catalog, &settings, &|_| {}).unwrap().bom
     }
@@ -688,5 +678,13 @@ mod tests {
         let framed = frame.rows(&springs);
         assert_eq!(assembled.len(), framed.len());
         assert!((&assembled - &framed).amax() <= 1e-12 * assembled.amax(), "{:e}", (&assembled - &framed).amax());
+        // Its columns are the assembled matrix A (one per element, gravity left out).
+        let candidates: Vec<crate::elements::catalog::Candidate> =
+            springs.elements.iter().map(|e| crate::elements::catalog::Candidate::bare(e.clone())).collect();
+        let req = crate::fit::problem::Requirements { omega, hessian_match: false, monotone: false };
+        let a = crate::fit::problem::assemble(&design.chain, &design.q_eq, &fan, &candidates, req).rows;
+        let columns = frame.columns(springs.elements.iter());
+        assert_eq!(a.shape(), columns.shape());
+        assert!(a.amax() > 0.0 && (&a - &columns).amax() <= 1e-12 * a.amax(), "{:e}", (&a - &columns).amax());
     }
 }

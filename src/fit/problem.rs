@@ -69,6 +69,39 @@ pub fn complement(t: &[f64]) -> DMatrix<f64> {
     DMatrix::from_columns(&cols)
 }
 
+/// The samples of a training fan that give rows: (q, γ̇, s) in fan order, s = 0 skipped (the
+/// tangent there carries no residual: both sides of a row vanish).
+pub fn training_samples(fan: &Fan) -> impl Iterator<Item = (&[f64], &[f64], f64)> + '_ {
+    fan.geodesics.iter().flat_map(|g| (0..g.len()).map(move |i| (g.q(i), g.qd(i), g.s(i)))).filter(|&(_, _, s)| s > 0.0)
+}
+
+/// What one training sample contributes to every row, whatever the springs: the directions
+/// w_c = M(q)⁻¹ p_c for the columns p_c of [γ̇]^⊥ (none for one joint), the row weight
+/// 1/(ω² s |γ̇|) and ∇U_g(q). A spring's entry in row c is u′ (a·w_c) · weight, gravity's right-hand
+/// side −∇U_g·w_c · weight: [`assemble`] and [`crate::fit::robust::RowFrame`] both build on this.
+pub struct SampleDirections {
+    /// w_c = M(q)⁻¹ p_c, unweighted.
+    pub directions: Vec<DVector<f64>>,
+    /// 1/(ω² s |γ̇|).
+    pub weight: f64,
+    /// ∇U_g(q).
+    pub gravity: DVector<f64>,
+}
+
+/// [`SampleDirections`] of the sample (q, γ̇, s) for ω² = `w2`.
+pub fn sample_directions(chain: &Chain, q: &[f64], qd: &[f64], s: f64, w2: f64) -> SampleDirections {
+    let n = chain.dof();
+    let m = chain.mass_matrix(&DVector::from_column_slice(q));
+    let chol = m.cholesky().expect("the model's mass matrix is positive definite");
+    let perp = if n == 1 { DMatrix::zeros(1, 0) } else { complement(qd) };
+    let speed = qd.iter().map(|x| x * x).sum::<f64>().sqrt();
+    SampleDirections {
+        directions: (0..perp.ncols()).map(|c| chol.solve(&perp.column(c).into_owned())).collect(),
+        weight: 1.0 / (w2 * s * speed),
+        gravity: chain.gravity_gradient(q),
+    }
+}
+
 /// Assembles the problem from the training fan.
 pub fn assemble(
     chain: &Chain,
@@ -80,30 +113,15 @@ pub fn assemble(
     let n = chain.dof();
     let p = candidates.len();
     let w2 = req.omega * req.omega;
-    // Samples in fan order, skipping s = 0 (none are produced) and any degenerate tangent.
-    let mut samples: Vec<(&[f64], &[f64], f64)> = Vec::new();
-    for g in &fan.geodesics {
-        for i in 0..g.len() {
-            if g.s(i) > 0.0 {
-                samples.push((g.q(i), g.qd(i), g.s(i)));
-            }
-        }
-    }
+    let samples: Vec<(&[f64], &[f64], f64)> = training_samples(fan).collect();
     let m_rows = samples.len() * (n - 1).max(1);
     let mut rows = DMatrix::zeros(m_rows, p);
     let mut rhs = DVector::zeros(m_rows);
     let mut mono = DMatrix::zeros(if req.monotone { samples.len() } else { 0 }, p);
     let mut mono_rhs = DVector::zeros(if req.monotone { samples.len() } else { 0 });
-    for (si, (q, qd, s)) in samples.iter().enumerate() {
-        let qv = DVector::from_column_slice(q);
-        let m = chain.mass_matrix(&qv);
-        let chol = m.cholesky().expect("the model's mass matrix is positive definite");
-        let perp = if n == 1 { DMatrix::zeros(1, 0) } else { complement(qd) };
-        let speed = qd.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let weight = 1.0 / (w2 * s * speed);
-        let grav = chain.gravity_gradient(q);
-        for c in 0..perp.ncols() {
-            let w = chol.solve(&perp.column(c).into_owned());
+    for (si, &(q, qd, s)) in samples.iter().enumerate() {
+        let SampleDirections { directions, weight, gravity: grav } = sample_directions(chain, q, qd, s, w2);
+        for (c, w) in directions.iter().enumerate() {
             let r = si * (n - 1) + c;
             for (j, cand) in candidates.iter().enumerate() {
                 let e = &cand.element;
@@ -112,7 +130,7 @@ pub fn assemble(
                     rows[(r, j)] = e.profile.slope(e.deflection(q)) * aw * weight;
                 }
             }
-            rhs[r] = -grav.dot(&w) * weight;
+            rhs[r] = -grav.dot(w) * weight;
         }
         if req.monotone {
             // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.

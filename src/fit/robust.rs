@@ -69,6 +69,7 @@ use rayon::prelude::*;
 
 use super::problem::{Requirements, assemble};
 use crate::design::tolerance::TrimRule;
+use crate::elements::Element;
 use crate::elements::catalog::Candidate;
 use crate::elements::group::Columns;
 use crate::error::{Error, Result};
@@ -223,30 +224,44 @@ pub struct RowFrame {
 impl RowFrame {
     /// The frame of `fan` for the frequency `omega` (the rows' weighting).
     pub fn new(chain: &Chain, fan: &Fan, omega: f64) -> RowFrame {
-        let n = chain.dof();
         let w2 = omega * omega;
         let mut samples = Vec::new();
         let mut gravity = Vec::new();
-        for g in &fan.geodesics {
-            for i in 0..g.len() {
-                let (q, qd, s) = (g.q(i), g.qd(i), g.s(i));
-                if s <= 0.0 {
-                    continue;
-                }
-                let m = chain.mass_matrix(&DVector::from_column_slice(q));
-                let chol = m.cholesky().expect("the model's mass matrix is positive definite");
-                let perp = if n == 1 { DMatrix::zeros(1, 0) } else { crate::fit::problem::complement(qd) };
-                let speed = qd.iter().map(|x| x * x).sum::<f64>().sqrt();
-                let weight = 1.0 / (w2 * s * speed);
-                let grav = chain.gravity_gradient(q);
-                let dirs: Vec<Vec<f64>> = (0..perp.ncols())
-                    .map(|c| (chol.solve(&perp.column(c).into_owned()) * weight).as_slice().to_vec())
-                    .collect();
-                gravity.extend(dirs.iter().map(|w| grav.iter().zip(w).map(|(a, b)| a * b).sum::<f64>()));
-                samples.push((q.to_vec(), dirs));
-            }
+        for (q, qd, s) in crate::fit::problem::training_samples(fan) {
+            let sample = crate::fit::problem::sample_directions(chain, q, qd, s, w2);
+            let dirs: Vec<Vec<f64>> =
+                sample.directions.iter().map(|w| (w * sample.weight).as_slice().to_vec()).collect();
+            gravity.extend(dirs.iter().map(|w| sample.gravity.iter().zip(w).map(|(a, b)| a * b).sum::<f64>()));
+            samples.push((q.to_vec(), dirs));
         }
         RowFrame { samples, gravity }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.gravity.len()
+    }
+
+    /// Whether the frame has no rows (no samples, or one joint: no direction across γ̇).
+    pub fn is_empty(&self) -> bool {
+        self.gravity.is_empty()
+    }
+
+    /// The rows of each of `elements` at rate 1, gravity left out, as columns: uⱼ′(aⱼ·q − x₀ⱼ)
+    /// (aⱼ·w) per row, the columns of A for these elements.
+    pub fn columns<'e>(&self, elements: impl ExactSizeIterator<Item = &'e Element>) -> DMatrix<f64> {
+        let mut a = DMatrix::zeros(self.len(), elements.len());
+        for (j, e) in elements.enumerate() {
+            let mut r = 0;
+            for (q, dirs) in &self.samples {
+                let slope = e.profile.slope(e.deflection(q));
+                for w in dirs {
+                    a[(r, j)] = slope * e.coupling.iter().zip(w).map(|(c, w)| c * w).sum::<f64>();
+                    r += 1;
+                }
+            }
+        }
+        a
     }
 
     /// R = A k − b of `springs` on the frame's fan: (∇U_springs + ∇U_g) · w per row.
