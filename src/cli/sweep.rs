@@ -111,8 +111,18 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
     let outputs = session.plan("sweep", files.iter().copied());
     springfit::report::output::check(&target, &outputs)?;
 
-    let step = progress.step("fitting the springs");
-    let outcome = fit(&design, catalog, &design.fit, &|_| {});
+    // The mode label does not depend on the springs: it is prepared alongside the fit (whose
+    // selection leaves a core idle at times), unless shards are merged and no item runs.
+    let merging = !args.merge.is_empty();
+    let step =
+        progress.step(if merging { "fitting the springs" } else { "fitting the springs, preparing the mode label" });
+    let (outcome, label) = if merging {
+        (fit(&design, catalog, &design.fit, &|_| {}), None)
+    } else {
+        let (outcome, label) =
+            rayon::join(|| fit(&design, catalog, &design.fit, &|_| {}), || label_source(&design, &design.simulate));
+        (outcome, Some(label))
+    };
     step.finish();
     let outcome = outcome.map_err(|e| super::fit_failed(&design, &design.fit, Some(catalog), e))?;
     let has_stock = outcome.bom.iter().any(|r| r.stock_rate.is_some());
@@ -184,10 +194,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
         return finish(&design, &outcome, &settings, &results, &target, &outputs, progress);
     }
 
-    let step = progress.step("preparing the mode label");
-    let label = label_source(&design, &design.simulate);
-    step.finish();
-    let (label, _) = label?;
+    let (label, _) = label.expect("prepared unless merging")?;
     let ctx = SweepContext::new(&design, &outcome, &label, settings.clone())?;
     let indices = match shard {
         Some(s) => shard_indices(items.len(), s),
