@@ -403,10 +403,10 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         in_ball: Vec::new(),
         geodesic_deviation: Vec::new(),
     };
-    let record = |d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace| -> Result<()> {
-        // Torques at this state (a right-hand-side evaluation) and the outputs.
-        let mut tmp = vec![0.0; y.len()];
-        if !d.rhs(t, y, &mut tmp) {
+    // Records the state y at t; `dy` receives the right-hand side there (which sets the torques
+    // recorded), so that the RK4 step from this state reuses it as its first stage.
+    let record = |d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace, dy: &mut [f64]| -> Result<()> {
+        if !d.rhs(t, y, dy) {
             return Err(d.take_error(format!("right-hand side failed at t = {t:.4} s")));
         }
         trace.t.push(t);
@@ -440,15 +440,19 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
             for step in 0..=steps {
                 // Times from the step count (k/rate), never from repeated additions of h.
                 let t = step as f64 / settings.rate;
-                if due.get(next_sample) == Some(&step) {
-                    record(dynamics, t, &y, &mut trace)?;
+                // The right-hand side is a function of (t, y) alone (its caches and peak torques
+                // aside, which a second call at the same point leaves as they are), so a recorded
+                // state's evaluation is the step's first stage.
+                let recorded = due.get(next_sample) == Some(&step);
+                if recorded {
+                    record(dynamics, t, &y, &mut trace, &mut k1)?;
                     next_sample += 1;
                 }
                 if step == steps {
                     break;
                 }
                 let fail = |d: &mut Dynamics<'_>| d.take_error(format!("right-hand side failed at t = {t:.4} s"));
-                if !dynamics.rhs(t, &y, &mut k1) {
+                if !recorded && !dynamics.rhs(t, &y, &mut k1) {
                     return Err(fail(dynamics));
                 }
                 for i in 0..dim {
@@ -509,8 +513,9 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
                 }
             }
             y.copy_from_slice(ode.y());
+            let mut dy = vec![0.0; dim];
             for (t, s) in samples {
-                record(dynamics, t, &s, &mut trace)?;
+                record(dynamics, t, &s, &mut trace, &mut dy)?;
             }
         }
     }
