@@ -138,6 +138,9 @@ pub struct LogTable<'a> {
     y: Vec<f64>,
     /// Per node: v₁, v₂, ∂v/∂q₁ (2), ∂v/∂q₂ (2), ∂²v/∂q₁∂q₂ (2); NaN where the log map failed.
     nodes: Vec<[f64; 8]>,
+    /// Per cell (i, j) at j·(nx − 1) + i: whether its four nodes are finite (else the exact log
+    /// map answers there), decided once here rather than at every evaluation.
+    finite_cells: Vec<bool>,
     fallback: ExactLog<'a>,
 }
 
@@ -217,7 +220,17 @@ impl<'a> LogTable<'a> {
                 nodes[j * nxx + i] = [r[0], r[1], r[2], r[3], r[4], r[5], (b[2] - a[2]) / dy, (b[3] - a[3]) / dy];
             }
         }
-        Ok(LogTable { x, y, nodes, fallback: ExactLog::new(chain, q_eq, ode) })
+        let finite = |k: usize| nodes[k].iter().all(|v| v.is_finite());
+        let finite_cells = (0..nyy - 1)
+            .flat_map(|j| (0..nxx - 1).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                finite(j * nxx + i)
+                    && finite(j * nxx + i + 1)
+                    && finite((j + 1) * nxx + i)
+                    && finite((j + 1) * nxx + i + 1)
+            })
+            .collect();
+        Ok(LogTable { x, y, nodes, finite_cells, fallback: ExactLog::new(chain, q_eq, ode) })
     }
 
     /// Largest |θ_table − θ_exact| in degrees over the samples of `fan` farther than `min_r`
@@ -289,15 +302,15 @@ impl LogField for LogTable<'_> {
     fn eval(&mut self, q: &[f64], out: &mut LogValue) -> Result<()> {
         let Some((i, j, tx, ty)) = self.cell(q) else { return self.fallback.eval(q, out) };
         let nx = self.x.len();
-        let corners = [
-            self.nodes[j * nx + i],
-            self.nodes[j * nx + i + 1],
-            self.nodes[(j + 1) * nx + i],
-            self.nodes[(j + 1) * nx + i + 1],
-        ];
-        if corners.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
+        if !self.finite_cells[j * (nx - 1) + i] {
             return self.fallback.eval(q, out);
         }
+        let corners = [
+            &self.nodes[j * nx + i],
+            &self.nodes[j * nx + i + 1],
+            &self.nodes[(j + 1) * nx + i],
+            &self.nodes[(j + 1) * nx + i + 1],
+        ];
         let (hx, hy) = (self.x[1] - self.x[0], self.y[1] - self.y[0]);
         let (bx, dbx) = hermite(tx);
         let (by, dby) = hermite(ty);
