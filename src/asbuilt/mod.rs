@@ -382,17 +382,7 @@ pub fn trim_fan(design: &Design, q0: &DVector<f64>) -> Result<Fan> {
 /// `springs`) at rate 1, as columns, and of everything else at its rate, gravity included.
 pub fn trim_rows(design: &Design, fan: &Fan, springs: &SpringSet, trims: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
     let frame = crate::fit::robust::RowFrame::new(&design.chain, fan, design.fit.frequency);
-    trim_rows_on(&frame, springs, trims)
-}
-
-/// [`trim_rows`] on a fan whose [`RowFrame`](crate::fit::robust::RowFrame) is built already
-/// (`tune` evaluates the rows of one fan at every step).
-pub fn trim_rows_on(
-    frame: &crate::fit::robust::RowFrame,
-    springs: &SpringSet,
-    trims: &[usize],
-) -> (DMatrix<f64>, DVector<f64>) {
-    (frame.columns(trims.iter().map(|&j| &springs.elements[j])), rows_without_trims(frame, springs, trims))
+    (frame.columns(trims.iter().map(|&j| &springs.elements[j])), rows_without_trims(&frame, springs, trims))
 }
 
 /// The rows on `frame` of everything but the trims (rows `trims` of `springs`), gravity included.
