@@ -60,7 +60,11 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
         Region::Box { .. } => progress.say(format!("region: {}", design.region.describe())),
     }
     match &validated.catalog {
-        Some(c) => progress.say(format!("catalogue: {} ({}, {} families)", c.path.display(), c.name, c.families.len())),
+        Some(c) => {
+            let n = c.families.len();
+            let families = if n == 1 { "family" } else { "families" };
+            progress.say(format!("catalogue: {} ({}, {n} {families})", c.path.display(), c.name))
+        }
         None => progress.say("catalogue: none (fit, sweep and pareto need one; fit --exact and geodesics do not)"),
     }
     if design.file.scenario.is_empty() {
