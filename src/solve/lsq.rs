@@ -89,12 +89,9 @@ impl Gram {
     /// the row-by-row product, so the bits are those of the earlier code.
     pub fn from_sparse_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         let (m, p) = a.shape();
-        let nnz = a.iter().filter(|v| **v != 0.0).count();
-        if nnz * 4 > m * p {
-            return Gram::from_rows(a, b);
-        }
         // The rows' non-zeros gathered column by column (the matrix is column-major: reading a row
-        // in place strides through every column), each row's in column order as before.
+        // in place strides through every column), each row's in column order as before. The
+        // counts per row, summed, are the offsets of the rows and the number of non-zeros.
         let mut start = vec![0usize; m + 1];
         for col in a.column_iter() {
             for (i, &v) in col.iter().enumerate() {
@@ -105,6 +102,10 @@ impl Gram {
         }
         for i in 0..m {
             start[i + 1] += start[i];
+        }
+        let nnz = start[m];
+        if nnz * 4 > m * p {
+            return Gram::from_rows(a, b);
         }
         let mut next = start.clone();
         let mut flat = vec![(0usize, 0.0f64); nnz];
