@@ -13,6 +13,7 @@ use crate::elements::{Element, Profile};
 use crate::geodesic::Fan;
 use crate::potential::SpringSet;
 use crate::realise::cam::{CamBuild, DEFAULT_REALISATION, FittedCam, Realisation, realise};
+use rayon::prelude::*;
 
 /// What can be set on an element after assembly.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -226,11 +227,17 @@ pub fn bill_of_materials(
         }
     }
     let k = k.as_slice();
-    // Peak torque on x and engaged deflection of each candidate over the region.
+    // Peak torque on x and engaged deflection of each candidate over the region, in parallel
+    // (each candidate's maxima are its own): a whole arm's held-out fan has 10⁵–10⁶ samples and
+    // its cams thousands of columns. Only used columns are read below, and an unused one adds
+    // nothing to the largest peak (its torque is zero).
     let peaks: Vec<(f64, f64)> = candidates
-        .iter()
+        .par_iter()
         .zip(k)
         .map(|(c, &kj)| {
+            if kj == 0.0 {
+                return (0.0, 0.0);
+            }
             let e = &c.element;
             let mut torque: f64 = 0.0;
             let mut defl: f64 = 0.0;
@@ -299,23 +306,25 @@ pub fn realise_parts(catalog: &Catalog, bom: &mut [BomRow], evaluation: &Fan, q_
 /// Gives each cam coefficient row its cam's [`CamSummary`]: the build, the largest
 /// |V′| over the region (the equilibrium and every sample of `evaluation`) and V′ at q_eq.
 pub fn summarise_cams(bom: &mut [BomRow], cams: &[FittedCam], evaluation: &Fan, q_eq: &[f64]) {
-    for cam in cams {
-        let torque = |q: &[f64]| {
-            let x: f64 = cam.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
-            cam.knots.eval(&cam.coefficients, x).1
-        };
-        let preload = torque(q_eq);
-        let mut peak = preload.abs();
-        for g in &evaluation.geodesics {
-            for i in 0..g.len() {
-                peak = peak.max(torque(g.q(i)).abs());
+    // Each cam's peak over the held-out fan is its own: computed in parallel, assigned in order.
+    let summaries: Vec<CamSummary> = cams
+        .par_iter()
+        .map(|cam| {
+            let torque = |q: &[f64]| {
+                let x: f64 = cam.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
+                cam.knots.eval(&cam.coefficients, x).1
+            };
+            let preload = torque(q_eq);
+            let mut peak = preload.abs();
+            for g in &evaluation.geodesics {
+                for i in 0..g.len() {
+                    peak = peak.max(torque(g.q(i)).abs());
+                }
             }
-        }
-        let summary = crate::fit::bill::CamSummary {
-            build: cam.realisation.build,
-            max_torque_nm: peak,
-            preload_nm: Some(preload),
-        };
+            CamSummary { build: cam.realisation.build, max_torque_nm: peak, preload_nm: Some(preload) }
+        })
+        .collect();
+    for (cam, summary) in cams.iter().zip(summaries) {
         for r in bom.iter_mut().filter(|r| {
             matches!(r.element.profile, Profile::Spline(_)) && r.id.split('.').next() == Some(cam.id.as_str())
         }) {

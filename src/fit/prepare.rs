@@ -119,7 +119,7 @@ impl<'a> Prepared<'a> {
                 &trims,
                 region.extent,
             )?;
-            gram.add_weighted(&penalty.0, &penalty.1, 1.0);
+            gram.add_sparse_rows(&penalty.0, &penalty.1);
             append_rows(&mut problem, &penalty);
         }
         let t_asm = t1.elapsed().as_secs_f64();

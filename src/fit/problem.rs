@@ -18,6 +18,7 @@
 //! them against the rows with one well-defined number.
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 use crate::elements::catalog::Candidate;
 use crate::elements::catalog::{Catalog, TrimSpring};
@@ -115,34 +116,56 @@ pub fn assemble(
     let w2 = req.omega * req.omega;
     let samples: Vec<(&[f64], &[f64], f64)> = training_samples(fan).collect();
     let m_rows = samples.len() * (n - 1).max(1);
-    let mut rows = DMatrix::zeros(m_rows, p);
+    // What every row needs whatever the spring (a mass-matrix factorisation per sample), once.
+    let frames: Vec<SampleDirections> =
+        samples.par_iter().map(|&(q, qd, s)| sample_directions(chain, q, qd, s, w2)).collect();
     let mut rhs = DVector::zeros(m_rows);
-    let mut mono = DMatrix::zeros(if req.monotone { samples.len() } else { 0 }, p);
-    let mut mono_rhs = DVector::zeros(if req.monotone { samples.len() } else { 0 });
-    for (si, &(q, qd, s)) in samples.iter().enumerate() {
-        let SampleDirections { directions, weight, gravity: grav } = sample_directions(chain, q, qd, s, w2);
-        for (c, w) in directions.iter().enumerate() {
-            let r = si * (n - 1) + c;
-            for (j, cand) in candidates.iter().enumerate() {
-                let e = &cand.element;
-                let aw: f64 = e.coupling.iter().zip(w.iter()).map(|(a, w)| a * w).sum();
-                if aw != 0.0 {
-                    rows[(r, j)] = e.profile.slope(e.deflection(q)) * aw * weight;
-                }
-            }
-            rhs[r] = -grav.dot(w) * weight;
-        }
-        if req.monotone {
-            // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
-            let scale = 1.0 / (w2 * s);
-            for (j, cand) in candidates.iter().enumerate() {
-                let e = &cand.element;
-                let at: f64 = e.coupling.iter().zip(qd.iter()).map(|(a, t)| a * t).sum();
-                mono[(si, j)] = e.profile.slope(e.deflection(q)) * at * scale;
-            }
-            mono_rhs[si] = -grav.dot(&DVector::from_column_slice(qd)) * scale;
+    for (si, frame) in frames.iter().enumerate() {
+        for (c, w) in frame.directions.iter().enumerate() {
+            rhs[si * (n - 1) + c] = -frame.gravity.dot(w) * frame.weight;
         }
     }
+    // Column by column (a candidate's column is contiguous in the column-major matrix), in
+    // parallel: every entry is the same product whatever the thread count, and each candidate's
+    // slope is evaluated once per sample, not once per row.
+    let mut rows = DMatrix::zeros(m_rows, p);
+    if m_rows > 0 {
+        rows.as_mut_slice().par_chunks_mut(m_rows).zip(candidates.par_iter()).for_each(|(col, cand)| {
+            let e = &cand.element;
+            for (si, (&(q, _, _), frame)) in samples.iter().zip(&frames).enumerate() {
+                let slope = e.profile.slope(e.deflection(q));
+                for (c, w) in frame.directions.iter().enumerate() {
+                    let aw: f64 = e.coupling.iter().zip(w.iter()).map(|(a, w)| a * w).sum();
+                    if aw != 0.0 {
+                        col[si * (n - 1) + c] = slope * aw * frame.weight;
+                    }
+                }
+            }
+        });
+    }
+    let (mono, mono_rhs) = if req.monotone {
+        // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
+        let mut mono = DMatrix::zeros(samples.len(), p);
+        if !samples.is_empty() {
+            mono.as_mut_slice().par_chunks_mut(samples.len()).zip(candidates.par_iter()).for_each(|(col, cand)| {
+                let e = &cand.element;
+                for (si, &(q, qd, s)) in samples.iter().enumerate() {
+                    let at: f64 = e.coupling.iter().zip(qd.iter()).map(|(a, t)| a * t).sum();
+                    col[si] = e.profile.slope(e.deflection(q)) * at * (1.0 / (w2 * s));
+                }
+            });
+        }
+        let mono_rhs = DVector::from_iterator(
+            samples.len(),
+            samples
+                .iter()
+                .zip(&frames)
+                .map(|(&(_, qd, s), frame)| -frame.gravity.dot(&DVector::from_column_slice(qd)) * (1.0 / (w2 * s))),
+        );
+        (mono, mono_rhs)
+    } else {
+        (DMatrix::zeros(0, p), DVector::zeros(0))
+    };
 
     // Equalities at q_eq, scaled by 1/(ω² · mean diagonal of M(q_eq)).
     let q0 = q_eq.as_slice();
