@@ -4,7 +4,7 @@
 //! set after assembly). `files::bom` writes it as `bom.csv` (a cam collapsed into one row and its
 //! file) and reads it back bit for bit.
 
-use super::problem::mid_range;
+use super::problem::{coupling_classes, mid_range};
 use crate::design::Design;
 use crate::elements::catalog::{Candidate, Catalog};
 use crate::elements::group::Grouping;
@@ -228,36 +228,54 @@ pub fn bill_of_materials(
     }
     let k = k.as_slice();
     // Peak torque on x and engaged deflection of each candidate over the region, in parallel
-    // (each candidate's maxima are its own): a whole arm's held-out fan has 10⁵–10⁶ samples and
-    // its cams thousands of columns. Only used columns are read below, and an unused one adds
-    // nothing to the largest peak (its torque is zero).
-    let peaks: Vec<(f64, f64)> = candidates
+    // over the couplings (a·q at the held-out samples, 10⁵–10⁶ of them for a whole arm, computed
+    // once per coupling for all its candidates). Only used columns are read below, and an unused
+    // one adds nothing to the largest peak (its torque is zero).
+    let (class_of, classes) = coupling_classes(candidates);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); classes.len()];
+    for (j, &class) in class_of.iter().enumerate() {
+        if k[j] != 0.0 {
+            members[class].push(j);
+        }
+    }
+    let per_class: Vec<Vec<(usize, (f64, f64))>> = classes
         .par_iter()
-        .zip(k)
-        .map(|(c, &kj)| {
-            if kj == 0.0 {
-                return (0.0, 0.0);
+        .zip(&members)
+        .map(|(a, members)| {
+            if members.is_empty() {
+                return Vec::new();
             }
-            let e = &c.element;
-            let mut torque: f64 = 0.0;
-            let mut defl: f64 = 0.0;
-            let mut visit = |q: &[f64]| {
-                let d = e.deflection(q);
-                let slope = e.profile.slope(d);
-                torque = torque.max((kj * slope).abs());
-                if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
-                    defl = defl.max(d.abs());
-                }
-            };
-            visit(q_eq);
-            for g in &evaluation.geodesics {
-                for i in 0..g.len() {
-                    visit(g.q(i));
-                }
-            }
-            (torque, defl)
+            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+            let at_q: Vec<f64> =
+                evaluation.geodesics.iter().flat_map(|g| (0..g.len()).map(move |i| g.q(i))).map(at).collect();
+            members
+                .iter()
+                .map(|&j| {
+                    let e = &candidates[j].element;
+                    let kj = k[j];
+                    let mut torque: f64 = 0.0;
+                    let mut defl: f64 = 0.0;
+                    // d = e.deflection(q), term for term.
+                    let mut visit = |d: f64| {
+                        let slope = e.profile.slope(d);
+                        torque = torque.max((kj * slope).abs());
+                        if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
+                            defl = defl.max(d.abs());
+                        }
+                    };
+                    visit(e.deflection(q_eq));
+                    for &x in &at_q {
+                        visit(x - e.offset);
+                    }
+                    (j, (torque, defl))
+                })
+                .collect()
         })
         .collect();
+    let mut peaks = vec![(0.0, 0.0); candidates.len()];
+    for (j, peak) in per_class.into_iter().flatten() {
+        peaks[j] = peak;
+    }
     let max_peak = peaks.iter().map(|p| p.0).fold(0.0, f64::max);
     let in_group = |j: usize| grouping.of[j].is_some();
     let used: Vec<usize> =

@@ -103,6 +103,24 @@ pub fn sample_directions(chain: &Chain, q: &[f64], qd: &[f64], s: f64, w2: f64) 
     }
 }
 
+/// The distinct couplings of `candidates` (equal bits), in order of first appearance, and each
+/// candidate's index among them: what depends on a·q only is computed once per coupling.
+pub fn coupling_classes(candidates: &[Candidate]) -> (Vec<usize>, Vec<&[f64]>) {
+    let mut index: std::collections::HashMap<Vec<u64>, usize> = std::collections::HashMap::new();
+    let mut classes: Vec<&[f64]> = Vec::new();
+    let class_of = candidates
+        .iter()
+        .map(|c| {
+            let a = c.element.coupling.as_slice();
+            *index.entry(a.iter().map(|x| x.to_bits()).collect()).or_insert_with(|| {
+                classes.push(a);
+                classes.len() - 1
+            })
+        })
+        .collect();
+    (class_of, classes)
+}
+
 /// Assembles the problem from the training fan.
 pub fn assemble(
     chain: &Chain,
@@ -125,23 +143,43 @@ pub fn assemble(
             rhs[si * (n - 1) + c] = -frame.gravity.dot(w) * frame.weight;
         }
     }
+    // Per coupling, a·q and a·w_c at every sample, once: every candidate on the coupling (a cam's
+    // 64 columns, a crank's phases) reads them.
+    let (class_of, classes) = coupling_classes(candidates);
+    let tables: Vec<(Vec<f64>, Vec<f64>)> = classes
+        .par_iter()
+        .map(|a| {
+            let at_q = samples.iter().map(|&(q, _, _)| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>()).collect();
+            let mut aw = vec![0.0; m_rows];
+            for (si, frame) in frames.iter().enumerate() {
+                for (c, w) in frame.directions.iter().enumerate() {
+                    aw[si * (n - 1) + c] = a.iter().zip(w.iter()).map(|(a, w)| a * w).sum();
+                }
+            }
+            (at_q, aw)
+        })
+        .collect();
     // Column by column (a candidate's column is contiguous in the column-major matrix), in
     // parallel: every entry is the same product whatever the thread count, and each candidate's
     // slope is evaluated once per sample, not once per row.
     let mut rows = DMatrix::zeros(m_rows, p);
     if m_rows > 0 {
-        rows.as_mut_slice().par_chunks_mut(m_rows).zip(candidates.par_iter()).for_each(|(col, cand)| {
-            let e = &cand.element;
-            for (si, (&(q, _, _), frame)) in samples.iter().zip(&frames).enumerate() {
-                let slope = e.profile.slope(e.deflection(q));
-                for (c, w) in frame.directions.iter().enumerate() {
-                    let aw: f64 = e.coupling.iter().zip(w.iter()).map(|(a, w)| a * w).sum();
-                    if aw != 0.0 {
-                        col[si * (n - 1) + c] = slope * aw * frame.weight;
+        rows.as_mut_slice().par_chunks_mut(m_rows).zip(candidates.par_iter().zip(&class_of)).for_each(
+            |(col, (cand, &class))| {
+                let e = &cand.element;
+                let (at_q, aw) = &tables[class];
+                for (si, frame) in frames.iter().enumerate() {
+                    // e.deflection(q), term for term.
+                    let slope = e.profile.slope(at_q[si] - e.offset);
+                    for c in 0..frame.directions.len() {
+                        let r = si * (n - 1) + c;
+                        if aw[r] != 0.0 {
+                            col[r] = slope * aw[r] * frame.weight;
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
     }
     let (mono, mono_rhs) = if req.monotone {
         // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
