@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Which couplings the six-joint UR5 needs: a search over random couplings, then one cam on each
-of the 40 it ranks first (catalogs/ur5_cams.toml, designs/ur5_six_cams.toml).
+of the 40 it ranks first (catalogs/ur5_cams.toml, where scripts/ur5_pursuit.py starts the search
+for designs/ur5_six_cams.toml's couplings).
 
 Why. designs/ur5_six.toml with catalogs/ur5_span.toml (every joint, every pair, every adjacent
 triple and eight pan-wrist couplings) stops near p99 2.3° however many springs it keeps, and the
@@ -44,7 +45,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, ".."))
 
 CAM_HEADER = """\
-# One B-spline cam on each of 40 couplings of the UR5's six joints, for designs/ur5_six_cams.toml.
+# One B-spline cam on each of 40 couplings of the UR5's six joints: where scripts/ur5_pursuit.py starts.
 # Written by scripts/ur5_couplings.py (do not edit by hand: rerun it): the couplings of a 40-spring
 # fit from ur5_span.toml plus cranks and linear springs on 100 random couplings, in the bill's
 # order, then the couplings of the unlimited fit from the same catalogue ranked by summed peak

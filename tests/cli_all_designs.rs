@@ -185,7 +185,7 @@ fn ur5_six() {
 
 #[test]
 fn ur5_six_cams() {
-    n_joint_example("ur5_six_cams", "ur5_cams, 1 family");
+    n_joint_example("ur5_six_cams", "ur5_cams_pursuit, 1 family");
     // every_command("ur5_six_cams") is this test (the coverage check reads it).
 }
 
