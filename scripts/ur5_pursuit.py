@@ -29,7 +29,7 @@ written as the catalogue; `springfit fit designs/ur5_six_cams.toml` fits B-splin
 Run: python3 scripts/ur5_pursuit.py [--out catalogs/ur5_cams_pursuit.toml] [--steps 200]
          [--prune-steps 60]
 Needs the Python package (README, "Python package") and scipy (`pip install scipy`). About
-twenty minutes on two cores. numpy's BLAS may round differently on another machine, and a long
+eight minutes on two cores. numpy's BLAS may round differently on another machine, and a long
 descent can then end at slightly different couplings.
 
 What it found (2026-12-03, 469 s): model p99 1.433° at the start, 0.534° after stage 1, 0.502°
