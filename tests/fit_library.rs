@@ -219,3 +219,57 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
         assert!(springfit::realise::cam::svg(&cam.realisation, &cam.id).contains("<path"));
     }
 }
+
+/// The chain of four links of `benches/scaling.rs` (slender rods lighter and shorter towards the
+/// tip, gravity, `catalogs/chain.toml`, ball r = 0.15, no budget, 72 training directions): 614
+/// candidates, above the switch to the large-problem solvers.
+fn chain_of_four() -> Design {
+    let mut s =
+        "name = \"chain4\"\ncatalog = \"../catalogs/chain.toml\"\n[robot]\ngravity = [0.0, -9.81]\n".to_string();
+    for i in 0..4 {
+        let (m, l) = (1.5 * 0.85f64.powi(i), 0.8 * 0.9f64.powi(i));
+        s += &format!("[[robot.links]]\nmass = {m}\nlength = {l}\ncom = {}\ninertia = {}\n", l / 2.0, m * l * l / 12.0);
+    }
+    s += "[equilibrium]\nq = [\"-pi/3\", \"pi/6\", \"pi/6\", \"pi/6\"]\n[region]\nkind = \"ball\"\nradius = 0.15\n";
+    s += "[fit]\nfrequency = 6.0\nsolver = \"qp\"\nmax_elements = 0\nbuilds = 0\n";
+    s += "training_directions = 72\nevaluation_directions = 360\n";
+    Design::parse(&repo("designs/chain4.toml"), &s).unwrap()
+}
+
+/// Hundreds of candidates and no constraint but k ≥ 0 and the equalities: the fit's exact
+/// active-set solve (Lawson–Hanson on an updated factor) must meet the equalities to round-off
+/// and reach the optimum that Clarabel's working set reaches, which a ridge too large or an early
+/// stop misses by per cent (1e-10 of the unit diagonal: 14 % above it).
+#[test]
+fn the_large_unlimited_fit_is_exact_and_optimal() {
+    use springfit::fit::Prepared;
+    use springfit::solve::lawson_hanson::nnls_equalities;
+    use springfit::solve::screen::qp_screened;
+
+    let design = chain_of_four();
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    let o = fit(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    assert!(o.candidates - o.dropped >= 600, "{} candidates: below the switch", o.candidates - o.dropped);
+    assert!(o.metrics.equilibrium_gradient_norm < 1e-9, "|∇U(q_eq)| = {:e}", o.metrics.equilibrium_gradient_norm);
+    assert!(o.metrics.hessian_rel_error < 1e-9, "Hessian error {:e}", o.metrics.hessian_rel_error);
+    assert!(o.metrics.stats.p99_abs < 2.5, "p99 {}°", o.metrics.stats.p99_abs);
+
+    // The same problem by both large-problem solvers from the same start.
+    let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    let (problem, gram) = (prepared.problem(), prepared.gram());
+    let p = gram.dim();
+    let mut weighted = gram.clone();
+    let weight = design.fit.equality_weight * (problem.rows.nrows() as f64).sqrt();
+    for eq in &problem.equalities {
+        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
+    }
+    let start = nnls(&weighted, 0.0, &NnlsSettings::default()).unwrap();
+    let start: Vec<usize> = (0..p).filter(|&j| start.k[j] > 0.0).collect();
+    let exact = nnls_equalities(gram, &problem.equalities, 0.0, &start).expect("an answer it vouches for");
+    let screened =
+        qp_screened(gram, &problem.equalities, &[], &vec![None; p], 0.0, &QpSettings::default(), &start).unwrap();
+    assert!(exact.k.iter().all(|&k| k >= 0.0));
+    assert!(exact.max_equality_residual < 1e-12, "equality residual {:e}", exact.max_equality_residual);
+    let (a, b) = (gram.objective(&exact.k), gram.objective(&screened.solution.k));
+    assert!((a - b).abs() < 2e-3 * b, "objectives {a:e} (Lawson–Hanson) and {b:e} (working set)");
+}

@@ -17,6 +17,7 @@ use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::group::{Columns, Grouping};
 use crate::error::{Error, Result};
 use crate::solve::LinearGroup;
+use crate::solve::lawson_hanson::nnls_equalities;
 use crate::solve::lsq::Gram;
 use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
 use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
@@ -30,8 +31,10 @@ use crate::solve::selection::{
 /// counts as infeasible.
 const NNLS_EQUALITY_TOLERANCE: f64 = 1e-3;
 
-/// From this many unknowns (springs only, no cam coefficients) the QP is solved on a working set
-/// ([`crate::solve::screen`]) instead of by Clarabel over all of them. Above the 402 candidates
+/// From this many unknowns (springs only, no cam coefficients) the QP is solved by the
+/// Lawson–Hanson iteration with exact equalities ([`crate::solve::lawson_hanson`]) when k ≥ 0 and
+/// the equalities are its only constraints, else on a working set ([`crate::solve::screen`]),
+/// instead of by Clarabel over all of them. Above the 402 candidates
 /// of the shipped dense designs, whose fits stay as they were; BENCHMARKS.md "Fit time against
 /// the number of joints" has the measurement.
 const SCREEN_FROM: usize = 600;
@@ -234,7 +237,17 @@ fn solve_qp(
         }
         let start = nnls(&weighted, settings.l1, &NnlsSettings::default())?;
         let start: Vec<usize> = (0..support.len()).filter(|&a| start.k[a] > 0.0).collect();
-        qp_screened(&sub, &equalities, &inequalities, upper, settings.l1, &QpSettings::default(), &start)?.solution
+        // Only k ≥ 0 and exact equalities: an active-set NNLS on an updated Cholesky factor is
+        // exact and far cheaper than interior-point iterations on the whole Gram matrix. It
+        // reports None when it cannot vouch for its answer; Clarabel then takes over.
+        let bounds_only = inequalities.is_empty() && upper.iter().all(Option::is_none);
+        match bounds_only.then(|| nnls_equalities(&sub, &equalities, settings.l1, &start)).flatten() {
+            Some(solution) => solution,
+            None => {
+                qp_screened(&sub, &equalities, &inequalities, upper, settings.l1, &QpSettings::default(), &start)?
+                    .solution
+            }
+        }
     } else {
         qp_signed(&sub, &equalities, &inequalities, upper, &unknowns.signed, settings.l1, &QpSettings::default())?
     };
