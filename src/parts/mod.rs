@@ -478,10 +478,11 @@ impl RealisedSet {
         RealisedSet { terms, rest: rest.grouped() }
     }
 
-    fn each(&self, q: &[f64], mut f: impl FnMut(&[f64], (f64, f64, f64))) {
+    /// Calls `f` with each part's coupling and deflection at `q`.
+    fn each(&self, q: &[f64], mut f: impl FnMut(&[f64], f64, &Part)) {
         for (a, x0, p) in &self.terms {
             let d = a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>() - x0;
-            f(a, p.potential(d));
+            f(a, d, p);
         }
     }
 }
@@ -493,13 +494,14 @@ impl Potential for RealisedSet {
 
     fn value(&self, q: &[f64]) -> Result<f64> {
         let mut u = self.rest.value(q)?;
-        self.each(q, |_, (v, _, _)| u += v);
+        self.each(q, |_, d, p| u += p.energy_torque(d).0);
         Ok(u)
     }
 
     fn gradient(&self, q: &[f64]) -> Result<DVector<f64>> {
         let mut g = self.rest.gradient(q)?;
-        self.each(q, |a, (_, t, _)| {
+        self.each(q, |a, d, p| {
+            let t = p.energy_torque(d).1;
             for (gi, ai) in g.iter_mut().zip(a) {
                 *gi += t * ai;
             }
@@ -509,7 +511,8 @@ impl Potential for RealisedSet {
 
     fn hessian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let mut h = self.rest.hessian(q)?;
-        self.each(q, |a, (_, _, c)| {
+        self.each(q, |a, d, p| {
+            let c = p.potential(d).2;
             let a = DVector::from_column_slice(a);
             h += &a * a.transpose() * c;
         });

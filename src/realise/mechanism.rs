@@ -248,17 +248,74 @@ impl Part {
                 let e = if plus { d.max(0.0) } else { d.min(0.0) };
                 (0.5 * k * e * e, k * e, if e != 0.0 { k } else { 0.0 })
             }
-            Mechanism::Crank { r, big_r, pulley, phase } => {
-                let ks = k * 1000.0 / (r * big_r);
-                let u = |d: f64| 0.5 * ks * cable_path(r, big_r, pulley, d - phase).powi(2) / 1000.0;
+            Mechanism::Crank { .. } => {
+                // The curvature by central differences of the exact torque (the roller's wrap
+                // has a kink where the pin crosses the exit line, at d = phase + kπ).
                 let h = 1e-4;
-                let (um, u0, up) = (u(d - h), u(d), u(d + h));
-                // The constant ½k_s (R − r)² is dropped so that U(0) ≈ 0 like k (1 − cos d).
-                let base = 0.5 * ks * (big_r - r).powi(2) / 1000.0;
-                (u0 - base, (up - um) / (2.0 * h), (up - 2.0 * u0 + um) / (h * h))
+                let (u, t) = self.energy_torque(d);
+                (u, t, (self.energy_torque(d + h).1 - self.energy_torque(d - h).1) / (2.0 * h))
             }
         }
     }
+
+    /// (U, dU/dx) of [`Part::potential`] without the curvature: for the crank one evaluation of
+    /// the cable path and its slope instead of three of the path. The realised residual angles
+    /// need the torque at every held-out sample for every part, and there the three paths (each a
+    /// sine, cosine, hypot, atan2 and acos) were half the run of a fit with hundreds of cranks.
+    pub fn energy_torque(&self, d: f64) -> (f64, f64) {
+        match self.mechanism {
+            Mechanism::Crank { r, big_r, pulley, phase } => {
+                let ks = k_s(self.realised_rate, r, big_r);
+                let (length, slope) = cable_path_slope(r, big_r, pulley, d - phase);
+                // The constant ½k_s (R − r)² is dropped so that U(0) ≈ 0 like k (1 − cos d).
+                let base = 0.5 * ks * (big_r - r).powi(2) / 1000.0;
+                (0.5 * ks * length * length / 1000.0 - base, ks * length * slope / 1000.0)
+            }
+            _ => {
+                let (u, t, _) = self.potential(d);
+                (u, t)
+            }
+        }
+    }
+}
+
+/// The crank's spring rate k_s (N/mm) that gives the element's rate k (N·m/rad) at small angles.
+fn k_s(k: f64, r: f64, big_r: f64) -> f64 {
+    k * 1000.0 / (r * big_r)
+}
+
+/// [`cable_path`] and its slope dL/dd, mm/rad. Straight: L² = r² + R² − 2rR cos d, so
+/// L' = rR sin d / L. Over the roller (tangent length t = √(dist² − ρ²) plus the wrap ρ·(3π/2 − φ
+/// − acos(ρ/dist))): L' = dist′·t/dist − ρ φ′, the wrap's and the tangent's changes through dist
+/// cancelling in part. Where the pin crosses the exit line (sin d = 0) the slope is the mean of
+/// its two sides, as a central difference would give it.
+pub fn cable_path_slope(r: f64, big_r: f64, pulley: f64, d: f64) -> (f64, f64) {
+    let (sin, cos) = d.sin_cos();
+    if pulley <= 0.0 {
+        let (px, py) = (r * cos, (r * sin).abs());
+        let length = (px - big_r).hypot(py);
+        return (length, if length > 0.0 { r * big_r * sin / length } else { 0.0 });
+    }
+    let side = if sin > 0.0 {
+        1.0
+    } else if sin < 0.0 {
+        -1.0
+    } else {
+        0.0
+    };
+    let (px, py) = (r * cos, (r * sin).abs());
+    let (dpx, dpy) = (-r * sin, r * cos * side);
+    let (vx, vy) = (px - big_r, py - pulley);
+    let raw = vx.hypot(vy);
+    let floor = pulley * (1.0 + 1e-12);
+    let dist = raw.max(floor);
+    let phi = vy.atan2(vx).rem_euclid(2.0 * PI);
+    let wrap = 1.5 * PI - phi - (pulley / dist).acos();
+    let tangent = (dist * dist - pulley * pulley).sqrt();
+    let length = tangent + pulley * wrap;
+    let ddist = if raw > floor { (vx * dpx + vy * dpy) / raw } else { 0.0 };
+    let dphi = (vx * dpy - vy * dpx) / (raw * raw);
+    (length, ddist * tangent / dist - pulley * dphi)
 }
 
 /// Length of the cable from the crank pin at angle `d` (radius `r`) to where it leaves the
@@ -796,6 +853,31 @@ mod tests {
             let straight = cable_path(r, big_r, 0.0, d);
             let over = cable_path(r, big_r, rho, d);
             assert!(over > straight && over < straight + rho * PI, "{d}: {over} vs {straight}");
+        }
+    }
+
+    /// The path's exact slope against central differences of the path, straight and over
+    /// rollers, on both sides of the exit line and round the far side; and the crank's torque
+    /// against differences of its energy.
+    #[test]
+    fn the_cable_slope_and_the_crank_torque_are_the_derivatives() {
+        let (r, big_r) = (40.0, 100.0);
+        let h = 1e-6;
+        for rho in [0.0, 8.0] {
+            for d in [-3.0, -2.2, -1.0, -0.3, -1e-3, 1e-3, 0.2, 0.9, 1.6, 2.4, 3.1] {
+                let (length, slope) = cable_path_slope(r, big_r, rho, d);
+                assert!((length - cable_path(r, big_r, rho, d)).abs() < 1e-12 * length);
+                let fd = (cable_path(r, big_r, rho, d + h) - cable_path(r, big_r, rho, d - h)) / (2.0 * h);
+                assert!((slope - fd).abs() < 1e-6 * (1.0 + fd.abs()), "ρ = {rho}, d = {d}: {slope} vs {fd}");
+            }
+        }
+        let duty = Duty { at_eq: -1.1, range: [-3.0, 2.0], swing: [-2.0, 0.5] };
+        let part = crank(15.0, &duty, &Requirements { pulley_radius: 5.0, ..req() }).expect("a spring");
+        for d in [-2.5, -1.1, 0.4, 1.9] {
+            let (_, t) = part.energy_torque(d);
+            let fd = (part.energy_torque(d + h).0 - part.energy_torque(d - h).0) / (2.0 * h);
+            assert!((t - fd).abs() < 1e-6 * 15.0, "d = {d}: {t} vs {fd}");
+            assert_eq!(part.potential(d).1, t);
         }
     }
 
