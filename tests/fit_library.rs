@@ -254,6 +254,15 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
     assert!(o.metrics.hessian_rel_error < 1e-9, "Hessian error {:e}", o.metrics.hessian_rel_error);
     assert!(o.metrics.stats.p99_abs < 2.5, "p99 {}°", o.metrics.stats.p99_abs);
 
+    // A bill that left out the elements under 5 % of the strongest's peak torque would miss the
+    // equalities by far: every element of the fit is listed instead, and the bill holds them.
+    let coarse = FitSettings { used_threshold: 0.05, ..design.fit };
+    let c = fit(&design, &catalog, &coarse, &|_| {}).unwrap();
+    let peak = c.bom.iter().map(|r| r.max_torque_nm).fold(0.0, f64::max);
+    assert!(c.bom.iter().any(|r| r.max_torque_nm < 0.05 * peak), "no weak element in the bill");
+    assert!(c.metrics.equilibrium_gradient_norm < 1e-9, "|∇U(q_eq)| = {:e}", c.metrics.equilibrium_gradient_norm);
+    assert!(c.metrics.hessian_rel_error < 1e-9, "Hessian error {:e}", c.metrics.hessian_rel_error);
+
     // The same problem by both large-problem solvers from the same start.
     let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());

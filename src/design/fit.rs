@@ -72,7 +72,8 @@ pub struct FitSettings {
     /// Try 2-for-2 swaps in the sparse selection when no single exchange improves.
     pub pair_swaps: bool,
     /// An element counts as used when its peak torque over the region exceeds this fraction of
-    /// the largest element's peak torque.
+    /// the largest element's peak torque. An unlimited `qp` fit without cams whose bill, so
+    /// thinned, would miss its equalities lists every element of k > 0 instead (`fit::run`).
     pub used_threshold: f64,
     /// Distance bands from q_eq for the residual statistics.
     pub bands: usize,

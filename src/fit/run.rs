@@ -13,13 +13,15 @@
 
 use std::time::Instant;
 
+use super::bill::BomRow;
 use super::bill::{append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
+use super::hints;
 use super::outcome::{Evaluation, FitOutcome, SolveReport, Timings};
 use super::prepare::{Prepared, fans};
 use super::solve::solve;
 use crate::design::Design;
-use crate::design::fit::FitSettings;
+use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::potential::{ExactPotential, Potential, SpringSet};
@@ -61,9 +63,20 @@ impl Prepared<'_> {
         );
         // Trim springs (never candidates) join at mid-range: the fit was solved around them.
         append(design, catalog, &mut bom, &self.evaluation);
-        let springs = spring_set(&bom);
-        let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
-        let t_eval = t3.elapsed().as_secs_f64();
+        let mut springs = spring_set(&bom);
+        let mut metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
+        let mut t_eval = t3.elapsed().as_secs_f64();
+        if self.dropped_equality_share(settings, &k, &bom, &metrics) {
+            // The elements the bill left out held part of the equalities (an unlimited fit of
+            // hundreds of springs, some thousands of times stronger than others, where 1e-6 of
+            // the strongest is a torque q_eq cannot spare): list every element of k > 0.
+            let t5 = Instant::now();
+            bom = bill_of_materials(catalog, &self.candidates, &self.grouping, &k, &self.evaluation, q_eq, 0.0);
+            append(design, catalog, &mut bom, &self.evaluation);
+            springs = spring_set(&bom);
+            metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
+            t_eval += t5.elapsed().as_secs_f64();
+        }
         let cams = realise_parts(catalog, &mut bom, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),
@@ -89,6 +102,21 @@ impl Prepared<'_> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
         })
+    }
+
+    /// Whether the bill of `k` left out elements whose share of the equalities spoils them: a
+    /// QP fit (whose equalities hold to round-off) without budget or groups (those keep their
+    /// support small), whose evaluated equilibrium gradient or Hessian error crosses
+    /// [`hints::EQUALITY_WARNING`] (where `springfit fit` would warn), with elements of k > 0
+    /// missing from the bill. False for every fit that holds its equalities as billed.
+    fn dropped_equality_share(&self, settings: &FitSettings, k: &[f64], bom: &[BomRow], m: &Evaluation) -> bool {
+        if settings.solver != SolverKind::Qp || settings.max_elements != 0 || !self.grouping.groups.is_empty() {
+            return false;
+        }
+        let design = self.design;
+        let target = design.chain.mass_matrix(&design.q_eq).norm() * settings.frequency.powi(2);
+        hints::equality_warning(settings, m.equilibrium_gradient_norm, m.hessian_rel_error, target).is_some()
+            && (0..k.len()).any(|j| k[j] > 0.0 && !bom.iter().any(|r| r.element == self.candidates[j].element))
     }
 
     /// [`Prepared::solve_for_the_build`] with at most `max_elements` items. The selection
