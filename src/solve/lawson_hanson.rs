@@ -378,15 +378,7 @@ fn finish(pb: &Problem, x: DVector<f64>, d: &[f64], steps: u32) -> Option<QpSolu
 mod tests {
     use super::*;
     use crate::solve::qp::{QpSettings, qp};
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
-
-    fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
-        LinearGroup { name: name.into(), description: format!("{name} rows"), matrix: m, rhs }
-    }
+    use crate::solve::test_problems::{group, lcg};
 
     /// The factor after appends and removals in any order is the Cholesky factor of the passive
     /// set's G (+ ridge) in its new order, and W, y follow it: L W = E_Pᵀ, L y = c_P.

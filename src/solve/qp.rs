@@ -719,15 +719,7 @@ fn diagnose(
 mod tests {
     use super::*;
     use crate::solve::nnls::{NnlsSettings, nnls};
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
-
-    fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
-        LinearGroup { name: name.into(), description: format!("{name} rows"), matrix: m, rhs }
-    }
+    use crate::solve::test_problems::{group, lcg};
 
     #[test]
     fn recovers_known_stiffnesses_and_agrees_with_nnls() {

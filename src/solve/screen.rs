@@ -198,15 +198,7 @@ fn violators(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
-
-    fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
-        LinearGroup { name: name.into(), description: format!("{name} rows"), matrix: m, rhs }
-    }
+    use crate::solve::test_problems::{group, lcg};
 
     /// A problem with an equality, inequality rows, bounds and an L1 weight, over more columns
     /// than rows so that most unknowns end at zero: the screened solve from a start of three
