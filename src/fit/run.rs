@@ -13,8 +13,7 @@
 
 use std::time::Instant;
 
-use super::bill::BomRow;
-use super::bill::{append, bill_of_materials, realise_parts, spring_set};
+use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
 use super::outcome::{Evaluation, FitOutcome, SolveReport, Timings};
