@@ -19,8 +19,8 @@ use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
 use springfit::fit::Prepared;
 use springfit::fit::run::fit;
+use springfit::fit::solve::nnls_support;
 use springfit::solve::lawson_hanson::nnls_equalities;
-use springfit::solve::nnls::{NnlsSettings, nnls};
 use springfit::solve::qp::{QpSettings, qp};
 use springfit::solve::screen::qp_screened;
 
@@ -74,13 +74,7 @@ fn compare(design: &Design, catalog: &Catalog) {
     let full = qp(gram, &problem.equalities, &problem.inequalities, &upper, l1, &QpSettings::default()).unwrap();
     let t_full = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let mut weighted = gram.clone();
-    let weight = design.fit.equality_weight * (problem.rows.nrows() as f64).sqrt();
-    for eq in &problem.equalities {
-        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
-    }
-    let start = nnls(&weighted, l1, &NnlsSettings::default()).unwrap();
-    let start: Vec<usize> = (0..p).filter(|&j| start.k[j] > 0.0).collect();
+    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
     let s = qp_screened(gram, &problem.equalities, &problem.inequalities, &upper, l1, &QpSettings::default(), &start)
         .unwrap();
     let t_screen = t1.elapsed().as_secs_f64();

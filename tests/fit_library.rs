@@ -243,6 +243,7 @@ fn chain_of_four() -> Design {
 #[test]
 fn the_large_unlimited_fit_is_exact_and_optimal() {
     use springfit::fit::Prepared;
+    use springfit::fit::solve::nnls_support;
     use springfit::solve::lawson_hanson::nnls_equalities;
     use springfit::solve::screen::qp_screened;
 
@@ -267,13 +268,7 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
     let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
-    let mut weighted = gram.clone();
-    let weight = design.fit.equality_weight * (problem.rows.nrows() as f64).sqrt();
-    for eq in &problem.equalities {
-        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
-    }
-    let start = nnls(&weighted, 0.0, &NnlsSettings::default()).unwrap();
-    let start: Vec<usize> = (0..p).filter(|&j| start.k[j] > 0.0).collect();
+    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
     let exact = nnls_equalities(gram, &problem.equalities, 0.0, &start).expect("an answer it vouches for");
     let screened =
         qp_screened(gram, &problem.equalities, &[], &vec![None; p], 0.0, &QpSettings::default(), &start).unwrap();

@@ -51,31 +51,24 @@ impl Prepared<'_> {
 
         stage("evaluating on held-out geodesics");
         let t3 = Instant::now();
-        let mut bom = bill_of_materials(
-            catalog,
-            &self.candidates,
-            &self.grouping,
-            &k,
-            &self.evaluation,
-            q_eq,
-            settings.used_threshold,
-        );
-        // Trim springs (never candidates) join at mid-range: the fit was solved around them.
-        append(design, catalog, &mut bom, &self.evaluation);
-        let mut springs = spring_set(&bom);
-        let mut metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
-        let mut t_eval = t3.elapsed().as_secs_f64();
+        // The bill of the elements above `threshold`, and how its potential does.
+        let billed = |threshold: f64| -> Result<_> {
+            let mut bom =
+                bill_of_materials(catalog, &self.candidates, &self.grouping, &k, &self.evaluation, q_eq, threshold);
+            // Trim springs (never candidates) join at mid-range: the fit was solved around them.
+            append(design, catalog, &mut bom, &self.evaluation);
+            let springs = spring_set(&bom);
+            let metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
+            Ok((bom, springs, metrics))
+        };
+        let (mut bom, mut springs, mut metrics) = billed(settings.used_threshold)?;
         if self.dropped_equality_share(settings, &k, &bom, &metrics) {
             // The elements the bill left out held part of the equalities (an unlimited fit of
             // hundreds of springs, some thousands of times stronger than others, where 1e-6 of
             // the strongest is a torque q_eq cannot spare): list every element of k > 0.
-            let t5 = Instant::now();
-            bom = bill_of_materials(catalog, &self.candidates, &self.grouping, &k, &self.evaluation, q_eq, 0.0);
-            append(design, catalog, &mut bom, &self.evaluation);
-            springs = spring_set(&bom);
-            metrics = evaluate(design, settings.frequency, settings.bands, &springs, &self.evaluation)?;
-            t_eval += t5.elapsed().as_secs_f64();
+            (bom, springs, metrics) = billed(0.0)?;
         }
+        let t_eval = t3.elapsed().as_secs_f64();
         let cams = realise_parts(catalog, &mut bom, &self.evaluation, q_eq);
         Ok(FitOutcome {
             design: design.name.clone(),

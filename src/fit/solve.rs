@@ -60,6 +60,29 @@ pub fn solve(
     solve_gram(problem, gram, columns, q_eq, settings, settings.solver == SolverKind::Qp)
 }
 
+/// `gram` (of `rows` rows) with the equalities folded in at weight W per row: a violation δ of
+/// an equation costs as much as δ / equality_weight of residual on every tangentiality row.
+pub fn with_equalities(gram: &Gram, equalities: &[LinearGroup], rows: usize, settings: &FitSettings) -> Gram {
+    let weight = settings.equality_weight * (rows.max(1) as f64).sqrt();
+    let mut weighted = gram.clone();
+    for eq in equalities {
+        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
+    }
+    weighted
+}
+
+/// The columns the NNLS solution of the weighted problem ([`with_equalities`]) uses: where the
+/// exact solves of many springs start.
+pub fn nnls_support(
+    gram: &Gram,
+    equalities: &[LinearGroup],
+    rows: usize,
+    settings: &FitSettings,
+) -> Result<Vec<usize>> {
+    let start = nnls(&with_equalities(gram, equalities, rows, settings), settings.l1, &NnlsSettings::default())?;
+    Ok((0..gram.dim()).filter(|&a| start.k[a] > 0.0).collect())
+}
+
 /// [`solve`] with the Gram matrix of the problem's rows given (the smoothing choice adds its
 /// penalty to one Gram matrix instead of rebuilding it per weight), choosing whether the groups'
 /// coefficients are signed unknowns (`signed`) or kept as non-negative ± column pairs.
@@ -72,13 +95,7 @@ pub fn solve_gram(
     signed: bool,
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
-    // Equalities folded in with weight W per row: a violation δ of an equation costs as much as
-    // δ / equality_weight of residual on every tangentiality row.
-    let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
-    let mut weighted = gram.clone();
-    for eq in &problem.equalities {
-        weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
-    }
+    let weighted = with_equalities(&gram, &problem.equalities, problem.rows.nrows(), settings);
     let mut report = SolveReport {
         solver: settings.solver.name().into(),
         status: "solved".into(),
@@ -229,14 +246,8 @@ fn solve_qp(
     let (sub, equalities, inequalities) =
         (gram.subset(support), restrict(&problem.equalities), restrict(&inequalities));
     let sol = if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
-        // Many springs: the QP on a working set started from the weighted NNLS support.
-        let mut weighted = sub.clone();
-        let weight = settings.equality_weight * (problem.rows.nrows().max(1) as f64).sqrt();
-        for eq in &equalities {
-            weighted.add_weighted(&eq.matrix, &eq.rhs, weight);
-        }
-        let start = nnls(&weighted, settings.l1, &NnlsSettings::default())?;
-        let start: Vec<usize> = (0..support.len()).filter(|&a| start.k[a] > 0.0).collect();
+        // Many springs: started from the weighted NNLS support.
+        let start = nnls_support(&sub, &equalities, problem.rows.nrows(), settings)?;
         // Only k ≥ 0 and exact equalities: an active-set NNLS on an updated Cholesky factor is
         // exact and far cheaper than interior-point iterations on the whole Gram matrix. It
         // reports None when it cannot vouch for its answer; Clarabel then takes over.

@@ -290,12 +290,14 @@ fn k_s(k: f64, r: f64, big_r: f64) -> f64 {
 /// cancelling in part. Where the pin crosses the exit line (sin d = 0) the slope is the mean of
 /// its two sides, as a central difference would give it.
 pub fn cable_path_slope(r: f64, big_r: f64, pulley: f64, d: f64) -> (f64, f64) {
-    let (sin, cos) = d.sin_cos();
+    let (sin, cos) = (d.sin(), d.cos());
+    let (px, py) = (r * cos, (r * sin).abs());
     if pulley <= 0.0 {
-        let (px, py) = (r * cos, (r * sin).abs());
         let length = (px - big_r).hypot(py);
         return (length, if length > 0.0 { r * big_r * sin / length } else { 0.0 });
     }
+    // The roller above the exit line (the lower one by symmetry); the cable leaves its bottom
+    // point heading outwards, running counter-clockwise round it.
     let side = if sin > 0.0 {
         1.0
     } else if sin < 0.0 {
@@ -303,7 +305,6 @@ pub fn cable_path_slope(r: f64, big_r: f64, pulley: f64, d: f64) -> (f64, f64) {
     } else {
         0.0
     };
-    let (px, py) = (r * cos, (r * sin).abs());
     let (dpx, dpy) = (-r * sin, r * cos * side);
     let (vx, vy) = (px - big_r, py - pulley);
     let raw = vx.hypot(vy);
@@ -312,27 +313,16 @@ pub fn cable_path_slope(r: f64, big_r: f64, pulley: f64, d: f64) -> (f64, f64) {
     let phi = vy.atan2(vx).rem_euclid(2.0 * PI);
     let wrap = 1.5 * PI - phi - (pulley / dist).acos();
     let tangent = (dist * dist - pulley * pulley).sqrt();
-    let length = tangent + pulley * wrap;
     let ddist = if raw > floor { (vx * dpx + vy * dpy) / raw } else { 0.0 };
     let dphi = (vx * dpy - vy * dpx) / (raw * raw);
-    (length, ddist * tangent / dist - pulley * dphi)
+    (tangent + pulley * wrap, ddist * tangent / dist - pulley * dphi)
 }
 
 /// Length of the cable from the crank pin at angle `d` (radius `r`) to where it leaves the
 /// fairlead at distance `big_r`, over the roller (radius `pulley`) on the side the pin is on, mm.
 /// With `pulley` = 0 it is the distance |P − A| of the ideal zero-free-length spring.
 pub fn cable_path(r: f64, big_r: f64, pulley: f64, d: f64) -> f64 {
-    let (px, py) = (r * d.cos(), (r * d.sin()).abs());
-    if pulley <= 0.0 {
-        return (px - big_r).hypot(py);
-    }
-    // The roller above the exit line (the lower one by symmetry); the cable leaves its bottom
-    // point heading outwards, running counter-clockwise round it.
-    let (vx, vy) = (px - big_r, py - pulley);
-    let dist = vx.hypot(vy).max(pulley * (1.0 + 1e-12));
-    let phi = vy.atan2(vx).rem_euclid(2.0 * PI);
-    let wrap = 1.5 * PI - phi - (pulley / dist).acos();
-    (dist * dist - pulley * pulley).sqrt() + pulley * wrap
+    cable_path_slope(r, big_r, pulley, d).0
 }
 
 /// The best candidate of a search: the lightest part that passes, else the one closest to passing.
@@ -538,7 +528,7 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
                 continue;
             }
             let (phase, scale) = compensate(k, r, big_r, pulley, duty.at_eq);
-            let ks = scale * k * 1000.0 / (r * big_r);
+            let ks = k_s(scale * k, r, big_r);
             let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
             let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
             let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
@@ -614,7 +604,7 @@ fn compensate(k: f64, r: f64, big_r: f64, pulley: f64, at_eq: f64) -> (f64, f64)
     if pulley <= 0.0 {
         return (0.0, 1.0);
     }
-    let ks = k * 1000.0 / (r * big_r);
+    let ks = k_s(k, r, big_r);
     let h = 1e-5;
     let length = |d: f64| cable_path(r, big_r, pulley, d);
     let torque = |d: f64| ks * length(d) * (length(d + h) - length(d - h)) / (2.0 * h) / 1000.0;
