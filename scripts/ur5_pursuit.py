@@ -69,14 +69,14 @@ description = "A B-spline cam on each of 40 couplings found by scripts/ur5_pursu
 """
 
 
-def samples(design, count, per, seed):
-    """q, γ̇, s of `per` points on each of `count` random geodesics of the ball."""
+def samples(design, count, per, seed, radius=RADIUS):
+    """q, γ̇, s of `per` points on each of `count` random geodesics of the ball of `radius`."""
     q_eq = np.asarray(design.q_eq)
     chol = np.linalg.cholesky(np.asarray(design.mass_matrix(q_eq)))
     z = np.random.default_rng(seed).standard_normal((count, len(q_eq)))
     z /= np.linalg.norm(z, axis=1, keepdims=True)
     v = np.linalg.solve(chol.T, z.T).T                      # unit metric length
-    s = (np.arange(per) + 1) / per * RADIUS
+    s = (np.arange(per) + 1) / per * radius
     at = lambda ds: np.asarray(design.exp((v[:, None, :] * (s[None, :, None] + ds)).reshape(-1, len(q_eq))))
     h = 1e-4
     return at(0.0), (at(h) - at(-h)) / (2 * h), np.tile(s, count)
@@ -85,7 +85,7 @@ def samples(design, count, per, seed):
 class Rows:
     """What every row needs whatever the couplings: Δq, w_c = M⁻¹ p_c, the weight, ∇U_g."""
 
-    def __init__(self, design, q, qd, s):
+    def __init__(self, design, q, qd, s, omega=OMEGA):
         n = q.shape[1]
         self.q_eq = np.asarray(design.q_eq)
         self.dq = q - self.q_eq
@@ -96,7 +96,7 @@ class Rows:
         for i in range(len(s)):
             basis, _ = np.linalg.qr(np.column_stack([qd[i], np.eye(n)]))
             self.W[i] = np.linalg.solve(self.M[i], basis[:, 1:n]).T
-        self.wt = 1.0 / (OMEGA ** 2 * s * np.linalg.norm(qd, axis=1))
+        self.wt = 1.0 / (omega ** 2 * s * np.linalg.norm(qd, axis=1))
 
 
 class Model:
