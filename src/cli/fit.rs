@@ -136,9 +136,10 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
     } else {
         format!(
-            "verdict: poor (p99 {:.4}° > fit.accept_p99_deg = {}°): released on a geodesic, the arm drifts off it; \
-             allow more springs (fit.max_elements), keep fit.hessian_match = true or widen the catalogue",
-            st.p99_abs, settings.accept_p99_deg
+            "verdict: poor (p99 {:.4}° > fit.accept_p99_deg = {}°): released on a geodesic, the arm drifts off it; {}",
+            st.p99_abs,
+            settings.accept_p99_deg,
+            springfit::fit::hints::poor_fit_advice(&outcome.region)
         )
     });
     if let Some(c) = catalog {

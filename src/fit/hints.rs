@@ -8,6 +8,7 @@ use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::Error;
+use crate::geodesic::region::RegionReport;
 
 /// The advice for an infeasible fit, or `None` for other errors.
 ///
@@ -73,6 +74,36 @@ pub fn infeasible_hint(
 /// `fit.accept_p99_deg`, else `poor`.
 pub fn verdict(p99_deg: f64, accept_p99_deg: f64) -> &'static str {
     if p99_deg <= accept_p99_deg { "acceptable" } else { "poor" }
+}
+
+/// Share of the largest valid radius from which a poor fit's advice puts the region first.
+///
+/// r² (the exact potential's) is singular at the conjugate point or crossing that sets the
+/// largest valid radius, and every finite family of smooth potentials falls behind as the region
+/// nears it. On the five-link pendulum (largest valid radius 0.526) the polynomials of degree 6
+/// and its catalogue reach p99 0.51° / 0.75° at 57 % of it, 1.76° / 2.07° at 76 % and 6.7° /
+/// 6.9° at 99 % (`scripts/radius_limit.py`, BENCHMARKS.md "Whole arms"): from about three
+/// quarters on, more springs buy little and a smaller region a lot.
+pub const NEAR_LIMIT: f64 = 0.75;
+
+/// What to try after a poor fit, in the order most likely to help: the region first when it
+/// reaches [`NEAR_LIMIT`] of a largest valid radius that a conjugate point or a crossing sets
+/// (not the check's probe), else more springs, the Hessian match and the catalogue.
+pub fn poor_fit_advice(region: &RegionReport) -> String {
+    let springs = "allow more springs (fit.max_elements), keep fit.hessian_match = true or widen the catalogue";
+    match &region.limit {
+        Some(limit) if !region.largest_radius_is_lower_bound && region.extent >= NEAR_LIMIT * region.largest_radius => {
+            format!(
+                "the region reaches {:.0} % of its largest valid radius {:.4}, set by {}; next to it no finite set of \
+                 smooth potentials holds the modes (docs/theory.md, \"The region check\"), so a smaller region \
+                 (region.radius) helps more than springs; else {springs}",
+                100.0 * region.extent / region.largest_radius,
+                region.largest_radius,
+                limit.describe()
+            )
+        }
+        _ => springs.to_string(),
+    }
 }
 
 /// Largest relative miss of the QP's equalities (the equilibrium and, with `hessian_match`, the
@@ -179,5 +210,34 @@ mod tests {
         assert_eq!(equality_warning(&loose, 1e-13, 1.9e-4, 60.0), None, "no Hessian equality without hessian_match");
         let nnls = FitSettings { solver: SolverKind::Nnls, ..qp };
         assert_eq!(equality_warning(&nnls, 1e-2, 1e-3, 60.0), None);
+    }
+
+    /// A poor fit's advice names the region when it nears a conjugate limit (the five-link
+    /// pendulum's ball 0.52 of 0.5257), and not when it sits well inside one or when nothing
+    /// failed up to the probe (then the largest radius is only a lower bound).
+    #[test]
+    fn a_poor_fit_next_to_the_conjugate_limit_is_told_to_shrink_the_region() {
+        let report = |extent: f64, largest: f64, lower_bound: bool| RegionReport {
+            valid: true,
+            region: format!("geodesic ball of radius {extent}"),
+            extent,
+            largest_radius: largest,
+            largest_radius_is_lower_bound: lower_bound,
+            probe_radius: 2.0 * extent,
+            limit: (!lower_bound).then(|| crate::geodesic::region::RegionFailure::Conjugate {
+                s: largest,
+                q: vec![0.0; 5],
+                direction: 514,
+            }),
+            failure: None,
+            reason: String::new(),
+        };
+        let near = poor_fit_advice(&report(0.52, 0.5257, false));
+        assert!(near.contains("99 % of its largest valid radius 0.5257") && near.contains("region.radius"), "{near}");
+        assert!(near.contains("conjugate point"), "{near}");
+        for inside in [report(0.3, 0.5257, false), report(0.52, 1.04, true)] {
+            let advice = poor_fit_advice(&inside);
+            assert!(!advice.contains("region.radius") && advice.contains("fit.max_elements"), "{advice}");
+        }
     }
 }
