@@ -63,6 +63,8 @@ def exponents(n, lo, hi):
 def monomial_gradients(x, exps, scale):
     """∂/∂q of each monomial Π (Δq_j/scale)^e_j at the rows of x = Δq: N × n × K."""
     N, n = x.shape
+    if len(exps) == 0:
+        return np.zeros((N, n, 0))
     D = exps.sum(axis=1).max()
     powers = np.ones((N, n, D + 1))
     for d in range(1, D + 1):
@@ -101,7 +103,7 @@ def fit_and_judge(design, omega, radius, degree, train, test):
         R = np.einsum("ncj,njk->nck", rows.W, G) * rows.wt[:, None, None]
         known = rows.gg + fixed_gradient(rows)
         b = -np.einsum("ncj,nj->nc", rows.W, known) * rows.wt[:, None]
-        return R.reshape(-1, len(exps)), b.reshape(-1)
+        return R.reshape(b.size, len(exps)), b.reshape(-1)
 
     R, b = residual_rows(train)
     c = np.linalg.solve(R.T @ R + RIDGE * len(b) * np.eye(len(exps)), R.T @ b) if len(exps) else np.zeros(0)
