@@ -106,6 +106,12 @@ fn suggestions(design: &Design, largest: f64, lower_bound: bool) -> Vec<String> 
         0.5 * omega * omega * radius * radius,
         0.5 * omega * omega * largest * largest,
     )];
+    if !lower_bound && radius >= springfit::fit::hints::NEAR_LIMIT * largest {
+        out.push(format!(
+            "the region reaches {:.0} % of the largest valid radius: towards it the error of every finite set of springs grows fast (docs/theory.md, \"The region check\"); scripts/radius_limit.py measures what a smaller region.radius buys",
+            100.0 * radius / largest
+        ));
+    }
     let energies: Vec<(String, f64)> =
         design.file.scenario.iter().enumerate().flat_map(|(i, s)| s.energies(i)).collect();
     if let Some((field, e)) = energies.iter().cloned().max_by(|a, b| a.1.total_cmp(&b.1)) {
