@@ -44,7 +44,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from ur5_pursuit import Rows, samples  # noqa: E402  (the same sampler and rows as the pursuit)
+from ur5_pursuit import Rows, gravity_hessian, samples  # noqa: E402  (the same sampler and rows as the pursuit)
 
 REPO = os.path.normpath(os.path.join(HERE, ".."))
 RIDGE = 1e-10  # on the free coefficients, times the rows: only keeps the normal equations regular
@@ -89,10 +89,7 @@ def fit_and_judge(design, omega, radius, degree, train, test):
     n = design.dof
     q_eq = np.asarray(design.q_eq)
     M0 = np.asarray(design.mass_matrix(q_eq))
-    h = 1e-5
-    hg = np.array([(np.asarray(design.gravity_gradient(q_eq + h * e))
-                    - np.asarray(design.gravity_gradient(q_eq - h * e))) / (2 * h) for e in np.eye(n)])
-    hessian = omega ** 2 * M0 - 0.5 * (hg + hg.T)   # of the springs' part, U − U_g
+    hessian = omega ** 2 * M0 - gravity_hessian(design, q_eq)   # of the springs' part, U − U_g
     g0 = -np.asarray(design.gravity_gradient(q_eq))  # the springs' gradient at q_eq
     exps = exponents(n, 3, degree)
 
@@ -155,7 +152,6 @@ def main():
     for radius in a.radii:
         train = Rows(design, *samples(design, a.train, a.per, seed=1, radius=radius), omega=omega)
         test = Rows(design, *samples(design, a.test, a.per, seed=2, radius=radius), omega=omega)
-        test.s = np.tile((np.arange(a.per) + 1) / a.per * radius, a.test)
         for degree in a.degrees:
             k, p99, bands = fit_and_judge(design, omega, radius, degree, train, test)
             print(f"| {radius:g} | polynomial of degree {degree} | {k} | {p99:.2f}° | "

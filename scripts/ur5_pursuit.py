@@ -82,11 +82,19 @@ def samples(design, count, per, seed, radius=RADIUS):
     return at(0.0), (at(h) - at(-h)) / (2 * h), np.tile(s, count)
 
 
+def gravity_hessian(design, q, h=1e-5):
+    """∇²U_g(q) by central differences of the package's gravity gradient, symmetrised."""
+    hg = np.array([(np.asarray(design.gravity_gradient(q + h * e))
+                    - np.asarray(design.gravity_gradient(q - h * e))) / (2 * h) for e in np.eye(len(q))])
+    return 0.5 * (hg + hg.T)
+
+
 class Rows:
     """What every row needs whatever the couplings: Δq, w_c = M⁻¹ p_c, the weight, ∇U_g."""
 
     def __init__(self, design, q, qd, s, omega=OMEGA):
         n = q.shape[1]
+        self.s = s
         self.q_eq = np.asarray(design.q_eq)
         self.dq = q - self.q_eq
         self.M = np.asarray(design.mass_matrix(q))
@@ -106,10 +114,7 @@ class Model:
         n = len(q_eq)
         self.M0inv = np.linalg.inv(np.asarray(design.mass_matrix(q_eq)))
         self.gg0 = np.asarray(design.gravity_gradient(q_eq))
-        h = 1e-5
-        hg = np.array([(np.asarray(design.gravity_gradient(q_eq + h * e))
-                        - np.asarray(design.gravity_gradient(q_eq - h * e))) / (2 * h) for e in np.eye(n)])
-        self.trace_g = np.trace(self.M0inv @ (0.5 * (hg + hg.T)))
+        self.trace_g = np.trace(self.M0inv @ gravity_hessian(design, q_eq))
         self.n = n
         self.d1 = np.zeros((DEGREE + 1, DEGREE + 1))
         self.d2 = np.zeros((DEGREE + 1, DEGREE + 1))

@@ -5,6 +5,7 @@ use std::path::Path;
 use anyhow::Result;
 use springfit::design::Design;
 use springfit::geodesic::Region;
+use springfit::geodesic::region::RegionReport;
 
 use super::progress::Progress;
 
@@ -85,7 +86,7 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     ));
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));
-    for line in suggestions(&design, report.largest_radius, report.largest_radius_is_lower_bound) {
+    for line in suggestions(&design, &report) {
         progress.say(line);
     }
     Ok(())
@@ -94,7 +95,8 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
 /// What to choose for a new arm, from the exact potential U* = ½ω²r² the springs approach: every
 /// mode reaches the energy ½ω²r² at metric distance r, so a scenario's energy E fits inside a
 /// ball of radius R only if E ≤ ½ω²R², and the largest valid radius bounds R.
-fn suggestions(design: &Design, largest: f64, lower_bound: bool) -> Vec<String> {
+fn suggestions(design: &Design, report: &RegionReport) -> Vec<String> {
+    let (largest, lower_bound) = (report.largest_radius, report.largest_radius_is_lower_bound);
     let omega = design.fit.frequency;
     let radius = match design.region {
         Region::Ball { radius } => radius,
@@ -106,10 +108,10 @@ fn suggestions(design: &Design, largest: f64, lower_bound: bool) -> Vec<String> 
         0.5 * omega * omega * radius * radius,
         0.5 * omega * omega * largest * largest,
     )];
-    if !lower_bound && radius >= springfit::fit::hints::NEAR_LIMIT * largest {
+    if let Some(share) = springfit::fit::hints::near_limit(report) {
         out.push(format!(
             "the region reaches {:.0} % of the largest valid radius: towards it the error of every finite set of springs grows fast (docs/theory.md, \"The region check\"); scripts/radius_limit.py measures what a smaller region.radius buys",
-            100.0 * radius / largest
+            100.0 * share
         ));
     }
     let energies: Vec<(String, f64)> =

@@ -123,11 +123,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         outcome.timings.total
     ));
     if !args.exact {
-        let target = design.chain.mass_matrix(&design.q_eq).norm() * settings.frequency.powi(2);
-        let m = &outcome.metrics;
-        if let Some(w) =
-            springfit::fit::hints::equality_warning(&settings, m.equilibrium_gradient_norm, m.hessian_rel_error, target)
-        {
+        if let Some(w) = springfit::fit::hints::fit_equality_warning(&design, &settings, &outcome.metrics) {
             progress.warn(w);
         }
     }

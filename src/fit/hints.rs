@@ -8,6 +8,7 @@ use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::elements::catalog::Catalog;
 use crate::error::Error;
+use crate::fit::outcome::Evaluation;
 use crate::geodesic::region::RegionReport;
 
 /// The advice for an infeasible fit, or `None` for other errors.
@@ -91,19 +92,31 @@ pub const NEAR_LIMIT: f64 = 0.75;
 /// (not the check's probe), else more springs, the Hessian match and the catalogue.
 pub fn poor_fit_advice(region: &RegionReport) -> String {
     let springs = "allow more springs (fit.max_elements), keep fit.hessian_match = true or widen the catalogue";
-    match &region.limit {
-        Some(limit) if !region.largest_radius_is_lower_bound && region.extent >= NEAR_LIMIT * region.largest_radius => {
-            format!(
-                "the region reaches {:.0} % of its largest valid radius {:.4}, set by {}; next to it no finite set of \
-                 smooth potentials holds the modes (docs/theory.md, \"The region check\"), so a smaller region \
-                 (region.radius) helps more than springs; else {springs}",
-                100.0 * region.extent / region.largest_radius,
-                region.largest_radius,
-                limit.describe()
-            )
-        }
+    match (near_limit(region), &region.limit) {
+        (Some(share), Some(limit)) => format!(
+            "the region reaches {:.0} % of its largest valid radius {:.4}, set by {}; next to it no finite set of \
+             smooth potentials holds the modes (docs/theory.md, \"The region check\"), so a smaller region \
+             (region.radius) helps more than springs; else {springs}",
+            100.0 * share,
+            region.largest_radius,
+            limit.describe()
+        ),
         _ => springs.to_string(),
     }
+}
+
+/// The share of its largest valid radius that `region` reaches, when that is at least
+/// [`NEAR_LIMIT`] and a conjugate point or a crossing (not the check's probe) sets the radius.
+pub fn near_limit(region: &RegionReport) -> Option<f64> {
+    let share = region.extent / region.largest_radius;
+    (region.limit.is_some() && !region.largest_radius_is_lower_bound && share >= NEAR_LIMIT).then_some(share)
+}
+
+/// [`equality_warning`] for a fit of `design` that `metrics` judged, against the target
+/// stiffness ‖ω²M(q_eq)‖.
+pub fn fit_equality_warning(design: &Design, settings: &FitSettings, metrics: &Evaluation) -> Option<String> {
+    let target = design.chain.mass_matrix(&design.q_eq).norm() * settings.frequency.powi(2);
+    equality_warning(settings, metrics.equilibrium_gradient_norm, metrics.hessian_rel_error, target)
 }
 
 /// Largest relative miss of the QP's equalities (the equilibrium and, with `hessian_match`, the

@@ -105,9 +105,7 @@ impl Prepared<'_> {
         if settings.solver != SolverKind::Qp || settings.max_elements != 0 || !self.grouping.groups.is_empty() {
             return false;
         }
-        let design = self.design;
-        let target = design.chain.mass_matrix(&design.q_eq).norm() * settings.frequency.powi(2);
-        hints::equality_warning(settings, m.equilibrium_gradient_norm, m.hessian_rel_error, target).is_some()
+        hints::fit_equality_warning(self.design, settings, m).is_some()
             && (0..k.len()).any(|j| k[j] > 0.0 && !bom.iter().any(|r| r.element == self.candidates[j].element))
     }
 
