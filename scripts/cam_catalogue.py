@@ -16,8 +16,11 @@ BENCHMARKS.md ("Whole arms") fits `designs/pendulum5.toml` with two of these (71
 """
 import argparse
 import itertools
+import os
 import random
 import sys
+
+HEADER = "# Written by scripts/cam_catalogue.py"
 
 
 def couplings(n, extra, seed, entries):
@@ -62,10 +65,15 @@ def main():
         ap.error("need --joints ≥ 2 and --entries ≥ 1")
     if a.random > (2 * a.entries + 1) ** a.joints // 2:
         ap.error("more random couplings asked for than there are")
+    # Never replace a file this script did not write (a catalogue of the user's own).
+    if os.path.exists(a.out):
+        with open(a.out) as f:
+            if not f.readline().startswith(HEADER):
+                ap.error(f"{a.out} exists and was not written by this script: choose another --out")
     cs = couplings(a.joints, a.random, a.seed, a.entries)
     rows = ",\n".join("  [" + ", ".join(str(x) for x in c) + "]" for c in cs)
     with open(a.out, "w") as f:
-        f.write(f"# Written by scripts/cam_catalogue.py --joints {a.joints} --random {a.random} --seed {a.seed} "
+        f.write(f"{HEADER} --joints {a.joints} --random {a.random} --seed {a.seed} "
                 f"--entries {a.entries} --knots {a.knots}\n")
         f.write(f'name = "cams on {len(cs)} couplings"\n')
         f.write(f'description = "A B-spline cam on every joint, pair and run of {a.joints} joints and on '

@@ -56,3 +56,13 @@ def test_the_cam_catalogue_script_writes_catalogues_that_fit(tmp_path):
     text = re.sub(r"(?m)^catalog = .*$", f'catalog = "{two.as_posix()}"', text)
     summary = springfit.Design.from_toml(text, path=str(REPO / "designs" / "cams2.toml")).fit().summary
     assert summary["used"] == 4 and summary["residual_deg"]["p99_abs"] < 2.0, summary["residual_deg"]
+    # Its own output it rewrites; a file of the user's it leaves alone.
+    again = subprocess.run([sys.executable, str(REPO / "scripts" / "cam_catalogue.py"), "--joints", "3", "--out",
+                            str(two)], capture_output=True, text=True)
+    assert again.returncode == 0 and "--joints 3" in two.read_text()
+    mine = tmp_path / "mine.toml"
+    mine.write_text("# my catalogue\n")
+    refused = subprocess.run([sys.executable, str(REPO / "scripts" / "cam_catalogue.py"), "--joints", "2", "--out",
+                              str(mine)], capture_output=True, text=True)
+    assert refused.returncode == 2 and "not written by this script" in refused.stderr
+    assert mine.read_text() == "# my catalogue\n"
