@@ -6,7 +6,7 @@ use crate::design::Design;
 use crate::error::Result;
 use crate::geodesic::Fan;
 use crate::potential::{Potential, SpringSet};
-use crate::residual::{band_stats, fan_angles, stats};
+use crate::residual::{band_stats, fan_angles_and_descents, stats};
 
 /// Residuals and checks of a spring set on a fan (held-out geodesics): the figures users compare.
 pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, fan: &Fan) -> Result<Evaluation> {
@@ -14,21 +14,10 @@ pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, 
     let q0 = design.q_eq.as_slice();
     // Grouped for the thousands of samples; the checks at q_eq element by element, as before.
     let grouped = springs.grouped();
-    let residuals = fan_angles(chain, fan, &grouped)?;
+    let (residuals, monotone_violations) = fan_angles_and_descents(chain, fan, &grouped)?;
     let grad = springs.gradient(q0)? + chain.gravity_gradient(q0);
     let hess = springs.hessian(q0)? + chain.gravity_hessian(q0);
     let target = chain.mass_matrix(&design.q_eq) * omega.powi(2);
-    let mut monotone_violations = 0;
-    for g in &fan.geodesics {
-        for i in 0..g.len() {
-            let q = g.q(i);
-            let grad = grouped.gradient(q)? + chain.gravity_gradient(q);
-            let rate: f64 = grad.iter().zip(g.qd(i)).map(|(a, b)| a * b).sum();
-            if rate < -1e-12 * grad.norm() {
-                monotone_violations += 1;
-            }
-        }
-    }
     let extent = fan.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max);
     Ok(Evaluation {
         stats: stats(&residuals),
