@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use super::problem::{FitProblem, Requirements, arm, assemble, fold_fixed, mid_range};
+use super::problem::{FitProblem, Requirements, arm, assemble_factored, fold_fixed, mid_range};
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
 use super::smoothing::{append_rows, group_smoothing};
 use crate::design::Design;
@@ -16,7 +16,7 @@ use crate::elements::group::Grouping;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::SpringSet;
-use crate::solve::lsq::Gram;
+use crate::solve::lsq::{CoupledRows, GRAM_BLOCK, Gram};
 
 /// A fit up to the solve: region, fans, candidates and the assembled problem. One preparation
 /// serves several solves that differ only in solver settings (the spring budgets of a Pareto
@@ -94,18 +94,31 @@ impl<'a> Prepared<'a> {
             hessian_match: settings.hessian_match,
             monotone: settings.monotone,
         };
-        let mut problem = assemble(&design.chain, &design.q_eq, &training, &candidates, req);
+        let (mut problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
         let (_, trims) = mid_range(catalog, q_eq);
         check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         // A group's columns are zero away from its part's support (a B-spline basis function
         // spans four knot intervals): the sparse product skips the zeros.
+        // Above GRAM_BLOCK rows of two or more per sample (three joints or more), G from the
+        // rows' factors: n − 1 times fewer products (designs of up to three joints have fewer
+        // rows and keep the bits of the row-by-row product).
         let mut gram = if grouping.any() {
             Gram::from_sparse_rows(&problem.rows, &problem.rhs)
+        } else if problem.rows.nrows() > GRAM_BLOCK && design.dof() >= 3 {
+            let slopes = |j: usize, s0: usize, out: &mut [f64]| factors.slopes(&candidates, j, s0, out);
+            let coupled = CoupledRows {
+                slopes: &slopes,
+                factors: &factors.factors,
+                class_of: &factors.class_of,
+                per_sample: design.dof() - 1,
+            };
+            Gram::from_coupled_rows(&coupled, &problem.rows, &problem.rhs)
         } else {
             Gram::from_rows(&problem.rows, &problem.rhs)
         };
+        drop(factors);
         if grouping.any() {
             stage("choosing the groups' smoothing");
             let penalty = group_smoothing(
@@ -297,6 +310,24 @@ mod tests {
     use crate::fit::robust::rows_of;
     use crate::potential::Potential;
 
+    /// Above GRAM_BLOCK rows of a three-joint arm the normal equations come from the rows'
+    /// factors; they are those of the assembled rows, to rounding.
+    #[test]
+    fn the_normal_equations_of_many_rows_are_those_of_the_rows() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/triple_pendulum.toml");
+        let design = Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let settings = FitSettings { training_directions: 144, training_samples: 60, ..design.fit };
+        let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
+        let rows = &prepared.problem.rows;
+        assert!(rows.nrows() > GRAM_BLOCK && !prepared.grouping.any(), "{} rows", rows.nrows());
+        let want = Gram::from_rows(rows, &prepared.problem.rhs);
+        let got = prepared.gram();
+        assert!(got.g != want.g, "the factored product sums in another order");
+        assert!((&got.g - &want.g).amax() <= 1e-12 * want.g.amax(), "{:e}", (&got.g - &want.g).amax());
+        assert_eq!(got.c, rows.tr_mul(&prepared.problem.rhs));
+    }
+
     /// The trims folded into the fit equal the problem with the trims as extra columns whose
     /// contribution (column × mid-range rate) is subtracted by hand from every right-hand side:
     /// rows, equilibrium, Hessian match and monotonicity. The fit solved around them (nominal
@@ -332,7 +363,7 @@ mod tests {
             tolerance: 0.0,
         }));
         let req = Requirements { omega: settings.frequency, hessian_match: true, monotone: true };
-        let full = assemble(&design.chain, &design.q_eq, &prepared.training, &all, req);
+        let full = crate::fit::problem::assemble(&design.chain, &design.q_eq, &prepared.training, &all, req);
         let p = prepared.candidates.len();
         let by_hand = |m: &DMatrix<f64>, rhs: &DVector<f64>| -> DVector<f64> {
             let mut r = rhs.clone();

@@ -121,6 +121,31 @@ pub fn coupling_classes(candidates: &[Candidate]) -> (Vec<usize>, Vec<&[f64]>) {
     (class_of, classes)
 }
 
+/// The tangentiality rows' factors by coupling (see [`crate::solve::lsq::CoupledRows`]): each coupling's a·q at
+/// each sample and its weighted a·w_c at each row; with them a candidate's slope at a sample is
+/// one evaluation of its profile. Kept beside the rows so that the normal equations of a large
+/// fit cost one product per sample rather than n − 1 ([`crate::solve::lsq::CoupledRows`]).
+pub struct RowFactors {
+    /// a·q of every coupling (outer) at every sample (inner).
+    pub at_q: Vec<Vec<f64>>,
+    /// a·w_c / (ω² s |γ̇|) of every coupling (outer) at every row (inner).
+    pub factors: Vec<Vec<f64>>,
+    /// Each candidate's coupling.
+    pub class_of: Vec<usize>,
+}
+
+impl RowFactors {
+    /// u′(a·q − x₀) of candidate `j` at the samples `s0 ..`, into `out`: the value the rows were
+    /// assembled with.
+    pub fn slopes(&self, candidates: &[Candidate], j: usize, s0: usize, out: &mut [f64]) {
+        let e = &candidates[j].element;
+        let at_q = &self.at_q[self.class_of[j]][s0..s0 + out.len()];
+        for (o, x) in out.iter_mut().zip(at_q) {
+            *o = e.profile.slope(x - e.offset);
+        }
+    }
+}
+
 /// Assembles the problem from the training fan.
 pub fn assemble(
     chain: &Chain,
@@ -129,6 +154,17 @@ pub fn assemble(
     candidates: &[Candidate],
     req: Requirements,
 ) -> FitProblem {
+    assemble_factored(chain, q_eq, fan, candidates, req).0
+}
+
+/// [`assemble`], and the rows' [`RowFactors`].
+pub fn assemble_factored(
+    chain: &Chain,
+    q_eq: &DVector<f64>,
+    fan: &Fan,
+    candidates: &[Candidate],
+    req: Requirements,
+) -> (FitProblem, RowFactors) {
     let n = chain.dof();
     let p = candidates.len();
     let w2 = req.omega * req.omega;
@@ -275,7 +311,19 @@ pub fn assemble(
     } else {
         Vec::new()
     };
-    FitProblem { rows, rhs, equalities, inequalities }
+    // The tables become the factors in place (weighted): no second copy of them.
+    let (at_q, factors): (Vec<Vec<f64>>, Vec<Vec<f64>>) = tables
+        .into_iter()
+        .map(|(at, mut aw)| {
+            for (si, frame) in frames.iter().enumerate() {
+                for c in 0..frame.directions.len() {
+                    aw[si * (n - 1) + c] *= frame.weight;
+                }
+            }
+            (at, aw)
+        })
+        .unzip();
+    (FitProblem { rows, rhs, equalities, inequalities }, RowFactors { at_q, factors, class_of })
 }
 
 /// Moves the contribution of elements whose stiffness is fixed (trim springs at mid-range: set
@@ -341,6 +389,39 @@ pub fn mid_range(catalog: &Catalog, q_eq: &[f64]) -> (Vec<TrimSpring>, SpringSet
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The rows factor as the normal equations of a large fit assume: every entry is the
+    /// candidate's slope at its sample times its coupling's factor at its row (three joints,
+    /// cranks, linear and compression springs on joints, pairs and triples).
+    #[test]
+    fn the_rows_factor_by_coupling() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/triple_pendulum.toml");
+        let design = crate::design::Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let q0 = design.q_eq.as_slice();
+        let candidates = catalog.expand(q0, |_| (-1.0, 1.0));
+        use crate::geodesic::{FanSpec, Stop};
+        let spec = FanSpec { count: 12, phase: 0.0, stop: Stop::Arc(0.3), spacing: 0.05 };
+        let training = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode).unwrap();
+        let req = Requirements { omega: design.fit.frequency, hessian_match: true, monotone: false };
+        let (problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req);
+        let per = design.dof() - 1;
+        let samples = problem.rows.nrows() / per;
+        assert!(
+            factors.factors.len() > 3 && samples == 12 * 6,
+            "{} couplings, {samples} samples",
+            factors.factors.len()
+        );
+        let mut slope = vec![0.0; samples];
+        for j in 0..candidates.len() {
+            factors.slopes(&candidates, j, 0, &mut slope);
+            for r in 0..problem.rows.nrows() {
+                let want = problem.rows[(r, j)];
+                let got = slope[r / per] * factors.factors[factors.class_of[j]][r];
+                assert!((got - want).abs() <= 1e-15 * want.abs().max(1e-300), "{j} {r}: {got} {want}");
+            }
+        }
+    }
 
     #[test]
     fn complement_is_orthonormal() {

@@ -96,6 +96,73 @@ pub fn gram_of_rows(a: &DMatrix<f64>, r0: usize, rows: usize, b: &DVector<f64>) 
     (g, c)
 }
 
+/// Samples per step of [`coupled_gram_chunk`]: the step's slopes and their scaled copy (128 ×
+/// p values each, 1.5 MB at p = 1500) stay in the cache while every class reads them.
+const COUPLED_STEP: usize = 128;
+
+/// The upper triangle (in `order`) of the normal equations of coupled rows over the samples
+/// `s0 .. s0 + count` (see [`crate::solve::lsq::CoupledRows`]): for each class a, the block row
+/// G[J_a, J_≥a] += Φ[:, J_a]ᵀ (Φ[:, J_≥a] ⊙ v_a), where v_a(s, k) = Σ_c F[s·r + c, a] F[s·r + c,
+/// class k] couples the classes within sample s. Columns are taken in `order` (sorted by
+/// class, `starts[a]` the first of class a), so J_a and J_≥a are contiguous; faer's product,
+/// sequential, summed step by step in sample order.
+pub fn coupled_gram_chunk(
+    rows: &crate::solve::lsq::CoupledRows,
+    order: &[usize],
+    starts: &[usize],
+    s0: usize,
+    count: usize,
+) -> DMatrix<f64> {
+    let p = order.len();
+    let classes = starts.len() - 1;
+    let per = rows.per_sample;
+    let mut g = DMatrix::zeros(p, p);
+    let mut phi = DMatrix::zeros(COUPLED_STEP, p);
+    let mut psi = DMatrix::zeros(COUPLED_STEP, p);
+    let mut v = vec![0.0; COUPLED_STEP];
+    for t0 in (s0..s0 + count).step_by(COUPLED_STEP) {
+        let steps = COUPLED_STEP.min(s0 + count - t0);
+        for (col, &j) in phi.as_mut_slice().chunks_exact_mut(COUPLED_STEP).zip(order) {
+            (rows.slopes)(j, t0, &mut col[..steps]);
+        }
+        for a in 0..classes {
+            let (ja, tail) = (starts[a], starts[a + 1] - starts[a]);
+            if tail == 0 {
+                continue;
+            }
+            let (r0, r1) = (t0 * per, (t0 + steps) * per);
+            let fa = &rows.factors[a][r0..r1];
+            for b in a..classes {
+                let fb = &rows.factors[b][r0..r1];
+                for (vt, (x, y)) in v.iter_mut().zip(fa.chunks_exact(per).zip(fb.chunks_exact(per))) {
+                    *vt = x.iter().zip(y).map(|(x, y)| x * y).sum();
+                }
+                let (from, to) = (starts[b] * COUPLED_STEP, starts[b + 1] * COUPLED_STEP);
+                for (out, col) in psi.as_mut_slice()[from..to]
+                    .chunks_exact_mut(COUPLED_STEP)
+                    .zip(phi.as_slice()[from..to].chunks_exact(COUPLED_STEP))
+                {
+                    for ((o, x), vt) in out.iter_mut().zip(col).zip(&v).take(steps) {
+                        *o = x * vt;
+                    }
+                }
+            }
+            let width = p - ja;
+            let lhs = view(&phi).subrows(0, steps).subcols(ja, tail).transpose();
+            let rhs = view(&psi).subrows(0, steps).subcols(ja, width);
+            faer::linalg::matmul::matmul(
+                view_mut(&mut g).submatrix_mut(ja, ja, tail, width),
+                Accum::Add,
+                lhs,
+                rhs,
+                1.0,
+                Par::Seq,
+            );
+        }
+    }
+    g
+}
+
 /// The implementations the kernels above are measured and checked against: nalgebra's (the
 /// code before faer) and faer's where the hand-written or nalgebra code stayed. Not part of the
 /// library's interface; public for `benches/kernels.rs`.

@@ -33,6 +33,28 @@ struct Run {
     values: Vec<f64>,
 }
 
+/// Samples per parallel chunk of [`Gram::from_coupled_rows`]: fixed, so that the chunks, and the
+/// order their sums are added in, do not depend on the thread count.
+const COUPLED_CHUNK: usize = 4096;
+
+/// Rows that factor by coupling, as the fit's tangentiality rows do. Sample s owns the rows
+/// s·r … s·r + r − 1, and column j's entry in row s·r + c is φ[s, j] · F[s·r + c, class_j]: a
+/// scalar of the column at the sample (the element's slope u′ there) times a factor of the row
+/// shared by every column of the class (the coupling's a·M⁻¹p_c, row-weighted). Then
+/// G[j, k] = Σ_s φ[s, j] φ[s, k] Σ_c F[s·r + c, class_j] F[s·r + c, class_k]: one product per
+/// sample where the rows need r.
+pub struct CoupledRows<'a> {
+    /// φ[s0 .., j] into `out` for (j, s0, out): computed where needed, as the rows were (at seven
+    /// joints φ would take a gigabyte, and fresh memory is slow to touch on a virtual machine).
+    pub slopes: &'a (dyn Fn(usize, usize, &mut [f64]) + Sync),
+    /// F: per class, its factor at every row (samples × r).
+    pub factors: &'a [Vec<f64>],
+    /// The class of every column.
+    pub class_of: &'a [usize],
+    /// r, the rows per sample.
+    pub per_sample: usize,
+}
+
 /// A least-squares problem as its normal equations.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gram {
@@ -57,13 +79,61 @@ impl Gram {
     ///
     /// More rows go blockwise ([`Gram::from_row_blocks`]): the fits of four or more joints have
     /// 10⁵ rows and more, where the transposed copy nalgebra's product needs doubles the memory
-    /// and one thread takes minutes.
+    /// and one thread takes minutes. The fit itself takes such rows, when they come two or more
+    /// per sample, from their factors instead ([`Gram::from_coupled_rows`]).
     pub fn from_rows(a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
         if a.nrows() > GRAM_BLOCK {
             return Gram::from_row_blocks(a, b);
         }
         let at = a.transpose();
         Gram { g: &at * a, c: &at * b, bb: b.dot(b) }
+    }
+
+    /// The normal equations of `a` (the rows `coupled` describes) and `b`, G from the factors:
+    /// r times fewer multiplications than AᵀA from the rows (r = n − 1 rows per sample in the
+    /// fit: at seven joints 6×). Chunks of [`COUPLED_CHUNK`] samples, [`GRAM_WAVE`] at a time
+    /// in parallel, added in chunk order: the bits do not depend on the thread count. They are
+    /// not those of [`Gram::from_rows`] (another summation order), which is why the fit uses
+    /// this only above [`GRAM_BLOCK`] rows, where the blockwise product had already changed
+    /// them. Aᵀb by nalgebra's product of `a`. On the seven-link chain's default sampling
+    /// (552 960 rows, 1510 columns, 111 couplings) 6.2 s against the blockwise product's 14.0 s
+    /// on two threads (BENCHMARKS.md, "Fit time against the number of joints").
+    pub fn from_coupled_rows(coupled: &CoupledRows, a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
+        let p = coupled.class_of.len();
+        let classes = coupled.factors.len();
+        let mut order: Vec<usize> = (0..p).collect();
+        order.sort_by_key(|&j| coupled.class_of[j]);
+        let mut starts = vec![0usize; classes + 1];
+        for &c in coupled.class_of {
+            starts[c + 1] += 1;
+        }
+        for c in 0..classes {
+            starts[c + 1] += starts[c];
+        }
+        let samples = coupled.factors.first().map_or(0, |f| f.len() / coupled.per_sample.max(1));
+        let chunks: Vec<usize> = (0..samples).step_by(COUPLED_CHUNK).collect();
+        let mut upper = DMatrix::zeros(p, p);
+        for wave in chunks.chunks(GRAM_WAVE) {
+            let parts: Vec<DMatrix<f64>> = wave
+                .par_iter()
+                .map(|&s0| {
+                    super::dense::coupled_gram_chunk(coupled, &order, &starts, s0, COUPLED_CHUNK.min(samples - s0))
+                })
+                .collect();
+            for part in parts {
+                upper += part;
+            }
+        }
+        // The upper triangle in class order, mirrored, back to the columns' own order.
+        let mut g = DMatrix::zeros(p, p);
+        for y in 0..p {
+            for x in 0..=y {
+                let value = upper[(x, y)];
+                g[(order[x], order[y])] = value;
+                g[(order[y], order[x])] = value;
+            }
+        }
+        Gram { g, c: a.tr_mul(b), bb: b.dot(b) }
     }
 
     /// The normal equations summed over blocks of [`GRAM_BLOCK`] rows: each block's AᵀA by
@@ -269,6 +339,39 @@ impl Gram {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// G from the factors is AᵀA of the rows they describe (to rounding, and exactly
+    /// symmetric), over chunks and steps of every size: 9000 samples (three chunks, the last
+    /// short), three rows each, five classes of which one has no column.
+    #[test]
+    fn coupled_rows_give_the_normal_equations_of_their_rows() {
+        let mut rng = crate::numerics::rng::SplitMix64::new(11);
+        let (samples, per, classes, p) = (9000, 3, 5, 17);
+        let class_of: Vec<usize> = (0..p).map(|j| [0, 1, 3, 4][(j * 7) % 4]).collect();
+        let phi = DMatrix::from_fn(samples, p, |_, _| rng.uniform() - 0.5);
+        let factors: Vec<Vec<f64>> =
+            (0..classes).map(|_| (0..samples * per).map(|_| rng.uniform() - 0.5).collect()).collect();
+        let a = DMatrix::from_fn(samples * per, p, |r, j| phi[(r / per, j)] * factors[class_of[j]][r]);
+        let b = DVector::from_fn(samples * per, |_, _| rng.uniform());
+        let slopes =
+            |j: usize, s0: usize, out: &mut [f64]| out.copy_from_slice(&phi.column(j).as_slice()[s0..s0 + out.len()]);
+        let coupled = CoupledRows { slopes: &slopes, factors: &factors, class_of: &class_of, per_sample: per };
+        let got = Gram::from_coupled_rows(&coupled, &a, &b);
+        let want = Gram::from_rows(&a, &b);
+        assert!((&got.g - &want.g).amax() < 1e-12 * want.g.amax(), "{}", (&got.g - &want.g).amax());
+        assert_eq!(got.g, got.g.transpose());
+        assert_eq!(got.c, a.tr_mul(&b));
+        assert_eq!(got.bb, want.bb);
+        // Classes matter: with every factor of class 3 doubled, the blocks it touches change.
+        let mut doubled = factors.clone();
+        doubled[3].iter_mut().for_each(|f| *f *= 2.0);
+        let coupled = CoupledRows { factors: &doubled, ..coupled };
+        let g2 = Gram::from_coupled_rows(&coupled, &a, &b).g;
+        let (j3, j0) = ((0..p).find(|&j| class_of[j] == 3).unwrap(), (0..p).find(|&j| class_of[j] == 0).unwrap());
+        assert!((g2[(j3, j3)] / want.g[(j3, j3)] - 4.0).abs() < 1e-9);
+        assert!((g2[(j0, j3)] / want.g[(j0, j3)] - 2.0).abs() < 1e-9);
+        assert_eq!(g2[(j0, j0)], got.g[(j0, j0)]);
+    }
 
     #[test]
     fn objective_matches_the_rows() {
