@@ -16,9 +16,10 @@ BENCHMARKS.md ("Whole arms") fits `designs/pendulum5.toml` with two of these (71
 """
 import argparse
 import itertools
-import os
 import random
 import sys
+
+from own_output import foreign
 
 HEADER = "# Written by scripts/cam_catalogue.py"
 
@@ -66,10 +67,8 @@ def main():
     if a.random > (2 * a.entries + 1) ** a.joints // 2:
         ap.error("more random couplings asked for than there are")
     # Never replace a file this script did not write (a catalogue of the user's own).
-    if os.path.exists(a.out):
-        with open(a.out) as f:
-            if not f.readline().startswith(HEADER):
-                ap.error(f"{a.out} exists and was not written by this script: choose another --out")
+    if foreign(a.out, HEADER, lines=1):
+        ap.error(f"{a.out} exists and was not written by this script: choose another --out")
     cs = couplings(a.joints, a.random, a.seed, a.entries)
     rows = ",\n".join("  [" + ", ".join(str(x) for x in c) + "]" for c in cs)
     with open(a.out, "w") as f:

@@ -116,14 +116,30 @@ def fit_and_judge(design, omega, radius, degree, train, test):
     return len(exps), np.percentile(angle, 99), bands
 
 
+def fit_key(text, key, value):
+    """The design text with `key = value` in its [fit] table: the key's line replaced where the
+    table has one, else added under the table's header (a table added at the end if there is
+    none). Other tables' keys of the same name ([sweep] builds) are left alone."""
+    lines = text.split("\n")
+    header = next((i for i, l in enumerate(lines) if l.strip() == "[fit]"), None)
+    if header is None:
+        return text.rstrip("\n") + f"\n\n[fit]\n{key} = {value}\n"
+    end = next((i for i in range(header + 1, len(lines)) if lines[i].lstrip().startswith("[")), len(lines))
+    for i in range(header + 1, end):
+        if re.match(rf"\s*{re.escape(key)}\s*=", lines[i]):
+            lines[i] = f"{key} = {value}"
+            return "\n".join(lines)
+    lines.insert(header + 1, f"{key} = {value}")
+    return "\n".join(lines)
+
+
 def catalogue_fit(path, radius):
     """springfit's fit of the design's own catalogue on the ball of `radius`, without a budget:
     (springs, candidates, p99, p99 per band) from its summary."""
     import springfit
     text = open(path).read()
     text = re.sub(r"(?m)^radius = .*$", f"radius = {radius!r}", text)
-    text = re.sub(r"(?m)^max_elements = .*$", "max_elements = 0", text)
-    text = re.sub(r"(?m)^\[fit\]$", "[fit]\nbuilds = 0", text)
+    text = fit_key(fit_key(text, "max_elements", "0"), "builds", "0")
     summary = springfit.Design.from_toml(text, path=path).fit().summary
     return (summary["used"], summary["candidates"], summary["residual_deg"]["p99_abs"],
             [b["stats"]["p99_abs"] for b in summary["bands"]])

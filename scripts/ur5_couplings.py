@@ -41,9 +41,12 @@ import re
 import subprocess
 import sys
 
+from own_output import foreign
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, ".."))
 
+MARKER = "# Written by scripts/ur5_couplings.py"
 CAM_HEADER = """\
 # One B-spline cam on each of 40 couplings of the UR5's six joints: where scripts/ur5_pursuit.py starts.
 # Written by scripts/ur5_couplings.py (do not edit by hand: rerun it): the couplings of a 40-spring
@@ -168,6 +171,9 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--write-catalogue", help="write the 40 cams' catalogue here")
     a = ap.parse_args()
+    # Never replace a catalogue this script did not write (one of the user's own).
+    if a.write_catalogue and foreign(a.write_catalogue, MARKER):
+        ap.error(f"{a.write_catalogue} exists and was not written by this script: choose another --write-catalogue")
     os.makedirs(a.out, exist_ok=True)
     cat = random_catalogue(random_couplings())
     unlimited = fit(a.springfit, a.out, "random", cat, 0, a.threads)

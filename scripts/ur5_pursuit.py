@@ -47,6 +47,8 @@ import time
 import numpy as np
 from numpy.polynomial import chebyshev as cheb
 
+from own_output import foreign
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, ".."))
 DESIGN = os.path.join(REPO, "designs", "ur5_six.toml")  # the same arm, equilibrium and ball
@@ -58,6 +60,7 @@ DEGREE = 8           # each profile's polynomial degree
 EQUALITY_WEIGHT = 3.0  # per row, times √(rows): the equalities hold to about 1e-3
 RIDGE = 1e-8         # on the coefficients, times the rows
 
+MARKER = "# Written by scripts/ur5_pursuit.py"
 HEADER = """\
 # One B-spline cam on each of 40 couplings of the UR5's six joints, for designs/ur5_six_cams.toml.
 # Written by scripts/ur5_pursuit.py (do not edit by hand: rerun it): catalogs/ur5_cams.toml's
@@ -219,6 +222,9 @@ def main():
     ap.add_argument("--prune-steps", type=int, default=60)
     ap.add_argument("--prune", type=float, default=0.05)
     a = ap.parse_args()
+    # Never replace a catalogue this script did not write (one of the user's own).
+    if foreign(a.out, MARKER):
+        ap.error(f"{a.out} exists and was not written by this script: choose another --out")
     import springfit
     t0 = time.time()
     design = springfit.Design.load(DESIGN)

@@ -11,6 +11,7 @@ import springfit
 from conftest import REPO
 
 sys.path.insert(0, str(REPO / "scripts"))
+import own_output  # noqa: E402
 import radius_limit  # noqa: E402
 import ur5_pursuit  # noqa: E402
 
@@ -66,3 +67,33 @@ def test_the_cam_catalogue_script_writes_catalogues_that_fit(tmp_path):
                               str(mine)], capture_output=True, text=True)
     assert refused.returncode == 2 and "not written by this script" in refused.stderr
     assert mine.read_text() == "# my catalogue\n"
+
+
+def test_the_scripts_rewrite_their_own_catalogues_and_no_others(tmp_path):
+    """The catalogues ur5_pursuit.py and ur5_couplings.py regenerate are theirs to rewrite; a file
+    of the user's under their --out is refused before any work (exit 2, the file unchanged)."""
+    assert not own_output.foreign(str(REPO / "catalogs" / "ur5_cams_pursuit.toml"), ur5_pursuit.MARKER)
+    assert not own_output.foreign(str(REPO / "catalogs" / "ur5_cams.toml"), "# Written by scripts/ur5_couplings.py")
+    assert own_output.foreign(str(REPO / "catalogs" / "ur5_cams.toml"), ur5_pursuit.MARKER)
+    assert not own_output.foreign(str(tmp_path / "absent.toml"), ur5_pursuit.MARKER)
+    mine = tmp_path / "mine.toml"
+    mine.write_text("# my catalogue\n")
+    for script, flag in (("ur5_pursuit.py", "--out"), ("ur5_couplings.py", "--write-catalogue")):
+        args = [sys.executable, str(REPO / "scripts" / script), flag, str(mine), "--out", str(tmp_path / "o")]
+        refused = subprocess.run(args if script == "ur5_couplings.py" else args[:4], capture_output=True, text=True)
+        assert refused.returncode == 2 and "not written by this script" in refused.stderr, (script, refused.stderr)
+    assert mine.read_text() == "# my catalogue\n" and not (tmp_path / "o").exists()
+
+
+def test_radius_limit_sets_fit_keys_in_the_fit_table_only():
+    """radius_limit.py's catalogue fit sets [fit] builds and max_elements whether the design sets
+    them or not, and leaves [sweep] builds alone; the result parses."""
+    text = (REPO / "designs" / "double_pendulum_paper_window_built.toml").read_text()
+    assert len(re.findall(r"(?m)^builds = ", text)) >= 1
+    edited = radius_limit.fit_key(radius_limit.fit_key(text, "max_elements", "0"), "builds", "0")
+    fit = tomllib.loads(edited)["fit"]
+    assert fit["builds"] == 0 and fit["max_elements"] == 0
+    plain = (REPO / "designs" / "double_pendulum.toml").read_text()
+    parsed = tomllib.loads(radius_limit.fit_key(plain, "builds", "0"))
+    assert parsed["fit"]["builds"] == 0 and parsed["sweep"]["builds"] == tomllib.loads(plain)["sweep"]["builds"]
+    assert tomllib.loads(radius_limit.fit_key("name = 'x'\n", "builds", "0"))["fit"]["builds"] == 0
