@@ -100,10 +100,10 @@ impl<'a> Prepared<'a> {
         check_trimmed_weight(design, catalog, settings)?;
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         // A group's columns are zero away from its part's support (a B-spline basis function
-        // spans four knot intervals): the sparse product skips the zeros.
-        // Above GRAM_BLOCK rows of two or more per sample (three joints or more), G from the
-        // rows' factors: n − 1 times fewer products (designs of up to three joints have fewer
-        // rows and keep the bits of the row-by-row product).
+        // spans four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows
+        // of two or more per sample (three joints or more), G comes from the rows' factors:
+        // n − 1 times fewer products (the shipped designs of up to three joints have fewer rows
+        // and keep the bits of the row-by-row product).
         let mut gram = if grouping.any() {
             Gram::from_sparse_rows(&problem.rows, &problem.rhs)
         } else if problem.rows.nrows() > GRAM_BLOCK && design.dof() >= 3 {

@@ -126,13 +126,14 @@ pub fn coupled_gram_chunk(
             (rows.slopes)(j, t0, &mut col[..steps]);
         }
         for a in 0..classes {
-            let (ja, tail) = (starts[a], starts[a + 1] - starts[a]);
-            if tail == 0 {
+            // Class a's columns J_a = first .. first + size, and J_≥a = first .. p.
+            let (first, size) = (starts[a], starts[a + 1] - starts[a]);
+            if size == 0 {
                 continue;
             }
             let (r0, r1) = (t0 * per, (t0 + steps) * per);
             let fa = &rows.factors[a][r0..r1];
-            for b in a..classes {
+            for b in (a..classes).filter(|&b| starts[b + 1] > starts[b]) {
                 let fb = &rows.factors[b][r0..r1];
                 for (vt, (x, y)) in v.iter_mut().zip(fa.chunks_exact(per).zip(fb.chunks_exact(per))) {
                     *vt = x.iter().zip(y).map(|(x, y)| x * y).sum();
@@ -147,11 +148,11 @@ pub fn coupled_gram_chunk(
                     }
                 }
             }
-            let width = p - ja;
-            let lhs = view(&phi).subrows(0, steps).subcols(ja, tail).transpose();
-            let rhs = view(&psi).subrows(0, steps).subcols(ja, width);
+            let width = p - first;
+            let lhs = view(&phi).subrows(0, steps).subcols(first, size).transpose();
+            let rhs = view(&psi).subrows(0, steps).subcols(first, width);
             faer::linalg::matmul::matmul(
-                view_mut(&mut g).submatrix_mut(ja, ja, tail, width),
+                view_mut(&mut g).submatrix_mut(first, first, size, width),
                 Accum::Add,
                 lhs,
                 rhs,

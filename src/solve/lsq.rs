@@ -99,6 +99,9 @@ impl Gram {
     /// (552 960 rows, 1510 columns, 111 couplings) 6.2 s against the blockwise product's 14.0 s
     /// on two threads (BENCHMARKS.md, "Fit time against the number of joints").
     pub fn from_coupled_rows(coupled: &CoupledRows, a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
+        if coupled.per_sample == 0 {
+            return Gram::from_rows(a, b);
+        }
         let p = coupled.class_of.len();
         let classes = coupled.factors.len();
         let mut order: Vec<usize> = (0..p).collect();
@@ -110,7 +113,7 @@ impl Gram {
         for c in 0..classes {
             starts[c + 1] += starts[c];
         }
-        let samples = coupled.factors.first().map_or(0, |f| f.len() / coupled.per_sample.max(1));
+        let samples = coupled.factors.first().map_or(0, |f| f.len() / coupled.per_sample);
         let chunks: Vec<usize> = (0..samples).step_by(COUPLED_CHUNK).collect();
         let mut upper = DMatrix::zeros(p, p);
         for wave in chunks.chunks(GRAM_WAVE) {
