@@ -224,6 +224,12 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
 /// tip, gravity, `catalogs/chain.toml`, ball r = 0.15, no budget, 72 training directions): 614
 /// candidates, above the switch to the large-problem solvers.
 fn chain_of_four() -> Design {
+    chain_of_four_sampled(Some(72))
+}
+
+/// [`chain_of_four`] with `training` directions (and five times as many held out), or the
+/// default sampling.
+fn chain_of_four_sampled(training: Option<usize>) -> Design {
     let mut s =
         "name = \"chain4\"\ncatalog = \"../catalogs/chain.toml\"\n[robot]\ngravity = [0.0, -9.81]\n".to_string();
     for i in 0..4 {
@@ -232,7 +238,9 @@ fn chain_of_four() -> Design {
     }
     s += "[equilibrium]\nq = [\"-pi/3\", \"pi/6\", \"pi/6\", \"pi/6\"]\n[region]\nkind = \"ball\"\nradius = 0.15\n";
     s += "[fit]\nfrequency = 6.0\nsolver = \"qp\"\nmax_elements = 0\nbuilds = 0\n";
-    s += "training_directions = 72\nevaluation_directions = 360\n";
+    if let Some(t) = training {
+        s += &format!("training_directions = {t}\nevaluation_directions = {}\n", 5 * t);
+    }
     Design::parse(&repo("designs/chain4.toml"), &s).unwrap()
 }
 
@@ -274,6 +282,34 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
         qp_screened(gram, &problem.equalities, &[], &vec![None; p], 0.0, &QpSettings::default(), &start).unwrap();
     assert!(exact.k.iter().all(|&k| k >= 0.0));
     assert!(exact.max_equality_residual < 1e-12, "equality residual {:e}", exact.max_equality_residual);
+    let (a, b) = (gram.objective(&exact.k), gram.objective(&screened.solution.k));
+    assert!((a - b).abs() < 2e-3 * b, "objectives {a:e} (Lawson–Hanson) and {b:e} (working set)");
+}
+
+/// Rounding can make the Lawson–Hanson iteration cycle: the chain of four at its default sampling
+/// (34 560 rows, G from the rows' factors) returned to a passive set it had left and went round
+/// until its step limit, leaving the answer to the working set. Once a passive set repeats, the
+/// first eligible unknown enters (Bland's rule): it answers, meets the equalities to round-off
+/// and reaches the working set's optimum.
+#[test]
+fn the_exact_solve_does_not_cycle() {
+    use springfit::fit::Prepared;
+    use springfit::fit::solve::nnls_support;
+    use springfit::solve::lawson_hanson::nnls_equalities;
+    use springfit::solve::screen::qp_screened;
+
+    let design = chain_of_four_sampled(None);
+    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    let (problem, gram) = (prepared.problem(), prepared.gram());
+    let p = gram.dim();
+    assert!(p >= 600, "{p} candidates: below the switch");
+    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
+    let exact = nnls_equalities(gram, &problem.equalities, 0.0, &start).expect("an answer it vouches for");
+    assert!(exact.iterations < 4 * p as u32, "{} steps", exact.iterations);
+    assert!(exact.max_equality_residual < 1e-12, "equality residual {:e}", exact.max_equality_residual);
+    let screened =
+        qp_screened(gram, &problem.equalities, &[], &vec![None; p], 0.0, &QpSettings::default(), &start).unwrap();
     let (a, b) = (gram.objective(&exact.k), gram.objective(&screened.solution.k));
     assert!((a - b).abs() < 2e-3 * b, "objectives {a:e} (Lawson–Hanson) and {b:e} (working set)");
 }

@@ -282,6 +282,12 @@ pub fn nnls_equalities(gram: &Gram, equalities: &[LinearGroup], l1: f64, start: 
     let mut refused = vec![false; p];
     let mut last_entered: Option<usize> = None;
     let mut steps = 0u32;
+    // Passive sets met at a feasible point. Meeting one again means rounding has made the
+    // iteration cycle (each feasible step lowers the objective in exact arithmetic); from then
+    // on the unknown that enters is the first eligible one (Bland's rule) instead of the one of
+    // largest reduced gradient. Runs that never repeat a set are unchanged.
+    let mut seen: std::collections::HashSet<Vec<usize>> = std::collections::HashSet::new();
+    let mut bland = false;
     for _ in 0..4 * p + 20 {
         if factor.passive.is_empty() {
             return None;
@@ -298,6 +304,11 @@ pub fn nnls_equalities(gram: &Gram, equalities: &[LinearGroup], l1: f64, start: 
             if last_entered.take().is_some() {
                 refused.iter_mut().for_each(|r| *r = false);
             }
+            let mut set = factor.passive.clone();
+            set.sort_unstable();
+            if !seen.insert(set) {
+                bland = true;
+            }
             // Reduced gradient cⱼ − (G x)ⱼ − (Eᵀν)ⱼ of every unknown outside P.
             let support: Vec<(usize, f64)> = factor.passive.iter().map(|&j| (j, x[j])).collect();
             let entering = (0..p)
@@ -309,7 +320,7 @@ pub fn nnls_equalities(gram: &Gram, equalities: &[LinearGroup], l1: f64, start: 
                     (pb.c[j] - gx - en, j)
                 })
                 .filter(|&(w, _)| w > tol)
-                .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
+                .max_by(|a, b| if bland { b.1.cmp(&a.1) } else { a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)) });
             match entering {
                 Some((_, j)) => {
                     in_p[j] = true;
