@@ -121,10 +121,10 @@ pub fn coupling_classes(candidates: &[Candidate]) -> (Vec<usize>, Vec<&[f64]>) {
     (class_of, classes)
 }
 
-/// The tangentiality rows' factors by coupling (see [`crate::solve::lsq::CoupledRows`]): each coupling's a·q at
-/// each sample and its weighted a·w_c at each row; with them a candidate's slope at a sample is
-/// one evaluation of its profile. Kept beside the rows so that the normal equations of a large
-/// fit cost one product per sample rather than n − 1 ([`crate::solve::lsq::CoupledRows`]).
+/// The tangentiality rows' factors by coupling: each coupling's a·q at each sample and its
+/// weighted a·w_c at each row; with them a candidate's slope at a sample is one evaluation of its
+/// profile. Kept beside the rows so that the normal equations of a large fit cost one product per
+/// sample rather than n − 1 ([`crate::solve::lsq::CoupledRows`]).
 pub struct RowFactors {
     /// a·q of every coupling (outer) at every sample (inner).
     pub at_q: Vec<Vec<f64>>,
