@@ -46,6 +46,9 @@ pub struct Workspace {
     pub(crate) h: Vec<f64>,
     pub(crate) a: Vec<f64>,
     pub(crate) tmp: Vec<f64>,
+    pub(crate) tmp2: Vec<f64>,
+    /// Link-angle rates φ̇ = S q̇ (planar chains).
+    pub(crate) rate: Vec<f64>,
     /// n × n scratch matrices.
     pub(crate) da_dq: Vec<f64>,
     pub(crate) da_dqd: Vec<f64>,
@@ -67,16 +70,18 @@ impl Workspace {
         linalg::cholesky_solve(&self.m, self.h.len(), b);
     }
 
-    /// Scratch for n joints and `pairs` planar link pairs.
-    pub(crate) fn new(n: usize, pairs: usize) -> Self {
+    /// Scratch for n joints and `trig` entries of sines and cosines (n² for a planar chain).
+    pub(crate) fn new(n: usize, trig: usize) -> Self {
         Workspace {
             m: vec![0.0; n * n],
             m_full: vec![0.0; n * n],
-            sin: vec![0.0; pairs],
-            cos: vec![0.0; pairs],
+            sin: vec![0.0; trig],
+            cos: vec![0.0; trig],
             h: vec![0.0; n],
             a: vec![0.0; n],
             tmp: vec![0.0; n],
+            tmp2: vec![0.0; n],
+            rate: vec![0.0; n],
             da_dq: vec![0.0; n * n],
             da_dqd: vec![0.0; n * n],
         }

@@ -2,22 +2,45 @@
 //!
 //! Coordinates follow `docs/theory.md`: q₁ is the absolute angle of link 1 (from the x axis), qᵢ for
 //! i > 1 the angle of link i relative to link i−1. The absolute angle of link i is therefore
-//! φᵢ = q₁ + … + qᵢ.
+//! φᵢ = q₁ + … + qᵢ, φ = S q with S the lower-triangular matrix of ones.
 //!
-//! # Why the mass matrix is stored as cosine terms
+//! # Two forms of the same closed forms
 //!
-//! The centre of mass of link i moves with ∂cᵢ/∂qⱼ = Σ_{t=j..i} r_{it} e⊥(φ_t), where r_{it} is
-//! the length of link t (t < i) or the centre-of-mass distance of link i (t = i). Every entry of
-//! M(q) = Σ mᵢ Jᵢᵀ Jᵢ + Iᵢ J_ωᵢᵀ J_ωᵢ is then a constant plus a sum of cos(φ_b − φ_a) over link
-//! pairs a < b, and φ_b − φ_a = q_{a+1} + … + q_b is a sum of joint angles. [`PlanarChain::new`]
-//! precomputes one coefficient matrix per pair, so M, ∂M/∂q, the Coriolis term and everything the
-//! variational equations need are exact closed forms evaluated with one `sin_cos` per link pair and
-//! no allocation: the geodesic integrator calls them millions of times.
+//! The centre of mass of link i moves with velocity Σ_{t ≤ i} r_{it} φ̇_t e⊥(φ_t), where r_{it} is
+//! the length of link t (t < i) or the centre-of-mass distance of link i (t = i). The kinetic
+//! energy in link angles is therefore ½ φ̇ᵀ (K ∘ C(φ)) φ̇ with one constant symmetric matrix
+//! K_{tu} = Σ_{i ≥ max(t,u)} mᵢ r_{it} r_{iu} + δ_{tu} I_t and C_{tu} = cos(φ_t − φ_u), and
+//! M(q) = Sᵀ (K ∘ C) S. Every entry of M is a constant plus a sum of cos(φ_b − φ_a) over link
+//! pairs a < b, and φ_b − φ_a = q_{a+1} + … + q_b is a sum of joint angles. Two evaluations of M,
+//! ∂M/∂q, the Coriolis term and the Jacobians of the variational equations follow, both exact and
+//! allocation-free (the geodesic integrator calls them millions of times):
+//!
+//! - the **pair form** (`pairs.rs`) stores one constant n × n matrix per link pair, so that
+//!   M = M₀ + Σ W_{ab} cos(φ_b − φ_a): one `sin_cos` per pair and O(n⁴) arithmetic;
+//! - the **link-angle form** (`link_angles.rs`) works with K itself: the Coriolis term in link
+//!   angles is h^φ_s = Σ_t K_{st} sin(φ_s − φ_t) φ̇_t², h = Sᵀ h^φ, and the Jacobians are Sᵀ (·) S
+//!   of n × n link-angle matrices, each a 2-D suffix sum: n − 1 `sin_cos` calls and O(n²)
+//!   arithmetic besides the O(n³) Cholesky factor and Jacobi-field product.
+//!
+//! Chains of up to [`PAIR_FORM_MAX_JOINTS`] joints use the pair form, longer ones the link-angle
+//! form. The two agree to rounding (tested), but not bit for bit, and a fit that selects a few
+//! springs among hundreds can take another path on last-bit differences: the two- and three-joint
+//! designs the documentation quotes were fitted with the pair form, which at those sizes is as
+//! fast (two joints: the log map 30 µs a point against 37 µs). From four joints on the link-angle
+//! form wins and the gap grows: the seven-link chain's region check takes 2.4 s against 5.0 s.
+
+mod link_angles;
+mod pairs;
 
 use nalgebra::{DMatrix, DVector};
 
+use self::link_angles::LinkAngleForm;
+use self::pairs::PairForm;
 use super::Workspace;
 use crate::numerics::linalg;
+
+/// The largest chain evaluated in the pair form (see the module doc).
+pub const PAIR_FORM_MAX_JOINTS: usize = 3;
 
 /// One rigid link of the chain.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,27 +55,11 @@ pub struct Link {
     pub inertia: f64,
 }
 
-/// One link pair (a < b) and its share of the mass matrix: `M += w · cos(ψ)`,
-/// ψ = φ_b − φ_a = Σ_{p=a+1..=b} q_p (0-based indices).
+/// Which form evaluates the dynamics (see the module doc).
 #[derive(Debug, Clone)]
-struct PairTerm {
-    a: usize,
-    b: usize,
-    /// Column-major n × n coefficient matrix (symmetric).
-    w: Vec<f64>,
-}
-
-impl PairTerm {
-    /// ∂ψ/∂q_p: 1 for a < p ≤ b, else 0.
-    #[inline]
-    fn touches(&self, p: usize) -> bool {
-        p > self.a && p <= self.b
-    }
-
-    #[inline]
-    fn angle(&self, q: &[f64]) -> f64 {
-        q[self.a + 1..=self.b].iter().sum()
-    }
+enum Form {
+    Pairs(PairForm),
+    LinkAngles(LinkAngleForm),
 }
 
 /// A planar serial chain of n ≥ 1 revolute links with optional gravity.
@@ -60,9 +67,7 @@ impl PairTerm {
 pub struct PlanarChain {
     links: Vec<Link>,
     gravity: [f64; 2],
-    /// Constant part of M (column-major n × n).
-    m_const: Vec<f64>,
-    pairs: Vec<PairTerm>,
+    form: Form,
     /// G_t = Σ_{i ≥ t} m_i r_{it}: the mass-weighted lever of link t's direction in U_g.
     gravity_lever: Vec<f64>,
 }
@@ -71,41 +76,20 @@ impl PlanarChain {
     /// Builds the chain. `gravity` is the gravity vector in the plane of the arm in m/s²
     /// (e.g. `[0.0, -9.81]`); the caller validates that masses and lengths are positive.
     pub fn new(links: Vec<Link>, gravity: [f64; 2]) -> Self {
+        let pairs = links.len() <= PAIR_FORM_MAX_JOINTS;
+        Self::with_form(links, gravity, pairs)
+    }
+
+    /// The chain in the pair form (`pairs`) or the link-angle form, whatever its length.
+    fn with_form(links: Vec<Link>, gravity: [f64; 2], pairs: bool) -> Self {
         let n = links.len();
         let r = |i: usize, t: usize| {
             if t < i { links[t].length } else { links[i].com }
         };
-        let mut m_const = vec![0.0; n * n];
-        let mut pairs: Vec<PairTerm> = Vec::new();
-        for a in 0..n {
-            for b in a + 1..n {
-                pairs.push(PairTerm { a, b, w: vec![0.0; n * n] });
-            }
-        }
-        let pair_index = |a: usize, b: usize| -> usize {
-            // Index of (a, b), a < b, in the order generated above.
-            a * n - a * (a + 1) / 2 + (b - a - 1)
-        };
-        for (i, link) in links.iter().enumerate() {
-            for j in 0..=i {
-                for k in 0..=i {
-                    m_const[j + n * k] += link.inertia;
-                    for t in j..=i {
-                        for u in k..=i {
-                            let c = link.mass * r(i, t) * r(i, u);
-                            if t == u {
-                                m_const[j + n * k] += c;
-                            } else {
-                                let (a, b) = if t < u { (t, u) } else { (u, t) };
-                                pairs[pair_index(a, b)].w[j + n * k] += c;
-                            }
-                        }
-                    }
-                }
-            }
-        }
+        let form =
+            if pairs { Form::Pairs(PairForm::new(&links, r)) } else { Form::LinkAngles(LinkAngleForm::new(&links, r)) };
         let gravity_lever = (0..n).map(|t| (t..n).map(|i| links[i].mass * r(i, t)).sum()).collect();
-        PlanarChain { links, gravity, m_const, pairs, gravity_lever }
+        PlanarChain { links, gravity, form, gravity_lever }
     }
 
     /// The paper's double pendulum (appendix, no gravity): m = 1 kg, l = 2 m, centre of mass at
@@ -137,7 +121,7 @@ impl PlanarChain {
 
     /// Scratch space sized for this chain.
     pub fn workspace(&self) -> Workspace {
-        Workspace::new(self.dof(), self.pairs.len())
+        Workspace::new(self.dof(), self.dof() * self.dof())
     }
 
     /// Absolute link angles φᵢ = q₁ + … + qᵢ.
@@ -173,19 +157,25 @@ impl PlanarChain {
     }
 
     fn fill_trig(&self, q: &[f64], ws: &mut Workspace) {
-        for (k, pair) in self.pairs.iter().enumerate() {
-            let (s, c) = pair.angle(q).sin_cos();
-            ws.sin[k] = s;
-            ws.cos[k] = c;
+        match &self.form {
+            Form::Pairs(f) => f.fill_trig(q, ws),
+            Form::LinkAngles(f) => f.fill_trig(q, ws),
         }
     }
 
+    /// M into `ws.m` (after [`Self::fill_trig`]).
     fn fill_mass(&self, ws: &mut Workspace) {
-        ws.m.copy_from_slice(&self.m_const);
-        for (pair, &c) in self.pairs.iter().zip(&ws.cos) {
-            for (m, w) in ws.m.iter_mut().zip(&pair.w) {
-                *m += w * c;
-            }
+        match &self.form {
+            Form::Pairs(f) => f.fill_mass(ws),
+            Form::LinkAngles(f) => f.fill_mass(ws, self.dof()),
+        }
+    }
+
+    /// h(q, q̇) into `ws.h` (after [`Self::fill_trig`]).
+    fn coriolis_into(&self, qd: &[f64], ws: &mut Workspace) {
+        match &self.form {
+            Form::Pairs(f) => f.coriolis(qd, ws),
+            Form::LinkAngles(f) => f.coriolis(qd, ws),
         }
     }
 
@@ -200,18 +190,12 @@ impl PlanarChain {
 
     /// The partial derivatives ∂M/∂q_p, p = 1..n.
     pub fn mass_matrix_derivatives(&self, q: &DVector<f64>) -> Vec<DMatrix<f64>> {
-        let n = self.dof();
-        let mut out = vec![DMatrix::zeros(n, n); n];
-        for pair in &self.pairs {
-            let s = pair.angle(q.as_slice()).sin();
-            let dw = DMatrix::from_column_slice(n, n, &pair.w) * (-s);
-            for (p, d) in out.iter_mut().enumerate() {
-                if pair.touches(p) {
-                    *d += &dw;
-                }
-            }
+        let mut ws = self.workspace();
+        self.fill_trig(q.as_slice(), &mut ws);
+        match &self.form {
+            Form::Pairs(f) => f.mass_derivatives(&ws, self.dof()),
+            Form::LinkAngles(f) => f.mass_derivatives(&ws, self.dof()),
         }
-        out
     }
 
     /// Christoffel symbols of the first kind, Γ_{ijk} = ½(∂_k M_ij + ∂_j M_ik − ∂_i M_jk),
@@ -226,29 +210,8 @@ impl PlanarChain {
     pub fn coriolis(&self, q: &DVector<f64>, qd: &DVector<f64>) -> DVector<f64> {
         let mut ws = self.workspace();
         self.fill_trig(q.as_slice(), &mut ws);
-        let mut h = vec![0.0; self.dof()];
-        self.coriolis_into(qd.as_slice(), &ws.sin, &mut h);
-        DVector::from_vec(h)
-    }
-
-    /// h = Σ_pairs −sin ψ (ψ̇ w q̇ − ½ (q̇ᵀ w q̇) d), d the indicator of the joints in ψ.
-    fn coriolis_into(&self, qd: &[f64], sin: &[f64], h: &mut [f64]) {
-        let n = self.dof();
-        h.fill(0.0);
-        for (pair, &s) in self.pairs.iter().zip(sin) {
-            let psi_dot = pair.angle(qd);
-            let mut quad = 0.0;
-            for j in 0..n {
-                let wq: f64 = (0..n).map(|k| pair.w[j + n * k] * qd[k]).sum();
-                quad += qd[j] * wq;
-                h[j] -= s * psi_dot * wq;
-            }
-            for (p, hp) in h.iter_mut().enumerate() {
-                if pair.touches(p) {
-                    *hp += 0.5 * s * quad;
-                }
-            }
-        }
+        self.coriolis_into(qd.as_slice(), &mut ws);
+        DVector::from_vec(ws.h.clone())
     }
 
     /// |g| Σ_t |G_t|: the largest |U_g| over all configurations in J, which also bounds every entry
@@ -318,7 +281,7 @@ impl PlanarChain {
         let (q, qd) = y[..2 * n].split_at(n);
         self.fill_trig(q, ws);
         self.fill_mass(ws);
-        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        self.coriolis_into(qd, ws);
         linalg::geodesic_accel(&mut ws.m, &ws.h, n, qd, dy)
     }
 
@@ -330,60 +293,9 @@ impl PlanarChain {
         if !self.geodesic_rhs(ws, y, dy) {
             return false;
         }
-        let qd = &y[n..2 * n];
-        ws.a.copy_from_slice(&dy[n..2 * n]);
-        // With d the joint indicator of a pair, s = sin ψ, c = cos ψ, ψ̇ = dᵀq̇, Q = q̇ᵀwq̇:
-        //   M ∂a/∂q  = Σ [ s (w a) + c (ψ̇ w q̇ − ½ Q d) ] dᵀ
-        //   M ∂a/∂q̇ = Σ s (w q̇ dᵀ + ψ̇ w − d (w q̇)ᵀ)
-        ws.da_dq.fill(0.0);
-        ws.da_dqd.fill(0.0);
-        for ((pair, &s), &c) in self.pairs.iter().zip(&ws.sin).zip(&ws.cos) {
-            let psi_dot = pair.angle(qd);
-            let w = &pair.w;
-            let mut quad = 0.0;
-            for j in 0..n {
-                let wq: f64 = (0..n).map(|k| w[j + n * k] * qd[k]).sum();
-                let wa: f64 = (0..n).map(|k| w[j + n * k] * ws.a[k]).sum();
-                ws.tmp[j] = wq;
-                quad += qd[j] * wq;
-                // Column vector for ∂a/∂q before the dᵀ: s·wa + c·ψ̇·wq (the −½Qd part below).
-                let col = s * wa + c * psi_dot * wq;
-                for p in (pair.a + 1)..=pair.b {
-                    ws.da_dq[j + n * p] += col;
-                    ws.da_dqd[j + n * p] += s * wq;
-                }
-                for k in 0..n {
-                    ws.da_dqd[j + n * k] += s * psi_dot * w[j + n * k];
-                }
-            }
-            for j in (pair.a + 1)..=pair.b {
-                for p in (pair.a + 1)..=pair.b {
-                    ws.da_dq[j + n * p] -= 0.5 * c * quad;
-                }
-                for k in 0..n {
-                    ws.da_dqd[j + n * k] -= s * ws.tmp[k];
-                }
-            }
-        }
-        // Solve M X = (…) column by column with the factor left in ws.m.
-        for col in 0..n {
-            linalg::cholesky_solve(&ws.m, n, &mut ws.da_dq[n * col..n * (col + 1)]);
-            linalg::cholesky_solve(&ws.m, n, &mut ws.da_dqd[n * col..n * (col + 1)]);
-        }
-        let off_q = 2 * n;
-        let off_qd = 2 * n + n * n;
-        // Φ̇_q = Φ_q̇
-        dy[off_q..off_qd].copy_from_slice(&y[off_qd..off_qd + n * n]);
-        // Φ̇_q̇ = ∂a/∂q Φ_q + ∂a/∂q̇ Φ_q̇
-        for col in 0..n {
-            for row in 0..n {
-                let mut acc = 0.0;
-                for k in 0..n {
-                    acc += ws.da_dq[row + n * k] * y[off_q + k + n * col]
-                        + ws.da_dqd[row + n * k] * y[off_qd + k + n * col];
-                }
-                dy[off_qd + row + n * col] = acc;
-            }
+        match &self.form {
+            Form::Pairs(f) => f.variational(ws, y, dy, n),
+            Form::LinkAngles(f) => f.variational(ws, y, dy, n),
         }
         true
     }
@@ -396,7 +308,7 @@ impl PlanarChain {
         self.fill_trig(q, ws);
         self.fill_mass(ws);
         ws.m_full.copy_from_slice(&ws.m);
-        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        self.coriolis_into(qd, ws);
         linalg::cholesky_in_place(&mut ws.m, n)
     }
 
@@ -435,7 +347,7 @@ impl PlanarChain {
         let n = self.dof();
         self.fill_trig(q, ws);
         self.fill_mass(ws);
-        self.coriolis_into(qd, &ws.sin, &mut ws.h);
+        self.coriolis_into(qd, ws);
         if !linalg::cholesky_in_place(&mut ws.m, n) {
             return false;
         }
@@ -463,6 +375,17 @@ mod tests {
         )
     }
 
+    /// Five unequal links: long enough that the angles between links compose over four joints.
+    fn five_link() -> PlanarChain {
+        let links = (0..5)
+            .map(|i| {
+                let f = 1.0 + 0.37 * i as f64;
+                Link { mass: 1.6 / f, length: 0.9 / f.sqrt(), com: 0.3 + 0.05 * i as f64, inertia: 0.07 / f }
+            })
+            .collect();
+        PlanarChain::new(links, [0.0, -9.81])
+    }
+
     /// Deterministic pseudo-random numbers in [-1, 1] for test points (no RNG crate needed).
     fn points(n: usize, count: usize) -> Vec<DVector<f64>> {
         let mut state = 0x9E37_79B9_7F4A_7C15_u64;
@@ -479,7 +402,7 @@ mod tests {
     }
 
     /// M from its definition Σ mᵢ JᵢᵀJᵢ + Iᵢ J_ωᵢᵀJ_ωᵢ with finite-difference Jacobians of the
-    /// centre-of-mass positions: an independent check of the cosine-term construction.
+    /// centre-of-mass positions: an independent check of the link-angle construction.
     fn mass_matrix_by_definition(chain: &PlanarChain, q: &DVector<f64>) -> DMatrix<f64> {
         let n = chain.dof();
         let h = 1e-6;
@@ -502,6 +425,35 @@ mod tests {
         m
     }
 
+    /// The pair form and the link-angle form are the same closed forms: on a chain of four
+    /// links (either form could serve) M, ∂M/∂q, h and both right-hand sides agree to rounding.
+    #[test]
+    fn pair_and_link_angle_forms_agree() {
+        let links = five_link().links()[..4].to_vec();
+        let pairs = PlanarChain::with_form(links.clone(), [0.0, -9.81], true);
+        let angles = PlanarChain::with_form(links, [0.0, -9.81], false);
+        assert!(matches!(pairs.form, Form::Pairs(_)) && matches!(angles.form, Form::LinkAngles(_)));
+        let n = 4;
+        let pts = points(n, 12);
+        for pair in pts.chunks(3) {
+            let (q, qd) = (&pair[0] * 3.0, &pair[1] * 2.0);
+            assert!((pairs.mass_matrix(&q) - angles.mass_matrix(&q)).amax() < 1e-13);
+            for (a, b) in pairs.mass_matrix_derivatives(&q).iter().zip(angles.mass_matrix_derivatives(&q)) {
+                assert!((a - b).amax() < 1e-13);
+            }
+            assert!((pairs.coriolis(&q, &qd) - angles.coriolis(&q, &qd)).amax() < 1e-12);
+            let mut y: Vec<f64> = q.iter().chain(qd.iter()).copied().collect();
+            y.extend(pair[2].iter().cycle().take(2 * n * n));
+            let (mut da, mut db) = (vec![0.0; y.len()], vec![0.0; y.len()]);
+            assert!(pairs.variational_rhs(&mut pairs.workspace(), &y, &mut da));
+            assert!(angles.variational_rhs(&mut angles.workspace(), &y, &mut db));
+            let scale = da.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            for (a, b) in da.iter().zip(&db) {
+                assert!((a - b).abs() < 1e-12 * scale, "{a} vs {b}");
+            }
+        }
+    }
+
     #[test]
     fn paper_mass_matrix_closed_form() {
         let chain = PlanarChain::paper_double_pendulum();
@@ -518,7 +470,7 @@ mod tests {
 
     #[test]
     fn mass_matrix_matches_definition_and_is_spd() {
-        for chain in [PlanarChain::paper_double_pendulum(), three_link()] {
+        for chain in [PlanarChain::paper_double_pendulum(), three_link(), five_link()] {
             let n = chain.dof();
             for q in points(n, 30) {
                 let q = q * 3.0;
@@ -534,17 +486,20 @@ mod tests {
 
     #[test]
     fn mass_matrix_derivatives_match_finite_differences() {
-        let chain = three_link();
-        let h = 1e-6;
-        for q in points(3, 10) {
-            let dm = chain.mass_matrix_derivatives(&q);
-            for p in 0..3 {
-                let mut qp = q.clone();
-                let mut qm = q.clone();
-                qp[p] += h;
-                qm[p] -= h;
-                let fd = (chain.mass_matrix(&qp) - chain.mass_matrix(&qm)) / (2.0 * h);
-                assert!((&dm[p] - fd).amax() < 1e-8);
+        for chain in [three_link(), five_link()] {
+            let n = chain.dof();
+            let h = 1e-6;
+            for q in points(n, 10) {
+                let q = q * 2.0;
+                let dm = chain.mass_matrix_derivatives(&q);
+                for p in 0..n {
+                    let mut qp = q.clone();
+                    let mut qm = q.clone();
+                    qp[p] += h;
+                    qm[p] -= h;
+                    let fd = (chain.mass_matrix(&qp) - chain.mass_matrix(&qm)) / (2.0 * h);
+                    assert!((&dm[p] - fd).amax() < 1e-8);
+                }
             }
         }
     }
@@ -578,20 +533,22 @@ mod tests {
 
     #[test]
     fn coriolis_equals_christoffel_contraction_and_skew_property() {
-        let chain = three_link();
-        let pts = points(3, 20);
-        for pair in pts.chunks(2) {
-            let (q, qd) = (&pair[0], &pair[1]);
-            let gamma = chain.christoffel(q);
-            let h = chain.coriolis(q, qd);
-            for i in 0..3 {
-                let expected = qd.dot(&(&gamma[i] * qd));
-                assert!((h[i] - expected).abs() < 1e-12);
+        for chain in [three_link(), five_link()] {
+            let n = chain.dof();
+            let pts = points(n, 20);
+            for pair in pts.chunks(2) {
+                let (q, qd) = (&pair[0], &pair[1]);
+                let gamma = chain.christoffel(q);
+                let h = chain.coriolis(q, qd);
+                for i in 0..n {
+                    let expected = qd.dot(&(&gamma[i] * qd));
+                    assert!((h[i] - expected).abs() < 1e-12);
+                }
+                // Energy identity: q̇ᵀ h = ½ q̇ᵀ Ṁ q̇ (Ṁ − 2C skew-symmetric along q̇).
+                let dm = chain.mass_matrix_derivatives(q);
+                let mdot = (0..n).fold(DMatrix::zeros(n, n), |acc, p| acc + &dm[p] * qd[p]);
+                assert!((qd.dot(&h) - 0.5 * qd.dot(&(mdot * qd))).abs() < 1e-12);
             }
-            // Energy identity: q̇ᵀ h = ½ q̇ᵀ Ṁ q̇ (Ṁ − 2C skew-symmetric along q̇).
-            let dm = chain.mass_matrix_derivatives(q);
-            let mdot = (0..3).fold(DMatrix::zeros(3, 3), |acc, p| acc + &dm[p] * qd[p]);
-            assert!((qd.dot(&h) - 0.5 * qd.dot(&(mdot * qd))).abs() < 1e-12);
         }
     }
 
@@ -643,40 +600,41 @@ mod tests {
 
     #[test]
     fn variational_rhs_matches_finite_differences_of_geodesic_rhs() {
-        let chain = three_link();
-        let n = 3;
-        let mut ws = chain.workspace();
-        let pts = points(3, 8);
-        for pair in pts.chunks(2) {
-            let (q, qd) = (&pair[0], &pair[1]);
-            // Φ = random but fixed.
-            let phi: Vec<f64> = (0..2 * n * n).map(|i| ((i * 7 % 11) as f64 - 5.0) / 5.0).collect();
-            let mut y: Vec<f64> = q.iter().chain(qd.iter()).copied().collect();
-            y.extend_from_slice(&phi);
-            let mut dy = vec![0.0; y.len()];
-            assert!(chain.variational_rhs(&mut ws, &y, &mut dy));
-            // Directional derivative of a(q, q̇) along each column of Φ by finite differences.
-            let h = 1e-6;
-            for col in 0..n {
-                let dq: Vec<f64> = (0..n).map(|r| phi[r + n * col]).collect();
-                let dqd: Vec<f64> = (0..n).map(|r| phi[n * n + r + n * col]).collect();
-                let shifted = |sign: f64| {
-                    let mut ys = vec![0.0; 2 * n];
+        for chain in [three_link(), five_link()] {
+            let n = chain.dof();
+            let mut ws = chain.workspace();
+            let pts = points(n, 8);
+            for pair in pts.chunks(2) {
+                let (q, qd) = (&pair[0], &pair[1]);
+                // Φ = random but fixed.
+                let phi: Vec<f64> = (0..2 * n * n).map(|i| ((i * 7 % 11) as f64 - 5.0) / 5.0).collect();
+                let mut y: Vec<f64> = q.iter().chain(qd.iter()).copied().collect();
+                y.extend_from_slice(&phi);
+                let mut dy = vec![0.0; y.len()];
+                assert!(chain.variational_rhs(&mut ws, &y, &mut dy));
+                // Directional derivative of a(q, q̇) along each column of Φ by finite differences.
+                let h = 1e-6;
+                for col in 0..n {
+                    let dq: Vec<f64> = (0..n).map(|r| phi[r + n * col]).collect();
+                    let dqd: Vec<f64> = (0..n).map(|r| phi[n * n + r + n * col]).collect();
+                    let shifted = |sign: f64| {
+                        let mut ys = vec![0.0; 2 * n];
+                        for r in 0..n {
+                            ys[r] = q[r] + sign * h * dq[r];
+                            ys[n + r] = qd[r] + sign * h * dqd[r];
+                        }
+                        let mut d = vec![0.0; 2 * n];
+                        let mut ws2 = chain.workspace();
+                        assert!(chain.geodesic_rhs(&mut ws2, &ys, &mut d));
+                        d
+                    };
+                    let (dp, dm) = (shifted(1.0), shifted(-1.0));
                     for r in 0..n {
-                        ys[r] = q[r] + sign * h * dq[r];
-                        ys[n + r] = qd[r] + sign * h * dqd[r];
+                        let fd = (dp[n + r] - dm[n + r]) / (2.0 * h);
+                        let an = dy[2 * n + n * n + r + n * col];
+                        assert!((fd - an).abs() < 1e-6, "row {r} col {col}: {fd} vs {an}");
+                        assert_eq!(dy[2 * n + r + n * col], dqd[r]);
                     }
-                    let mut d = vec![0.0; 2 * n];
-                    let mut ws2 = chain.workspace();
-                    assert!(chain.geodesic_rhs(&mut ws2, &ys, &mut d));
-                    d
-                };
-                let (dp, dm) = (shifted(1.0), shifted(-1.0));
-                for r in 0..n {
-                    let fd = (dp[n + r] - dm[n + r]) / (2.0 * h);
-                    let an = dy[2 * n + n * n + r + n * col];
-                    assert!((fd - an).abs() < 1e-6, "row {r} col {col}: {fd} vs {an}");
-                    assert_eq!(dy[2 * n + r + n * col], dqd[r]);
                 }
             }
         }
