@@ -4,9 +4,10 @@
 //!
 //! `cargo bench --bench scaling`. `SCALING_MAX=n` stops at n joints (7 by default);
 //! `SCALING_DIRECTIONS=t` fixes the training directions at t and the held-out at 5t (the
-//! default: the design's own rule, 72 · 2^(n−2) training). Each n is fitted once (the times are
-//! seconds, not microseconds): candidates, rows, the time split, the springs used and the
-//! held-out p99, then the exponents of the fitted laws time ∝ n^a and solve ∝ m^b.
+//! default: the design's own rule, 72 · 2^(n−2) training up to five joints, 576 from there on).
+//! Each n is fitted once (the times are seconds, not microseconds): candidates, rows, the time
+//! split, the springs used and the held-out p99, then the exponents of the fitted laws
+//! time ∝ n^a and solve ∝ m^b.
 //! `SCALING_COMPARE=n` also solves the QPs of the chains up to n joints both ways, Clarabel over
 //! every candidate and the working set (`solve::screen`), and prints both times, the objectives
 //! and the working set, then the Lawson–Hanson solve the fit now uses above 600 candidates

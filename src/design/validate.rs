@@ -91,8 +91,10 @@ pub fn validate(design: &Design) -> Result<Validated> {
 
 /// Bytes the fit's dense problem takes at most: the weighted rows (one per training sample and
 /// direction of [γ̇]^⊥, n − 1 per sample) × the candidates twice (the rows and the transpose the
-/// normal equations are formed from), and the Gram matrix, in f64. `ur5_six` with its default
-/// 1152 training directions: 4.33 GiB by this count, 4.28 GiB peak resident measured.
+/// normal equations are formed from), and the Gram matrix, in f64: an upper bound. `ur5_six`
+/// with 1152 training directions: 4.33 GiB by this count, 4.28 GiB peak resident measured when
+/// the rows were still copied; with its default 576 about 2.4 GiB by this count, 1.41 GiB
+/// measured.
 pub fn fit_memory(design: &Design, catalog: &Catalog) -> u64 {
     let s = &design.fit;
     let rows =

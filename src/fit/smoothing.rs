@@ -26,9 +26,10 @@ pub const GROUP_RIDGE: f64 = 1e-9;
 pub const AUTO_SMOOTHING: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
 
 /// The most directions of the validation fan: the held-out count of three joints. It ranks five
-/// weights by one statistic, which 72 000 samples estimate well; the held-out fan of six joints
-/// (5760 directions) would trace and judge eight times as many geodesics five times over for
-/// the choice (the six-joint UR5's cams: 15 s less, held-out p99 1.4567° against 1.4578°).
+/// weights by one statistic, which 72 000 samples estimate well; the held-out fan of five and
+/// more joints (2880 directions; 5760 at six joints when this was measured) would trace and
+/// judge four to eight times as many geodesics five times over for the choice (the six-joint
+/// UR5's cams: 15 s less, held-out p99 1.4567° against 1.4578°).
 pub const MAX_VALIDATION_DIRECTIONS: usize = 720;
 
 /// The groups' smoothing penalty (a cam's ∫V‴² dx, see [`crate::elements::group::Shape`]) as rows
