@@ -11,7 +11,10 @@
 //! `SCALING_COMPARE=n` also solves the QPs of the chains up to n joints both ways, Clarabel over
 //! every candidate and the working set (`solve::screen`), and prints both times, the objectives
 //! and the working set, then the Lawson–Hanson solve the fit now uses above 600 candidates
-//! (`solve::lawson_hanson`) from the same start. Figures in BENCHMARKS.md ("Fit time against the number of joints").
+//! (`solve::lawson_hanson`) from the same start. `SCALING_CHECK=1` times only the region check
+//! of each chain instead (the design's default count of directions, each with its n Jacobi
+//! fields; the median of three runs), on one thread and on two. Figures in BENCHMARKS.md ("Fit
+//! time against the number of joints").
 
 use std::path::Path;
 use std::time::Instant;
@@ -21,6 +24,7 @@ use springfit::elements::catalog::Catalog;
 use springfit::fit::Prepared;
 use springfit::fit::run::fit;
 use springfit::fit::solve::nnls_support;
+use springfit::geodesic::region::check_region;
 use springfit::solve::lawson_hanson::nnls_equalities;
 use springfit::solve::qp::{QpSettings, qp};
 use springfit::solve::screen::qp_screened;
@@ -107,9 +111,38 @@ fn compare(design: &Design, catalog: &Catalog) {
     );
 }
 
+/// The region check of the chains of 2 … `max` links: its directions and the median of three
+/// runs on one thread and on two.
+fn region_checks(root: &Path, max: usize) {
+    println!("region check of the planar chains, r = 0.15 (median of three runs)");
+    println!("| n | directions | 1 thread s | 2 threads s |");
+    for n in 2..=max {
+        let path = root.join(format!("designs/chain{n}.toml"));
+        let design = Design::parse(&path, &chain_design(n, None)).unwrap();
+        let time = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut t: Vec<f64> = (0..3)
+                .map(|_| {
+                    let t0 = Instant::now();
+                    pool.install(|| check_region(&design.chain, &design.q_eq, &design.region, &design.geodesics))
+                        .unwrap();
+                    t0.elapsed().as_secs_f64()
+                })
+                .collect();
+            t.sort_by(f64::total_cmp);
+            t[1]
+        };
+        println!("| {n} | {} | {:.2} | {:.2} |", design.geodesics.check_count(n), time(1), time(2));
+    }
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let max: usize = std::env::var("SCALING_MAX").ok().and_then(|v| v.parse().ok()).unwrap_or(7);
+    if std::env::var("SCALING_CHECK").is_ok_and(|v| v == "1") {
+        region_checks(root, max);
+        return;
+    }
     let directions: Option<usize> = std::env::var("SCALING_DIRECTIONS").ok().and_then(|v| v.parse().ok());
     let compare_to: usize = std::env::var("SCALING_COMPARE").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
     let sampling = directions.map_or("the default sampling".to_string(), |t| format!("{t} training directions"));
