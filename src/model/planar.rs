@@ -27,7 +27,8 @@
 //! springs among hundreds can take another path on last-bit differences: the two- and three-joint
 //! designs the documentation quotes were fitted with the pair form, which at those sizes is as
 //! fast (two joints: the log map 30 µs a point against 37 µs). From four joints on the link-angle
-//! form wins and the gap grows: the seven-link chain's region check takes 2.4 s against 5.0 s.
+//! form wins and the gap grows: the seven-link chain's region check takes 3.8 s against 8.5 s on
+//! one thread (`SCALING_CHECK=1 cargo bench --bench scaling`).
 
 mod link_angles;
 mod pairs;
