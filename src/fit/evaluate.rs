@@ -5,16 +5,17 @@ use super::outcome::Evaluation;
 use crate::design::Design;
 use crate::error::Result;
 use crate::geodesic::Fan;
-use crate::potential::{Potential, SpringSet};
+use crate::potential::{CouplingSet, Potential, SpringSet};
 use crate::residual::{band_stats, fan_angles_and_descents, stats};
 
 /// Residuals and checks of a spring set on a fan (held-out geodesics): the figures users compare.
 pub fn evaluate(design: &Design, omega: f64, bands: usize, springs: &SpringSet, fan: &Fan) -> Result<Evaluation> {
     let chain = &design.chain;
     let q0 = design.q_eq.as_slice();
-    // Grouped for the thousands of samples; the checks at q_eq element by element, as before.
-    let grouped = springs.grouped();
-    let (residuals, monotone_violations) = fan_angles_and_descents(chain, fan, &grouped)?;
+    // Grouped by coupling for the hundreds of thousands of samples (one sine and one axpy per
+    // coupling, see `CouplingSet`); the checks at q_eq element by element, as before.
+    let coupled = CouplingSet::new(springs);
+    let (residuals, monotone_violations) = fan_angles_and_descents(chain, fan, &coupled)?;
     let grad = springs.gradient(q0)? + chain.gravity_gradient(q0);
     let hess = springs.hessian(q0)? + chain.gravity_hessian(q0);
     let target = chain.mass_matrix(&design.q_eq) * omega.powi(2);
