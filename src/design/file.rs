@@ -45,9 +45,9 @@ pub struct DesignFile {
     pub identify: IdentifySettings,
     /// How the fitted elements become springs to wind or order.
     pub parts: super::parts::PartsSettings,
-    /// Whether the file has a `[sweep]` table (set by [`Design::parse`]): a sweep scenario the
-    /// user named and the design lacks is an error, the default one missing only a warning (a
-    /// design may never be swept).
+    /// Whether the file has a `[sweep]` table (set by [`crate::design::Design::parse`]): a
+    /// sweep scenario the user named and the design lacks is an error, the default one missing
+    /// only a warning (a design may never be swept).
     #[serde(skip)]
     pub sweep_given: bool,
 }

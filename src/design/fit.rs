@@ -161,8 +161,8 @@ impl Default for FitSettings {
 
 impl FitSettings {
     /// The training geodesics of an arm of `n` joints: `training_directions`, or when it is 0
-    /// 72 doubled for every joint beyond the second up to the fifth ([`FAN_GROWTH`],
-    /// [`FAN_GROWTH_UNTIL`]): 72, 144, 288, 576, then 576.
+    /// 72 doubled for every joint beyond the second up to the fifth (`FAN_GROWTH`,
+    /// `FAN_GROWTH_UNTIL`): 72, 144, 288, 576, then 576.
     pub fn training_count(&self, n: usize) -> usize {
         if self.training_directions == 0 {
             crate::geodesic::directions::directions_for_joints(72, n.min(FAN_GROWTH_UNTIL), FAN_GROWTH)

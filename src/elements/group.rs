@@ -11,7 +11,8 @@
 //! - the solvers may merge each (+, −) pair into one signed unknown, and pin one coefficient when
 //!   the whole part is in play and a uniform shift of its coefficients changes nothing
 //!   ([`Group::uniform_gauge`]: Σⱼ Bⱼ = 1 for a cam);
-//! - its smoothing penalty is a set of rows over its signed coefficients ([`Group::smoothing`]);
+//! - its smoothing penalty is a set of rows over its signed coefficients
+//!   ([`Group::roughness_rows`]);
 //! - the bill of materials gives it one row, its members' rows named `C01.07+` (prefix, group,
 //!   coefficient, sign).
 //!

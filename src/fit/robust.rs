@@ -49,7 +49,7 @@
 //!   q_eq); the trims are re-relaxed at the build's equilibrium, x₀ⱼ → x₀ⱼ + aⱼ·Δq, and
 //!   Dⱼ = ∂(rows of trim j)/∂x₀ⱼ (exact by a difference: a linear spring's rows are linear in x₀);
 //! * Δtᵢ: the trims re-set so that ∇²U_rest(q′) + Σⱼ tⱼ aⱼaⱼᵀ = w² M(q′) again. To first order
-//!   the mismatch they answer is Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ[l] (Hᵢ = ∇²uᵢ(q_eq),
+//!   the mismatch they answer is Eᵢ = Hᵢ + Σ_l (∂H_rest/∂q_l − w² ∂M/∂q_l) Δqᵢ\[l\] (Hᵢ = ∇²uᵢ(q_eq),
 //!   derivatives by central differences), and the answer is linear in it: Δtᵢ =
 //!   [`crate::elements::trim::interior_change`] (Σ Δtⱼ aⱼaⱼᵀ − Δw² M = −Eᵢ with the least ‖Δt‖, w² free;
 //!   the ranges are ignored at first order); A_trim,j is trim j's column of the rows.

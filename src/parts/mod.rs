@@ -388,7 +388,7 @@ pub fn choose(
 }
 
 /// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
-/// gives (and x₀ itself): its pitch curve, pressure angles and follower, for [`cubic_cam`] and for
+/// gives (and x₀ itself): its pitch curve, pressure angles and follower, for `cubic_cam` and for
 /// the drawing `cams/<id>.svg`. A cubic family states no cam geometry, so the cam catalogue's
 /// defaults apply, as for a cam whose family is unknown. Returns the span of x the cam covers
 /// with it.

@@ -7,7 +7,7 @@
 
 use std::collections::HashMap;
 
-/// Polylines of z(x, y) = level; `z` is y-major: z[j * nx + i] at (x[i], y[j]).
+/// Polylines of z(x, y) = level; `z` is y-major: `z[j * nx + i]` at (`x[i]`, `y[j]`).
 pub fn isolines(x: &[f64], y: &[f64], z: &[f64], level: f64) -> Vec<Vec<(f64, f64)>> {
     let (nx, ny) = (x.len(), y.len());
     if nx < 2 || ny < 2 || z.len() != nx * ny {

@@ -135,7 +135,7 @@ pub const FILES: &[&str] = &[
 pub const SHARD_FILES: &[&str] = &["sweep_shard.json"];
 
 /// Writes everything `springfit sweep` writes into the folder `target` under `plan` ([`FILES`]):
-/// the files of [`write`] and `report.html`, staged and committed at once (the command and the
+/// the files of [`write()`] and `report.html`, staged and committed at once (the command and the
 /// Python package's `Sweep.write`).
 pub fn write_folder(
     target: &std::path::Path,

@@ -91,7 +91,7 @@ impl Gram {
 
     /// The normal equations of `a` (the rows `coupled` describes) and `b`, G from the factors:
     /// r times fewer multiplications than AᵀA from the rows (r = n − 1 rows per sample in the
-    /// fit: at seven joints 6×). Chunks of [`COUPLED_CHUNK`] samples, [`GRAM_WAVE`] at a time
+    /// fit: at seven joints 6×). Chunks of `COUPLED_CHUNK` samples, [`GRAM_WAVE`] at a time
     /// in parallel, added in chunk order: the bits do not depend on the thread count. They are
     /// not those of [`Gram::from_rows`] (another summation order), which is why the fit uses
     /// this only above [`GRAM_BLOCK`] rows, where the blockwise product had already changed

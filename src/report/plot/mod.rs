@@ -11,7 +11,7 @@
 //! values ≤ 0 are left out, histogram bars start at the bottom of the axis).
 //!
 //! PNG text: plotters 0.3.7 places each ab_glyph glyph at the truncated pen position and drops
-//! the glyph's left side bearing, so letters are unevenly spaced. [`TextFix`] wraps the bitmap
+//! the glyph's left side bearing, so letters are unevenly spaced. `TextFix` wraps the bitmap
 //! backend and draws text itself with the bearings and a fractional pen.
 //!
 //! Degenerate data never panics: non-finite values are skipped, a zero range is padded, empty
