@@ -212,7 +212,7 @@ impl PlanarChain {
         let mut ws = self.workspace();
         self.fill_trig(q.as_slice(), &mut ws);
         self.coriolis_into(qd.as_slice(), &mut ws);
-        DVector::from_vec(ws.h.clone())
+        DVector::from_vec(ws.h)
     }
 
     /// |g| Σ_t |G_t|: the largest |U_g| over all configurations in J, which also bounds every entry
