@@ -79,7 +79,7 @@ fn compare(design: &Design, catalog: &Catalog) {
     let full = qp(gram, &problem.equalities, &problem.inequalities, &upper, l1, &QpSettings::default()).unwrap();
     let t_full = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
+    let start = nnls_support(gram, &problem.equalities, problem.row_count(), &design.fit).unwrap();
     let s = qp_screened(gram, &problem.equalities, &problem.inequalities, &upper, l1, &QpSettings::default(), &start)
         .unwrap();
     let t_screen = t1.elapsed().as_secs_f64();

@@ -54,12 +54,13 @@ pub const MAX_CANDIDATES: usize = 20_000;
 /// Most knots of a cam.
 pub const MAX_KNOTS: usize = 500;
 
-/// Memory the fit's dense least-squares rows may take when the machine does not say how much it
-/// has, bytes (8 GiB). On Linux the limit is the memory the system reports available.
+/// Memory the fit's least-squares problem (its dense rows, or the rows' factors where the normal
+/// equations come from them) may take when the machine does not say how much it has, bytes
+/// (8 GiB). On Linux the limit is the memory the system reports available.
 pub const DEFAULT_FIT_MEMORY: u64 = 8 << 30;
 
 /// The memory the system reports available (Linux: `MemAvailable` of `/proc/meminfo`), else
-/// [`DEFAULT_FIT_MEMORY`]: what the fit's dense rows may take.
+/// [`DEFAULT_FIT_MEMORY`]: what the fit's problem may take.
 pub fn available_memory() -> u64 {
     let kib = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
         text.lines()

@@ -276,7 +276,7 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
     let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
-    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
+    let start = nnls_support(gram, &problem.equalities, problem.row_count(), &design.fit).unwrap();
     let exact = nnls_equalities(gram, &problem.equalities, 0.0, &start).expect("an answer it vouches for");
     let screened =
         qp_screened(gram, &problem.equalities, &[], &vec![None; p], 0.0, &QpSettings::default(), &start).unwrap();
@@ -304,7 +304,7 @@ fn the_exact_solve_does_not_cycle() {
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
     assert!(p >= 600, "{p} candidates: below the switch");
-    let start = nnls_support(gram, &problem.equalities, problem.rows.nrows(), &design.fit).unwrap();
+    let start = nnls_support(gram, &problem.equalities, problem.row_count(), &design.fit).unwrap();
     let exact = nnls_equalities(gram, &problem.equalities, 0.0, &start).expect("an answer it vouches for");
     assert!(exact.iterations < 4 * p as u32, "{} steps", exact.iterations);
     assert!(exact.max_equality_residual < 1e-12, "equality residual {:e}", exact.max_equality_residual);

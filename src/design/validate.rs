@@ -19,6 +19,7 @@ use std::path::Path;
 
 use crate::design::Design;
 use crate::design::scenario::ModeSpec;
+use crate::design::tolerance::ToleranceSpec;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::geodesic::Region;
@@ -89,36 +90,54 @@ pub fn validate(design: &Design) -> Result<Validated> {
     Ok(Validated { catalog, warnings })
 }
 
-/// Bytes the fit's dense problem takes at most: the weighted rows (one per training sample and
-/// direction of [γ̇]^⊥, n − 1 per sample) × the candidates twice (the rows and the transpose the
-/// normal equations are formed from), and the Gram matrix, in f64: an upper bound. `ur5_six`
-/// with 1152 training directions: 4.33 GiB by this count, 4.28 GiB peak resident measured when
-/// the rows were still copied; with its default 576 about 2.4 GiB by this count, 1.41 GiB
-/// measured.
-pub fn fit_memory(design: &Design, catalog: &Catalog) -> u64 {
+/// Bytes the fit's problem takes at most, and what they are, in words for the error. With the
+/// rows kept: the weighted rows (one per training sample and direction of [γ̇]^⊥, n − 1 per
+/// sample) × the candidates twice (the rows, and the tables or transpose the normal equations are
+/// formed from), and the Gram matrix, in f64. `ur5_six` with 1152 training directions: 4.33 GiB
+/// by this count, 4.28 GiB peak resident measured when the rows were still copied. Where the
+/// normal equations come from the rows' factors and nothing reads the rows
+/// ([`crate::solve::lsq::from_factors`], no trims, no tolerance): one factor per row and coupling
+/// of the catalogue, and the Gram matrix with the [`crate::solve::lsq::GRAM_WAVE`] partial sums
+/// and the copy it is formed in. An upper bound either way (every coupling counted once per
+/// family that names it).
+pub fn fit_memory(design: &Design, catalog: &Catalog) -> (u64, &'static str, String) {
+    use crate::solve::lsq::{GRAM_WAVE, from_factors};
     let s = &design.fit;
-    let rows =
-        (s.training_count(design.dof()) as u64) * (s.training_samples as u64 + 1) * (design.dof().max(2) as u64 - 1);
+    let (n, per) = (design.dof(), design.dof().max(2) as u64 - 1);
+    let rows = (s.training_count(n) as u64) * (s.training_samples as u64 + 1) * per;
     let columns = catalog.candidate_bound as u64;
-    8 * (2 * rows * columns + columns * columns)
+    let grouped = catalog.families.iter().any(|f| f.cam.is_some());
+    let trims = catalog.families.iter().any(|f| f.trim_range.is_some());
+    let sizes =
+        format!("{} training directions × {} samples × {per} rows per sample", s.training_count(n), s.training_samples);
+    let of = format!("of {}", catalog.path.display());
+    if from_factors(n, rows as usize, grouped) && !trims && s.tolerance == ToleranceSpec::None {
+        let couplings = (catalog.families.iter().map(|f| f.couplings.len()).sum::<usize>() as u64).min(columns);
+        let bytes = 8 * (rows * couplings + (2 + GRAM_WAVE as u64) * columns * columns);
+        let details = format!(
+            "{sizes} × up to {couplings} couplings, and {} matrices of {columns} × {columns} candidates {of}, 8 bytes each",
+            2 + GRAM_WAVE
+        );
+        return (bytes, "row factors and normal equations", details);
+    }
+    let bytes = 8 * (2 * rows * columns + columns * columns);
+    let details = format!(
+        "{sizes} × up to {columns} candidates {of}, 8 bytes each, held twice while the normal equations are formed"
+    );
+    (bytes, "dense rows", details)
 }
 
 /// Refuses a design whose fit would not fit in `available` bytes, naming the keys that size it.
 pub fn check_fit_memory(design: &Design, catalog: &Catalog, available: u64) -> Result<()> {
-    let need = fit_memory(design, catalog);
+    let (need, what, details) = fit_memory(design, catalog);
     if need > available {
-        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        let gib = |b: u64| format!("{:.1} GiB", b as f64 / (1u64 << 30) as f64);
         return Err(Error::invalid(
             &design.path,
             "fit.training_samples",
             format!(
-                "the fit's dense rows would take {:.1} GiB ({} training directions × {} samples × {} rows per sample × up to {} candidates of {}, 8 bytes each, held twice while the normal equations are formed) and this machine has {:.1} GiB available: lower fit.training_directions or fit.training_samples, or use a smaller catalogue",
+                "the fit's {what} would take {} ({details}) and this machine has {} available: lower fit.training_directions or fit.training_samples, or use a smaller catalogue",
                 gib(need),
-                design.fit.training_count(design.dof()),
-                design.fit.training_samples,
-                design.dof().max(2) - 1,
-                catalog.candidate_bound,
-                catalog.path.display(),
                 gib(available)
             ),
         ));
@@ -370,7 +389,7 @@ radius = 2.0
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
         let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), 2).unwrap();
-        let need = fit_memory(&design, &catalog);
+        let (need, _, _) = fit_memory(&design, &catalog);
         assert!(need > 5_000_000 && need < 50_000_000, "{need}");
         check_fit_memory(&design, &catalog, 1 << 30).unwrap();
         let mut big = design.clone();
@@ -381,5 +400,26 @@ radius = 2.0
             err.contains("fit.training_samples") && err.contains("GiB") && err.contains("1.0 GiB available"),
             "{err}"
         );
+    }
+
+    /// Where the normal equations come from the rows' factors and nothing reads the rows, the fit
+    /// keeps no dense rows and the check counts the factors: the six-joint UR5 at its 576 × 41
+    /// samples × 5 rows needs a fifth of a GiB (0.37 GB peak resident measured for the whole
+    /// fit), not the 2.4 GiB of its dense rows, which a tolerance-aware fit still keeps.
+    #[test]
+    fn a_fit_from_the_rows_factors_is_judged_by_them() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let design = Design::load(&root.join("designs/ur5_six.toml")).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), 6).unwrap();
+        let (factored, what, _) = fit_memory(&design, &catalog);
+        assert_eq!(what, "row factors and normal equations");
+        assert!(factored > 100 << 20 && factored < 300 << 20, "{factored}");
+        let mut tolerant = design.clone();
+        tolerant.fit.tolerance = ToleranceSpec::Fraction(0.05);
+        let (dense, what, _) = fit_memory(&tolerant, &catalog);
+        assert_eq!(what, "dense rows");
+        assert!(dense > 8 * factored, "{dense} against {factored}");
+        let err = check_fit_memory(&design, &catalog, 100 << 20).unwrap_err().to_string();
+        assert!(err.contains("row factors") && err.contains("156 couplings"), "{err}");
     }
 }

@@ -3,20 +3,26 @@
 //! their grouping into parts, and the problem assembled on the training fan with the trims folded
 //! in and the groups' smoothing added.
 
+use std::sync::OnceLock;
 use std::time::Instant;
 
-use super::problem::{FitProblem, Requirements, arm, assemble_factored, fold_fixed, mid_range};
+use nalgebra::DMatrix;
+
+use super::problem::{
+    FitProblem, Requirements, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
+};
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
 use super::smoothing::{append_rows, group_smoothing};
 use crate::design::Design;
 use crate::design::fit::FitSettings;
+use crate::design::tolerance::ToleranceSpec;
 use crate::design::validate::check_trimmed_weight;
 use crate::elements::catalog::{Candidate, Catalog};
 use crate::elements::group::Grouping;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::SpringSet;
-use crate::solve::lsq::{CoupledRows, GRAM_BLOCK, Gram};
+use crate::solve::lsq::{CoupledRows, Gram, from_factors};
 
 /// A fit up to the solve: region, fans, candidates and the assembled problem. One preparation
 /// serves several solves that differ only in solver settings (the spring budgets of a Pareto
@@ -33,7 +39,13 @@ pub struct Prepared<'a> {
     pub(super) grouping: Grouping,
     /// Candidates the catalogue expanded into, before dropping those that never engage.
     pub(super) n_expanded: usize,
+    /// The problem; its rows only where the normal equations were formed from them or a
+    /// tolerance-aware pass will read them (see [`Prepared::rows`]).
     pub(super) problem: FitProblem,
+    /// What was assembled (to assemble the rows again where they were not kept).
+    req: Requirements,
+    /// The rows, assembled again on first use where `problem` did not keep them.
+    rows_again: OnceLock<DMatrix<f64>>,
     /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
     pub(super) trims: SpringSet,
     /// Normal equations of `problem.rows` (built once: every solve and the smoothing choice
@@ -94,19 +106,27 @@ impl<'a> Prepared<'a> {
             hessian_match: settings.hessian_match,
             monotone: settings.monotone,
         };
-        let (mut problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req);
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
         let (_, trims) = mid_range(catalog, q_eq);
         check_trimmed_weight(design, catalog, settings)?;
-        fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         // A group's columns are zero away from its part's support (a B-spline basis function
         // spans four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows
         // of two or more per sample (three joints or more), G comes from the rows' factors:
         // n − 1 times fewer products (the shipped designs of up to three joints have fewer rows
-        // and keep the bits of the row-by-row product).
+        // and keep the bits of the row-by-row product). Then the rows themselves are not kept
+        // unless a tolerance-aware pass will read them: at seven joints they are 1.7 GB whose
+        // first write was most of the assembly. Aᵀb comes from the assembly instead, which is
+        // why trims (folded into b afterwards) keep the rows too.
+        let rows = training_samples(&training).count() * (design.dof().max(2) - 1);
+        let factored = from_factors(design.dof(), rows, grouping.any());
+        let keep_rows = !factored || !trims.elements.is_empty() || settings.tolerance != ToleranceSpec::None;
+        let (mut problem, mut factors) =
+            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, keep_rows);
+        fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
         let mut gram = if grouping.any() {
             Gram::from_sparse_rows(&problem.rows, &problem.rhs)
-        } else if problem.rows.nrows() > GRAM_BLOCK && design.dof() >= 3 {
+        } else if factored {
+            let c = factors.rows_times_rhs.take().unwrap_or_else(|| problem.rows.tr_mul(&problem.rhs));
             let slopes = |j: usize, s0: usize, out: &mut [f64]| factors.slopes(&candidates, j, s0, out);
             let coupled = CoupledRows {
                 slopes: &slopes,
@@ -114,7 +134,7 @@ impl<'a> Prepared<'a> {
                 class_of: &factors.class_of,
                 per_sample: design.dof() - 1,
             };
-            Gram::from_coupled_rows(&coupled, &problem.rows, &problem.rhs)
+            Gram::from_coupled_rows(&coupled, c, &problem.rhs)
         } else {
             Gram::from_rows(&problem.rows, &problem.rhs)
         };
@@ -146,6 +166,8 @@ impl<'a> Prepared<'a> {
             grouping,
             n_expanded,
             problem,
+            req,
+            rows_again: OnceLock::new(),
             trims,
             gram,
             t_geo,
@@ -158,6 +180,18 @@ impl Prepared<'_> {
     /// The assembled problem (rows, right-hand side, constraint groups).
     pub fn problem(&self) -> &FitProblem {
         &self.problem
+    }
+
+    /// The problem's tangentiality rows: kept by the problem, or where a large fit did not keep
+    /// them assembled again (the same function, so the same bits) and kept from then on.
+    pub fn rows(&self) -> &DMatrix<f64> {
+        if self.problem.has_rows() {
+            return &self.problem.rows;
+        }
+        self.rows_again.get_or_init(|| {
+            let design = self.design;
+            assemble(&design.chain, &design.q_eq, &self.training, &self.candidates, self.req).rows
+        })
     }
 
     /// The normal equations of the problem's rows.
@@ -197,7 +231,7 @@ impl Prepared<'_> {
         let spacing = self.region.extent / settings.training_samples as f64;
         let (chain, ode) = (&design.chain, design.geodesics.ode);
         let jac = base_jacobian(chain, &self.training, spacing, &nominal, settings.frequency, ode)?;
-        let rows = &self.problem.rows;
+        let rows = self.rows();
         let grouping = &self.grouping;
         let sp = spread_with(chain, &self.training, (&self.candidates, grouping), rows, &nominal, &sigma2, &jac)?;
         let m = rows.nrows() as f64;
@@ -309,9 +343,11 @@ mod tests {
     use super::*;
     use crate::fit::robust::rows_of;
     use crate::potential::Potential;
+    use crate::solve::lsq::GRAM_BLOCK;
 
     /// Above GRAM_BLOCK rows of a three-joint arm the normal equations come from the rows'
-    /// factors; they are those of the assembled rows, to rounding.
+    /// factors, and the rows are not kept: G is that of the rows assembled again, to rounding,
+    /// and Aᵀb the product of those rows bit for bit.
     #[test]
     fn the_normal_equations_of_many_rows_are_those_of_the_rows() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/triple_pendulum.toml");
@@ -319,7 +355,9 @@ mod tests {
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let settings = FitSettings { training_directions: 144, training_samples: 60, ..design.fit };
         let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
-        let rows = &prepared.problem.rows;
+        assert!(!prepared.problem.has_rows(), "the rows were kept");
+        let rows = prepared.rows();
+        assert_eq!(rows.shape(), (prepared.problem.row_count(), prepared.candidates.len()));
         assert!(rows.nrows() > GRAM_BLOCK && !prepared.grouping.any(), "{} rows", rows.nrows());
         let want = Gram::from_rows(rows, &prepared.problem.rhs);
         let got = prepared.gram();

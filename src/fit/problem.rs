@@ -30,14 +30,29 @@ pub use crate::solve::LinearGroup;
 /// The assembled fit problem.
 #[derive(Debug, Clone)]
 pub struct FitProblem {
-    /// Weighted tangentiality rows (m × p).
+    /// Weighted tangentiality rows (m × p), or none (0 × p) where the fit did not keep them: a
+    /// large fit whose normal equations come from the rows' factors ([`RowFactors`]) needs them
+    /// only for the tolerance-aware pass, and at seven joints they would take 1.7 GB (see
+    /// [`FitProblem::has_rows`] and `Prepared::rows`).
     pub rows: DMatrix<f64>,
-    /// Their right-hand side (gravity), m.
+    /// Their right-hand side (gravity), m: always all of it.
     pub rhs: DVector<f64>,
     /// Equalities (equilibrium, normalisation or Hessian match).
     pub equalities: Vec<LinearGroup>,
     /// Inequalities G k ≥ h (monotonicity), if asked for.
     pub inequalities: Vec<LinearGroup>,
+}
+
+impl FitProblem {
+    /// The number of tangentiality rows m, kept or not.
+    pub fn row_count(&self) -> usize {
+        self.rhs.len()
+    }
+
+    /// Whether [`FitProblem::rows`] holds the rows.
+    pub fn has_rows(&self) -> bool {
+        self.rows.nrows() == self.rhs.len()
+    }
 }
 
 /// Which requirements to assemble.
@@ -132,6 +147,9 @@ pub struct RowFactors {
     pub factors: Vec<Vec<f64>>,
     /// Each candidate's coupling.
     pub class_of: Vec<usize>,
+    /// Aᵀb of the rows A and right-hand side b as assembled, when the rows were not kept
+    /// (`keep_rows = false`): each entry the product `A.tr_mul(b)` would give, bit for bit.
+    pub rows_times_rhs: Option<DVector<f64>>,
 }
 
 impl RowFactors {
@@ -154,16 +172,19 @@ pub fn assemble(
     candidates: &[Candidate],
     req: Requirements,
 ) -> FitProblem {
-    assemble_factored(chain, q_eq, fan, candidates, req).0
+    assemble_factored(chain, q_eq, fan, candidates, req, true).0
 }
 
-/// [`assemble`], and the rows' [`RowFactors`].
+/// [`assemble`], and the rows' [`RowFactors`]. Without `keep_rows` the rows are not stored
+/// (`rows` is 0 × p): each column is formed in a buffer of its own, only for its product with
+/// the right-hand side ([`RowFactors::rows_times_rhs`]).
 pub fn assemble_factored(
     chain: &Chain,
     q_eq: &DVector<f64>,
     fan: &Fan,
     candidates: &[Candidate],
     req: Requirements,
+    keep_rows: bool,
 ) -> (FitProblem, RowFactors) {
     let n = chain.dof();
     let p = candidates.len();
@@ -198,25 +219,42 @@ pub fn assemble_factored(
     // Column by column (a candidate's column is contiguous in the column-major matrix), in
     // parallel: every entry is the same product whatever the thread count, and each candidate's
     // slope is evaluated once per sample, not once per row.
-    let mut rows = DMatrix::zeros(m_rows, p);
-    if m_rows > 0 {
-        rows.as_mut_slice().par_chunks_mut(m_rows).zip(candidates.par_iter().zip(&class_of)).for_each(
-            |(col, (cand, &class))| {
-                let e = &cand.element;
-                let (at_q, aw) = &tables[class];
-                for (si, frame) in frames.iter().enumerate() {
-                    // e.deflection(q), term for term.
-                    let slope = e.profile.slope(at_q[si] - e.offset);
-                    for c in 0..frame.directions.len() {
-                        let r = si * (n - 1) + c;
-                        if aw[r] != 0.0 {
-                            col[r] = slope * aw[r] * frame.weight;
-                        }
-                    }
-                }
-            },
-        );
-    }
+    let column = |col: &mut [f64], cand: &Candidate, class: usize| {
+        let e = &cand.element;
+        let (at_q, aw) = &tables[class];
+        for (si, frame) in frames.iter().enumerate() {
+            // e.deflection(q), term for term.
+            let slope = e.profile.slope(at_q[si] - e.offset);
+            for c in 0..frame.directions.len() {
+                let r = si * (n - 1) + c;
+                col[r] = if aw[r] != 0.0 { slope * aw[r] * frame.weight } else { 0.0 };
+            }
+        }
+    };
+    let (rows, rows_times_rhs) = if keep_rows {
+        let mut rows = DMatrix::zeros(m_rows, p);
+        if m_rows > 0 {
+            rows.as_mut_slice()
+                .par_chunks_mut(m_rows)
+                .zip(candidates.par_iter().zip(&class_of))
+                .for_each(|(col, (cand, &class))| column(col, cand, class));
+        }
+        (rows, None)
+    } else {
+        // One column at a time per thread, dotted with b as `tr_mul` dots each column.
+        let products: Vec<f64> = candidates
+            .par_iter()
+            .zip(&class_of)
+            .map_init(
+                || vec![0.0; m_rows],
+                |col, (cand, &class)| {
+                    column(col, cand, class);
+                    nalgebra::DVectorView::from_slice(col, col.len()).dot(&rhs)
+                },
+            )
+            .collect();
+        (DMatrix::zeros(0, p), Some(DVector::from_vec(products)))
+    };
     let (mono, mono_rhs) = if req.monotone {
         // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
         let mut mono = DMatrix::zeros(samples.len(), p);
@@ -323,7 +361,7 @@ pub fn assemble_factored(
             (at, aw)
         })
         .unzip();
-    (FitProblem { rows, rhs, equalities, inequalities }, RowFactors { at_q, factors, class_of })
+    (FitProblem { rows, rhs, equalities, inequalities }, RowFactors { at_q, factors, class_of, rows_times_rhs })
 }
 
 /// Moves the contribution of elements whose stiffness is fixed (trim springs at mid-range: set
@@ -404,7 +442,7 @@ mod tests {
         let spec = FanSpec { count: 12, phase: 0.0, stop: Stop::Arc(0.3), spacing: 0.05 };
         let training = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode).unwrap();
         let req = Requirements { omega: design.fit.frequency, hessian_match: true, monotone: false };
-        let (problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req);
+        let (problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, true);
         let per = design.dof() - 1;
         let samples = problem.rows.nrows() / per;
         assert!(

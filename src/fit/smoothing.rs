@@ -55,7 +55,7 @@ pub fn group_smoothing(
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let coefficient = grouping.coefficient_of();
     let m_bar = design.chain.mass_matrix(&design.q_eq).diagonal().mean();
-    let base = (problem.rows.nrows().max(1) as f64).sqrt() / (settings.frequency.powi(2) * m_bar);
+    let base = (problem.row_count().max(1) as f64).sqrt() / (settings.frequency.powi(2) * m_bar);
     // Per group: its penalty rows over all candidates, and its weight (None: "auto").
     let mut blocks: Vec<(DMatrix<f64>, Option<f64>)> = Vec::new();
     for group in &grouping.groups {

@@ -95,7 +95,7 @@ pub fn solve_gram(
     signed: bool,
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
-    let weighted = with_equalities(&gram, &problem.equalities, problem.rows.nrows(), settings);
+    let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
     let mut report = SolveReport {
         solver: settings.solver.name().into(),
         status: "solved".into(),
@@ -247,7 +247,7 @@ fn solve_qp(
         (gram.subset(support), restrict(&problem.equalities), restrict(&inequalities));
     let sol = if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
         // Many springs: started from the weighted NNLS support.
-        let start = nnls_support(&sub, &equalities, problem.rows.nrows(), settings)?;
+        let start = nnls_support(&sub, &equalities, problem.row_count(), settings)?;
         // Only k ≥ 0 and exact equalities: an active-set NNLS on an updated Cholesky factor is
         // exact and far cheaper than interior-point iterations on the whole Gram matrix. It
         // reports None when it cannot vouch for its answer; Clarabel then takes over.

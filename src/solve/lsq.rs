@@ -12,6 +12,15 @@ use rayon::prelude::*;
 /// the three-joint designs (144 directions × 40 samples × 2), so their fits keep their bits.
 pub const GRAM_BLOCK: usize = 16_384;
 
+/// Whether the normal equations of a fit of `dof` joints with `rows` tangentiality rows come from
+/// the rows' factors ([`Gram::from_coupled_rows`]) rather than from the rows themselves: above
+/// [`GRAM_BLOCK`] rows of two or more per sample, unless the columns are `grouped` (cams, whose
+/// rows are mostly zero and go through [`Gram::from_sparse_rows`]). The fit then keeps no dense
+/// rows unless something else reads them; the memory check asks the same question.
+pub fn from_factors(dof: usize, rows: usize, grouped: bool) -> bool {
+    !grouped && rows > GRAM_BLOCK && dof >= 3
+}
+
 /// Blocks computed in parallel at a time: fixed, so that memory does not grow with the thread
 /// count or the rows.
 pub const GRAM_WAVE: usize = 4;
@@ -95,14 +104,16 @@ impl Gram {
     /// in parallel, added in chunk order: the bits do not depend on the thread count. They are
     /// not those of [`Gram::from_rows`] (another summation order), which is why the fit uses
     /// this only above [`GRAM_BLOCK`] rows, where the blockwise product had already changed
-    /// them. Aᵀb by nalgebra's product of `a`. On the seven-link chain's default sampling
-    /// (552 960 rows, 1510 columns, 111 couplings) 6.2 s against the blockwise product's 14.0 s
-    /// on two threads (BENCHMARKS.md, "Fit time against the number of joints").
-    pub fn from_coupled_rows(coupled: &CoupledRows, a: &DMatrix<f64>, b: &DVector<f64>) -> Gram {
-        if coupled.per_sample == 0 {
-            return Gram::from_rows(a, b);
-        }
+    /// them. Aᵀb is given (`c`): the rows need not be kept for it (see
+    /// `fit::problem::assemble_factored`). On the seven-link chain's default sampling (552 960
+    /// rows, 1510 columns, 111 couplings) 6.2 s against the blockwise product's 14.0 s on two
+    /// threads (BENCHMARKS.md, "Fit time against the number of joints").
+    pub fn from_coupled_rows(coupled: &CoupledRows, c: DVector<f64>, b: &DVector<f64>) -> Gram {
         let p = coupled.class_of.len();
+        if coupled.per_sample == 0 {
+            // No rows (one joint: no direction across γ̇).
+            return Gram { g: DMatrix::zeros(p, p), c, bb: b.dot(b) };
+        }
         let classes = coupled.factors.len();
         let mut order: Vec<usize> = (0..p).collect();
         order.sort_by_key(|&j| coupled.class_of[j]);
@@ -136,7 +147,7 @@ impl Gram {
                 g[(order[y], order[x])] = value;
             }
         }
-        Gram { g, c: a.tr_mul(b), bb: b.dot(b) }
+        Gram { g, c, bb: b.dot(b) }
     }
 
     /// The normal equations summed over blocks of [`GRAM_BLOCK`] rows: each block's AᵀA by
@@ -359,17 +370,16 @@ mod tests {
         let slopes =
             |j: usize, s0: usize, out: &mut [f64]| out.copy_from_slice(&phi.column(j).as_slice()[s0..s0 + out.len()]);
         let coupled = CoupledRows { slopes: &slopes, factors: &factors, class_of: &class_of, per_sample: per };
-        let got = Gram::from_coupled_rows(&coupled, &a, &b);
+        let got = Gram::from_coupled_rows(&coupled, a.tr_mul(&b), &b);
         let want = Gram::from_rows(&a, &b);
         assert!((&got.g - &want.g).amax() < 1e-12 * want.g.amax(), "{}", (&got.g - &want.g).amax());
         assert_eq!(got.g, got.g.transpose());
-        assert_eq!(got.c, a.tr_mul(&b));
         assert_eq!(got.bb, want.bb);
         // Classes matter: with every factor of class 3 doubled, the blocks it touches change.
         let mut doubled = factors.clone();
         doubled[3].iter_mut().for_each(|f| *f *= 2.0);
         let coupled = CoupledRows { factors: &doubled, ..coupled };
-        let g2 = Gram::from_coupled_rows(&coupled, &a, &b).g;
+        let g2 = Gram::from_coupled_rows(&coupled, a.tr_mul(&b), &b).g;
         let (j3, j0) = ((0..p).find(|&j| class_of[j] == 3).unwrap(), (0..p).find(|&j| class_of[j] == 0).unwrap());
         assert!((g2[(j3, j3)] / want.g[(j3, j3)] - 4.0).abs() < 1e-9);
         assert!((g2[(j0, j3)] / want.g[(j0, j3)] - 2.0).abs() < 1e-9);
