@@ -9,7 +9,7 @@ use std::time::Instant;
 use nalgebra::DMatrix;
 
 use super::problem::{
-    FitProblem, Requirements, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
+    FitProblem, Requirements, RowsOut, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
 };
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
 use super::smoothing::{append_rows, group_smoothing};
@@ -39,11 +39,13 @@ pub struct Prepared<'a> {
     pub(super) grouping: Grouping,
     /// Candidates the catalogue expanded into, before dropping those that never engage.
     pub(super) n_expanded: usize,
-    /// The problem; its rows only where the normal equations were formed from them or a
-    /// tolerance-aware pass will read them (see [`Prepared::rows`]).
+    /// The problem; its rows only where a tolerance-aware pass will read them or the normal
+    /// equations of a small fit were formed from them (see [`Prepared::rows`]).
     pub(super) problem: FitProblem,
     /// What was assembled (to assemble the rows again where they were not kept).
     req: Requirements,
+    /// The groups' smoothing rows appended to the problem (cams).
+    appended: Option<(DMatrix<f64>, nalgebra::DVector<f64>)>,
     /// The rows, assembled again on first use where `problem` did not keep them.
     rows_again: OnceLock<DMatrix<f64>>,
     /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
@@ -113,17 +115,29 @@ impl<'a> Prepared<'a> {
         // spans four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows
         // of two or more per sample (three joints or more), G comes from the rows' factors:
         // n − 1 times fewer products (the shipped designs of up to three joints have fewer rows
-        // and keep the bits of the row-by-row product). Then the rows themselves are not kept
-        // unless a tolerance-aware pass will read them: at seven joints they are 1.7 GB whose
-        // first write was most of the assembly. Aᵀb comes from the assembly instead, which is
-        // why trims (folded into b afterwards) keep the rows too.
+        // and keep the bits of the row-by-row product). Dense rows are kept only where a
+        // tolerance-aware pass will read them or a small fit's G is formed from them: at seven
+        // joints they are 1.7 GB, for ur5_six_cams 2.4 GB, whose first write was most of the
+        // assembly. Cams' rows are written as their non-zeros instead; for the factored G, Aᵀb
+        // comes from the assembly, which is why trims (folded into b afterwards) keep the rows.
         let rows = training_samples(&training).count() * (design.dof().max(2) - 1);
         let factored = from_factors(design.dof(), rows, grouping.any());
-        let keep_rows = !factored || !trims.elements.is_empty() || settings.tolerance != ToleranceSpec::None;
+        let tolerance = settings.tolerance != ToleranceSpec::None;
+        let out = if tolerance {
+            RowsOut::Dense
+        } else if grouping.any() {
+            RowsOut::Sparse
+        } else if factored && trims.elements.is_empty() {
+            RowsOut::ProductOnly
+        } else {
+            RowsOut::Dense
+        };
         let (mut problem, mut factors) =
-            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, keep_rows);
+            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, out);
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
-        let mut gram = if grouping.any() {
+        let mut gram = if let Some(sparse) = factors.sparse.take() {
+            Gram::from_sparse(&sparse, &problem.rhs)
+        } else if grouping.any() {
             Gram::from_sparse_rows(&problem.rows, &problem.rhs)
         } else if factored {
             let c = factors.rows_times_rhs.take().unwrap_or_else(|| problem.rows.tr_mul(&problem.rhs));
@@ -139,6 +153,7 @@ impl<'a> Prepared<'a> {
             Gram::from_rows(&problem.rows, &problem.rhs)
         };
         drop(factors);
+        let mut appended = None;
         if grouping.any() {
             stage("choosing the groups' smoothing");
             let penalty = group_smoothing(
@@ -153,7 +168,10 @@ impl<'a> Prepared<'a> {
                 region.extent,
             )?;
             gram.add_sparse_rows(&penalty.0, &penalty.1);
+            // Without dense rows only the right-hand side grows (the row count weighs the
+            // equalities); `rows()` appends the smoothing rows to the rows it assembles again.
             append_rows(&mut problem, &penalty);
+            appended = Some(penalty);
         }
         let t_asm = t1.elapsed().as_secs_f64();
         Ok(Prepared {
@@ -167,6 +185,7 @@ impl<'a> Prepared<'a> {
             n_expanded,
             problem,
             req,
+            appended,
             rows_again: OnceLock::new(),
             trims,
             gram,
@@ -190,7 +209,11 @@ impl Prepared<'_> {
         }
         self.rows_again.get_or_init(|| {
             let design = self.design;
-            assemble(&design.chain, &design.q_eq, &self.training, &self.candidates, self.req).rows
+            let mut again = assemble(&design.chain, &design.q_eq, &self.training, &self.candidates, self.req);
+            if let Some(penalty) = &self.appended {
+                append_rows(&mut again, penalty);
+            }
+            again.rows
         })
     }
 
@@ -364,6 +387,26 @@ mod tests {
         assert!(got.g != want.g, "the factored product sums in another order");
         assert!((&got.g - &want.g).amax() <= 1e-12 * want.g.amax(), "{:e}", (&got.g - &want.g).amax());
         assert_eq!(got.c, rows.tr_mul(&prepared.problem.rhs));
+    }
+
+    /// A cam design's rows are read into G and, without a tolerance, dropped before the
+    /// smoothing rows are appended: the row count and G are those of the fit that keeps them
+    /// (a tolerance keeps them), and `rows()` assembles the same rows again, bit for bit.
+    #[test]
+    fn a_cam_fit_without_a_tolerance_keeps_no_rows() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum_cams.toml");
+        let design = Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let bare = FitSettings { tolerance: ToleranceSpec::None, ..design.fit };
+        let kept = FitSettings { tolerance: ToleranceSpec::Fraction(0.05), ..design.fit };
+        let without = Prepared::new(&design, &catalog, &bare, &|_| {}).unwrap();
+        let with = Prepared::new(&design, &catalog, &kept, &|_| {}).unwrap();
+        assert!(without.grouping.any() && with.problem.has_rows() && !without.problem.has_rows());
+        assert_eq!(without.problem.row_count(), with.problem.rows.nrows());
+        assert!(with.appended.as_ref().is_some_and(|a| a.0.nrows() > 0), "no smoothing rows");
+        assert_eq!(without.problem.rhs, with.problem.rhs);
+        assert_eq!(without.gram, with.gram);
+        assert_eq!(without.rows(), &with.problem.rows);
     }
 
     /// The trims folded into the fit equal the problem with the trims as extra columns whose

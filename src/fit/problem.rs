@@ -26,6 +26,7 @@ use crate::geodesic::Fan;
 use crate::model::Chain;
 use crate::potential::SpringSet;
 pub use crate::solve::LinearGroup;
+use crate::solve::lsq::{Run, SparseRows};
 
 /// The assembled fit problem.
 #[derive(Debug, Clone)]
@@ -147,9 +148,25 @@ pub struct RowFactors {
     pub factors: Vec<Vec<f64>>,
     /// Each candidate's coupling.
     pub class_of: Vec<usize>,
-    /// Aᵀb of the rows A and right-hand side b as assembled, when the rows were not kept
-    /// (`keep_rows = false`): each entry the product `A.tr_mul(b)` would give, bit for bit.
+    /// Aᵀb of the rows A and right-hand side b as assembled, for [`RowsOut::ProductOnly`]: each
+    /// entry the product `A.tr_mul(b)` would give, bit for bit.
     pub rows_times_rhs: Option<DVector<f64>>,
+    /// The rows' non-zeros, for [`RowsOut::Sparse`].
+    pub sparse: Option<SparseRows>,
+}
+
+/// What [`assemble_factored`] makes of the tangentiality rows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RowsOut {
+    /// The dense m × p matrix, [`FitProblem::rows`].
+    Dense,
+    /// No rows (`rows` is 0 × p): each column is formed in a buffer of its own, only for its
+    /// product with the right-hand side ([`RowFactors::rows_times_rhs`]).
+    ProductOnly,
+    /// No dense rows: their non-zeros by runs, sample by sample ([`RowFactors::sparse`]), for
+    /// columns that are mostly zero (a cam's B-spline basis). The entries are those of the dense
+    /// rows, bit for bit.
+    Sparse,
 }
 
 impl RowFactors {
@@ -172,19 +189,17 @@ pub fn assemble(
     candidates: &[Candidate],
     req: Requirements,
 ) -> FitProblem {
-    assemble_factored(chain, q_eq, fan, candidates, req, true).0
+    assemble_factored(chain, q_eq, fan, candidates, req, RowsOut::Dense).0
 }
 
-/// [`assemble`], and the rows' [`RowFactors`]. Without `keep_rows` the rows are not stored
-/// (`rows` is 0 × p): each column is formed in a buffer of its own, only for its product with
-/// the right-hand side ([`RowFactors::rows_times_rhs`]).
+/// [`assemble`], and the rows' [`RowFactors`]; the rows themselves as `out` says.
 pub fn assemble_factored(
     chain: &Chain,
     q_eq: &DVector<f64>,
     fan: &Fan,
     candidates: &[Candidate],
     req: Requirements,
-    keep_rows: bool,
+    out: RowsOut,
 ) -> (FitProblem, RowFactors) {
     let n = chain.dof();
     let p = candidates.len();
@@ -231,29 +246,80 @@ pub fn assemble_factored(
             }
         }
     };
-    let (rows, rows_times_rhs) = if keep_rows {
-        let mut rows = DMatrix::zeros(m_rows, p);
-        if m_rows > 0 {
-            rows.as_mut_slice()
-                .par_chunks_mut(m_rows)
-                .zip(candidates.par_iter().zip(&class_of))
-                .for_each(|(col, (cand, &class))| column(col, cand, class));
+    let (mut rows_times_rhs, mut sparse) = (None, None);
+    let rows = match out {
+        RowsOut::Dense => {
+            let mut rows = DMatrix::zeros(m_rows, p);
+            if m_rows > 0 {
+                rows.as_mut_slice()
+                    .par_chunks_mut(m_rows)
+                    .zip(candidates.par_iter().zip(&class_of))
+                    .for_each(|(col, (cand, &class))| column(col, cand, class));
+            }
+            rows
         }
-        (rows, None)
-    } else {
-        // One column at a time per thread, dotted with b as `tr_mul` dots each column.
-        let products: Vec<f64> = candidates
-            .par_iter()
-            .zip(&class_of)
-            .map_init(
-                || vec![0.0; m_rows],
-                |col, (cand, &class)| {
-                    column(col, cand, class);
-                    nalgebra::DVectorView::from_slice(col, col.len()).dot(&rhs)
-                },
-            )
-            .collect();
-        (DMatrix::zeros(0, p), Some(DVector::from_vec(products)))
+        RowsOut::ProductOnly => {
+            // One column at a time per thread, dotted with b as `tr_mul` dots each column.
+            let products: Vec<f64> = candidates
+                .par_iter()
+                .zip(&class_of)
+                .map_init(
+                    || vec![0.0; m_rows],
+                    |col, (cand, &class)| {
+                        column(col, cand, class);
+                        nalgebra::DVectorView::from_slice(col, col.len()).dot(&rhs)
+                    },
+                )
+                .collect();
+            rows_times_rhs = Some(DVector::from_vec(products));
+            DMatrix::zeros(0, p)
+        }
+        RowsOut::Sparse => {
+            // Sample by sample in parallel, collected in sample order: each candidate's slope
+            // once per sample, each row's non-zeros in column order with the values `column`
+            // writes, and the sample's consecutive rows of the same columns as one run.
+            let runs: Vec<Vec<Run>> = (0..frames.len())
+                .into_par_iter()
+                .map(|si| {
+                    let frame = &frames[si];
+                    let slopes: Vec<f64> = candidates
+                        .iter()
+                        .zip(&class_of)
+                        .map(|(cand, &class)| cand.element.profile.slope(tables[class].0[si] - cand.element.offset))
+                        .collect();
+                    let mut runs: Vec<Run> = Vec::new();
+                    for c in 0..frame.directions.len() {
+                        let r = si * (n - 1) + c;
+                        let (mut columns, mut values) = (Vec::new(), Vec::new());
+                        for (j, (&slope, &class)) in slopes.iter().zip(&class_of).enumerate() {
+                            let aw = tables[class].1[r];
+                            let v = if aw != 0.0 { slope * aw * frame.weight } else { 0.0 };
+                            if v != 0.0 {
+                                columns.push(j);
+                                values.push(v);
+                            }
+                        }
+                        match runs.last_mut() {
+                            Some(run) if run.columns == columns => {
+                                // Entry x of row k at x·rows + k: interleave the new row.
+                                let rows = run.rows;
+                                let mut merged = Vec::with_capacity(values.len() * (rows + 1));
+                                for (x, v) in values.iter().enumerate() {
+                                    merged.extend_from_slice(&run.values[x * rows..(x + 1) * rows]);
+                                    merged.push(*v);
+                                }
+                                run.values = merged;
+                                run.rows += 1;
+                            }
+                            _ => runs.push(Run { first: r, rows: 1, columns, values }),
+                        }
+                    }
+                    runs
+                })
+                .collect();
+            sparse = Some(SparseRows { rows: m_rows, columns: p, runs: runs.into_iter().flatten().collect() });
+            DMatrix::zeros(0, p)
+        }
     };
     let (mono, mono_rhs) = if req.monotone {
         // Scaled like the rows: ∇U·γ̇ ≈ ω² s for the exact potential.
@@ -361,7 +427,7 @@ pub fn assemble_factored(
             (at, aw)
         })
         .unzip();
-    (FitProblem { rows, rhs, equalities, inequalities }, RowFactors { at_q, factors, class_of, rows_times_rhs })
+    (FitProblem { rows, rhs, equalities, inequalities }, RowFactors { at_q, factors, class_of, rows_times_rhs, sparse })
 }
 
 /// Moves the contribution of elements whose stiffness is fixed (trim springs at mid-range: set
@@ -442,7 +508,8 @@ mod tests {
         let spec = FanSpec { count: 12, phase: 0.0, stop: Stop::Arc(0.3), spacing: 0.05 };
         let training = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode).unwrap();
         let req = Requirements { omega: design.fit.frequency, hessian_match: true, monotone: false };
-        let (problem, factors) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, true);
+        let (problem, factors) =
+            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, RowsOut::Dense);
         let per = design.dof() - 1;
         let samples = problem.rows.nrows() / per;
         assert!(
@@ -459,6 +526,33 @@ mod tests {
                 assert!((got - want).abs() <= 1e-15 * want.abs().max(1e-300), "{j} {r}: {got} {want}");
             }
         }
+    }
+
+    /// The rows written as their non-zeros are the dense rows, entry for entry, and give the
+    /// same normal equations bit for bit, on a cam design of six joints (five rows per sample).
+    #[test]
+    fn sparse_rows_are_the_dense_rows() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/ur5_six_cams.toml");
+        let design = crate::design::Design::load(&path).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let q0 = design.q_eq.as_slice();
+        let candidates = catalog.expand(q0, |_| (-1.5, 1.5));
+        use crate::geodesic::{FanSpec, Stop};
+        let spec = FanSpec { count: 24, phase: 0.0, stop: Stop::Arc(0.6), spacing: 0.1 };
+        let training = Fan::trace(&design.chain, &design.q_eq, spec, design.geodesics.ode).unwrap();
+        let req = Requirements { omega: design.fit.frequency, hessian_match: true, monotone: false };
+        let (dense, _) = assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, RowsOut::Dense);
+        let (bare, mut f) =
+            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, RowsOut::Sparse);
+        let sparse = f.sparse.take().unwrap();
+        assert_eq!((bare.rows.nrows(), bare.row_count()), (0, dense.rows.nrows()));
+        assert_eq!(bare.rhs, dense.rhs);
+        let nnz = dense.rows.iter().filter(|v| **v != 0.0).count();
+        assert!(nnz * 4 < dense.rows.len() && sparse.nnz() == nnz, "{nnz} of {}", dense.rows.len());
+        assert!(sparse.runs.iter().any(|r| r.rows > 1), "no run of several rows");
+        assert_eq!(sparse.to_dense(), dense.rows);
+        let want = crate::solve::lsq::Gram::from_sparse_rows(&dense.rows, &dense.rhs);
+        assert_eq!(crate::solve::lsq::Gram::from_sparse(&sparse, &dense.rhs), want);
     }
 
     #[test]

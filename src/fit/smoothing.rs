@@ -146,13 +146,17 @@ pub fn group_smoothing(
     Ok(build(w))
 }
 
-/// Appends rows (and their right-hand side) to the tangentiality rows of a problem.
+/// Appends rows (and their right-hand side) to the tangentiality rows of a problem; to the
+/// right-hand side alone where the problem keeps no rows ([`FitProblem::has_rows`]).
 pub fn append_rows(problem: &mut FitProblem, extra: &(DMatrix<f64>, DVector<f64>)) {
-    let (m, p) = problem.rows.shape();
+    let (m, p) = (problem.row_count(), problem.rows.ncols());
     let r = extra.0.nrows();
-    let mut rows = DMatrix::zeros(m + r, p);
-    rows.view_mut((0, 0), (m, p)).copy_from(&problem.rows);
-    rows.view_mut((m, 0), (r, p)).copy_from(&extra.0);
+    let kept = problem.has_rows();
+    let mut rows = DMatrix::zeros(if kept { m + r } else { 0 }, p);
+    if kept {
+        rows.view_mut((0, 0), (m, p)).copy_from(&problem.rows);
+        rows.view_mut((m, 0), (r, p)).copy_from(&extra.0);
+    }
     let mut rhs = DVector::zeros(m + r);
     rhs.rows_mut(0, m).copy_from(&problem.rhs);
     rhs.rows_mut(m, r).copy_from(&extra.1);

@@ -30,16 +30,54 @@ pub const GRAM_WAVE: usize = 4;
 /// the rows' entries is worth it.
 const SPARSE_COLUMNS: usize = 32;
 
-/// Consecutive rows of [`Gram::from_sparse_rows`] with the same non-zero columns.
-struct Run {
+/// Consecutive rows with the same non-zero columns (a sample's n − 1 rows: one slope per
+/// element, n − 1 directions), their values stored entry by entry so that a pair of columns reads
+/// the run's products from two contiguous slices and G's entry is loaded and stored once per run
+/// rather than once per row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run {
     /// The first row.
-    first: usize,
+    pub first: usize,
     /// The number of rows.
-    rows: usize,
+    pub rows: usize,
     /// The columns, ascending.
-    columns: Vec<usize>,
+    pub columns: Vec<usize>,
     /// The values, entry by entry: entry x of the run's row r at `x * rows + r`.
-    values: Vec<f64>,
+    pub values: Vec<f64>,
+}
+
+/// Rows that are mostly zero (a cam's B-spline columns), as their non-zeros by runs of rows in
+/// row order: what [`Gram::from_sparse_rows`] gathers from a dense matrix, or what the fit's
+/// assembly writes directly without the dense matrix (`fit::problem::assemble_factored`). Rows
+/// no run names are zero.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparseRows {
+    /// Number of rows m.
+    pub rows: usize,
+    /// Number of columns p.
+    pub columns: usize,
+    /// The runs, in row order.
+    pub runs: Vec<Run>,
+}
+
+impl SparseRows {
+    /// The number of non-zero entries.
+    pub fn nnz(&self) -> usize {
+        self.runs.iter().map(|r| r.rows * r.columns.len()).sum()
+    }
+
+    /// The dense m × p matrix.
+    pub fn to_dense(&self) -> DMatrix<f64> {
+        let mut a = DMatrix::zeros(self.rows, self.columns);
+        for run in &self.runs {
+            for (x, &j) in run.columns.iter().enumerate() {
+                for r in 0..run.rows {
+                    a[(run.first + r, j)] = run.values[x * run.rows + r];
+                }
+            }
+        }
+        a
+    }
 }
 
 /// Samples per parallel chunk of [`Gram::from_coupled_rows`]: fixed, so that the chunks, and the
@@ -218,11 +256,7 @@ impl Gram {
                 }
             }
         }
-        // Consecutive rows with the same columns (a sample's n − 1 rows: one slope per element,
-        // n − 1 directions) form a run, its values stored entry by entry so that a pair of
-        // columns reads the run's products from two contiguous slices and G's entry is loaded and
-        // stored once per run rather than once per row. The run's rows are added to it one by one
-        // in row order, so the sum is the row-by-row one, term for term.
+        // Consecutive rows with the same columns form a run.
         let mut runs: Vec<Run> = Vec::new();
         let mut i = 0;
         while i < m {
@@ -246,6 +280,24 @@ impl Gram {
             i = end;
         }
         drop(flat);
+        Gram::from_runs(&SparseRows { rows: m, columns: p, runs }, b)
+    }
+
+    /// [`Gram::from_sparse_rows`] of rows given by their non-zeros, and by the dense product
+    /// where more than a quarter of the entries are non-zero, as there: the same bits as
+    /// [`Gram::from_sparse_rows`] of [`SparseRows::to_dense`].
+    pub fn from_sparse(a: &SparseRows, b: &DVector<f64>) -> Gram {
+        if a.nnz() * 4 > a.rows * a.columns {
+            return Gram::from_rows(&a.to_dense(), b);
+        }
+        Gram::from_runs(a, b)
+    }
+
+    /// The normal equations of the runs. Each run's rows are added to G and c one by one in row
+    /// order, so every sum is the row-by-row one, term for term, however the rows are cut into
+    /// runs.
+    fn from_runs(a: &SparseRows, b: &DVector<f64>) -> Gram {
+        let (p, runs) = (a.columns, &a.runs);
         // Columns of the lower triangle in blocks of SPARSE_COLUMNS, in parallel: a block reads
         // every run's entries from its first column on and owns its columns of G and c, so each
         // entry sums its terms in row order whatever the thread count.
@@ -259,7 +311,7 @@ impl Gram {
             .for_each(|(block, (g_cols, c_cols))| {
                 let j0 = block * SPARSE_COLUMNS;
                 let j1 = j0 + c_cols.len();
-                for run in &runs {
+                for run in runs {
                     let rows = run.rows;
                     let b_run = &bs[run.first..run.first + rows];
                     let from = run.columns.partition_point(|&j| j < j0);

@@ -119,6 +119,11 @@ pub struct Catalog {
     /// offsets × sides or cam columns; duplicates are dropped later): what the fit's memory
     /// is judged by before any work.
     pub candidate_bound: usize,
+    /// At most this many of those candidates are non-zero in one row of the fit: every column
+    /// of a spring family, but of a cam's 2 (N + 2) B-spline columns only the 2 × 4 whose basis
+    /// functions are non-zero at the sample's x. The memory of a cam fit's rows, which are
+    /// written as their non-zeros.
+    pub row_nonzero_bound: usize,
 }
 
 /// A fit candidate: an element and what its family says about building it.

@@ -59,6 +59,7 @@ impl Catalog {
         }
         let mut families = Vec::new();
         let mut candidates = 0usize;
+        let mut row_nonzeros = 0usize;
         let mut trims = 0usize;
         for (i, f) in file.family.iter().enumerate() {
             let field = |name: &str| format!("family[{i}].{name}");
@@ -252,6 +253,9 @@ impl Catalog {
                         ),
                     )
                 })?;
+            // Within MAX_CANDIDATES, as the count above.
+            row_nonzeros +=
+                couplings.len() * offsets * cam.map_or(profiles.len(), |c| 8.min(2 * (usize::from(c.knots) + 2)));
             if let Some(k) = f.max_stiffness {
                 if !(k.is_finite() && k > 0.0) {
                     return Err(invalid(field("max_stiffness"), format!("must be positive, got {}", show(k))));
@@ -368,7 +372,13 @@ impl Catalog {
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "catalog".into())
         });
-        Ok(Catalog { path: path.to_path_buf(), name, families, candidate_bound: candidates })
+        Ok(Catalog {
+            path: path.to_path_buf(),
+            name,
+            families,
+            candidate_bound: candidates,
+            row_nonzero_bound: row_nonzeros,
+        })
     }
 }
 
