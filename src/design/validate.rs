@@ -96,13 +96,14 @@ pub fn validate(design: &Design) -> Result<Validated> {
 /// formed from), and the Gram matrix, in f64. `ur5_six` with 1152 training directions: 4.33 GiB
 /// by this count, 4.28 GiB peak resident measured when the rows were still copied. Where the
 /// normal equations come from the rows' factors and nothing reads the rows
-/// ([`crate::solve::lsq::from_factors`], no trims, no tolerance): one factor per row and coupling
-/// of the catalogue, and the Gram matrix with the [`crate::solve::lsq::GRAM_WAVE`] partial sums
-/// and the copy it is formed in. Cams without a tolerance: the rows' non-zeros
+/// ([`crate::solve::lsq::RowsOut::for_fit`], the rule the fit keeps them by): one factor per
+/// row and coupling of the catalogue, and the Gram matrix with the
+/// [`crate::solve::lsq::GRAM_WAVE`] partial sums and the copy it is formed in. Cams without a
+/// tolerance: the rows' non-zeros
 /// ([`Catalog::row_nonzero_bound`] per row) with their column indices. An upper bound each way
 /// (every coupling counted once per family that names it).
 pub fn fit_memory(design: &Design, catalog: &Catalog) -> (u64, &'static str, String) {
-    use crate::solve::lsq::{GRAM_WAVE, from_factors};
+    use crate::solve::lsq::{GRAM_WAVE, RowsOut};
     let s = &design.fit;
     let (n, per) = (design.dof(), design.dof().max(2) as u64 - 1);
     let rows = (s.training_count(n) as u64) * (s.training_samples as u64 + 1) * per;
@@ -112,7 +113,8 @@ pub fn fit_memory(design: &Design, catalog: &Catalog) -> (u64, &'static str, Str
     let sizes =
         format!("{} training directions × {} samples × {per} rows per sample", s.training_count(n), s.training_samples);
     let of = format!("of {}", catalog.path.display());
-    if from_factors(n, rows as usize, grouped) && !trims && s.tolerance == ToleranceSpec::None {
+    let out = RowsOut::for_fit(n, rows as usize, grouped, trims, s.tolerance != ToleranceSpec::None);
+    if out == RowsOut::ProductOnly {
         let couplings = (catalog.families.iter().map(|f| f.couplings.len()).sum::<usize>() as u64).min(columns);
         let bytes = 8 * (rows * couplings + (2 + GRAM_WAVE as u64) * columns * columns);
         let details = format!(
@@ -121,7 +123,7 @@ pub fn fit_memory(design: &Design, catalog: &Catalog) -> (u64, &'static str, Str
         );
         return (bytes, "row factors and normal equations", details);
     }
-    if grouped && s.tolerance == ToleranceSpec::None {
+    if out == RowsOut::Sparse {
         // Written as their non-zeros (a value and a column index each); the Gram matrix twice.
         let nonzeros = catalog.row_nonzero_bound.min(catalog.candidate_bound) as u64;
         let bytes = 16 * rows * nonzeros + 16 * columns * columns;

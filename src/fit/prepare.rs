@@ -115,23 +115,13 @@ impl<'a> Prepared<'a> {
         // spans four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows
         // of two or more per sample (three joints or more), G comes from the rows' factors:
         // n − 1 times fewer products (the shipped designs of up to three joints have fewer rows
-        // and keep the bits of the row-by-row product). Dense rows are kept only where a
-        // tolerance-aware pass will read them or a small fit's G is formed from them: at seven
-        // joints they are 1.7 GB, for ur5_six_cams 2.4 GB, whose first write was most of the
-        // assembly. Cams' rows are written as their non-zeros instead; for the factored G, Aᵀb
-        // comes from the assembly, which is why trims (folded into b afterwards) keep the rows.
+        // and keep the bits of the row-by-row product). Which rows are kept, `RowsOut::for_fit`
+        // says: dense rows would be 1.7 GB at seven joints and 2.4 GB for ur5_six_cams, whose
+        // first write was most of the assembly.
         let rows = training_samples(&training).count() * (design.dof().max(2) - 1);
         let factored = from_factors(design.dof(), rows, grouping.any());
         let tolerance = settings.tolerance != ToleranceSpec::None;
-        let out = if tolerance {
-            RowsOut::Dense
-        } else if grouping.any() {
-            RowsOut::Sparse
-        } else if factored && trims.elements.is_empty() {
-            RowsOut::ProductOnly
-        } else {
-            RowsOut::Dense
-        };
+        let out = RowsOut::for_fit(design.dof(), rows, grouping.any(), !trims.elements.is_empty(), tolerance);
         let (mut problem, mut factors) =
             assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, out);
         fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);

@@ -26,6 +26,7 @@ use crate::geodesic::Fan;
 use crate::model::Chain;
 use crate::potential::SpringSet;
 pub use crate::solve::LinearGroup;
+pub use crate::solve::lsq::RowsOut;
 use crate::solve::lsq::{Run, SparseRows};
 
 /// The assembled fit problem.
@@ -155,20 +156,6 @@ pub struct RowFactors {
     pub sparse: Option<SparseRows>,
 }
 
-/// What [`assemble_factored`] makes of the tangentiality rows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RowsOut {
-    /// The dense m × p matrix, [`FitProblem::rows`].
-    Dense,
-    /// No rows (`rows` is 0 × p): each column is formed in a buffer of its own, only for its
-    /// product with the right-hand side ([`RowFactors::rows_times_rhs`]).
-    ProductOnly,
-    /// No dense rows: their non-zeros by runs, sample by sample ([`RowFactors::sparse`]), for
-    /// columns that are mostly zero (a cam's B-spline basis). The entries are those of the dense
-    /// rows, bit for bit.
-    Sparse,
-}
-
 impl RowFactors {
     /// u′(a·q − x₀) of candidate `j` at the samples `s0 ..`, into `out`: the value the rows were
     /// assembled with.
@@ -234,6 +221,9 @@ pub fn assemble_factored(
     // Column by column (a candidate's column is contiguous in the column-major matrix), in
     // parallel: every entry is the same product whatever the thread count, and each candidate's
     // slope is evaluated once per sample, not once per row.
+    // Entry (row r of sample si, candidate j) from j's slope at si: every way of keeping the rows
+    // writes this value.
+    let entry = |slope: f64, aw: f64, weight: f64| if aw != 0.0 { slope * aw * weight } else { 0.0 };
     let column = |col: &mut [f64], cand: &Candidate, class: usize| {
         let e = &cand.element;
         let (at_q, aw) = &tables[class];
@@ -242,7 +232,7 @@ pub fn assemble_factored(
             let slope = e.profile.slope(at_q[si] - e.offset);
             for c in 0..frame.directions.len() {
                 let r = si * (n - 1) + c;
-                col[r] = if aw[r] != 0.0 { slope * aw[r] * frame.weight } else { 0.0 };
+                col[r] = entry(slope, aw[r], frame.weight);
             }
         }
     };
@@ -276,8 +266,8 @@ pub fn assemble_factored(
         }
         RowsOut::Sparse => {
             // Sample by sample in parallel, collected in sample order: each candidate's slope
-            // once per sample, each row's non-zeros in column order with the values `column`
-            // writes, and the sample's consecutive rows of the same columns as one run.
+            // once per sample, each row's non-zeros in column order, and the sample's
+            // consecutive rows of the same columns as one run.
             let runs: Vec<Vec<Run>> = (0..frames.len())
                 .into_par_iter()
                 .map(|si| {
@@ -287,34 +277,18 @@ pub fn assemble_factored(
                         .zip(&class_of)
                         .map(|(cand, &class)| cand.element.profile.slope(tables[class].0[si] - cand.element.offset))
                         .collect();
-                    let mut runs: Vec<Run> = Vec::new();
+                    let (mut start, mut flat) = (vec![0], Vec::new());
                     for c in 0..frame.directions.len() {
                         let r = si * (n - 1) + c;
-                        let (mut columns, mut values) = (Vec::new(), Vec::new());
                         for (j, (&slope, &class)) in slopes.iter().zip(&class_of).enumerate() {
-                            let aw = tables[class].1[r];
-                            let v = if aw != 0.0 { slope * aw * frame.weight } else { 0.0 };
+                            let v = entry(slope, tables[class].1[r], frame.weight);
                             if v != 0.0 {
-                                columns.push(j);
-                                values.push(v);
+                                flat.push((j, v));
                             }
                         }
-                        match runs.last_mut() {
-                            Some(run) if run.columns == columns => {
-                                // Entry x of row k at x·rows + k: interleave the new row.
-                                let rows = run.rows;
-                                let mut merged = Vec::with_capacity(values.len() * (rows + 1));
-                                for (x, v) in values.iter().enumerate() {
-                                    merged.extend_from_slice(&run.values[x * rows..(x + 1) * rows]);
-                                    merged.push(*v);
-                                }
-                                run.values = merged;
-                                run.rows += 1;
-                            }
-                            _ => runs.push(Run { first: r, rows: 1, columns, values }),
-                        }
+                        start.push(flat.len());
                     }
-                    runs
+                    Run::of_rows(si * (n - 1), &start, &flat)
                 })
                 .collect();
             sparse = Some(SparseRows { rows: m_rows, columns: p, runs: runs.into_iter().flatten().collect() });

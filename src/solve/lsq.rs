@@ -46,6 +46,70 @@ pub struct Run {
     pub values: Vec<f64>,
 }
 
+impl Run {
+    /// The runs of consecutive rows with the same columns among rows given by their non-zeros:
+    /// row i's (column, value) pairs, in column order, are `flat[start[i] .. start[i + 1]]`, and
+    /// row i is row `first + i` of the matrix.
+    pub fn of_rows(first: usize, start: &[usize], flat: &[(usize, f64)]) -> Vec<Run> {
+        let m = start.len() - 1;
+        let mut runs: Vec<Run> = Vec::new();
+        let mut i = 0;
+        while i < m {
+            let columns: Vec<usize> = flat[start[i]..start[i + 1]].iter().map(|&(j, _)| j).collect();
+            let same = |r: usize| {
+                start[r + 1] - start[r] == columns.len()
+                    && flat[start[r]..start[r + 1]].iter().zip(&columns).all(|(&(j, _), &c)| j == c)
+            };
+            let mut end = i + 1;
+            while end < m && same(end) {
+                end += 1;
+            }
+            let rows = end - i;
+            let mut values = vec![0.0; columns.len() * rows];
+            for r in 0..rows {
+                for (x, &(_, v)) in flat[start[i + r]..start[i + r + 1]].iter().enumerate() {
+                    values[x * rows + r] = v;
+                }
+            }
+            runs.push(Run { first: first + i, rows, columns, values });
+            i = end;
+        }
+        runs
+    }
+}
+
+/// How the fit keeps its tangentiality rows (`fit::problem::assemble_factored` writes them so).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RowsOut {
+    /// The dense m × p matrix.
+    Dense,
+    /// No rows: each column is formed in a buffer of its own, only for its product with the
+    /// right-hand side (for [`Gram::from_coupled_rows`]).
+    ProductOnly,
+    /// Their non-zeros by runs ([`SparseRows`]), for columns that are mostly zero (a cam's
+    /// B-spline basis). The entries are those of the dense rows, bit for bit.
+    Sparse,
+}
+
+impl RowsOut {
+    /// What a fit of `dof` joints and `rows` rows keeps: dense rows where a tolerance-aware pass
+    /// will read them (`tolerance`) or a small fit forms G from them; for cams (`grouped`) their
+    /// non-zeros; where G comes from the rows' factors ([`from_factors`]) none, unless trims are
+    /// folded into the right-hand side after the assembly (`trims`), which the product with it
+    /// taken during the assembly would miss. The fit and the memory check before it both ask this.
+    pub fn for_fit(dof: usize, rows: usize, grouped: bool, trims: bool, tolerance: bool) -> RowsOut {
+        if tolerance {
+            RowsOut::Dense
+        } else if grouped {
+            RowsOut::Sparse
+        } else if from_factors(dof, rows, grouped) && !trims {
+            RowsOut::ProductOnly
+        } else {
+            RowsOut::Dense
+        }
+    }
+}
+
 /// Rows that are mostly zero (a cam's B-spline columns), as their non-zeros by runs of rows in
 /// row order: what [`Gram::from_sparse_rows`] gathers from a dense matrix, or what the fit's
 /// assembly writes directly without the dense matrix (`fit::problem::assemble_factored`). Rows
@@ -256,29 +320,7 @@ impl Gram {
                 }
             }
         }
-        // Consecutive rows with the same columns form a run.
-        let mut runs: Vec<Run> = Vec::new();
-        let mut i = 0;
-        while i < m {
-            let columns: Vec<usize> = flat[start[i]..start[i + 1]].iter().map(|&(j, _)| j).collect();
-            let same = |r: usize| {
-                start[r + 1] - start[r] == columns.len()
-                    && flat[start[r]..start[r + 1]].iter().zip(&columns).all(|(&(j, _), &c)| j == c)
-            };
-            let mut end = i + 1;
-            while end < m && same(end) {
-                end += 1;
-            }
-            let rows = end - i;
-            let mut values = vec![0.0; columns.len() * rows];
-            for r in 0..rows {
-                for (x, &(_, v)) in flat[start[i + r]..start[i + r + 1]].iter().enumerate() {
-                    values[x * rows + r] = v;
-                }
-            }
-            runs.push(Run { first: i, rows, columns, values });
-            i = end;
-        }
+        let runs = Run::of_rows(0, &start, &flat);
         drop(flat);
         Gram::from_runs(&SparseRows { rows: m, columns: p, runs }, b)
     }
