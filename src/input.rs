@@ -13,6 +13,18 @@ pub fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
 }
 
+/// FNV-1a (64-bit) of `bytes` as 16 hexadecimal digits: the fingerprint output folders record of
+/// the files springfit wrote and of the design a run read. Not a cryptographic hash: it tells an
+/// edited or different file from the same one, it does not guard against forgery.
+pub fn fingerprint(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
 /// Parses TOML into `T`, turning the parser's byte span into a line and column.
 pub fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
     toml::from_str(text).map_err(|e| {

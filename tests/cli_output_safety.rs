@@ -252,3 +252,48 @@ fn every_command_refuses_a_users_file_in_the_way_before_any_work() {
         no_leftovers(&dir);
     }
 }
+
+#[test]
+fn a_copy_of_a_design_that_kept_its_name_does_not_replace_the_originals_results() {
+    let dir = temp_dir("safety-copy");
+    let original = write(&dir, "double_pendulum.toml", &util::design_text_anywhere("double_pendulum.toml"));
+    let text = std::fs::read_to_string(&original).unwrap();
+    // The newcomer's first move: a copy with one key changed and the same `name`.
+    let changed = text.replacen("frequency = 4.0", "frequency = 3.0", 1);
+    assert_ne!(changed, text, "the design sets frequency = 4.0");
+    write(&dir, "mine.toml", &changed);
+    springfit(&dir, &["fit", "double_pendulum.toml", "--exact"]).ok();
+    let folder = dir.join("out/double_pendulum_exact");
+    let before = snapshot(&folder);
+    let run = springfit(&dir, &["fit", "mine.toml", "--exact"]).fails(
+        2,
+        &["out/double_pendulum_exact", "results of the design", "double_pendulum.toml", "mine.toml", "--out"],
+    );
+    assert!(!run.stdout().contains("wrote"), "refused before any work\n{}", run.report());
+    assert_eq!(snapshot(&folder), before, "the original's results changed");
+    // Its own folder is fine; the original, edited and run again, replaces its own results.
+    springfit(&dir, &["fit", "mine.toml", "--exact", "--out", "out/mine"]).ok();
+    std::fs::write(&original, text.replacen("frequency = 4.0", "frequency = 4.5", 1)).unwrap();
+    springfit(&dir, &["fit", "double_pendulum.toml", "--exact"]).ok();
+    let m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(folder.join(MANIFEST)).unwrap()).unwrap();
+    assert!(m["design"]["path"].as_str().unwrap().ends_with("double_pendulum.toml"), "{m}");
+    assert_eq!(m["design"]["fnv1a64"].as_str().unwrap().len(), 16, "{m}");
+    no_leftovers(&dir.join("out"));
+}
+
+#[test]
+fn a_run_into_a_folder_another_run_is_writing_stops_at_once() {
+    let dir = temp_dir("safety-lock");
+    let design = repo().join("designs/double_pendulum.toml");
+    let d = design.to_str().unwrap();
+    // Another run (here the library, as a second process would) holds the folder.
+    let plan = springfit::report::output::Plan::new("fit", ["*"]);
+    let claim = springfit::report::output::check(&dir.join("run"), &plan).unwrap();
+    let run = springfit(&dir, &["fit", d, "--exact", "--out", "run"])
+        .fails(2, &["run", "another springfit run is writing this folder", "choose another --out"]);
+    assert!(!run.stdout().contains("wrote"), "{}", run.report());
+    assert!(!dir.join("run").exists());
+    drop(claim);
+    springfit(&dir, &["fit", d, "--exact", "--out", "run"]).ok();
+    no_leftovers(&dir);
+}

@@ -68,6 +68,10 @@ impl PyComparison {
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
         let plan = Plan::new("compare", springfit::report::compare::COMPARE_FILES.iter().copied()).with_edits(edits);
-        py.detach(|| springfit::report::compare::write_compare_folder(&folder, &plan, &self.records)).py()
+        py.detach(|| {
+            let claim = springfit::report::output::check(&folder, &plan)?;
+            springfit::report::compare::write_compare_folder(claim, &self.records)
+        })
+        .py()
     }
 }

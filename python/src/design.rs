@@ -421,8 +421,8 @@ impl PyDesign {
         use springfit::report::output::{Edits, Plan};
         let d = self.design.clone();
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let plan = Plan::new("export", springfit::export::mujoco::files(&d)).with_edits(edits);
-        springfit::report::output::check(&folder, &plan).py()?;
+        let plan = Plan::new("export", springfit::export::mujoco::files(&d)).with_edits(edits).for_design(&d);
+        let claim = springfit::report::output::check(&folder, &plan).py()?;
         let (rows, from) = match springs {
             Some(s) => {
                 if let Ok(fit) = s.cast::<crate::fit::PyFit>() {
@@ -458,8 +458,7 @@ impl PyDesign {
                 (o.bom.clone(), format!("a fit of {} with catalogue {}", d.path.display(), o.catalog))
             }
         };
-        let (_, written) =
-            py.detach(|| springfit::export::mujoco::write_folder(&folder, &plan, &d, &rows, &from)).py()?;
+        let (_, written) = py.detach(|| springfit::export::mujoco::write_folder(claim, &d, &rows, &from)).py()?;
         Ok(written.join(format!("{}.xml", d.name)))
     }
 

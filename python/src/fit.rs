@@ -195,10 +195,14 @@ impl PyFit {
     #[pyo3(signature = (folder, overwrite_edits = false))]
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits);
         let (design, outcome, as_built) = (&self.design, &self.outcome, self.as_built.as_ref());
+        let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits).for_design(design);
         let parts = self.parts.as_ref();
-        py.detach(|| springfit::report::fit::write_folder(&folder, &plan, design, outcome, as_built, parts)).py()
+        py.detach(|| {
+            let claim = springfit::report::output::check(&folder, &plan)?;
+            springfit::report::fit::write_folder(claim, design, outcome, as_built, parts)
+        })
+        .py()
     }
 
     fn __repr__(&self) -> String {

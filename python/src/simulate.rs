@@ -210,7 +210,8 @@ impl PySimulation {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
         let names = self.names();
         let plan = Plan::new("simulate", springfit::report::simulate::files(names.iter().map(String::as_str)))
-            .with_edits(edits);
+            .with_edits(edits)
+            .for_design(&self.design);
         py.detach(|| -> springfit::Result<PathBuf> {
             let mut dir = OutputDir::create(&folder, &plan)?;
             if let Some(only) = &self.only {

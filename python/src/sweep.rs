@@ -104,11 +104,12 @@ impl PySweep {
     #[pyo3(signature = (folder, overwrite_edits = false))]
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let plan = Plan::new("sweep", springfit::report::sweep::FILES.iter().copied()).with_edits(edits);
+        let plan = Plan::new("sweep", springfit::report::sweep::FILES.iter().copied())
+            .with_edits(edits)
+            .for_design(&self.design);
         py.detach(|| {
             springfit::report::sweep::write_folder(
-                &folder,
-                &plan,
+                springfit::report::output::check(&folder, &plan)?,
                 &self.design,
                 &self.tables,
                 &self.results,

@@ -8,7 +8,6 @@ use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
 use springfit::files::fit_folder::load_fit_dir;
 use springfit::fit::run::{exact_reference, fit};
-use springfit::report::output::OutputDir;
 use springfit::studies::compare::{FitRecord, budget_curve, disambiguate, radius_curve, record_of};
 
 use super::Session;
@@ -40,7 +39,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
     }
     let target = out.unwrap_or_else(|| PathBuf::from("out").join("compare"));
     let plan = session.plan("compare", springfit::report::compare::COMPARE_FILES.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let claim = springfit::report::output::check(&target, &plan)?;
     // Every input is read and validated first, so a bad last input costs no fit of the first.
     let mut read = Vec::new();
     for input in inputs {
@@ -97,7 +96,7 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
         records.push(r);
     }
     disambiguate(&mut records);
-    let written = springfit::report::compare::write_compare_folder(&target, &plan, &records)?;
+    let written = springfit::report::compare::write_compare_folder(claim, &records)?;
     for r in &records {
         progress.say(format!(
             "{}: {} springs, p99 {}, max {}{}",
@@ -131,8 +130,8 @@ pub fn pareto(
     let progress = &session.progress;
     let (design, catalog) = load_design_catalog(path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
-    let plan = session.plan("pareto", springfit::report::compare::PARETO_FILES.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "pareto", springfit::report::compare::PARETO_FILES.iter().copied());
+    let claim = springfit::report::output::check(&target, &plan)?;
     let k_max = k_max.unwrap_or(design.fit.max_elements.max(16));
     if k_max < 2 {
         return Err(Error::Setting { field: "--k-max".into(), reason: "must be at least 2".into() }.into());
@@ -169,7 +168,7 @@ pub fn pareto(
         }
         .into());
     }
-    let dir = OutputDir::create(&target, &plan)?;
+    let dir = claim.open()?;
     springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
     springfit::report::html::write_pareto(&dir, &design)?;
     let written = dir.commit()?;

@@ -24,8 +24,8 @@ pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_mujoco", design.name)));
     // Refuse a folder springfit may not write into before fitting anything.
     let xml_name = format!("{}.xml", design.name);
-    let plan = session.plan("export", mujoco::files(&design));
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "export", mujoco::files(&design));
+    let claim = springfit::report::output::check(&target, &plan)?;
     let (rows, from) = match &args.bom {
         Some(path) => {
             let rows = bom::read(path)?;
@@ -61,7 +61,7 @@ pub fn run(args: ExportArgs, session: &Session) -> Result<()> {
             (outcome.bom, format!("a fit of {} with catalogue {}", design.path.display(), outcome.catalog))
         }
     };
-    let (model, written) = mujoco::write_folder(&target, &plan, &design, &rows, &from)?;
+    let (model, written) = mujoco::write_folder(claim, &design, &rows, &from)?;
     progress.say(format!(
         "{}: {} springs for MuJoCo, {} exact, {} by passive-force callback; RK4 at {} s",
         design.name,

@@ -31,8 +31,8 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     settings.validate().map_err(|(field, reason)| Error::Setting { field, reason })?;
     let default_name = if args.exact { format!("{}_exact", design.name) } else { design.name.clone() };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
-    let plan = session.plan("fit", springfit::report::fit::files(!args.exact));
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "fit", springfit::report::fit::files(!args.exact));
+    let claim = springfit::report::output::check(&target, &plan)?;
     let stock = if args.exact { Vec::new() } else { super::parts::load_stock(&design)? };
     let catalog = match (&validated.catalog, args.exact) {
         (_, true) => None,
@@ -79,8 +79,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     };
     let step = progress.step("writing outputs");
     let written = springfit::report::fit::write_folder(
-        &target,
-        &plan,
+        claim,
         &design,
         &outcome,
         as_built.as_ref().and_then(|a| a.0.as_ref()),

@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use springfit::geodesic::{Fan, FanSpec, Stop};
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -12,8 +11,8 @@ pub fn run(path: &Path, out: Option<PathBuf>, session: &Session) -> Result<()> {
     let progress = &session.progress;
     let (design, _) = super::load_design(path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_geodesics", design.name)));
-    let plan = session.plan("geodesics", springfit::report::geodesics::FILES.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "geodesics", springfit::report::geodesics::FILES.iter().copied());
+    let claim = springfit::report::output::check(&target, &plan)?;
     let step = progress.step("checking the region");
     let region = design.valid_region();
     step.finish();
@@ -29,7 +28,7 @@ pub fn run(path: &Path, out: Option<PathBuf>, session: &Session) -> Result<()> {
     step.finish();
     let fan = fan?;
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, &plan)?;
+    let dir = claim.open()?;
     springfit::report::geodesics::write(&dir, &design, &fan, &region)?;
     let written = dir.commit();
     step.finish();

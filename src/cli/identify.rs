@@ -7,7 +7,6 @@ use anyhow::Result;
 use springfit::files::{bom, log};
 use springfit::identify::{Identification, Status};
 use springfit::report::identify::{FILES, PLAN_FILES};
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -24,15 +23,15 @@ pub fn run(args: IdentifyArgs, session: &Session) -> Result<()> {
     let (design, _) = super::load_design(&args.design, progress)?;
     let suffix = if args.plan { "identify_plan" } else { "identify" };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_{suffix}", design.name)));
-    let plan = session.plan("identify", if args.plan { PLAN_FILES } else { FILES }.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "identify", if args.plan { PLAN_FILES } else { FILES }.iter().copied());
+    let claim = springfit::report::output::check(&target, &plan)?;
     let rows = bom::read(&args.bom)?;
     if args.plan {
         let step = progress.step("planning releases");
         let proposal = springfit::identify::plan::plan(&design, &args.bom, &rows);
         step.finish();
         let proposal = proposal?;
-        let dir = OutputDir::create(&target, &plan)?;
+        let dir = claim.open()?;
         springfit::report::identify::write_plan(&dir, &design.name, &proposal, &rows)?;
         springfit::report::html::write_identify(&dir, &design)?;
         let written = dir.commit()?;
@@ -68,7 +67,7 @@ pub fn run(args: IdentifyArgs, session: &Session) -> Result<()> {
     let outcome = springfit::identify::identify(&design, &args.bom, &rows, &logs, &design.file.identify);
     step.finish();
     let outcome = outcome?;
-    let dir = OutputDir::create(&target, &plan)?;
+    let dir = claim.open()?;
     springfit::report::identify::write(&dir, &design.name, &outcome, &rows)?;
     springfit::report::html::write_identify(&dir, &design)?;
     let written = dir.commit()?;

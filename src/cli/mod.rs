@@ -350,6 +350,17 @@ impl Session {
     pub fn plan<S: Into<String>>(&self, command: &str, patterns: impl IntoIterator<Item = S>) -> Plan {
         Plan::new(command, patterns).with_edits(self.edits)
     }
+
+    /// The plan of `command` on `design` (see [`Plan::for_design`]): another design's results
+    /// are never replaced.
+    pub fn plan_for<S: Into<String>>(
+        &self,
+        design: &Design,
+        command: &str,
+        patterns: impl IntoIterator<Item = S>,
+    ) -> Plan {
+        self.plan(command, patterns).for_design(design)
+    }
 }
 
 /// Loads a design and validates everything the commands read from it (the catalogue, the

@@ -8,7 +8,6 @@ use anyhow::Result;
 use springfit::design::Design;
 use springfit::error::Error;
 use springfit::parts::{Parts, StockPart};
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -40,8 +39,8 @@ pub fn run(design: &Path, bom: Option<PathBuf>, out: Option<PathBuf>, session: &
     let progress = &session.progress;
     let (design, validated) = super::load_design(design, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_parts", design.name)));
-    let plan = session.plan("parts", springfit::report::parts::FILES.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "parts", springfit::report::parts::FILES.iter().copied());
+    let claim = springfit::report::output::check(&target, &plan)?;
     let stock = load_stock(&design)?;
     let settings = design.fit;
     let Some(catalog) = &validated.catalog else {
@@ -85,7 +84,7 @@ pub fn run(design: &Path, bom: Option<PathBuf>, out: Option<PathBuf>, session: &
     let parts = springfit::parts::choose(&design, &bom, &cams, &evaluation, settings.frequency, &stock, ideal);
     step.finish();
     let parts = parts.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
-    let dir = OutputDir::create(&target, &plan)?;
+    let dir = claim.open()?;
     springfit::report::parts::write(&dir, &design, &parts)?;
     let written = dir.commit()?;
     say(&parts, session);

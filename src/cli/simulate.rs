@@ -10,7 +10,6 @@ use springfit::dynamics::simulate::ElasticPotential;
 use springfit::error::Error;
 use springfit::files::bom;
 use springfit::fit::run::fit;
-use springfit::report::output::OutputDir;
 
 use super::Session;
 
@@ -43,11 +42,12 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
         None => (0..design.file.scenario.len()).collect(),
     };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_simulate", design.name)));
-    let plan = session.plan(
+    let plan = session.plan_for(
+        &design,
         "simulate",
         springfit::report::simulate::files(indices.iter().map(|&i| design.file.scenario[i].name.as_str())),
     );
-    springfit::report::output::check(&target, &plan)?;
+    let claim = springfit::report::output::check(&target, &plan)?;
     let (potential, potential_name) = if args.exact {
         (ElasticPotential::Exact { omega: design.fit.frequency }, "exact ½ω²r²".to_string())
     } else if let Some(path) = &args.bom {
@@ -118,7 +118,7 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
         ));
     }
     let fan = springfit::report::simulate::plot_fan(&design)?;
-    let mut dir = OutputDir::create(&target, &plan)?;
+    let mut dir = claim.open()?;
     if let Some(only) = &args.scenario {
         // A rerun of one scenario keeps the other scenarios' files of the previous run.
         springfit::report::simulate::keep_other_scenarios(&mut dir, only)?;

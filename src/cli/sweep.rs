@@ -9,7 +9,6 @@ use springfit::dynamics::scenario::label_source;
 use springfit::error::Error;
 use springfit::fit::FitOutcome;
 use springfit::fit::run::fit;
-use springfit::report::output::OutputDir;
 use springfit::studies::sweep::{ItemResult, SweepContext, parse_shard, plan, shard_indices, tables};
 
 use super::Session;
@@ -108,8 +107,8 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
         PathBuf::from("out").join(name)
     });
     let files = if shard.is_some() { springfit::report::sweep::SHARD_FILES } else { springfit::report::sweep::FILES };
-    let outputs = session.plan("sweep", files.iter().copied());
-    springfit::report::output::check(&target, &outputs)?;
+    let outputs = session.plan_for(&design, "sweep", files.iter().copied());
+    let claim = springfit::report::output::check(&target, &outputs)?;
 
     // The mode label does not depend on the springs: it is prepared alongside the fit (whose
     // selection leaves a core idle at times), unless shards are merged and no item runs.
@@ -191,7 +190,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
             }
             .into());
         }
-        return finish(&design, &outcome, &settings, &results, &target, &outputs, progress);
+        return finish(&design, &outcome, &settings, &results, claim, progress);
     }
 
     let (label, _) = label.expect("prepared unless merging")?;
@@ -211,7 +210,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
     let results = results?;
     progress.say(format!("{} items in {secs:.1} s", results.len()));
     if let Some((i, n)) = shard {
-        let dir = OutputDir::create(&target, &outputs)?;
+        let dir = claim.open()?;
         let file =
             ShardFile { design: design.name.clone(), fingerprint: fp, shard: (i, n), items: items.len(), results };
         dir.write("sweep_shard.json", serde_json::to_string(&file)?)?;
@@ -226,7 +225,7 @@ pub fn run(args: SweepArgs, session: &Session) -> Result<()> {
         ));
         return Ok(());
     }
-    finish(&design, &outcome, &settings, &results, &target, &outputs, progress)
+    finish(&design, &outcome, &settings, &results, claim, progress)
 }
 
 fn builds_note(s: &springfit::design::sweep::SweepSettings) -> String {
@@ -238,12 +237,11 @@ fn finish(
     outcome: &FitOutcome,
     settings: &springfit::design::sweep::SweepSettings,
     results: &[ItemResult],
-    target: &Path,
-    plan: &springfit::report::output::Plan,
+    claim: springfit::report::output::Claim,
     progress: &Progress,
 ) -> Result<()> {
     let t = tables(settings, results);
-    let written = springfit::report::sweep::write_folder(target, plan, design, &t, results, &outcome.bom)?;
+    let written = springfit::report::sweep::write_folder(claim, design, &t, results, &outcome.bom)?;
     progress.say("parasitic springs (ε: ∫|P_Ũ|, ∫|P_θ|, ∫|P_E| in J; actuator share):");
     for r in &t.parasitic {
         progress.say(format!(

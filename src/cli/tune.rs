@@ -6,7 +6,6 @@ use anyhow::Result;
 use springfit::asbuilt::tune::{State, TuneOutcome, tune};
 use springfit::design::tolerance::TrimRule;
 use springfit::files::bom::load_measured;
-use springfit::report::output::OutputDir;
 use springfit::units::sci;
 
 use super::Session;
@@ -19,8 +18,8 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, session: &Sessi
     // The same validation every command runs first, and the output folder checked before any work.
     let (design, _) = super::load_design(design, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_tune", design.name)));
-    let plan = session.plan("tune", FILES.iter().copied());
-    springfit::report::output::check(&target, &plan)?;
+    let plan = session.plan_for(&design, "tune", FILES.iter().copied());
+    let claim = springfit::report::output::check(&target, &plan)?;
     let (bom, rates) = load_measured(measured)?;
     if bom.first().is_some_and(|r| r.element.coupling.len() != design.dof()) {
         return Err(springfit::Error::invalid(
@@ -35,7 +34,7 @@ pub fn run(design: &Path, measured: &Path, out: Option<PathBuf>, session: &Sessi
     step.finish();
     let outcome = outcome.map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
     let step = progress.step("writing outputs");
-    let dir = OutputDir::create(&target, &plan)?;
+    let dir = claim.open()?;
     springfit::files::bom::write(&dir, "bom_tuned.csv", &outcome.bom)?;
     dir.write("tune.json", serde_json::to_string_pretty(&outcome)? + "\n")?;
     dir.write("tune.md", markdown(&design.name, &outcome))?;

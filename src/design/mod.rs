@@ -63,6 +63,10 @@ use crate::units::Angle;
 pub struct Design {
     /// Where it was read from (for messages).
     pub path: PathBuf,
+    /// Fingerprint of the text it was parsed from ([`crate::input::fingerprint`]; empty for a
+    /// design built from a parsed [`DesignFile`]): output folders record it so that another
+    /// design does not replace a design's results.
+    pub fingerprint: String,
     /// Name for outputs.
     pub name: String,
     /// One line about it.
@@ -111,7 +115,9 @@ impl Design {
     pub fn parse(path: &Path, text: &str) -> Result<Design> {
         let mut file: DesignFile = parse_toml(path, text)?;
         file.sweep_given = toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("sweep"));
-        Design::from_file(path, file)
+        let mut design = Design::from_file(path, file)?;
+        design.fingerprint = crate::input::fingerprint(text.as_bytes());
+        Ok(design)
     }
 
     /// Validates a parsed design file. `path` is used for messages and to resolve the catalogue.
@@ -358,6 +364,7 @@ impl Design {
         let catalog = file.catalog.as_ref().map(|c| path.parent().unwrap_or(Path::new(".")).join(c));
         Ok(Design {
             path: path.to_path_buf(),
+            fingerprint: String::new(),
             name,
             description: file.description.clone().unwrap_or_default(),
             catalog,

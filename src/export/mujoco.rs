@@ -538,15 +538,14 @@ pub fn files(design: &Design) -> Vec<String> {
 /// springs came from (`from`), and the bill of materials exported. The command and the Python
 /// package's `export_mujoco` both go through here.
 pub fn write_folder(
-    target: &std::path::Path,
-    plan: &crate::report::output::Plan,
+    claim: crate::report::output::Claim,
     design: &Design,
     rows: &[BomRow],
     from: &str,
 ) -> Result<(MujocoModel, std::path::PathBuf)> {
     let model = export(design, rows, 1.0 / design.simulate.rate)?;
     let xml_name = format!("{}.xml", design.name);
-    let dir = crate::report::output::OutputDir::create(target, plan)?;
+    let dir = claim.open()?;
     dir.write(&xml_name, &model.xml)?;
     dir.write("elements.md", elements_md(design, &model, from, &xml_name))?;
     crate::files::bom::write(&dir, "bom.csv", rows)?;

@@ -37,12 +37,8 @@ pub const PARETO_FILES: &[&str] = &["pareto.csv", "pareto.md", "pareto.svg", "pa
 /// Writes everything `springfit compare` writes into the folder `target` under `plan`
 /// ([`COMPARE_FILES`]): the files of [`write_compare`] (signed histograms when any residual
 /// angle is negative: two-joint fits) and `report.html`, staged and committed at once.
-pub fn write_compare_folder(
-    target: &std::path::Path,
-    plan: &super::output::Plan,
-    records: &[FitRecord],
-) -> Result<std::path::PathBuf> {
-    let dir = OutputDir::create(target, plan)?;
+pub fn write_compare_folder(claim: super::output::Claim, records: &[FitRecord]) -> Result<std::path::PathBuf> {
+    let dir = claim.open()?;
     // Two-joint residual angles are signed; three or more are unsigned (all ≥ 0).
     let signed = records.iter().any(|r| r.angles.iter().any(|a| *a < 0.0));
     write_compare(&dir, records, signed)?;

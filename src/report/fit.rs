@@ -171,14 +171,13 @@ const FILES: &[&str] = &[
 /// once. The command and the Python package's `Fit.write` both go through here, so their
 /// folders are the same file for file.
 pub fn write_folder(
-    target: &std::path::Path,
-    plan: &super::output::Plan,
+    claim: super::output::Claim,
     design: &Design,
     o: &FitOutcome,
     as_built: Option<&crate::asbuilt::AsBuilt>,
     parts: Option<&crate::parts::Parts>,
 ) -> Result<std::path::PathBuf> {
-    let dir = OutputDir::create(target, plan)?;
+    let dir = claim.open()?;
     write_all(&dir, design, o, as_built, parts)?;
     super::html::write_fit(&dir, design)?;
     dir.commit()

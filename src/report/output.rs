@@ -55,6 +55,38 @@ pub struct Manifest {
     /// newer than the manifest.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub stamps: BTreeMap<String, Stamp>,
+    /// The design whose results the folder holds, for commands that run one design. Another
+    /// design may not replace them (see [`Plan::for_design`]). Manifests of springfit versions
+    /// before this field, and of commands on several designs, have none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub design: Option<DesignRecord>,
+}
+
+/// Which design a folder's results are of: its file and a fingerprint of the text it was read
+/// from, so a copy with one key changed is told apart from the design it was copied from, while
+/// the same file edited and run again (the usual way to iterate) is the same design.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesignRecord {
+    /// The design file, as an absolute path where it could be resolved.
+    pub path: String,
+    /// FNV-1a (64-bit) of the design's text, 16 hexadecimal digits (see
+    /// [`crate::input::fingerprint`]).
+    pub fnv1a64: String,
+}
+
+impl DesignRecord {
+    /// The record of `design`: its path made absolute, and the fingerprint of its text.
+    pub fn of(design: &crate::design::Design) -> DesignRecord {
+        let path = std::fs::canonicalize(&design.path).unwrap_or_else(|_| design.path.clone());
+        DesignRecord { path: path.display().to_string(), fnv1a64: design.fingerprint.clone() }
+    }
+
+    /// Whether a run of `self` may replace results of `other`: the same file (edited or not), or
+    /// another file with the same text (a copy or a renamed file).
+    fn same_design(&self, other: &DesignRecord) -> bool {
+        self.path == other.path || self.fnv1a64 == other.fnv1a64
+    }
 }
 
 /// What springfit wrote into one file: enough to tell whether anyone changed it since.
@@ -71,12 +103,7 @@ pub struct Stamp {
 impl Stamp {
     /// The stamp of `bytes`.
     pub fn of(bytes: &[u8]) -> Stamp {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for &b in bytes {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        Stamp { bytes: bytes.len() as u64, fnv1a64: format!("{h:016x}") }
+        Stamp { bytes: bytes.len() as u64, fnv1a64: crate::input::fingerprint(bytes) }
     }
 
     fn of_file(path: &Path) -> Result<Stamp> {
@@ -102,6 +129,7 @@ pub struct Plan {
     command: String,
     patterns: Vec<String>,
     edits: Edits,
+    design: Option<DesignRecord>,
 }
 
 impl Plan {
@@ -111,7 +139,16 @@ impl Plan {
             command: command.to_string(),
             patterns: patterns.into_iter().map(Into::into).collect(),
             edits: Edits::Refuse,
+            design: None,
         }
+    }
+
+    /// The same plan for a run of `design`: the folder's manifest records the design, and a run
+    /// of another design (another file with other contents) is refused before any work, so a
+    /// copy of a design that kept its `name` does not replace the original's results.
+    pub fn for_design(mut self, design: &crate::design::Design) -> Plan {
+        self.design = Some(DesignRecord::of(design));
+        self
     }
 
     /// The same plan with another policy for edited files.
@@ -148,6 +185,7 @@ impl Manifest {
             files: Vec::new(),
             folders: Vec::new(),
             stamps: BTreeMap::new(),
+            design: None,
         }
     }
 
@@ -227,38 +265,143 @@ enum Previous {
     Managed(Manifest),
 }
 
-/// Checks that the run of `plan` may write its outputs to `target` (see the module documentation),
-/// without writing anything. Commands call it before any work so a refusal costs nothing.
-pub fn check(target: &Path, plan: &Plan) -> Result<()> {
-    inspect(target, plan).map(|_| ())
+/// Claims `target` for the run of `plan`: checks that the run may write its outputs there (see
+/// the module documentation) and locks the folder against other springfit runs until the claim,
+/// or the [`OutputDir`] opened from it, is dropped. Commands call it before any work, so that a
+/// refusal costs nothing and a second run into the same folder stops at once instead of
+/// replacing the first run's results. It writes nothing but the lock (and the folders above
+/// the target, removed again if the run writes nothing).
+pub fn check(target: &Path, plan: &Plan) -> Result<Claim> {
+    let lock = Lock::take(target, plan.command())?;
+    inspect(target, plan)?;
+    Ok(Claim { target: target.to_path_buf(), plan: plan.clone(), lock })
+}
+
+/// An output folder claimed for one run (see [`check`]): checked, and locked against other runs.
+#[derive(Debug)]
+#[must_use = "the folder is locked only while the claim lives: open it with `Claim::open`"]
+pub struct Claim {
+    target: PathBuf,
+    plan: Plan,
+    lock: Lock,
+}
+
+impl Claim {
+    /// The folder the run writes.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Opens the claimed folder for writing: checks it again (it may have changed during the
+    /// run's work) and creates the staging folder the run's files go to.
+    pub fn open(self) -> Result<OutputDir> {
+        OutputDir::stage(self)
+    }
+}
+
+/// The lock of an output folder: a file `.<name>.springfit-lock` beside it, held with the
+/// operating system's advisory lock (released by the system if the process dies, so a killed
+/// run never leaves a folder locked) and removed when the run ends.
+#[derive(Debug)]
+struct Lock {
+    path: PathBuf,
+    file: Option<std::fs::File>,
+    /// Folders created above the target to hold the lock, removed again when they stay empty.
+    created: Vec<PathBuf>,
+}
+
+impl Lock {
+    fn take(target: &Path, command: &str) -> Result<Lock> {
+        let name = target
+            .file_name()
+            .ok_or_else(|| Error::io(target, std::io::Error::other("an output folder needs a name")))?
+            .to_string_lossy()
+            .into_owned();
+        let parent = parent_of(target);
+        placeable(target)?;
+        let created: Vec<PathBuf> = parent
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+        let mut lock = Lock { path: parent.join(format!(".{name}.springfit-lock")), file: None, created };
+        // A run that ends removes its lock file while it still holds it; a run that opened the
+        // file just before may then lock a file that is no longer there: it tries again.
+        for _ in 0..100 {
+            let file = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&lock.path)
+                .map_err(|e| Error::io(&lock.path, e))?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    let holder = std::fs::read_to_string(&lock.path).unwrap_or_default();
+                    let holder = holder.trim();
+                    return Err(Error::io(
+                        target,
+                        std::io::Error::other(format!(
+                            "another springfit run is writing this folder ({}); two runs into one folder would lose the first one's results: wait until it ends or choose another --out",
+                            if holder.is_empty() { "it has just started" } else { holder }
+                        )),
+                    ));
+                }
+                // A file system without locks (some network mounts): go on unlocked.
+                Err(std::fs::TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {
+                    lock.file = Some(file);
+                    return Ok(lock);
+                }
+                Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&lock.path, e)),
+            }
+            if !still_there(&file, &lock.path) {
+                continue;
+            }
+            use std::io::Write;
+            let _ = file.set_len(0);
+            let _ = write!(&file, "process {}, `springfit {command}`", std::process::id());
+            lock.file = Some(file);
+            return Ok(lock);
+        }
+        Err(Error::io(&lock.path, std::io::Error::other("could not take the output folder's lock")))
+    }
+}
+
+/// Whether the open `file` is still the one at `path` (not removed or replaced since it was opened).
+fn still_there(file: &std::fs::File, path: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (file.metadata(), std::fs::metadata(path)) {
+            (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = file;
+        path.exists()
+    }
+}
+
+impl Drop for Lock {
+    fn drop(&mut self) {
+        if let Some(file) = self.file.take() {
+            // Removed while still held, then released (see `Lock::take`).
+            let _ = std::fs::remove_file(&self.path);
+            drop(file);
+        }
+        for d in &self.created {
+            let _ = std::fs::remove_dir(d); // fails, as wanted, unless empty
+        }
+    }
 }
 
 fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
     let command = plan.command();
-    let parent = parent_of(target);
-    // A file where a folder must be: say so instead of the system's "File exists".
-    if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
-        if !blocker.is_dir() {
-            return Err(Error::io(
-                blocker,
-                std::io::Error::other(format!(
-                    "is a file, so the output folder {} cannot be created there",
-                    target.display()
-                )),
-            ));
-        }
-    }
-    // A link to nothing: the system would say "Not a directory".
-    if target.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink()) && !target.exists() {
-        let to = std::fs::read_link(target).map(|t| t.display().to_string()).unwrap_or_default();
-        return Err(Error::io(
-            target,
-            std::io::Error::other(format!(
-                "is a symbolic link to {to}, which does not exist: choose another --out or remove the link"
-            )),
-        ));
-    }
-    writable(target)?;
+    placeable(target)?;
     if !target.exists() {
         return Ok(Previous::Absent);
     }
@@ -287,6 +430,17 @@ fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
             Manifest::empty(command)
         }
     };
+    if let (Some(theirs), Some(ours)) = (&previous.design, &plan.design) {
+        if !ours.same_design(theirs) {
+            return Err(Error::io(
+                target,
+                std::io::Error::other(format!(
+                    "it holds the results of the design {}, and this run is of {}, another design (another file with other contents, perhaps a copy that kept its `name`); springfit does not replace one design's results with another's: pass --out with a folder for this design (a new one), or remove this folder yourself",
+                    theirs.path, ours.path
+                )),
+            ));
+        }
+    }
     if plan.edits == Edits::Refuse {
         let edited = previous.edited(target)?;
         if !edited.is_empty() {
@@ -314,6 +468,34 @@ fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
         ));
     }
     Ok(Previous::Managed(previous))
+}
+
+/// Whether a folder can be made at `target`, explained in words where the system's would puzzle:
+/// a file where a folder must be ("File exists"), a link to nothing ("Not a directory"), a place
+/// that takes no new folders.
+fn placeable(target: &Path) -> Result<()> {
+    let parent = parent_of(target);
+    if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
+        if !blocker.is_dir() {
+            return Err(Error::io(
+                blocker,
+                std::io::Error::other(format!(
+                    "is a file, so the output folder {} cannot be created there",
+                    target.display()
+                )),
+            ));
+        }
+    }
+    if target.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink()) && !target.exists() {
+        let to = std::fs::read_link(target).map(|t| t.display().to_string()).unwrap_or_default();
+        return Err(Error::io(
+            target,
+            std::io::Error::other(format!(
+                "is a symbolic link to {to}, which does not exist: choose another --out or remove the link"
+            )),
+        ));
+    }
+    writable(target)
 }
 
 /// `a`, `a` and `b`, `a`, `b` and `c` (each in backquotes).
@@ -369,33 +551,34 @@ pub struct OutputDir {
     /// not by this run's plan.
     kept: BTreeSet<String>,
     committed: bool,
+    /// Held until the folder is committed or dropped; declared last, so it is released after
+    /// the staging folder is gone.
+    _lock: Lock,
 }
 
 impl OutputDir {
-    /// Creates the staging folder for the outputs of `plan` in `target`, creating the parent
-    /// folders as needed. Refuses what [`check`] refuses.
+    /// Claims `target` for `plan` ([`check`]) and opens it ([`Claim::open`]), for callers that do
+    /// no work between the two. Refuses what [`check`] refuses.
     pub fn create(target: &Path, plan: &Plan) -> Result<OutputDir> {
+        check(target, plan)?.open()
+    }
+
+    fn stage(claim: Claim) -> Result<OutputDir> {
+        let Claim { target, plan, lock } = claim;
         let name = target
             .file_name()
-            .ok_or_else(|| Error::io(target, std::io::Error::other("an output folder needs a name")))?
+            .ok_or_else(|| Error::io(&target, std::io::Error::other("an output folder needs a name")))?
             .to_string_lossy()
             .into_owned();
-        let previous = inspect(target, plan)?;
-        let parent = parent_of(target);
+        let previous = inspect(&target, &plan)?;
+        let parent = parent_of(&target);
         std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
         let staging = parent.join(format!(".{name}.springfit-tmp-{}", std::process::id()));
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
         std::fs::create_dir(&staging).map_err(|e| Error::io(&parent, e))?;
-        Ok(OutputDir {
-            target: target.to_path_buf(),
-            staging,
-            plan: plan.clone(),
-            previous,
-            kept: BTreeSet::new(),
-            committed: false,
-        })
+        Ok(OutputDir { target, staging, plan, previous, kept: BTreeSet::new(), committed: false, _lock: lock })
     }
 
     /// Where a file named `name` is staged (for writers that create files themselves).
@@ -459,6 +642,7 @@ impl OutputDir {
             files,
             folders,
             stamps,
+            design: self.plan.design.clone(),
         };
         // Inspect again: the folder may have changed while the command ran.
         match inspect(&self.target, &self.plan)? {

@@ -138,14 +138,13 @@ pub const SHARD_FILES: &[&str] = &["sweep_shard.json"];
 /// the files of [`write()`] and `report.html`, staged and committed at once (the command and the
 /// Python package's `Sweep.write`).
 pub fn write_folder(
-    target: &std::path::Path,
-    plan: &super::output::Plan,
+    claim: super::output::Claim,
     design: &crate::design::Design,
     tables: &SweepTables,
     results: &[ItemResult],
     bom: &[BomRow],
 ) -> Result<std::path::PathBuf> {
-    let dir = OutputDir::create(target, plan)?;
+    let dir = claim.open()?;
     write(&dir, design, tables, results, bom)?;
     super::html::write_sweep(&dir, design)?;
     dir.commit()

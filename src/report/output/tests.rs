@@ -114,7 +114,7 @@ fn a_file_the_user_put_where_springfit_writes_is_refused_before_the_run() {
     let err = check(&target, &plan).unwrap_err().to_string();
     assert!(err.contains("`cams/C01.toml`"), "{err}");
     std::fs::remove_dir_all(target.join("cams")).unwrap();
-    check(&target, &plan).unwrap();
+    drop(check(&target, &plan).unwrap());
     // A file that appears while the command works is still caught when the files are swapped in.
     let out = OutputDir::create(&target, &plan).unwrap();
     std::fs::write(target.join("bom.csv"), "user's, written during the run").unwrap();
@@ -141,7 +141,7 @@ fn an_edited_file_is_refused_unless_the_edits_may_go() {
     assert_eq!(m.stamps["bom.csv"], Stamp::of(b"id,stiffness\nS01,3\n"));
     // Rewriting a file with the same bytes is no edit; the same size with other bytes is one.
     std::fs::write(target.join("bom.csv"), "id,stiffness\nS01,3\n").unwrap();
-    check(&target, &plan).unwrap();
+    drop(check(&target, &plan).unwrap());
     std::fs::write(target.join("bom.csv"), "id,stiffness\nS01,4\n").unwrap();
     std::fs::write(target.join("stale.txt"), "mine now").unwrap();
     let err = check(&target, &plan).unwrap_err().to_string();
@@ -161,7 +161,7 @@ fn an_edited_file_is_refused_unless_the_edits_may_go() {
     out.write("bom.csv", "id,stiffness\nS01,5\n").unwrap();
     out.commit().unwrap();
     assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "id,stiffness\nS01,5\n");
-    check(&target, &plan).unwrap();
+    drop(check(&target, &plan).unwrap());
     assert_eq!(listing(&root), vec!["out"]);
     let _ = std::fs::remove_dir_all(&root);
 }
@@ -175,7 +175,7 @@ fn a_manifest_without_stamps_judges_files_by_their_time() {
     std::thread::sleep(std::time::Duration::from_millis(20));
     std::fs::write(target.join(MANIFEST), r#"{"springfit":"0.1.0","command":"fit","files":["bom.csv"]}"#).unwrap();
     let plan = Plan::new("fit", ["bom.csv"]);
-    check(&target, &plan).unwrap();
+    drop(check(&target, &plan).unwrap());
     std::thread::sleep(std::time::Duration::from_millis(20));
     std::fs::write(target.join("bom.csv"), "edited after the manifest").unwrap();
     assert!(check(&target, &plan).unwrap_err().to_string().contains("`bom.csv` changed"));
@@ -242,5 +242,82 @@ fn an_unwritable_place_names_the_path() {
     assert!(err.contains("plain-file"), "{err}");
     let err = OutputDir::create(&file, &any("fit")).unwrap_err().to_string();
     assert!(err.contains("not a folder"), "{err}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// `plan` for a run of the design file `path` whose text has the fingerprint `fnv1a64`.
+fn of_design(plan: Plan, path: &str, fnv1a64: &str) -> Plan {
+    Plan { design: Some(DesignRecord { path: path.into(), fnv1a64: fnv1a64.into() }), ..plan }
+}
+
+#[test]
+fn another_design_does_not_replace_a_designs_results() {
+    let root = scratch("design");
+    let target = root.join("out");
+    let original = of_design(any("fit"), "/d/double_pendulum.toml", "00000000000000aa");
+    let out = OutputDir::create(&target, &original).unwrap();
+    out.write("bom.csv", "original").unwrap();
+    out.commit().unwrap();
+    let m = Manifest::read(&target).unwrap().unwrap();
+    assert_eq!(m.design.as_ref().map(|d| d.path.as_str()), Some("/d/double_pendulum.toml"));
+    // A copy with one key changed: another file, other contents.
+    let copy = of_design(any("fit"), "/d/mine.toml", "00000000000000bb");
+    let err = OutputDir::create(&target, &copy).unwrap_err().to_string();
+    assert!(
+        err.contains("results of the design /d/double_pendulum.toml")
+            && err.contains("this run is of /d/mine.toml")
+            && err.contains("--out"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(target.join("bom.csv")).unwrap(), "original");
+    // The same file edited (the usual way to iterate), and a copy with the same text, may.
+    for plan in [
+        of_design(any("fit"), "/d/double_pendulum.toml", "00000000000000cc"),
+        of_design(any("fit"), "/elsewhere/renamed.toml", "00000000000000cc"),
+    ] {
+        let out = OutputDir::create(&target, &plan).unwrap();
+        out.write("bom.csv", "iterated").unwrap();
+        out.commit().unwrap();
+    }
+    // The manifest records the last run's design: the original's text is no longer it.
+    let err = check(&target, &original).unwrap_err().to_string();
+    assert!(err.contains("results of the design /elsewhere/renamed.toml"), "{err}");
+    // A folder written before manifests named designs is taken as it is.
+    std::fs::write(target.join(MANIFEST), r#"{"springfit":"0.1.0","command":"fit","files":["bom.csv"]}"#).unwrap();
+    drop(check(&target, &copy).unwrap());
+    assert_eq!(listing(&root), vec!["out"]);
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+#[test]
+fn a_second_run_into_a_claimed_folder_stops_at_once() {
+    let root = scratch("lock");
+    let target = root.join("nested/out");
+    let claim = check(&target, &any("fit")).unwrap();
+    // The folders above the target are made to hold the lock, the target itself not yet.
+    assert!(root.join("nested").is_dir() && !target.exists());
+    let err = check(&target, &any("fit")).unwrap_err().to_string();
+    assert!(
+        err.contains("another springfit run is writing this folder")
+            && err.contains(&format!("process {}", std::process::id())),
+        "{err}"
+    );
+    assert!(OutputDir::create(&target, &any("fit")).is_err());
+    // A claim given up without writing leaves nothing behind, not even the folders it made.
+    drop(claim);
+    assert_eq!(listing(&root), Vec::<String>::new());
+    // Held by the open folder until it is committed, then free again.
+    let out = check(&target, &any("fit")).unwrap().open().unwrap();
+    out.write("a.txt", "1").unwrap();
+    assert!(check(&target, &any("fit")).is_err());
+    out.commit().unwrap();
+    drop(check(&target, &any("fit")).unwrap());
+    assert_eq!(listing(&root.join("nested")), vec!["out"], "no lock file left");
+    // A lock file left on disk by a killed run holds nothing: the system released its lock.
+    std::fs::write(root.join("nested/.out.springfit-lock"), "process 1, `springfit fit`").unwrap();
+    let out = OutputDir::create(&target, &any("fit")).unwrap();
+    out.write("a.txt", "2").unwrap();
+    out.commit().unwrap();
+    assert_eq!(std::fs::read_to_string(target.join("a.txt")).unwrap(), "2");
     let _ = std::fs::remove_dir_all(&root);
 }
