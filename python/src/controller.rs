@@ -332,10 +332,10 @@ impl PyController {
 
     #[setter]
     fn set_energy_target(&self, target: Option<f64>) -> PyResult<()> {
-        if let Some(e) = target {
-            if !e.is_finite() {
-                return Err(setting("energy_target", format!("must be finite, got {e}")));
-            }
+        if let Some(e) = target
+            && !e.is_finite()
+        {
+            return Err(setting("energy_target", format!("must be finite, got {e}")));
         }
         let mut st = self.lock();
         st.cell.with_dependent_mut(|_, c| {

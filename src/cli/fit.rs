@@ -121,10 +121,10 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
-    if !args.exact {
-        if let Some(w) = springfit::fit::hints::fit_equality_warning(&design, &settings, &outcome.metrics) {
-            progress.warn(w);
-        }
+    if !args.exact
+        && let Some(w) = springfit::fit::hints::fit_equality_warning(&design, &settings, &outcome.metrics)
+    {
+        progress.warn(w);
     }
     let verdict = springfit::fit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
     progress.say(if verdict == "acceptable" {

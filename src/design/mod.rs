@@ -401,10 +401,12 @@ impl Design {
     /// is kept and handed out again while q_eq, the region and the geodesic settings are those
     /// it was computed from (a copy with another region checks afresh).
     pub fn region_report(&self) -> Result<RegionReport> {
-        if let Some(m) = self.region_memo.get() {
-            if m.q_eq == self.q_eq && m.region == self.region && m.geodesics == self.geodesics {
-                return Ok(m.report.clone());
-            }
+        if let Some(m) = self.region_memo.get()
+            && m.q_eq == self.q_eq
+            && m.region == self.region
+            && m.geodesics == self.geodesics
+        {
+            return Ok(m.report.clone());
         }
         // A numerical failure deep in the check (Jacobi fields, the integrator) names the design
         // and the step, so the message says what it concerns.

@@ -107,10 +107,10 @@ impl PartsSettings {
                 ("max_length_mm", e.max_length_mm),
                 ("max_lever_mm", e.max_lever_mm),
             ] {
-                if let Some(v) = v {
-                    if !positive(v) {
-                        return err(&format!("element[{i}].{f}"), format!("must be a positive size in mm, got {v}"));
-                    }
+                if let Some(v) = v
+                    && !positive(v)
+                {
+                    return err(&format!("element[{i}].{f}"), format!("must be a positive size in mm, got {v}"));
                 }
             }
         }

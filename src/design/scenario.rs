@@ -189,10 +189,10 @@ impl ScenarioSpec {
         if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
             return Err(bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
         }
-        if let Some(d) = sc.damping {
-            if !(d.is_finite() && d >= 0.0) {
-                return Err(bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
-            }
+        if let Some(d) = sc.damping
+            && !(d.is_finite() && d >= 0.0)
+        {
+            return Err(bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
         }
         let energy = |f: &str, e: f64| -> Result<()> {
             if e.is_finite() && e > 0.0 {
@@ -265,10 +265,10 @@ impl ScenarioSpec {
                     }
                     mode("mode", m)?;
                 }
-                if let Some(s) = sc.step {
-                    if !s.0.is_finite() {
-                        return Err(bad("step", format!("must be finite, got {}", s.0)));
-                    }
+                if let Some(s) = sc.step
+                    && !s.0.is_finite()
+                {
+                    return Err(bad("step", format!("must be finite, got {}", s.0)));
                 }
                 let every = sc.every.unwrap_or(15.0);
                 if !(every.is_finite() && every > 0.0) {

@@ -78,10 +78,10 @@ impl SweepSettings {
         if self.evaluation_directions < 4 || self.evaluation_samples < 2 {
             return Err(("sweep.evaluation_directions".into(), "needs at least 4 directions of 2 samples".into()));
         }
-        if let Some(r) = self.rate {
-            if !(r.is_finite() && (10.0..=1e6).contains(&r)) {
-                return Err(("sweep.rate".into(), format!("must be 10 to 1e6 Hz, got {r}")));
-            }
+        if let Some(r) = self.rate
+            && !(r.is_finite() && (10.0..=1e6).contains(&r))
+        {
+            return Err(("sweep.rate".into(), format!("must be 10 to 1e6 Hz, got {r}")));
         }
         if self.builds > 1_000_000 {
             return Err(("sweep.builds".into(), "at most 1 000 000".into()));

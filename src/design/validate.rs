@@ -71,12 +71,13 @@ pub fn validate(design: &Design) -> Result<Validated> {
     // (`sensitivity`) missing is only worth a warning: the design may never be swept, and
     // `springfit sweep` refuses it with the same message.
     let mut warnings = Vec::new();
-    if !design.file.scenario.is_empty() {
-        if let Err(e) = sweep_scenario(design) {
-            if design.file.sweep_given {
-                return Err(e);
-            }
-            warnings.push(Warning {
+    if !design.file.scenario.is_empty()
+        && let Err(e) = sweep_scenario(design)
+    {
+        if design.file.sweep_given {
+            return Err(e);
+        }
+        warnings.push(Warning {
                 path: design.path.clone(),
                 field: "sweep.scenario".into(),
                 message: format!(
@@ -84,7 +85,6 @@ pub fn validate(design: &Design) -> Result<Validated> {
                     design.file.sweep.scenario
                 ),
             });
-        }
     }
     suspicious(design, &mut warnings);
     Ok(Validated { catalog, warnings })
@@ -273,22 +273,22 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
             .map(|m| ("mode".to_string(), m))
             .chain(sc.releases.iter().enumerate().map(|(j, r)| (format!("releases[{j}].mode"), &r.mode)));
         for (f, m) in modes {
-            if let ModeSpec::Angle(a) = m {
-                if a.abs() > MANY_TURNS_RAD {
-                    warn(
-                        format!("scenario[{k}].{f}"),
-                        format!("the mode angle θ = {a} rad is {:.1} turns: angles are in radians", turns(*a)),
-                    );
-                }
-            }
-        }
-        if let Some(s) = sc.step {
-            if s.0.abs() > MANY_TURNS_RAD {
+            if let ModeSpec::Angle(a) = m
+                && a.abs() > MANY_TURNS_RAD
+            {
                 warn(
-                    format!("scenario[{k}].step"),
-                    format!("{} rad is {:.1} turns: angles are in radians", s.0, turns(s.0)),
+                    format!("scenario[{k}].{f}"),
+                    format!("the mode angle θ = {a} rad is {:.1} turns: angles are in radians", turns(*a)),
                 );
             }
+        }
+        if let Some(s) = sc.step
+            && s.0.abs() > MANY_TURNS_RAD
+        {
+            warn(
+                format!("scenario[{k}].step"),
+                format!("{} rad is {:.1} turns: angles are in radians", s.0, turns(s.0)),
+            );
         }
     }
 }

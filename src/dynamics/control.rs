@@ -338,13 +338,13 @@ impl<'a> Controller<'a> {
         field: Option<Box<dyn LogField + 'a>>,
     ) -> Result<Controller<'a>> {
         let n = chain.dof();
-        if let Some(max) = &settings.max_torque {
-            if max.len() != n || max.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
-                return Err(Error::Setting {
-                    field: "controllers.max_torque".into(),
-                    reason: format!("needs {n} finite limits > 0 N·m (one per joint), got {max:?}"),
-                });
-            }
+        if let Some(max) = &settings.max_torque
+            && (max.len() != n || max.iter().any(|m| !(m.is_finite() && *m > 0.0)))
+        {
+            return Err(Error::Setting {
+                field: "controllers.max_torque".into(),
+                reason: format!("needs {n} finite limits > 0 N·m (one per joint), got {max:?}"),
+            });
         }
         let m_eq = chain.mass_matrix(q_eq);
         let frame = MetricFrame::new(&m_eq)?;

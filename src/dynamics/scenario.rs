@@ -327,11 +327,11 @@ pub fn metrics(
         outside.iter().map(|&i| deg(label_dev(i, if two { start } else { 0.0 }).abs())).fold(0.0, f64::max)
     });
     let mut settling_s = Vec::new();
-    if let Some(mode) = &spec.mode {
-        if kind == ScenarioKind::Switch {
-            let starts: Vec<f64> = mode.schedule.iter().map(|s| s.0).collect();
-            settling_s = settling_times(&tr.t, &tr.label, &tr.label_target, &tr.in_ball, &starts, spec.duration, two);
-        }
+    if let Some(mode) = &spec.mode
+        && kind == ScenarioKind::Switch
+    {
+        let starts: Vec<f64> = mode.schedule.iter().map(|s| s.0).collect();
+        settling_s = settling_times(&tr.t, &tr.label, &tr.label_target, &tr.in_ball, &starts, spec.duration, two);
     }
     let (mut energy_rel, mut energy_signed) = (None, None);
     if let Some(ec) = &spec.energy {

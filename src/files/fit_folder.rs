@@ -33,10 +33,10 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
             ),
         ));
     }
-    if let Some(m) = crate::report::output::Manifest::read(dir)? {
-        if m.command != "fit" {
-            return Err(not_fit(&format!("it was written by `springfit {}`", m.command)));
-        }
+    if let Some(m) = crate::report::output::Manifest::read(dir)?
+        && m.command != "fit"
+    {
+        return Err(not_fit(&format!("it was written by `springfit {}`", m.command)));
     }
     let summary_path = dir.join("summary.json");
     let residuals_path = dir.join("residuals.csv");

@@ -142,14 +142,14 @@ pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Log> {
         }
         let t = num(time)?;
         let run = runs.last_mut().expect("pushed above");
-        if let (Some(&before), Some(&line_before)) = (run.t.last(), run.lines.last()) {
-            if t <= before {
-                return Err(bad(
-                    ln,
-                    "t",
-                    format!("time goes back or stands still: {t} after {before} on line {line_before}"),
-                ));
-            }
+        if let (Some(&before), Some(&line_before)) = (run.t.last(), run.lines.last())
+            && t <= before
+        {
+            return Err(bad(
+                ln,
+                "t",
+                format!("time goes back or stands still: {t} after {before} on line {line_before}"),
+            ));
         }
         run.t.push(t);
         run.lines.push(ln);

@@ -218,12 +218,13 @@ pub fn bill_of_materials(
     // solve already leaves one of each pair at zero; then this changes no bit.)
     let mut k = k.to_vec();
     for (j, n) in grouping.minus_of().into_iter().enumerate() {
-        if let Some(n) = n {
-            if k[j] > 0.0 && k[n] > 0.0 {
-                let c = k[j] - k[n];
-                k[j] = c.max(0.0);
-                k[n] = (-c).max(0.0);
-            }
+        if let Some(n) = n
+            && k[j] > 0.0
+            && k[n] > 0.0
+        {
+            let c = k[j] - k[n];
+            k[j] = c.max(0.0);
+            k[n] = (-c).max(0.0);
         }
     }
     let k = k.as_slice();

@@ -155,27 +155,27 @@ pub fn bom_warnings(catalog: &Catalog, rows: &[crate::fit::bill::BomRow]) -> Vec
     for r in rows {
         let Some(f) = catalog.families.iter().find(|f| f.name == r.family) else { continue };
         let unit = r.element.profile.unit();
-        if let Some(top) = f.stock_rates.iter().copied().reduce(f64::max) {
-            if r.stiffness > top * (1.0 + 1e-9) {
-                out.push(format!(
+        if let Some(top) = f.stock_rates.iter().copied().reduce(f64::max)
+            && r.stiffness > top * (1.0 + 1e-9)
+        {
+            out.push(format!(
                     "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above the family's largest stock rate {top} {unit}: snapping to stock rates (sweep) caps it at {top} and the residual grows; add larger stock rates or set max_stiffness = {top} so the fit stays within them",
                     catalog.path.display(),
                     f.name,
                     r.id,
                     r.stiffness
                 ));
-            }
         }
-        if let Some(max) = f.max_stiffness {
-            if r.stiffness > max * (1.0 + 1e-6) {
-                out.push(format!(
-                    "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above max_stiffness = {max} {unit}",
-                    catalog.path.display(),
-                    f.name,
-                    r.id,
-                    r.stiffness
-                ));
-            }
+        if let Some(max) = f.max_stiffness
+            && r.stiffness > max * (1.0 + 1e-6)
+        {
+            out.push(format!(
+                "{}: field `family` `{}`: {} has fitted stiffness {:.4} {unit}, above max_stiffness = {max} {unit}",
+                catalog.path.display(),
+                f.name,
+                r.id,
+                r.stiffness
+            ));
         }
     }
     out

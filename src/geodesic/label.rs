@@ -98,18 +98,17 @@ impl LogField for ExactLog<'_> {
         let qv = DVector::from_column_slice(q);
         // The same point twice in a row (the potential and the mode controller of one
         // right-hand side both ask): reuse.
-        if let Some((q0, v0, j0)) = &self.last {
-            if q0 == &qv {
-                if let Some(inv) = j0.clone().try_inverse() {
-                    out.v.copy_from_slice(v0.as_slice());
-                    for i in 0..n {
-                        for j in 0..n {
-                            out.dvdq[i * n + j] = inv[(i, j)];
-                        }
-                    }
-                    return Ok(());
+        if let Some((q0, v0, j0)) = &self.last
+            && q0 == &qv
+            && let Some(inv) = j0.clone().try_inverse()
+        {
+            out.v.copy_from_slice(v0.as_slice());
+            for i in 0..n {
+                for j in 0..n {
+                    out.dvdq[i * n + j] = inv[(i, j)];
                 }
             }
+            return Ok(());
         }
         if (&qv - self.log.q_eq()).amax() == 0.0 {
             out.v.fill(0.0);

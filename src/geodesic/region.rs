@@ -336,7 +336,7 @@ fn sampled_crossings(traces: &[JacobiTrace], dirs: &[DVector<f64>], spacing: f64
 /// Γ(n/2) for the area of the unit sphere in ℝⁿ.
 fn gamma_half(n: usize) -> f64 {
     // Γ(1/2) = √π, Γ(1) = 1, Γ(x + 1) = x Γ(x).
-    let (mut x, mut g) = if n % 2 == 0 { (1.0, 1.0) } else { (0.5, std::f64::consts::PI.sqrt()) };
+    let (mut x, mut g) = if n.is_multiple_of(2) { (1.0, 1.0) } else { (0.5, std::f64::consts::PI.sqrt()) };
     while x < n as f64 / 2.0 {
         g *= x;
         x += 1.0;

@@ -99,12 +99,12 @@ impl<'a> Shooter<'a> {
         loop {
             let done = ode.step(&mut rhs, s_end).map_err(|e| ode_error("geodesic", e))?;
             let mut t_stop = None;
-            if let Some(region) = region {
-                if region.outside(&ode.y()[..n]) {
-                    // Earliest face crossing on the dense output.
-                    let t = region.exit_time(ode, n);
-                    t_stop = Some(t);
-                }
+            if let Some(region) = region
+                && region.outside(&ode.y()[..n])
+            {
+                // Earliest face crossing on the dense output.
+                let t = region.exit_time(ode, n);
+                t_stop = Some(t);
             }
             let t_hi = t_stop.unwrap_or(ode.t());
             while next < t_hi - 1e-12 * spacing.max(1.0) {

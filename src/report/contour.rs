@@ -20,7 +20,7 @@ pub fn isolines(x: &[f64], y: &[f64], z: &[f64], level: f64) -> Vec<Vec<(f64, f6
     let point = |e: usize| -> (f64, f64) {
         let cell = e / 2;
         let (i, j) = (cell % nx, cell / nx);
-        if e % 2 == 0 {
+        if e.is_multiple_of(2) {
             let (z0, z1) = (at(i, j), at(i + 1, j));
             let t = (level - z0) / (z1 - z0);
             (x[i] + t * (x[i + 1] - x[i]), y[j])

@@ -129,12 +129,12 @@ impl Page {
             };
             if let Event::Start(Tag::Image { dest_url, .. }) = &ev {
                 let dest = dest_url.to_string();
-                if local_svg(&dest) {
-                    if let Some(fig) = self.figure(&dest)? {
-                        events.push(Event::Html(fig.into()));
-                        skip_to_image_end = true;
-                        continue;
-                    }
+                if local_svg(&dest)
+                    && let Some(fig) = self.figure(&dest)?
+                {
+                    events.push(Event::Html(fig.into()));
+                    skip_to_image_end = true;
+                    continue;
                 }
             }
             events.push(ev);

@@ -430,16 +430,16 @@ fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
             Manifest::empty(command)
         }
     };
-    if let (Some(theirs), Some(ours)) = (&previous.design, &plan.design) {
-        if !ours.same_design(theirs) {
-            return Err(Error::io(
-                target,
-                std::io::Error::other(format!(
-                    "it holds the results of the design {}, and this run is of {}, another design (another file with other contents, perhaps a copy that kept its `name`); springfit does not replace one design's results with another's: pass --out with a folder for this design (a new one), or remove this folder yourself",
-                    theirs.path, ours.path
-                )),
-            ));
-        }
+    if let (Some(theirs), Some(ours)) = (&previous.design, &plan.design)
+        && !ours.same_design(theirs)
+    {
+        return Err(Error::io(
+            target,
+            std::io::Error::other(format!(
+                "it holds the results of the design {}, and this run is of {}, another design (another file with other contents, perhaps a copy that kept its `name`); springfit does not replace one design's results with another's: pass --out with a folder for this design (a new one), or remove this folder yourself",
+                theirs.path, ours.path
+            )),
+        ));
     }
     if plan.edits == Edits::Refuse {
         let edited = previous.edited(target)?;
@@ -475,16 +475,16 @@ fn inspect(target: &Path, plan: &Plan) -> Result<Previous> {
 /// that takes no new folders.
 fn placeable(target: &Path) -> Result<()> {
     let parent = parent_of(target);
-    if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty()) {
-        if !blocker.is_dir() {
-            return Err(Error::io(
-                blocker,
-                std::io::Error::other(format!(
-                    "is a file, so the output folder {} cannot be created there",
-                    target.display()
-                )),
-            ));
-        }
+    if let Some(blocker) = parent.ancestors().find(|a| a.exists() && !a.as_os_str().is_empty())
+        && !blocker.is_dir()
+    {
+        return Err(Error::io(
+            blocker,
+            std::io::Error::other(format!(
+                "is a file, so the output folder {} cannot be created there",
+                target.display()
+            )),
+        ));
     }
     if target.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink()) && !target.exists() {
         let to = std::fs::read_link(target).map(|t| t.display().to_string()).unwrap_or_default();

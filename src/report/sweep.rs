@@ -214,10 +214,10 @@ pub fn write(
             if nz.len() > 2 {
                 p.push(nz[nz.len() / 2]);
             }
-            if let Some(l) = nz.last() {
-                if p.last().is_none_or(|x| x.index != l.index) {
-                    p.push(*l);
-                }
+            if let Some(l) = nz.last()
+                && p.last().is_none_or(|x| x.index != l.index)
+            {
+                p.push(*l);
             }
             p
         };

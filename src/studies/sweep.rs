@@ -518,10 +518,10 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
         .collect();
     let mut levels: Vec<Option<f64>> = Vec::new();
     for r in &sorted {
-        if let WorkItem::Build { level, .. } = r.item {
-            if !levels.contains(&level) {
-                levels.push(level);
-            }
+        if let WorkItem::Build { level, .. } = r.item
+            && !levels.contains(&level)
+        {
+            levels.push(level);
         }
     }
     let tolerance_levels: Vec<ToleranceSummary> = levels
