@@ -1,52 +1,341 @@
-//! Every shipped design passes every command, through the binary, with short settings (one
-//! scenario, one Monte Carlo build per tolerance level, budgets up to 3, one radius).
+//! Every shipped design through the binary.
+//!
+//! Four designs that between them reach every kind of input springfit takes run every command,
+//! and each command's output is checked for values that could be wrong (not only that a file
+//! exists):
+//! - `double_pendulum`, the default: the paper catalogue's springs and cranks around three trims,
+//!   fitted for ±5 % builds, on a geodesic ball;
+//! - `double_pendulum_cams`: B-spline cams beside linear springs and trims, fitted by NNLS for
+//!   trimmed builds (the cam rows of `bom.csv` and their `cams/` files);
+//! - `ur5_pan_lift_elbow`: three joints of a URDF arm with non-parallel axes in gravity (the
+//!   spatial model, URDF joint names in the MuJoCo export);
+//! - `double_pendulum_paper_window`: the paper's box window instead of a ball (geodesics stopped
+//!   at its faces, the region-size curve of `pareto`), no budget: 70 springs.
+//!
+//! Every other design in `designs/` (read from the folder, so a new design is tested without
+//! being named here) passes `check` and a reduced `fit` whose bill meets the equalities when read
+//! back; the arms of five joints or more only `check`, with a coarser region check, since even a
+//! reduced fit of theirs takes minutes. The full matrix, every command on every design of up to
+//! four joints with its shipped settings and the shipped `check` of the others, is `#[ignore]`d:
+//! `cargo test --release --locked -- --ignored` (which `.ci/run` runs after the README's command).
 
 mod util;
 
-use util::{repo, springfit, temp_dir};
+use std::path::{Path, PathBuf};
 
-/// Runs check, geodesics, fit, simulate, sweep, compare and pareto on one shipped design.
+use nalgebra::DVector;
+use springfit::design::Design;
+use springfit::potential::Potential;
+use util::{Run, repo, springfit, temp_dir};
+
+/// The designs that run every command in the default suite.
+const EVERY_COMMAND: [&str; 4] =
+    ["double_pendulum", "double_pendulum_cams", "ur5_pan_lift_elbow", "double_pendulum_paper_window"];
+
+/// From this many joints a design only runs `check` (a fit of five or six joints takes minutes
+/// on two cores even with reduced sampling: sampling and the solve for n joints are later work).
+const CHECK_ONLY_FROM_JOINTS: usize = 5;
+
+fn design_path(name: &str) -> PathBuf {
+    repo().join("designs").join(format!("{name}.toml"))
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn num(v: &serde_json::Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+/// A CSV file as its header and rows of fields.
+fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines().map(|l| springfit::csv::split_csv_line(l).unwrap());
+    let header = lines.next().unwrap_or_else(|| panic!("{} is empty", path.display()));
+    (header, lines.collect())
+}
+
+fn column(header: &[String], name: &str) -> usize {
+    header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+}
+
+/// |∇U(q_eq)| in N·m and ‖∇²U(q_eq) − ω²M(q_eq)‖_F / ‖ω²M(q_eq)‖_F of the bill of materials at
+/// `bom` (springs and gravity), computed here from the file as written, not taken from the fit.
+fn equalities(design: &Design, bom: &Path) -> (f64, f64) {
+    let rows = springfit::files::bom::read(bom).unwrap_or_else(|e| panic!("{e}"));
+    let springs = springfit::fit::bill::spring_set(&rows);
+    let q = design.q_eq.as_slice();
+    let gradient = springs.gradient(q).unwrap() + design.chain.gravity_gradient(q);
+    let target = design.chain.mass_matrix(&design.q_eq) * design.fit.frequency.powi(2);
+    let hessian = springs.hessian(q).unwrap() + design.chain.gravity_hessian(q);
+    (gradient.norm(), (hessian - &target).norm() / target.norm())
+}
+
+/// Bounds on a fit's equalities. The QP meets them to round-off (1e-14 here): 1e-9 fails a bill
+/// whose largest stiffness is off by one part in 10⁸. NNLS weights them (`equality_weight`): its
+/// shipped designs reach 1e-4 N·m and 1e-6, bounded at ten times that.
+fn equality_bounds(summary: &serde_json::Value) -> (f64, f64) {
+    if summary["solver"] == "qp" { (1e-9, 1e-9) } else { (1e-3, 1e-5) }
+}
+
+/// How far from q_eq the bill as fitted may hold the arm, rad: round-off with the QP; the
+/// weighted equalities of NNLS leave up to 1e-5 N·m (the cam design: 1.5e-5 N·m, 6.9e-7 rad).
+fn shift_bound(summary: &serde_json::Value) -> f64 {
+    if summary["solver"] == "qp" { 1e-9 } else { 1e-5 }
+}
+
+/// The residual statistics of summary.json are ordered, finite and agree with the equalities
+/// computed from the bill as written.
+fn check_fit(design: &Design, fit: &Path, run: &Run) -> serde_json::Value {
+    let s = json(&fit.join("summary.json"));
+    let r = &s["residual_deg"];
+    let stats = ["median_abs", "p95_abs", "p99_abs", "max_abs"].map(|k| num(&r[k]));
+    assert!(stats.windows(2).all(|w| w[0] <= w[1]) && stats[3].is_finite(), "{r}\n{}", run.report());
+    assert!(r["count"].as_u64().unwrap() > 0, "{r}");
+    let (gradient, hessian) = equalities(design, &fit.join("bom.csv"));
+    let (g_bound, h_bound) = equality_bounds(&s);
+    assert!(gradient <= g_bound && hessian <= h_bound, "|∇U| {gradient:e}, Hessian {hessian:e}\n{}", run.report());
+    // The fit's own figures are those of the bill it wrote.
+    let reported = (num(&s["equilibrium_gradient_norm"]), num(&s["hessian_rel_error"]));
+    assert!((reported.0 - gradient).abs() <= 1e-9 + 1e-6 * gradient, "{reported:?} vs {gradient:e}");
+    assert!((reported.1 - hessian).abs() <= 1e-12 + 1e-6 * hessian, "{reported:?} vs {hessian:e}");
+    // The bill lists what the fit used, within its budget (trims are set after the build and not
+    // counted), and reads back to the spring set the fit evaluated.
+    let (header, rows) = csv(&fit.join("bom.csv"));
+    let trim = column(&header, "trim_max");
+    let trims = rows.iter().filter(|r| !r[trim].is_empty()).count();
+    assert_eq!(rows.len() as u64, s["used"].as_u64().unwrap(), "{s}");
+    let budget = design.fit.max_elements;
+    assert!(budget == 0 || rows.len() - trims <= budget, "{} elements for a budget of {budget}", rows.len() - trims);
+    let read = springfit::files::bom::read(&fit.join("bom.csv")).unwrap();
+    assert_eq!(
+        s["spring_set"].as_str(),
+        Some(springfit::fit::bill::fingerprint(&springfit::fit::bill::spring_set(&read)).as_str())
+    );
+    s
+}
+
+/// Every sample of geodesics.csv moves at unit metric speed (q̇ᵀ M(q) q̇ = 1: the fan is traced
+/// by arc length), and region.json says the design's region is valid.
+fn check_geodesics(design: &Design, folder: &Path) {
+    let (header, rows) = csv(&folder.join("geodesics.csv"));
+    let n = design.dof();
+    let (q0, qd0) = (column(&header, "q1"), column(&header, "qd1"));
+    assert!(rows.len() > 100, "{} samples", rows.len());
+    for row in rows.iter().step_by(7) {
+        let f = |i: usize| -> f64 { row[i].parse().unwrap() };
+        let q = DVector::from_iterator(n, (0..n).map(|i| f(q0 + i)));
+        let qd = DVector::from_iterator(n, (0..n).map(|i| f(qd0 + i)));
+        let speed = (qd.transpose() * design.chain.mass_matrix(&q) * &qd)[(0, 0)];
+        assert!((speed - 1.0).abs() < 1e-6, "metric speed² {speed} at {row:?}");
+    }
+    let region = json(&folder.join("region.json"));
+    assert_eq!(region["valid"], true, "{region}");
+}
+
+/// The figures the docs quote for a design's fit (`docs/guide.md`, README.md; summary.json as JSON
+/// pointers) and the bound each must stay within. A selection of at most K springs is a search
+/// whose path a rounding change can divert: perturbing ω or q_eq by 1e-15 moved the default
+/// design's held-out p99 by up to 53 % with the single exchange search and 34 % with restarts,
+/// so a selected fit's bound is about 1.5× its quoted figure (the default design's p99 0.369° is
+/// bounded at 0.5°); a fit without a budget is a convex QP whose figures move by round-off, bounded
+/// at the same margin. The default design's figures are checked in tests/cli_fit.rs.
+fn quoted(name: &str) -> &'static [(&'static str, f64)] {
+    match name {
+        // p99 0.0158° as drawn; trimmed at ±5 % p95 over builds of the p99 0.579°.
+        "double_pendulum_cams" => &[("/residual_deg/p99_abs", 0.02), ("/as_built/trimmed/p99_deg/p95", 1.0)],
+        // 0.137° with 4 restarts (the design's comment).
+        "ur5_pan_lift_elbow" => &[("/residual_deg/p99_abs", 0.2)],
+        // 9.34° / 22.5°: the hard case.
+        "double_pendulum_paper_window" => &[("/residual_deg/p99_abs", 12.0), ("/residual_deg/max_abs", 30.0)],
+        "double_pendulum_dense" => &[("/residual_deg/p99_abs", 0.01)],
+        "double_pendulum_dense_robust" => &[("/residual_deg/p99_abs", 0.35)],
+        "double_pendulum_workshop" => &[("/residual_deg/p99_abs", 1.1)],
+        "triple_pendulum" => &[("/residual_deg/p99_abs", 2.5)],
+        "double_pendulum_cams4" => &[("/residual_deg/p99_abs", 0.15)],
+        // The window built untrimmed (issue 24): as drawn p99 0.521°, max 1.64°; at ±5 % the p95
+        // over builds of the p99 1.80° untrimmed, 1.31° with the followers' preloads re-set.
+        "double_pendulum_paper_window_built" => &[
+            ("/residual_deg/p99_abs", 0.6),
+            ("/residual_deg/max_abs", 2.0),
+            ("/as_built/p99_deg/p95", 3.0),
+            ("/as_built/preload_trimmed/p99_deg/p95", 1.5),
+        ],
+        _ => &[],
+    }
+}
+
+/// Every command on one design, each output checked.
 fn every_command(name: &str) {
     let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let d = design.to_str().unwrap();
-    let check = springfit(&dir, &["check", d]).ok();
-    assert!(check.stdout().contains("ok:"), "{}", check.report());
-    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
+    let path = design_path(name);
+    let d = path.to_str().unwrap();
+    let design = Design::load(&path).unwrap();
+    check(&dir, &path, &catalog_name(&design));
+
     springfit(&dir, &["geodesics", d, "--out", "geo"]).ok();
-    assert!(dir.join("geo/geodesics.csv").is_file());
+    check_geodesics(&design, &dir.join("geo"));
+
     let fit = springfit(&dir, &["fit", d, "--out", "fit"]).ok();
     assert!(fit.stdout().contains("held-out samples"), "{}", fit.report());
-    for f in ["bom.csv", "summary.json", "residuals.csv", "report.md"] {
-        assert!(dir.join("fit").join(f).is_file(), "fit wrote no {f}\n{}", fit.report());
+    assert!(!fit.stderr().contains("warning: cam"), "a cam beyond its limits\n{}", fit.report());
+    let summary = check_fit(&design, &dir.join("fit"), &fit);
+    let p99 = num(&summary["residual_deg"]["p99_abs"]);
+    for (pointer, bound) in quoted(name) {
+        let figure = summary.pointer(pointer).map(num).unwrap_or_else(|| panic!("no {pointer} in {summary}"));
+        assert!(figure <= *bound, "{pointer}: {figure} above {bound}\n{}", fit.report());
     }
-    // Every shipped design has the sweep's scenario `sensitivity`: simulate it with the fitted springs.
+
+    // The fitted springs simulated: the same set (its fingerprint), and the energy controller
+    // holds the sweep's scenario at its target with the springs doing nearly all the work.
     let sim =
         springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
-    assert!(dir.join("sim/sim_sensitivity.json").is_file(), "{}", sim.report());
-    let sweep = springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
-    for f in ["sweep.csv", "sweep.json", "tolerance.md"] {
-        assert!(dir.join("sweep").join(f).is_file(), "sweep wrote no {f}\n{}", sweep.report());
+    let sj = json(&dir.join("sim/sim_sensitivity.json"));
+    assert_eq!(sj["spring_set"], summary["spring_set"], "{}", sim.report());
+    for (variant, m) in sj["runs"].as_object().unwrap() {
+        assert!(num(&m["energy_rel_error_last5s"]) < 0.05, "{variant}: {m}");
+        let share = num(&m["actuator_share"]);
+        assert!(share > 0.0 && share < 0.2, "{variant}: actuator share {share}");
     }
-    // tune on the bill as designed (a blank measured_stiffness column: every rate as designed).
+
+    // Parasitic damping costs the actuators: each ε > 0 more than none (not monotonically beyond
+    // that: the triple pendulum's share falls from 3.0 at ε = 0.1 to 0.7 at 0.5).
+    let sweep = springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
+    let sw = json(&dir.join("sweep/sweep.json"));
+    let shares: Vec<f64> = sw["parasitic"].as_array().unwrap().iter().map(|r| num(&r["actuator_share"])).collect();
+    assert!(shares.len() >= 2 && shares[1..].iter().all(|s| *s > shares[0]), "{shares:?}\n{}", sweep.report());
+    assert!(num(&sw["tolerance"]["residual_p99_deg_p50"]).is_finite(), "{}", sw["tolerance"]);
+
+    // tune on the bill as designed (a blank measured_stiffness column: every rate as designed):
+    // the arm rests at q_eq as the fit left it and as tuned, and tuning moves no rate but the
+    // trims', each within its range.
     let bom = std::fs::read_to_string(dir.join("fit/bom.csv")).unwrap();
     let measured: String = bom
         .lines()
         .enumerate()
         .map(|(i, l)| if i == 0 { format!("{l},measured_stiffness\n") } else { format!("{l},\n") })
         .collect();
-    std::fs::write(dir.join("measured.csv"), measured).unwrap();
-    let tune = springfit(&dir, &["tune", d, "--measured", "measured.csv", "--out", "tune"]).ok();
-    assert!(dir.join("tune/bom_tuned.csv").is_file(), "{}", tune.report());
-    // MuJoCo export, planar chains and URDF arms alike.
+    // Beside bom.csv, where a cam row finds its `cams/` file.
+    std::fs::write(dir.join("fit/measured.csv"), measured).unwrap();
+    let tune = springfit(&dir, &["tune", d, "--measured", "fit/measured.csv", "--out", "tune"]).ok();
+    let tj = json(&dir.join("tune/tune.json"));
+    let shift = (num(&tj["before"]["shift_rad"]), num(&tj["after"]["shift_rad"]));
+    assert!(shift.0 <= shift_bound(&summary) && shift.1 <= shift_bound(&summary), "{tj}\n{}", tune.report());
+    let ((header, fitted), (_, tuned)) = (csv(&dir.join("fit/bom.csv")), csv(&dir.join("tune/bom_tuned.csv")));
+    let (k, lo, hi) = (column(&header, "stiffness"), column(&header, "trim_min"), column(&header, "trim_max"));
+    assert_eq!(fitted.len(), tuned.len());
+    for (f, t) in fitted.iter().zip(&tuned) {
+        if f[hi].is_empty() {
+            assert_eq!(f[k], t[k], "{}: a rate that is not a trim's changed", f[0]);
+        } else {
+            let (rate, lo, hi): (f64, f64, f64) =
+                (t[k].parse().unwrap(), f[lo].parse().unwrap(), f[hi].parse().unwrap());
+            assert!((lo..=hi).contains(&rate), "{}: trim rate {rate} outside [{lo}, {hi}]", f[0]);
+        }
+    }
+    let trims = fitted.iter().filter(|r| !r[hi].is_empty()).count();
+
+    // The MuJoCo export carries every row of the bill, each either exactly or by callback.
     let export = springfit(&dir, &["export", d, "--bom", "fit/bom.csv", "--mujoco", "--out", "mj"]).ok();
-    assert!(dir.join("mj").join(format!("{name}.xml")).is_file(), "{}", export.report());
+    let xml = std::fs::read_to_string(dir.join("mj").join(format!("{name}.xml"))).unwrap();
+    let md = std::fs::read_to_string(dir.join("mj/elements.md")).unwrap();
+    // Hinges q1 … qn, each named after its URDF joint on a URDF arm.
+    let urdf = design.chain.spatial().is_some();
+    for (i, joint) in design.chain.joint_names().iter().enumerate() {
+        let q = format!("q{}", i + 1);
+        assert!(xml.contains(&format!("<joint name=\"{q}\"")), "no hinge {q}\n{}", export.report());
+        assert!(!urdf || md.contains(&format!("`{q}` = `{joint}`")), "{q} is not named {joint}\n{md}");
+    }
+    for row in &fitted {
+        assert_eq!(md.matches(&format!("| {} |", row[0])).count(), 1, "{} in elements.md\n{md}", row[0]);
+    }
+    assert!(export.stdout().contains(&format!("{} springs for MuJoCo", fitted.len())), "{}", export.report());
+
+    // compare reads the fit's figures back.
     springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
-    assert!(dir.join("cmp/compare.csv").is_file());
-    let pareto = springfit(&dir, &["pareto", d, "--k-max", "3", "--radii", "0.5", "--out", "pareto"]).ok();
-    let csv = std::fs::read_to_string(dir.join("pareto/pareto.csv")).unwrap();
-    // Budgets 2 and 3 and the radius each have a row, feasible or not.
-    assert_eq!(csv.lines().count(), 1 + 2 + 1, "{csv}\n{}", pareto.report());
+    let (header, rows) = csv(&dir.join("cmp/compare.csv"));
+    assert_eq!(rows.len(), 1);
+    assert_eq!(rows[0][column(&header, "p99_abs_deg")].parse::<f64>().unwrap(), p99);
+
+    // Budgets 2 and 3 and one radius, each fitted at reduced settings: a row each. A budget too
+    // small for the equalities is infeasible and says why; a larger budget is never worse; each
+    // fit keeps to its budget.
+    let quick = reduced(&dir, name, design.dof());
+    let pareto =
+        springfit(&dir, &["pareto", quick.to_str().unwrap(), "--k-max", "3", "--radii", "0.5", "--out", "pareto"]).ok();
+    let (header, rows) = csv(&dir.join("pareto/pareto.csv"));
+    assert_eq!(rows.len(), 2 + 1, "{rows:?}\n{}", pareto.report());
+    let (p99_col, used, infeasible) =
+        (column(&header, "p99_abs_deg"), column(&header, "used"), column(&header, "infeasible"));
+    let mut last = f64::INFINITY;
+    for r in &rows[..2] {
+        let budget: usize = r[1].parse().unwrap();
+        if r[infeasible].is_empty() {
+            let p99: f64 = r[p99_col].parse().unwrap();
+            assert!(p99 <= last && r[used].parse::<usize>().unwrap() <= budget + trims, "{r:?}");
+            last = p99;
+        } else {
+            let why = format!("no set of at most {budget} springs: the fit is infeasible");
+            assert!(r[infeasible].contains(&why), "{r:?}");
+        }
+    }
+    let radius = &rows[2];
+    assert!(radius[infeasible].is_empty() && radius[p99_col].parse::<f64>().unwrap().is_finite(), "{radius:?}");
+    let budget = design.fit.max_elements;
+    assert!(budget == 0 || radius[used].parse::<usize>().unwrap() <= budget + trims, "{radius:?}");
+}
+
+/// `springfit check` on a design file passes without a warning and names its catalogue.
+fn check(dir: &Path, design: &Path, catalog: &str) {
+    let run = springfit(dir, &["check", design.to_str().unwrap()]).ok();
+    assert!(run.stdout().contains("ok:") && run.stdout().contains(&format!("({catalog}, ")), "{}", run.report());
+    assert!(!run.stderr().contains("warning"), "a shipped design draws a warning\n{}", run.report());
+}
+
+/// The name a design's catalogue gives itself (`check` prints it).
+fn catalog_name(design: &Design) -> String {
+    let path = design.catalog.as_ref().unwrap();
+    springfit::elements::catalog::Catalog::load(path, design.dof()).unwrap().name
+}
+
+/// `check` and a [`reduced`] fit of a shipped design. From [`CHECK_ONLY_FROM_JOINTS`] joints `check` only,
+/// with 360 directions in the region check instead of the 2430 (five joints) or 3645 (six) it
+/// takes as shipped (11 s of CPU each for the UR5's six joints; the full matrix checks them as
+/// shipped).
+fn check_and_reduced_fit(dir: &Path, name: &str) {
+    let path = design_path(name);
+    let design = Design::load(&path).unwrap();
+    let catalog = catalog_name(&design);
+    if design.dof() >= CHECK_ONLY_FROM_JOINTS {
+        let fewer = util::design_variant(dir, name, &[("geodesics.check_directions", toml::Value::Integer(360))]);
+        check(dir, &fewer, &catalog);
+        return;
+    }
+    check(dir, &path, &catalog);
+    let out = format!("fit-{name}");
+    let fit = springfit(dir, &["fit", reduced(dir, name, design.dof()).to_str().unwrap(), "--out", &out]).ok();
+    check_fit(&design, &dir.join(&out), &fit);
+}
+
+/// The shipped design `name` of `n` joints with reduced fit settings, written into `dir`: 12
+/// training and held-out directions per joint, 10 samples each, 20 builds, 2 restarts (the
+/// default design's fit in a tenth of its time).
+fn reduced(dir: &Path, name: &str, n: usize) -> PathBuf {
+    let directions = toml::Value::Integer(12 * n as i64);
+    util::design_variant(
+        dir,
+        name,
+        &[
+            ("fit.training_directions", directions.clone()),
+            ("fit.training_samples", toml::Value::Integer(10)),
+            ("fit.evaluation_directions", directions),
+            ("fit.evaluation_samples", toml::Value::Integer(10)),
+            ("fit.builds", toml::Value::Integer(20)),
+            ("fit.restarts", toml::Value::Integer(2)),
+        ],
+    )
 }
 
 #[test]
@@ -55,47 +344,8 @@ fn double_pendulum() {
 }
 
 #[test]
-fn double_pendulum_dense() {
-    every_command("double_pendulum_dense");
-}
-
-#[test]
-fn double_pendulum_workshop() {
-    every_command("double_pendulum_workshop");
-}
-
-#[test]
-fn double_pendulum_paper_window() {
-    every_command("double_pendulum_paper_window");
-}
-
-#[test]
-fn double_pendulum_straight() {
-    every_command("double_pendulum_straight");
-}
-
-#[test]
-fn double_pendulum_folded() {
-    every_command("double_pendulum_folded");
-}
-
-#[test]
-fn triple_pendulum() {
-    every_command("triple_pendulum");
-}
-
-#[test]
-fn every_shipped_design_is_tested_here() {
-    let src = std::fs::read_to_string(repo().join("tests/cli_all_designs.rs")).unwrap();
-    for e in std::fs::read_dir(repo().join("designs")).unwrap().flatten() {
-        let name = e.path().file_stem().unwrap().to_string_lossy().into_owned();
-        assert!(src.contains(&format!("every_command(\"{name}\")")), "designs/{name}.toml has no test here");
-    }
-}
-
-#[test]
-fn ur5_lift_elbow() {
-    every_command("ur5_lift_elbow");
+fn double_pendulum_cams() {
+    every_command("double_pendulum_cams");
 }
 
 #[test]
@@ -104,144 +354,62 @@ fn ur5_pan_lift_elbow() {
 }
 
 #[test]
-fn double_pendulum_dense_robust() {
-    every_command("double_pendulum_dense_robust");
+fn double_pendulum_paper_window() {
+    every_command("double_pendulum_paper_window");
 }
 
-/// Cams: every command but `pareto`, whose spring budgets do not apply while a cam's basis columns
-/// cannot yet be counted as one element (`max_elements` with cams is refused with a message).
-#[test]
-fn double_pendulum_paper_window_cams() {
-    let name = "double_pendulum_paper_window_cams";
-    let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let d = design.to_str().unwrap();
-    springfit(&dir, &["check", d]).ok();
-    springfit(&dir, &["geodesics", d, "--out", "geo"]).ok();
-    let fit = springfit(&dir, &["fit", d, "--out", "fit"]).ok();
-    assert!(dir.join("fit/cams").is_dir(), "{}", fit.report());
-    springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
-    springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
-    springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
-    // every_command("double_pendulum_paper_window_cams") is this test (the coverage check reads it).
+/// The shipped designs in `designs/`, sorted.
+fn shipped() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(repo().join("designs"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
 
-/// The window built untrimmed: cams beside the paper catalogue's springs, cranks and stops.
-/// check, fit and simulate, and the figures the design was chosen for (issue 24): as drawn p99
-/// ≤ 0.6°, max ≤ 2°; at ±5 % the p95 over builds of the p99 within 3° untrimmed and 1.5° with the
-/// followers' preloads re-set. Geodesics, sweep and compare run on the same window and cams in
-/// the 8-cam design's test (a sweep of these 342 elements takes 41 s with one build per level);
-/// cams keep `pareto` out.
 #[test]
-fn double_pendulum_paper_window_built() {
-    let name = "double_pendulum_paper_window_built";
-    let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let d = design.to_str().unwrap();
-    let check = springfit(&dir, &["check", d]).ok();
-    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
-    let fit = springfit(&dir, &["fit", d, "--out", "fit"]).ok();
-    assert!(dir.join("fit/cams").is_dir(), "{}", fit.report());
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("fit/summary.json")).unwrap()).unwrap();
-    let (drawn, built) = (&summary["residual_deg"], &summary["as_built"]);
-    let figures = [
-        (drawn["p99_abs"].as_f64().unwrap(), 0.6),
-        (drawn["max_abs"].as_f64().unwrap(), 2.0),
-        (built["p99_deg"]["p95"].as_f64().unwrap(), 3.0),
-        (built["preload_trimmed"]["p99_deg"]["p95"].as_f64().unwrap(), 1.5),
-    ];
-    for (figure, bound) in figures {
-        assert!(figure <= bound, "{figure}° above {bound}°\n{}", fit.report());
+fn every_other_shipped_design_checks_and_fits() {
+    let dir = temp_dir("all-reduced");
+    let names: Vec<String> = shipped().into_iter().filter(|n| !EVERY_COMMAND.contains(&n.as_str())).collect();
+    assert!(names.len() >= 10, "{names:?}");
+    for name in &names {
+        check_and_reduced_fit(&dir, name);
     }
-    let sim =
-        springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
-    assert!(dir.join("sim/sim_sensitivity.json").is_file(), "{}", sim.report());
-    // every_command("double_pendulum_paper_window_built") is this test (the coverage check reads it).
-}
-
-/// The n-joint examples (a five-link planar pendulum, the UR5 with all six joints): `check`
-/// only, with their catalogue expanded for five and six joints, since their fits take minutes on
-/// two cores (issue 25: sampling and the solve for n joints are later work).
-fn n_joint_example(name: &str, catalogue: &str) {
-    let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let check = springfit(&dir, &["check", design.to_str().unwrap()]).ok();
-    assert!(check.stdout().contains("ok:") && check.stdout().contains(catalogue), "{}", check.report());
-    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
 }
 
 #[test]
-fn pendulum5() {
-    n_joint_example("pendulum5", "planar chain, 11 families");
-    // every_command("pendulum5") is this test (the coverage check reads it).
-}
-
-#[test]
-fn ur5_six() {
-    n_joint_example("ur5_six", "ur5_span, 10 families");
-    // every_command("ur5_six") is this test (the coverage check reads it).
-}
-
-#[test]
-fn ur5_six_cams() {
-    n_joint_example("ur5_six_cams", "ur5_cams_pursuit, 1 family");
-    // every_command("ur5_six_cams") is this test (the coverage check reads it).
-}
-
-#[test]
-fn double_pendulum_trim() {
-    every_command("double_pendulum_trim");
-}
-
-/// A cam design on the default design's ball: every command but `pareto` (cams cannot be counted
-/// by a spring budget yet), one Monte Carlo build, and every cam within its pressure-angle and
-/// curvature limits (a cam beyond them is a warning naming it).
-fn cam_design(name: &str) -> String {
-    let dir = temp_dir(&format!("all-{name}"));
-    let design = repo().join("designs").join(format!("{name}.toml"));
-    let d = design.to_str().unwrap();
-    let check = springfit(&dir, &["check", d]).ok();
-    assert!(!check.stderr().contains("warning"), "a shipped design draws a warning\n{}", check.report());
-    let fit = springfit(&dir, &["fit", d, "--out", "fit", "--threads", "2"]).ok();
-    assert!(dir.join("fit/cams").is_dir(), "{}", fit.report());
-    assert!(!fit.stderr().contains("warning: cam"), "a cam beyond its limits\n{}", fit.report());
-    springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "fit/bom.csv", "--out", "sim"]).ok();
-    springfit(&dir, &["sweep", d, "--builds", "1", "--out", "sweep"]).ok();
-    springfit(&dir, &["compare", "fit", "--out", "cmp"]).ok();
-    fit.stdout()
-}
-
-/// Four cams on the ball r = 2: the drawing to p99 ≈ 0.1° (held-out samples).
-#[test]
-fn double_pendulum_cams4() {
-    // every_command("double_pendulum_cams4") is cam_design (the coverage check reads this).
-    let out = cam_design("double_pendulum_cams4");
-    assert_eq!(out.matches("\ncam C").count() + usize::from(out.starts_with("cam C")), 4, "{out}");
-}
-
-/// Six cams, linear springs and trims on the ball r = 2: the drawing to p99 ≤ 0.02°, and the
-/// as-built figures with and without trims, the trimmed ones to p95 ≤ 1° at ±5 % (issue 15).
-#[test]
-fn double_pendulum_cams() {
-    // every_command("double_pendulum_cams") is cam_design (the coverage check reads this).
-    let out = cam_design("double_pendulum_cams");
-    assert!(out.contains("as built and trimmed"), "{out}");
-    let p99: f64 = out
-        .split("held-out samples: ")
-        .nth(1)
-        .and_then(|s| s.split("p99 ").nth(1))
-        .and_then(|s| s.split('°').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no p99 in\n{out}"));
-    assert!(p99 <= 0.02, "nominal p99 {p99}° > 0.02°\n{out}");
-    // Fitted for trimmed builds (trimmed_weight): trimmed at ±5 %, p95 over builds of the p99 ≤ 1°.
-    let trimmed_p95: f64 = out
-        .split("as built and trimmed: p99 ")
-        .nth(1)
-        .and_then(|s| s.split(" / ").nth(1))
-        .and_then(|s| s.split('°').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no trimmed p99 in\n{out}"));
-    assert!(trimmed_p95 <= 1.0, "trimmed p95 {trimmed_p95}° > 1°\n{out}");
+#[ignore = "the full matrix: every command on every design (check only from five joints), 450 s of CPU"]
+fn full_matrix_every_command_on_every_design() {
+    let names = shipped();
+    // Two designs at a time (each command runs on two threads); every design runs whatever
+    // another's failure, and the failures are listed at the end (their messages above).
+    let queue = std::sync::Mutex::new(names.into_iter());
+    let failed = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                loop {
+                    let next = queue.lock().unwrap().next();
+                    let Some(name) = next else { break };
+                    let design = Design::load(&design_path(&name)).unwrap();
+                    let run = || {
+                        if design.dof() < CHECK_ONLY_FROM_JOINTS {
+                            every_command(&name);
+                        } else {
+                            check(&temp_dir(&format!("all-{name}")), &design_path(&name), &catalog_name(&design));
+                        }
+                    };
+                    if std::panic::catch_unwind(run).is_err() {
+                        failed.lock().unwrap().push(name);
+                    }
+                }
+            });
+        }
+    });
+    let failed = failed.into_inner().unwrap();
+    assert!(failed.is_empty(), "every command did not pass on {failed:?}");
 }

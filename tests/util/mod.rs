@@ -138,3 +138,36 @@ pub fn design_text_anywhere(name: &str) -> String {
     let catalogs = repo().join("catalogs");
     design_text(name).replace("\"../catalogs/", &format!("\"{}/", catalogs.display()))
 }
+
+/// The shipped design `name` (`designs/<name>.toml`) written into `dir` as `<name>.toml`, its
+/// catalogue and URDF paths made absolute, with the keys `settings` set (added or replaced), each
+/// named with its table (`fit.builds`): the same arm, region and catalogue run with other settings
+/// (fewer samples, builds or restarts for a quick fit).
+pub fn design_variant(dir: &Path, name: &str, settings: &[(&str, toml::Value)]) -> PathBuf {
+    let designs = repo().join("designs");
+    let mut table: toml::Table = toml::from_str(&design_text(&format!("{name}.toml"))).unwrap();
+    let absolute = |v: &mut toml::Value| {
+        if let Some(p) = v.as_str() {
+            *v = toml::Value::String(designs.join(p).display().to_string());
+        }
+    };
+    if let Some(catalog) = table.get_mut("catalog") {
+        absolute(catalog);
+    }
+    if let Some(urdf) = table.get_mut("robot").and_then(|r| r.get_mut("urdf")) {
+        absolute(urdf);
+    }
+    for (path, value) in settings {
+        let (section, key) = path.split_once('.').expect("a key named with its table");
+        let section = table.entry(section).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        section.as_table_mut().unwrap().insert(key.to_string(), value.clone());
+    }
+    write(dir, &format!("{name}.toml"), &toml::to_string(&table).unwrap())
+}
+
+/// The shipped design `name` as [`design_variant`] writes it with `builds` Monte Carlo builds
+/// behind the as-built figures instead of the design's (1,000 builds are 70 % of the default
+/// design's `fit`): for a test about anything but those figures.
+pub fn with_builds(dir: &Path, name: &str, builds: i64) -> PathBuf {
+    design_variant(dir, name, &[("fit.builds", toml::Value::Integer(builds))])
+}
