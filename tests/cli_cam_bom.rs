@@ -5,7 +5,8 @@
 
 mod util;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use util::{repo, springfit, temp_dir, write};
 
@@ -33,32 +34,44 @@ fn copy_bom(from: &Path, to: &Path) {
     }
 }
 
+/// The output folder of `springfit fit designs/double_pendulum_cams4.toml`, fitted once for the
+/// tests of this file (which read it and copy what they change).
+fn fitted() -> &'static Path {
+    static FIT: OnceLock<PathBuf> = OnceLock::new();
+    FIT.get_or_init(|| {
+        let dir = temp_dir("cam-fit");
+        let design = repo().join("designs/double_pendulum_cams4.toml");
+        springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "fit", "--threads", "2"]).ok();
+        dir.join("fit")
+    })
+}
+
 #[test]
 fn a_fit_with_cams_is_rebuilt_from_its_folder() {
     let dir = temp_dir("cam-bom");
     let design = repo().join("designs/double_pendulum_cams4.toml");
     let d = design.to_str().unwrap();
-    let fit = springfit(&dir, &["fit", d, "--out", "fit", "--threads", "2"]).ok();
+    let fit = fitted();
     // One row per cam, each naming its file, which exists.
-    let bom = std::fs::read_to_string(dir.join("fit/bom.csv")).unwrap();
+    let bom = std::fs::read_to_string(fit.join("bom.csv")).unwrap();
     let rows: Vec<&str> = bom.lines().skip(1).collect();
-    assert_eq!(rows.len(), 4, "{bom}\n{}", fit.report());
+    assert_eq!(rows.len(), 4, "{bom}");
     for (i, row) in rows.iter().enumerate() {
         let id = format!("C{:02}", i + 1);
         assert!(row.starts_with(&format!("{id},")) && row.contains(",cam,,"), "{row}");
         assert!(row.ends_with(&format!(",cams/{id}.toml")), "{row}");
         assert!(row.contains(",N/mm,"), "{row}");
-        assert!(dir.join(format!("fit/cams/{id}.toml")).is_file());
+        assert!(fit.join(format!("cams/{id}.toml")).is_file());
     }
     // Only the files of the bill of materials, elsewhere: the simulation uses the fit's set.
-    copy_bom(&dir.join("fit"), &dir.join("parts"));
+    copy_bom(fit, &dir.join("parts"));
     springfit(&dir, &["simulate", d, "--scenario", "sensitivity", "--bom", "parts/bom.csv", "--out", "sim"]).ok();
-    assert_eq!(fingerprint(&dir.join("sim/sim_sensitivity.json")), fingerprint(&dir.join("fit/summary.json")));
+    assert_eq!(fingerprint(&dir.join("sim/sim_sensitivity.json")), fingerprint(&fit.join("summary.json")));
 
     // Broken cam files: one error naming the file and the key, exit 2, no output folder.
     let broken = |name: &str, edit: &dyn Fn(&str) -> String, needles: &[&str]| {
         let bad = dir.join(name);
-        copy_bom(&dir.join("fit"), &bad);
+        copy_bom(fit, &bad);
         let cam = bad.join("cams/C02.toml");
         let text = std::fs::read_to_string(&cam).unwrap();
         let edited = edit(&text);
@@ -99,8 +112,8 @@ fn a_measured_follower_rate_scales_its_cam() {
     let dir = temp_dir("cam-tune");
     let design = repo().join("designs/double_pendulum_cams4.toml");
     let d = design.to_str().unwrap();
-    springfit(&dir, &["fit", d, "--out", "fit", "--threads", "2"]).ok();
-    let bom = std::fs::read_to_string(dir.join("fit/bom.csv")).unwrap();
+    let fit = fitted();
+    let bom = std::fs::read_to_string(fit.join("bom.csv")).unwrap();
     let measured = |factor: f64| {
         let mut lines = bom.lines();
         let mut s = format!("{},measured_stiffness\n", lines.next().unwrap());
@@ -111,7 +124,7 @@ fn a_measured_follower_rate_scales_its_cam() {
         }
         s
     };
-    copy_bom(&dir.join("fit"), &dir.join("m"));
+    copy_bom(fit, &dir.join("m"));
     write(&dir, "m/high.csv", &measured(1.05));
     write(&dir, "m/same.csv", &measured(1.0));
     let high = springfit(&dir, &["tune", d, "--measured", "m/high.csv", "--out", "high"]).ok();
@@ -123,14 +136,14 @@ fn a_measured_follower_rate_scales_its_cam() {
     };
     assert!(shift(&high) > 1e-4, "{}", high.report());
     assert!(shift(&same) < 1e-5, "{}", same.report());
-    let designed = coefficients(&dir.join("fit/cams/C01.toml"));
+    let designed = coefficients(&fit.join("cams/C01.toml"));
     let tuned = coefficients(&dir.join("high/cams/C01_bom_tuned.toml"));
     assert_eq!(designed.len(), tuned.len());
     for (c, t) in designed.iter().zip(&tuned) {
         assert!((t - 1.05 * c).abs() <= 1e-12 * c.abs(), "{t} vs 1.05 × {c}");
     }
     assert!(designed.iter().any(|c| *c != 0.0));
-    assert_eq!(coefficients(&dir.join("fit/cams/C02.toml")), coefficients(&dir.join("high/cams/C02_bom_tuned.toml")));
+    assert_eq!(coefficients(&fit.join("cams/C02.toml")), coefficients(&dir.join("high/cams/C02_bom_tuned.toml")));
     // The tuned bill of materials is itself a folder springfit reads.
     let tuned_bom = std::fs::read_to_string(dir.join("high/bom_tuned.csv")).unwrap();
     assert!(tuned_bom.lines().nth(1).unwrap().ends_with(",cams/C01_bom_tuned.toml"), "{tuned_bom}");

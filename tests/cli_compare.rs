@@ -2,7 +2,7 @@
 
 mod util;
 
-use util::{repo, springfit, temp_dir, write};
+use util::{springfit, temp_dir, write};
 
 #[test]
 fn compare_refuses_a_folder_that_is_not_a_fit_output() {
@@ -17,11 +17,12 @@ fn compare_refuses_a_folder_that_is_not_a_fit_output() {
 #[test]
 fn compare_takes_solvers_catalogues_and_designs_together() {
     let dir = temp_dir("compare-mixed");
-    let design = repo().join("designs/double_pendulum.toml");
+    // Without the Monte Carlo builds: the table's as-built columns are not what is tested here.
+    let design = util::with_builds(&dir, "double_pendulum", 0);
     let d = design.to_str().unwrap();
     springfit(&dir, &["fit", d, "--solver", "nnls", "--out", "nnls"]).ok();
     springfit(&dir, &["fit", d, "--solver", "qp", "--out", "qp"]).ok();
-    let workshop = repo().join("designs/double_pendulum_workshop.toml");
+    let workshop = util::with_builds(&dir, "double_pendulum_workshop", 0);
     let run = springfit(&dir, &["compare", "nnls", "qp", workshop.to_str().unwrap(), "--exact", "--out", "cmp"]).ok();
     for f in ["compare.csv", "compare.md", "compare.svg", "compare.png"] {
         assert!(dir.join("cmp").join(f).is_file(), "missing {f}\n{}", run.report());
@@ -48,7 +49,7 @@ fn compare_takes_solvers_catalogues_and_designs_together() {
 #[test]
 fn pareto_tables_budgets_and_radii() {
     let dir = temp_dir("pareto");
-    let design = repo().join("designs/double_pendulum_workshop.toml");
+    let design = util::with_builds(&dir, "double_pendulum_workshop", 20);
     springfit(&dir, &["pareto", design.to_str().unwrap(), "--k-max", "5", "--radii", "1.0,2.0", "--out", "p"]).ok();
     let csv = std::fs::read_to_string(dir.join("p/pareto.csv")).unwrap();
     let budget_rows: Vec<&str> = csv.lines().filter(|l| l.starts_with("budget,")).collect();
@@ -62,7 +63,7 @@ fn pareto_tables_budgets_and_radii() {
 #[test]
 fn compare_shows_an_actuator_share_only_from_a_simulation_of_the_same_springs() {
     let dir = temp_dir("compare-share");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = util::with_builds(&dir, "double_pendulum", 0);
     let d = design.to_str().unwrap();
     springfit(&dir, &["fit", d, "--out", "dp"]).ok();
     // simulate fits the design itself: the same springs, so the same fingerprint.

@@ -91,6 +91,19 @@ fn the_default_design_meets_its_accuracy_targets() {
     assert_eq!(realised["parts"].as_u64(), s["used"].as_u64(), "{realised}");
     assert!(realised["p99_change_deg"].as_f64().unwrap().abs() <= 0.1, "{realised}");
     assert!(run.stdout().contains("realised design: p99"), "{}", run.report());
+    // Its verdict against the design's threshold, and its sampling: two joints keep the counts of
+    // before they grew with n (72 / 360 / 720 directions).
+    assert!(run.stdout().contains("verdict: acceptable"), "{}", run.report());
+    assert_eq!(s["verdict"], "acceptable");
+    assert_eq!(s["accept_p99_deg"].as_f64(), Some(2.0));
+    let sampling = &s["sampling"];
+    let counts = ["training_directions", "evaluation_directions", "check_directions"].map(|k| sampling[k].as_u64());
+    assert_eq!(counts, [Some(72), Some(360), Some(720)], "{sampling}");
+    // stdout and report.md count candidates the same way.
+    let line = run.stdout().lines().next().unwrap().to_string();
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let total = line.split(" candidates").next().unwrap().rsplit(' ').next().unwrap().to_string();
+    assert!(report.contains(&format!("{total} candidates")), "{line}\n{report}");
 }
 
 #[test]
@@ -168,32 +181,18 @@ fn an_infeasible_fit_exits_with_1_names_the_constraint_and_keeps_previous_result
     }
 }
 
+/// Five springs (around the three trims) cannot follow the geodesics (p99 ≈ 5°): poor, with what
+/// to try. (Four springs around the trims: the selected support cannot meet the Hessian match
+/// exactly, and the QP reports the fit infeasible.) The acceptable verdict is the default
+/// design's, above.
 #[test]
-fn a_fit_gets_a_plain_verdict_against_the_design_threshold() {
+fn a_poor_fit_gets_a_plain_verdict_against_the_design_threshold() {
     let dir = temp_dir("fit-verdict");
-    let design = repo().join("designs/double_pendulum.toml");
-    let d = design.to_str().unwrap();
-    let good = springfit(&dir, &["fit", d, "--out", "good"]).ok();
-    assert!(good.stdout().contains("verdict: acceptable"), "{}", good.report());
-    let s = summary(&dir.join("good"));
-    assert_eq!(s["verdict"], "acceptable");
-    assert_eq!(s["accept_p99_deg"].as_f64(), Some(2.0));
-    // Two joints keep the counts of before they grew with n (72 / 360 / 720 directions).
-    let sampling = &s["sampling"];
-    let counts = ["training_directions", "evaluation_directions", "check_directions"].map(|k| sampling[k].as_u64());
-    assert_eq!(counts, [Some(72), Some(360), Some(720)], "{sampling}");
-    // Five springs (around the three trims) cannot follow the geodesics (p99 ≈ 5°): poor, with
-    // what to try. (Four springs around the trims: the selected support cannot meet the Hessian
-    // match exactly, and the QP reports the fit infeasible.)
-    let few = springfit(&dir, &["fit", d, "--max-elements", "5", "--out", "few"]).ok();
+    let design = util::with_builds(&dir, "double_pendulum", 0);
+    let few = springfit(&dir, &["fit", design.to_str().unwrap(), "--max-elements", "5", "--out", "few"]).ok();
     assert!(few.stdout().contains("verdict: poor") && few.stdout().contains("fit.max_elements"), "{}", few.report());
     let s = summary(&dir.join("few"));
     assert_eq!(s["verdict"], "poor");
     assert!(s["residual_deg"]["p99_abs"].as_f64().unwrap() > 2.0);
     assert!(std::fs::read_to_string(dir.join("few/report.md")).unwrap().contains("**Verdict: poor**"));
-    // stdout and report.md count candidates the same way.
-    let line = good.stdout().lines().next().unwrap().to_string();
-    let report = std::fs::read_to_string(dir.join("good/report.md")).unwrap();
-    let total = line.split(" candidates").next().unwrap().rsplit(' ').next().unwrap().to_string();
-    assert!(report.contains(&format!("{total} candidates")), "{line}\n{report}");
 }

@@ -31,6 +31,21 @@ fn no_leftovers(dir: &Path) {
     assert!(hidden.is_empty(), "staging or backup folders left behind: {hidden:?}");
 }
 
+/// The default design with 24 × 10 held-out samples and no Monte Carlo builds, written into
+/// `dir`: these tests are about the files, and its `fit` and `fit --exact` take a tenth of the
+/// shipped design's time.
+fn quick(dir: &Path) -> PathBuf {
+    util::design_variant(
+        dir,
+        "double_pendulum",
+        &[
+            ("fit.evaluation_directions", toml::Value::Integer(24)),
+            ("fit.evaluation_samples", toml::Value::Integer(10)),
+            ("fit.builds", toml::Value::Integer(0)),
+        ],
+    )
+}
+
 #[test]
 fn a_folder_of_user_files_is_refused_by_every_command_and_left_untouched() {
     let dir = temp_dir("safety-user");
@@ -64,7 +79,7 @@ fn a_folder_of_user_files_is_refused_by_every_command_and_left_untouched() {
 #[test]
 fn a_rerun_replaces_only_its_own_files_and_removes_its_stale_ones() {
     let dir = temp_dir("safety-rerun");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = quick(&dir);
     let d = design.to_str().unwrap();
     springfit(&dir, &["fit", d, "--out", "run"]).ok();
     let first = manifest_files(&dir.join("run"));
@@ -100,7 +115,7 @@ fn a_rerun_replaces_only_its_own_files_and_removes_its_stale_ones() {
 #[test]
 fn a_stale_file_is_removed_only_when_the_old_manifest_lists_it() {
     let dir = temp_dir("safety-stale");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = quick(&dir);
     let d = design.to_str().unwrap();
     springfit(&dir, &["fit", d, "--out", "run"]).ok();
     // Take bom.md off the manifest: to springfit it is now a file someone else put there.
@@ -123,7 +138,7 @@ fn a_stale_file_is_removed_only_when_the_old_manifest_lists_it() {
 #[test]
 fn a_partial_simulate_rerun_keeps_the_other_scenarios_files() {
     let dir = temp_dir("safety-partial");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = quick(&dir);
     let d = design.to_str().unwrap();
     springfit(&dir, &["simulate", d, "--exact", "--scenario", "sensitivity", "--out", "sim"]).ok();
     springfit(&dir, &["simulate", d, "--exact", "--scenario", "swingup", "--out", "sim"]).ok();
@@ -170,7 +185,7 @@ fn with_measured_rate(bom: &str) -> String {
 #[test]
 fn a_users_edits_to_springfits_files_survive_a_rerun_of_fit_tune_and_sweep() {
     let dir = temp_dir("safety-edits");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = quick(&dir);
     let d = design.to_str().unwrap();
     springfit(&dir, &["fit", d, "--out", "A", "--threads", "2"]).ok();
     let fitted = std::fs::read_to_string(dir.join("A/bom.csv")).unwrap();
@@ -256,7 +271,7 @@ fn every_command_refuses_a_users_file_in_the_way_before_any_work() {
 #[test]
 fn a_copy_of_a_design_that_kept_its_name_does_not_replace_the_originals_results() {
     let dir = temp_dir("safety-copy");
-    let original = write(&dir, "double_pendulum.toml", &util::design_text_anywhere("double_pendulum.toml"));
+    let original = quick(&dir);
     let text = std::fs::read_to_string(&original).unwrap();
     // The newcomer's first move: a copy with one key changed and the same `name`.
     let changed = text.replacen("frequency = 4.0", "frequency = 3.0", 1);
@@ -284,7 +299,7 @@ fn a_copy_of_a_design_that_kept_its_name_does_not_replace_the_originals_results(
 #[test]
 fn a_run_into_a_folder_another_run_is_writing_stops_at_once() {
     let dir = temp_dir("safety-lock");
-    let design = repo().join("designs/double_pendulum.toml");
+    let design = quick(&dir);
     let d = design.to_str().unwrap();
     // Another run (here the library, as a second process would) holds the folder.
     let plan = springfit::report::output::Plan::new("fit", ["*"]);

@@ -23,15 +23,15 @@ fn missing() -> Option<String> {
     }
 }
 
-#[test]
-fn the_python_package_passes_its_tests() {
+/// Runs the package's tests that pytest's `-m` expression `marks` selects.
+fn pytest(marks: &str) {
     if let Some(why) = missing() {
         assert!(std::env::var_os("CI").is_none(), "CI must run the Python package's tests: {why}");
         eprintln!("SKIPPED: the Python package's tests: {why}");
         return;
     }
     let out = Command::new("python3")
-        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "python/tests"])
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", marks, "python/tests"])
         .env("SPRINGFIT_BIN", env!("CARGO_BIN_EXE_springfit"))
         .current_dir(repo())
         .output()
@@ -40,4 +40,17 @@ fn the_python_package_passes_its_tests() {
     println!("{text}");
     assert!(out.status.success(), "pytest failed:\n{text}");
     assert!(text.contains(" passed"), "pytest ran no test:\n{text}");
+}
+
+#[test]
+fn the_python_package_passes_its_tests() {
+    pytest("not slow");
+}
+
+/// The tests marked `slow` (an example driving MuJoCo through the 100 s switch scenario): the
+/// full matrix, `cargo test --release --locked -- --ignored`.
+#[test]
+#[ignore = "the Python package's slow tests, with the full matrix"]
+fn the_python_packages_slow_tests_pass() {
+    pytest("slow");
 }

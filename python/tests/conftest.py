@@ -34,6 +34,12 @@ def cli_error(*args, cwd):
     return line[len("springfit: error: "):]
 
 
+def pytest_configure(config):
+    # `slow`: left out of the README's test command (tests/python_package.rs runs `-m "not slow"`)
+    # and run by the full matrix (`cargo test --release --locked -- --ignored`).
+    config.addinivalue_line("markers", "slow: minutes of work; run by the --ignored matrix, not by the default suite")
+
+
 @pytest.fixture(scope="session")
 def design():
     return springfit.Design.load(DEFAULT)

@@ -24,6 +24,7 @@ def test_fit_histogram(tmp_path):
     assert (tmp_path / "fit" / "bom.csv").exists()
 
 
+@pytest.mark.slow  # 100 s of the switch scenario in MuJoCo driven from Python: 20 s of CPU
 def test_mujoco_switch_settles_every_step_as_simulate_does(tmp_path):
     pytest.importorskip("mujoco", reason="examples/mujoco_switch.py needs mujoco >= 3.7 (.ci/run installs it)")
     p = run("mujoco_switch.py", "--out", tmp_path / "mj", cwd=tmp_path)
