@@ -120,29 +120,37 @@ const CONVEX: f64 = 1e-6;
 /// bill has trims: fitted without a budget, the same support solved again, a convex problem a
 /// rounding change cannot divert (unlike the selection of the support).
 fn support_of(bom: &str, dir: &Path) -> Catalog {
+    use toml::Value;
     let mut lines = bom.lines().map(|l| springfit::csv::split_csv_line(l).unwrap());
     let header = lines.next().unwrap();
-    let col = |name: &str| header.iter().position(|h| h == name);
-    let trim = col("trim_max");
-    let mut text = String::from("name = \"support\"\n");
-    for f in lines {
-        if trim.is_some_and(|t| !f[t].is_empty()) {
-            continue;
+    let trim = header.iter().position(|h| h == "trim_max");
+    let mut families: Vec<Value> = Vec::new();
+    for f in lines.filter(|f| trim.is_none_or(|t| f[t].is_empty())) {
+        let mut family = toml::Table::new();
+        family.insert("name".into(), Value::String(format!("{} {}", f[1], f[0])));
+        family.insert("profile".into(), Value::String(f[2].clone()));
+        if !f[3].is_empty() {
+            family.insert("side".into(), Value::String(f[3].clone()));
         }
-        let coupling = f[4].replace(';', ", ");
-        let side = if f[3].is_empty() { String::new() } else { format!("side = \"{}\"\n", f[3]) };
-        let offset: f64 = f[5].parse().unwrap();
-        text += &format!(
-            "\n[[family]]\nname = \"{} {}\"\nprofile = \"{}\"\n{side}unit = \"{}\"\ncouplings = [[{coupling}]]\noffsets = [{offset:?}]\n",
-            f[1], f[0], f[2], f[7]
-        );
+        family.insert("unit".into(), Value::String(f[7].clone()));
+        let coupling = f[4].split(';').map(|a| Value::Integer(a.parse().unwrap())).collect();
+        family.insert("couplings".into(), Value::Array(vec![Value::Array(coupling)]));
+        family.insert("offsets".into(), Value::Array(vec![Value::Float(f[5].parse().unwrap())]));
+        families.push(Value::Table(family));
     }
     if trim.is_some() {
-        text += "\n[[family]]\nname = \"trim spring\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[1, 0], [0, 1], [1, 1]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, 4.0]\n";
+        let paper_trim: toml::Table =
+            toml::from_str(&std::fs::read_to_string(repo("catalogs/paper_trim.toml")).unwrap()).unwrap();
+        let trims =
+            paper_trim["family"].as_array().unwrap().iter().filter(|f| f.get("trim") == Some(&Value::Boolean(true)));
+        families.extend(trims.cloned());
     }
+    let mut catalog = toml::Table::new();
+    catalog.insert("name".into(), Value::String("support".into()));
+    catalog.insert("family".into(), Value::Array(families));
     std::fs::create_dir_all(dir).unwrap();
     let path = dir.join("support.toml");
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, toml::to_string(&catalog).unwrap()).unwrap();
     let catalog = Catalog::load(&path, 2).unwrap();
     let _ = std::fs::remove_dir_all(dir);
     catalog
