@@ -14,6 +14,6 @@ pub mod run;
 pub mod smoothing;
 pub mod solve;
 
-pub use outcome::{Evaluation, FitOutcome, SolveReport, Timings};
+pub use outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
 pub use prepare::Prepared;
 pub use run::{exact_reference, fit};

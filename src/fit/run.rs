@@ -16,7 +16,7 @@ use std::time::Instant;
 use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
-use super::outcome::{Evaluation, FitOutcome, SolveReport, Timings};
+use super::outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
 use super::prepare::{Prepared, fans};
 use super::solve::solve;
 use crate::design::Design;
@@ -195,8 +195,8 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
         cams: Vec::new(),
         metrics,
         solve: SolveReport {
-            solver: "exact".into(),
-            status: "reference".into(),
+            solver: Solver::Exact,
+            status: SolveStatus::Reference,
             selection_evaluations: 0,
             selection_swaps: 0,
             cut_rounds: 0,

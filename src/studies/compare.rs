@@ -54,7 +54,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         design: outcome.design.clone(),
         design_file: Some(design_file.to_path_buf()),
         catalog: outcome.catalog.clone(),
-        solver: outcome.solve.solver.clone(),
+        solver: outcome.solve.solver.to_string(),
         used: outcome.used(),
         stats: outcome.metrics.stats,
         angles: outcome.metrics.residuals.iter().map(|r| r.angle_deg).collect(),
