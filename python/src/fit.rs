@@ -1,4 +1,4 @@
-//! `Design.fit()` and its result: the bill of materials, the residual angles as
+//! `Design.fit()` and its result: the bill of materials (as data), the residual angles as
 //! arrays, the summary and the as-built figures, the fitted potential, and `write(folder)`
 //! through the command's own writer. The fit is the library's fit job
 //! ([`springfit::jobs::fit`]), the one `springfit fit` runs.
@@ -11,6 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use springfit::design::Design;
 use springfit::design::fit::SolverKind;
+use springfit::files::bom::{HEADER, Value, records};
 use springfit::jobs::fit::{FitJob, FitRequest, FitRun};
 use springfit::report::output::{Edits, Plan};
 
@@ -74,14 +75,51 @@ impl PyFit {
     /// (numbers as floats, blanks as None).
     #[getter]
     fn bom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        csv_records(py, &springfit::files::bom::to_csv(&self.run.outcome.bom))
+        let out = PyList::empty(py);
+        for line in records(&self.run.outcome.bom) {
+            let row = PyDict::new(py);
+            for (k, v) in HEADER.split(',').zip(line) {
+                match cell(v) {
+                    Cell::Blank => row.set_item(k, py.None())?,
+                    Cell::Number(x) => row.set_item(k, x)?,
+                    Cell::Text(t) => row.set_item(k, t)?,
+                }
+            }
+            out.append(row)?;
+        }
+        Ok(out)
     }
 
     /// The bill of materials as a NumPy structured array, one field per column of `bom.csv`:
     /// float64 where every entry is a number (blanks NaN), a string otherwise.
     #[getter]
     fn bom_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        structured(py, &springfit::files::bom::to_csv(&self.run.outcome.bom))
+        let lines: Vec<Vec<Cell>> =
+            records(&self.run.outcome.bom).into_iter().map(|l| l.into_iter().map(cell).collect()).collect();
+        let columns: Vec<&str> = HEADER.split(',').collect();
+        let numeric: Vec<bool> =
+            (0..columns.len()).map(|c| lines.iter().all(|l| !matches!(l.get(c), Some(Cell::Text(_))))).collect();
+        let dtype = PyList::empty(py);
+        for (c, name) in columns.iter().enumerate() {
+            let width = lines.iter().map(|l| l.get(c).map_or(0, Cell::width)).max().unwrap_or(0).max(1);
+            let kind = if numeric[c] { "f8".to_string() } else { format!("U{width}") };
+            dtype.append((*name, kind))?;
+        }
+        let rows = PyList::empty(py);
+        for l in &lines {
+            let fields = PyList::empty(py);
+            for (c, v) in l.iter().enumerate() {
+                match (numeric[c], v) {
+                    (true, Cell::Number(x)) => fields.append(*x)?,
+                    (true, _) => fields.append(f64::NAN)?,
+                    (false, Cell::Text(t)) => fields.append(t)?,
+                    (false, Cell::Number(x)) => fields.append(format!("{x}"))?,
+                    (false, Cell::Blank) => fields.append("")?,
+                }
+            }
+            rows.append(pyo3::types::PyTuple::new(py, fields)?)?;
+        }
+        py.import("numpy")?.call_method1("array", (rows, dtype))
     }
 
     /// The text of `bom.csv`, byte for byte what `springfit fit` writes.
@@ -194,33 +232,32 @@ pub fn csv_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyLi
     Ok(out)
 }
 
-/// A structured array from CSV text (see `Fit.bom_array`).
-pub fn structured<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
-    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
-    let rows: Vec<Vec<String>> =
-        lines.map(|l| springfit::csv::split_csv_line(l).map_err(|e| setting("bom", e))).collect::<PyResult<_>>()?;
-    let numeric: Vec<bool> = (0..header.len())
-        .map(|c| rows.iter().all(|r| r.get(c).is_none_or(|v| v.is_empty() || v.parse::<f64>().is_ok())))
-        .collect();
-    let dtype = PyList::empty(py);
-    for (c, name) in header.iter().enumerate() {
-        let width = rows.iter().map(|r| r.get(c).map_or(0, |v| v.chars().count())).max().unwrap_or(0).max(1);
-        let kind = if numeric[c] { "f8".to_string() } else { format!("U{width}") };
-        dtype.append((name.as_str(), kind))?;
-    }
-    let records = PyList::empty(py);
-    for r in &rows {
-        let fields = PyList::empty(py);
-        for c in 0..header.len() {
-            let v = r.get(c).map(String::as_str).unwrap_or("");
-            if numeric[c] {
-                fields.append(if v.is_empty() { f64::NAN } else { v.parse::<f64>().unwrap_or(f64::NAN) })?;
-            } else {
-                fields.append(v)?;
-            }
+/// A value of the bill as `Fit.bom` and `Fit.bom_array` give it: the CSV's rule kept (a text
+/// that reads as a number, as a one-joint coupling `1`, has always come out as that number).
+enum Cell {
+    Blank,
+    Number(f64),
+    Text(String),
+}
+
+impl Cell {
+    /// Characters of the value as the CSV writes it (the width of a text column).
+    fn width(&self) -> usize {
+        match self {
+            Cell::Blank => 0,
+            Cell::Number(x) => format!("{x}").chars().count(),
+            Cell::Text(t) => t.chars().count(),
         }
-        records.append(pyo3::types::PyTuple::new(py, fields)?)?;
     }
-    py.import("numpy")?.call_method1("array", (records, dtype))
+}
+
+fn cell(v: Value) -> Cell {
+    match v {
+        Value::Blank => Cell::Blank,
+        Value::Number(x) => Cell::Number(x),
+        Value::Text(t) => match t.parse::<f64>() {
+            Ok(x) => Cell::Number(x),
+            Err(_) => Cell::Text(t),
+        },
+    }
 }
