@@ -166,7 +166,6 @@ impl<'a> SweepJob<'a> {
             None => Made::Tables(Box::new(tables(&self.settings, &results))),
         };
         let items = items.len();
-        drop(ctx);
         Ok(SweepRun { fit, settings: self.settings, items, results, seconds, made })
     }
 
