@@ -63,8 +63,9 @@ pub struct FitJob<'a> {
 }
 
 impl<'a> FitJob<'a> {
-    /// Checks the settings `request` gives `design` (the catalogue, validated with the design,
-    /// is checked when the job runs).
+    /// Checks the settings `request` gives `design`. The stock list and the catalogue are
+    /// checked when the job runs, after the command has claimed its output folder: a refused
+    /// folder is the first error, as it always was.
     pub fn new(design: &'a Design, catalog: Option<&'a Catalog>, request: FitRequest) -> Result<FitJob<'a>> {
         let settings = request.settings(design)?;
         Ok(FitJob { design, catalog, settings, exact: request.exact })
