@@ -33,7 +33,7 @@ fn fit_trim_design() -> (Design, FitOutcome) {
         evaluation_samples: 20,
         ..design.fit
     };
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     (design, outcome)
 }
 

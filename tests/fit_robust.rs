@@ -17,6 +17,7 @@ use springfit::fit::run::fit;
 use springfit::geodesic::Fan;
 use springfit::numerics::rng::SplitMix64;
 use springfit::potential::SpringSet;
+use springfit::progress::Progress;
 
 fn repo(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
@@ -163,7 +164,7 @@ fn reference_and_refit(design: &Design, file: &str, settings: &FitSettings) -> (
     let reference = springfit::fit::bill::spring_set(&bom::parse(Path::new(file), &text).unwrap());
     let dir = std::env::temp_dir().join(format!("springfit-robust-{file}-{}", std::process::id()));
     let support = support_of(&text, &dir);
-    let again = fit(design, &support, &FitSettings { max_elements: 0, ..*settings }, &|_| {}).unwrap();
+    let again = fit(design, &support, &FitSettings { max_elements: 0, ..*settings }, Progress::none()).unwrap();
     (reference, again)
 }
 
@@ -203,7 +204,7 @@ fn tolerance_none_reproduces_the_nominal_fit() {
     let expected = Figures::of(&design, &again.training, &again.evaluation, &reference, 0.0);
     Figures::of(&design, &again.training, &again.evaluation, &again.springs, 0.0).within(CONVEX, &expected);
 
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     assert!(outcome.solve.expected_build_spread.is_none());
     assert_eq!(outcome.springs.elements.len(), 12);
     let searched = Figures::of(&design, &outcome.training, &outcome.evaluation, &outcome.springs, 0.0);
@@ -224,7 +225,7 @@ fn expected_objective_matches_monte_carlo_builds() {
         pair_swaps: false,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     let springs = &o.springs;
     let chain = &design.chain;
     let ode = design.geodesics.ode;
@@ -340,7 +341,7 @@ tolerance = 0.05
         trimmed_weight: 0.0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     let groups = springfit::asbuilt::bom_groups(&o.bom);
     let cam_rows = groups.iter().filter(|g| g.is_some()).count();
     assert!(cam_rows >= 4, "the cam uses {cam_rows} basis columns");
@@ -429,7 +430,7 @@ tolerance = 0.05
 fn the_preload_bound_holds() {
     let (design, catalog) = load("double_pendulum");
     let base = FitSettings { tolerance: ToleranceSpec::None, max_elements: 0, ..quick(&design) };
-    let free = fit(&design, &catalog, &base, &|_| {}).unwrap();
+    let free = fit(&design, &catalog, &base, Progress::none()).unwrap();
     let total = |o: &springfit::fit::FitOutcome| o.bom.iter().map(|r| r.preload_nm.unwrap().abs()).sum::<f64>();
     let q_eq = design.q_eq.as_slice();
     for r in &free.bom {
@@ -438,13 +439,13 @@ fn the_preload_bound_holds() {
     let p_free = total(&free);
     assert!(p_free > 1.0, "{p_free}");
     let bound = 0.5 * p_free;
-    let bounded = fit(&design, &catalog, &FitSettings { max_preload: bound, ..base }, &|_| {}).unwrap();
+    let bounded = fit(&design, &catalog, &FitSettings { max_preload: bound, ..base }, Progress::none()).unwrap();
     assert!(total(&bounded) <= bound * (1.0 + 1e-6), "{} > {bound}", total(&bounded));
     assert!(bounded.metrics.equilibrium_gradient_norm < 1e-8);
     assert!(bounded.metrics.hessian_rel_error < 1e-8);
     assert!(bounded.metrics.stats.p99_abs >= free.metrics.stats.p99_abs * (1.0 - 1e-9));
     let nnls = FitSettings { solver: SolverKind::Nnls, max_preload: 1e-3, ..base };
-    let err = fit(&design, &catalog, &nnls, &|_| {}).unwrap_err().to_string();
+    let err = fit(&design, &catalog, &nnls, Progress::none()).unwrap_err().to_string();
     assert!(err.contains("max_preload"), "{err}");
 }
 
@@ -457,7 +458,7 @@ fn the_tolerance_aware_fit_keeps_the_equalities_and_is_deterministic() {
         FitSettings { tolerance: ToleranceSpec::Fraction(0.05), max_elements: 8, restarts: 3, ..quick(&design) };
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&design, &catalog, &settings, &|_| {}).unwrap())
+        pool.install(|| fit(&design, &catalog, &settings, Progress::none()).unwrap())
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(bom::to_csv(&a.bom), bom::to_csv(&b.bom));
@@ -493,7 +494,7 @@ fn trimmed_model_against_builds(rule: TrimRule) {
         builds: 0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
     assert_eq!(is_trim.iter().filter(|t| **t).count(), 3, "the catalogue's three trims");
     let springs = &o.springs;
@@ -599,17 +600,19 @@ fn trimmed_weight_zero_leaves_the_bill_of_materials_unchanged() {
     let figures = Figures::of(&design, &again.training, &again.evaluation, &again.springs, spread);
     figures.within(CONVEX, &QUICK_SUPPORT);
 
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     assert_eq!(o.bom.len(), 15);
     let spread = o.solve.expected_build_spread.unwrap();
     let expected = Figures::of(&design, &o.training, &o.evaluation, &reference, QUICK_SPREAD);
     Figures::of(&design, &o.training, &o.evaluation, &o.springs, spread).at_most(1.05, 1.05, &expected);
 
-    let weighted = fit(&design, &catalog, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap();
+    let weighted = fit(&design, &catalog, &FitSettings { trimmed_weight: 1.0, ..settings }, Progress::none()).unwrap();
     assert_ne!(weighted.springs, o.springs);
     assert!(weighted.solve.expected_build_spread.unwrap() > 0.0);
     let plain = Catalog::load(&repo("catalogs/paper.toml"), design.dof()).unwrap();
-    let err = fit(&design, &plain, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap_err().to_string();
+    let err = fit(&design, &plain, &FitSettings { trimmed_weight: 1.0, ..settings }, Progress::none())
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("fit.trimmed_weight") && err.contains("trim"), "{err}");
 }
 
@@ -681,7 +684,7 @@ trim_range = [0.0, 4.0]
         builds: 0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, Progress::none()).unwrap();
     let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
     assert_eq!(is_trim.iter().filter(|t| **t).count(), 3);
     let springs = &o.springs;
