@@ -107,7 +107,7 @@ pub fn check_couplings(
 pub enum Couplings {
     /// The first row, `coupling`: "the springs act on m joints but the design has n" (`simulate`).
     First,
-    /// Every row, `coupling`: "<id>: the springs act on …" (`export`).
+    /// Every row, `coupling`: "`<id>`: the springs act on …" (`export`).
     Any,
     /// The first row, `line 2: coupling`: "has m entries but the design's robot has n joints"
     /// (`parts`, `tune`).
