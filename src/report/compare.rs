@@ -120,8 +120,9 @@ pub fn write_pareto(
     radii: &[RadiusPoint],
     budget_for_radii: usize,
 ) -> Result<()> {
-    out.write("pareto.csv", pareto_csv(budgets, radii))?;
-    out.write("pareto.md", pareto_md(design, budgets, radii, budget_for_radii))?;
+    let (csv, md) = pareto_tables(design, budgets, radii, budget_for_radii);
+    out.write("pareto.csv", csv)?;
+    out.write("pareto.md", md)?;
     render(&pareto_figure(design, budgets, radii), &out.path("pareto"))?;
     Ok(())
 }
@@ -158,11 +159,20 @@ fn push_infeasible(md: &mut String, why: Vec<String>) {
     }
 }
 
-/// `pareto.csv`: one row per budget (with the as-built spreads) and per radius, the reason in
-/// the last column for an infeasible point.
-fn pareto_csv(budgets: &[BudgetPoint], radii: &[RadiusPoint]) -> String {
+/// `pareto.csv` and `pareto.md`, a row of each per budget and per radius. The CSV has the
+/// as-built spreads and, for an infeasible point, the reason in the last column; the Markdown
+/// names the best budget as built and lists the infeasible points' reasons under each table.
+fn pareto_tables(
+    design: &str,
+    budgets: &[BudgetPoint],
+    radii: &[RadiusPoint],
+    budget_for_radii: usize,
+) -> (String, String) {
     let mut csv = String::from(
         "curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,infeasible\n",
+    );
+    let mut md = format!(
+        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
     let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
     for b in budgets {
@@ -178,27 +188,6 @@ fn pareto_csv(budgets: &[BudgetPoint], radii: &[RadiusPoint]) -> String {
             opt(tr.map(|t| t.p95)),
             pareto_reason(&b.infeasible)
         ));
-    }
-    for r in radii {
-        csv.push_str(&format!(
-            "radius,,{},{},,,,,{}\n",
-            r.radius,
-            pareto_numbers(r.used, &r.stats, &r.infeasible),
-            pareto_reason(&r.infeasible)
-        ));
-    }
-    csv
-}
-
-/// `pareto.md`: the budget table with the best budget as built, and the radius table, each
-/// followed by its infeasible points' reasons.
-fn pareto_md(design: &str, budgets: &[BudgetPoint], radii: &[RadiusPoint], budget_for_radii: usize) -> String {
-    let mut md = format!(
-        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
-    );
-    for b in budgets {
-        let ab = b.as_built.as_ref();
-        let tr = ab.and_then(|a| a.trimmed_p99_deg);
         md.push_str(&format!(
             "| {} | {} | {} | {} |\n",
             b.budget,
@@ -220,13 +209,19 @@ fn pareto_md(design: &str, budgets: &[BudgetPoint], radii: &[RadiusPoint], budge
     );
     md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
     for r in radii {
+        csv.push_str(&format!(
+            "radius,,{},{},,,,,{}\n",
+            r.radius,
+            pareto_numbers(r.used, &r.stats, &r.infeasible),
+            pareto_reason(&r.infeasible)
+        ));
         md.push_str(&format!("| {:.2} | {} |\n", r.radius, pareto_cells(r.used, &r.stats, &r.infeasible)));
     }
     push_infeasible(
         &mut md,
         radii.iter().filter_map(|r| r.infeasible.as_ref().map(|w| format!("r = {}: {w}", r.radius))).collect(),
     );
-    md
+    (csv, md)
 }
 
 /// The two curves: p99 and max residual per budget (with the as-built p95 of the p99, untrimmed
