@@ -37,7 +37,7 @@ fn main() {
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let mut last = None;
         let (med, min) = time(5, || {
-            last = Some(black_box(fit(&design, &catalog, &design.fit, &|_| {}).unwrap()));
+            last = Some(black_box(fit(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap()));
         });
         let o = last.unwrap();
         let t = o.timings;
@@ -59,7 +59,7 @@ fn main() {
     if want("as-built") {
         let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-        let o = fit(&design, &catalog, &design.fit, &|_| {}).unwrap();
+        let o = fit(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
         let mut last = None;
         let (med, min) = time(3, || {
             last = Some(black_box(springfit::asbuilt::of_fit(&design, &o).unwrap().unwrap()));
@@ -102,7 +102,8 @@ fn main() {
             };
             let mut last = None;
             let (med, min) = time(3, || {
-                last = Some(black_box(fit(&design, &catalog, &settings, &|_| {}).unwrap()));
+                last =
+                    Some(black_box(fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap()));
             });
             let o = last.unwrap();
             println!(

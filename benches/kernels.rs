@@ -86,7 +86,7 @@ fn main() {
         }
         let design = Design::load(&root.join(format!("designs/{name}.toml"))).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-        let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
+        let prepared = Prepared::new(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
         let problem = prepared.problem();
         let (a, b) = (&problem.rows, &problem.rhs);
         let (m, p) = a.shape();

@@ -59,7 +59,8 @@ fn main() {
     );
 
     let catalog = Catalog::load(d.catalog.as_ref().unwrap(), d.dof()).unwrap();
-    let pot = ElasticPotential::Springs(fit(&d, &catalog, &d.fit, &|_| {}).unwrap().springs);
+    let pot =
+        ElasticPotential::Springs(fit(&d, &catalog, &d.fit, springfit::progress::Progress::none()).unwrap().springs);
     let (label, _) = label_source(&d, &d.simulate).unwrap();
     let switch = d.file.scenario.iter().position(|s| s.name == "switch").unwrap();
     let run = resolve_scenario(&d, &pot, &label, switch).unwrap().runs.remove(0);

@@ -69,7 +69,7 @@ fn exponent(points: &[(f64, f64)]) -> f64 {
 /// every candidate and on the working set from the weighted NNLS support, as `fit::solve` starts
 /// it: the two times, the relative difference of the objectives and the working set's size.
 fn compare(design: &Design, catalog: &Catalog) {
-    let prepared = Prepared::new(design, catalog, &design.fit, &|_| {}).unwrap();
+    let prepared = Prepared::new(design, catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
     let upper = vec![None; p];
@@ -154,7 +154,7 @@ fn main() {
         let design = Design::parse(&path, &chain_design(n, directions)).unwrap();
         let catalog = chain_catalog(design.catalog.as_ref().unwrap(), n);
         let t0 = Instant::now();
-        let o = fit(&design, &catalog, &design.fit, &|_| {}).unwrap();
+        let o = fit(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
         let wall = t0.elapsed().as_secs_f64();
         let t = o.timings;
         let samples: usize = o.training.geodesics.iter().map(|g| g.len()).sum();

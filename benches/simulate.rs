@@ -17,7 +17,8 @@ use common::{ms, time};
 fn main() {
     let d = Design::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/double_pendulum.toml")).unwrap();
     let catalog = Catalog::load(d.catalog.as_ref().unwrap(), d.dof()).unwrap();
-    let pot = ElasticPotential::Springs(fit(&d, &catalog, &d.fit, &|_| {}).unwrap().springs);
+    let pot =
+        ElasticPotential::Springs(fit(&d, &catalog, &d.fit, springfit::progress::Progress::none()).unwrap().springs);
     println!("springfit simulation benchmarks (median / min over repeats)");
     let mut err = None;
     let (med, min) = time(3, || {

@@ -26,7 +26,7 @@ fn fitted() -> (Design, FitOutcome) {
         evaluation_samples: 20,
         ..design.fit
     };
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     (design, outcome)
 }
 

@@ -194,6 +194,12 @@ fn double_pendulum_trim() {
     every_command("double_pendulum_trim");
 }
 
+/// The template a user copies for an arm of their own: every command, as shipped.
+#[test]
+fn template() {
+    every_command("template");
+}
+
 /// A cam design on the default design's ball: every command but `pareto` (cams cannot be counted
 /// by a spring budget yet), one Monte Carlo build, and every cam within its pressure-angle and
 /// curvature limits (a cam beyond them is a warning naming it).

@@ -88,7 +88,7 @@ fn the_bill_of_materials_rebuilds_the_same_potential() {
     let design = Design::load(&repo("designs/double_pendulum_workshop.toml")).unwrap();
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
     let settings = quick(&design);
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let text = bom::to_csv(&outcome.bom);
     let rows = bom::parse(Path::new("bom.csv"), &text).unwrap();
     let rebuilt = springfit::fit::bill::spring_set(&rows);
@@ -105,7 +105,7 @@ fn the_fit_is_deterministic_across_thread_counts() {
     let settings = quick(&design);
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&design, &catalog, &settings, &|_| {}).unwrap())
+        pool.install(|| fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap())
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(bom::to_csv(&a.bom), bom::to_csv(&b.bom));
@@ -188,7 +188,7 @@ fn a_fit_with_cams_round_trips_through_its_bill_of_materials() {
     let catalog = Catalog::parse(Path::new("cams.toml"), text, 2).unwrap();
     design.fit.solver = springfit::design::fit::SolverKind::Nnls;
     let settings = quick(&design);
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     assert_eq!(outcome.cams.len(), 3);
     // The files as the fit writes them: bom.csv with one row per cam, and cams/<id>.toml.
     let dir = std::env::temp_dir().join(format!("springfit-cam-round-trip-{}", std::process::id()));
@@ -257,7 +257,7 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
 
     let design = chain_of_four();
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-    let o = fit(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
     assert!(o.candidates - o.dropped >= 600, "{} candidates: below the switch", o.candidates - o.dropped);
     assert!(o.metrics.equilibrium_gradient_norm < 1e-9, "|∇U(q_eq)| = {:e}", o.metrics.equilibrium_gradient_norm);
     assert!(o.metrics.hessian_rel_error < 1e-9, "Hessian error {:e}", o.metrics.hessian_rel_error);
@@ -266,14 +266,14 @@ fn the_large_unlimited_fit_is_exact_and_optimal() {
     // A bill that left out the elements under 5 % of the strongest's peak torque would miss the
     // equalities by far: every element of the fit is listed instead, and the bill holds them.
     let coarse = FitSettings { used_threshold: 0.05, ..design.fit };
-    let c = fit(&design, &catalog, &coarse, &|_| {}).unwrap();
+    let c = fit(&design, &catalog, &coarse, springfit::progress::Progress::none()).unwrap();
     let peak = c.bom.iter().map(|r| r.max_torque_nm).fold(0.0, f64::max);
     assert!(c.bom.iter().any(|r| r.max_torque_nm < 0.05 * peak), "no weak element in the bill");
     assert!(c.metrics.equilibrium_gradient_norm < 1e-9, "|∇U(q_eq)| = {:e}", c.metrics.equilibrium_gradient_norm);
     assert!(c.metrics.hessian_rel_error < 1e-9, "Hessian error {:e}", c.metrics.hessian_rel_error);
 
     // The same problem by both large-problem solvers from the same start.
-    let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    let prepared = Prepared::new(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
     let start = nnls_support(gram, &problem.equalities, problem.row_count(), &design.fit).unwrap();
@@ -300,7 +300,7 @@ fn the_exact_solve_does_not_cycle() {
 
     let design = chain_of_four_sampled(None);
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-    let prepared = Prepared::new(&design, &catalog, &design.fit, &|_| {}).unwrap();
+    let prepared = Prepared::new(&design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
     let (problem, gram) = (prepared.problem(), prepared.gram());
     let p = gram.dim();
     assert!(p >= 600, "{p} candidates: below the switch");

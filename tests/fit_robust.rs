@@ -61,7 +61,7 @@ fn tolerance_none_reproduces_the_nominal_fit() {
         trimmed_weight: 0.0,
         ..design.fit
     };
-    let outcome = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let outcome = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let csv = bom::to_csv(&outcome.bom);
     // The first twelve columns: the ones before preload and the after-assembly columns existed.
     let without_preload: String =
@@ -85,7 +85,7 @@ fn expected_objective_matches_monte_carlo_builds() {
         pair_swaps: false,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let springs = &o.springs;
     let chain = &design.chain;
     let ode = design.geodesics.ode;
@@ -201,7 +201,7 @@ tolerance = 0.05
         trimmed_weight: 0.0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let groups = springfit::asbuilt::bom_groups(&o.bom);
     let cam_rows = groups.iter().filter(|g| g.is_some()).count();
     assert!(cam_rows >= 4, "the cam uses {cam_rows} basis columns");
@@ -290,7 +290,7 @@ tolerance = 0.05
 fn the_preload_bound_holds() {
     let (design, catalog) = load("double_pendulum");
     let base = FitSettings { tolerance: ToleranceSpec::None, max_elements: 0, ..quick(&design) };
-    let free = fit(&design, &catalog, &base, &|_| {}).unwrap();
+    let free = fit(&design, &catalog, &base, springfit::progress::Progress::none()).unwrap();
     let total = |o: &springfit::fit::FitOutcome| o.bom.iter().map(|r| r.preload_nm.unwrap().abs()).sum::<f64>();
     let q_eq = design.q_eq.as_slice();
     for r in &free.bom {
@@ -299,13 +299,15 @@ fn the_preload_bound_holds() {
     let p_free = total(&free);
     assert!(p_free > 1.0, "{p_free}");
     let bound = 0.5 * p_free;
-    let bounded = fit(&design, &catalog, &FitSettings { max_preload: bound, ..base }, &|_| {}).unwrap();
+    let bounded =
+        fit(&design, &catalog, &FitSettings { max_preload: bound, ..base }, springfit::progress::Progress::none())
+            .unwrap();
     assert!(total(&bounded) <= bound * (1.0 + 1e-6), "{} > {bound}", total(&bounded));
     assert!(bounded.metrics.equilibrium_gradient_norm < 1e-8);
     assert!(bounded.metrics.hessian_rel_error < 1e-8);
     assert!(bounded.metrics.stats.p99_abs >= free.metrics.stats.p99_abs * (1.0 - 1e-9));
     let nnls = FitSettings { solver: SolverKind::Nnls, max_preload: 1e-3, ..base };
-    let err = fit(&design, &catalog, &nnls, &|_| {}).unwrap_err().to_string();
+    let err = fit(&design, &catalog, &nnls, springfit::progress::Progress::none()).unwrap_err().to_string();
     assert!(err.contains("max_preload"), "{err}");
 }
 
@@ -318,7 +320,7 @@ fn the_tolerance_aware_fit_keeps_the_equalities_and_is_deterministic() {
         FitSettings { tolerance: ToleranceSpec::Fraction(0.05), max_elements: 8, restarts: 3, ..quick(&design) };
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&design, &catalog, &settings, &|_| {}).unwrap())
+        pool.install(|| fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap())
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(bom::to_csv(&a.bom), bom::to_csv(&b.bom));
@@ -354,7 +356,7 @@ fn trimmed_model_against_builds(rule: TrimRule) {
         builds: 0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
     assert_eq!(is_trim.iter().filter(|t| **t).count(), 3, "the catalogue's three trims");
     let springs = &o.springs;
@@ -444,14 +446,19 @@ fn trimmed_weight_zero_leaves_the_bill_of_materials_unchanged() {
     let (design, catalog) = load("double_pendulum");
     // The weights the default design had when the reference was written.
     let settings = FitSettings { trimmed_weight: 0.0, tolerance_weight: 0.2, ..quick(&design) };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let before = std::fs::read_to_string(repo("tests/data/double_pendulum_quick_tolerance_bom.csv")).unwrap();
     assert_eq!(bom::to_csv(&o.bom), before);
-    let weighted = fit(&design, &catalog, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap();
+    let weighted =
+        fit(&design, &catalog, &FitSettings { trimmed_weight: 1.0, ..settings }, springfit::progress::Progress::none())
+            .unwrap();
     assert_ne!(bom::to_csv(&weighted.bom), before);
     assert!(weighted.solve.expected_build_spread.unwrap() > 0.0);
     let plain = Catalog::load(&repo("catalogs/paper.toml"), design.dof()).unwrap();
-    let err = fit(&design, &plain, &FitSettings { trimmed_weight: 1.0, ..settings }, &|_| {}).unwrap_err().to_string();
+    let err =
+        fit(&design, &plain, &FitSettings { trimmed_weight: 1.0, ..settings }, springfit::progress::Progress::none())
+            .unwrap_err()
+            .to_string();
     assert!(err.contains("fit.trimmed_weight") && err.contains("trim"), "{err}");
 }
 
@@ -510,7 +517,7 @@ trim_range = [0.0, 4.0]
         builds: 0,
         ..quick(&design)
     };
-    let o = fit(&design, &catalog, &settings, &|_| {}).unwrap();
+    let o = fit(&design, &catalog, &settings, springfit::progress::Progress::none()).unwrap();
     let is_trim: Vec<bool> = o.bom.iter().map(|r| r.adjust.trim_range.is_some()).collect();
     assert_eq!(is_trim.iter().filter(|t| **t).count(), 3);
     let springs = &o.springs;

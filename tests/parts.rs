@@ -155,7 +155,7 @@ fn quick_design(extra: &str) -> Design {
 
 fn parts_of(design: &Design) -> (springfit::fit::FitOutcome, springfit::parts::Parts) {
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-    let o = springfit::fit::fit(design, &catalog, &design.fit, &|_| {}).unwrap();
+    let o = springfit::fit::fit(design, &catalog, &design.fit, springfit::progress::Progress::none()).unwrap();
     let p = choose(design, &o);
     (o, p)
 }
@@ -305,7 +305,9 @@ fn tolerance_parts_draws_builds_at_the_chosen_springs_tolerances() {
         .replace("restarts = 16", "restarts = 0\ntraining_directions = 36\ntraining_samples = 20\nevaluation_directions = 36\nevaluation_samples = 20\nbuilds = 0\npair_swaps = false");
     let design = Design::parse(&repo().join("designs/double_pendulum.toml"), &text).expect("the design parses");
     let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-    let (o, parts) = springfit::parts::fit_with_parts(&design, &catalog, &design.fit, &[], &|_| {}).unwrap();
+    let (o, parts) =
+        springfit::parts::fit_with_parts(&design, &catalog, &design.fit, &[], springfit::progress::Progress::none())
+            .unwrap();
     assert_eq!(parts.missing().count(), 0);
     let mut wound = 0;
     for r in &o.bom {

@@ -22,7 +22,7 @@ fn design(name: &str) -> Design {
 
 fn fitted(d: &Design) -> ElasticPotential {
     let catalog = Catalog::load(d.catalog.as_ref().unwrap(), d.dof()).unwrap();
-    ElasticPotential::Springs(fit(d, &catalog, &d.fit, &|_| {}).unwrap().springs)
+    ElasticPotential::Springs(fit(d, &catalog, &d.fit, springfit::progress::Progress::none()).unwrap().springs)
 }
 
 fn scenario_index(d: &Design, name: &str) -> usize {

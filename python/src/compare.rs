@@ -4,8 +4,10 @@
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
+use springfit::jobs::compare::{self as job, Comparison};
+use springfit::progress::Progress;
 use springfit::report::output::{Edits, Plan};
-use springfit::studies::compare::{FitRecord, disambiguate, record_of, table_csv};
+use springfit::studies::compare::table_csv;
 
 use crate::design::PyDesign;
 use crate::errors::{IntoPy, in_design, setting};
@@ -14,7 +16,7 @@ use crate::fit::{PyFit, csv_records};
 /// The records of a comparison.
 #[pyclass(name = "Comparison", module = "springfit", frozen)]
 pub struct PyComparison {
-    records: Vec<FitRecord>,
+    comparison: Comparison,
 }
 
 /// Compares fits: each input a `Fit` or the output folder of `springfit fit` (or `Fit.write`);
@@ -22,9 +24,7 @@ pub struct PyComparison {
 #[pyfunction]
 #[pyo3(signature = (inputs, exact = None))]
 pub fn compare(py: Python<'_>, inputs: Vec<Bound<'_, PyAny>>, exact: Option<&PyDesign>) -> PyResult<PyComparison> {
-    if inputs.is_empty() {
-        return Err(setting("inputs", "give fit output folders or design files to compare"));
-    }
+    job::inputs(inputs.len()).py()?;
     let mut records = Vec::new();
     for input in &inputs {
         if let Ok(fit) = input.cast::<PyFit>() {
@@ -38,14 +38,10 @@ pub fn compare(py: Python<'_>, inputs: Vec<Bound<'_, PyAny>>, exact: Option<&PyD
     }
     if let Some(d) = exact {
         let design = d.design.clone();
-        let outcome = py.detach(|| springfit::fit::run::exact_reference(&design, &design.fit, &|_| {}));
-        let mut r = record_of(&outcome.map_err(|e| in_design(e, &design.path))?, &design.path);
-        r.design = "exact ½ω²r²".to_string();
-        r.label = r.design.clone();
-        records.push(r);
+        let record = py.detach(|| job::exact(&design, &design.path, Progress::none()));
+        records.push(record.map_err(|e| in_design(e, &design.path))?);
     }
-    disambiguate(&mut records);
-    Ok(PyComparison { records })
+    Ok(PyComparison { comparison: Comparison::new(records).py()? })
 }
 
 #[pymethods]
@@ -53,13 +49,13 @@ impl PyComparison {
     /// The table of `compare.csv` as records (one dict per fit).
     #[getter]
     fn table<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
-        csv_records(py, &table_csv(&self.records))
+        csv_records(py, &table_csv(&self.comparison.records))
     }
 
     /// The text of `compare.csv`.
     #[getter]
     fn csv(&self) -> String {
-        table_csv(&self.records)
+        table_csv(&self.comparison.records)
     }
 
     /// Writes what `springfit compare` writes into `folder` (compare.csv, compare.md,
@@ -68,10 +64,6 @@ impl PyComparison {
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
         let plan = Plan::new("compare", springfit::report::compare::COMPARE_FILES.iter().copied()).with_edits(edits);
-        py.detach(|| {
-            let claim = springfit::report::output::check(&folder, &plan)?;
-            springfit::report::compare::write_compare_folder(claim, &self.records)
-        })
-        .py()
+        py.detach(|| self.comparison.write(springfit::report::output::check(&folder, &plan)?)).py()
     }
 }

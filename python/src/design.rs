@@ -418,47 +418,30 @@ impl PyDesign {
         overwrite_edits: bool,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PathBuf> {
+        use springfit::jobs::export::{self, ExportSprings};
         use springfit::report::output::{Edits, Plan};
         let d = self.design.clone();
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let plan = Plan::new("export", springfit::export::mujoco::files(&d)).with_edits(edits).for_design(&d);
+        let plan = Plan::new("export", export::files(&d)).with_edits(edits).for_design(&d);
         let claim = springfit::report::output::check(&folder, &plan).py()?;
-        let (rows, from) = match springs {
-            Some(s) => {
-                if let Ok(fit) = s.cast::<crate::fit::PyFit>() {
-                    let o = &fit.get().outcome;
-                    (o.bom.clone(), format!("a fit of {} with catalogue {}", d.path.display(), o.catalog))
-                } else {
-                    let path: PathBuf = s
+        let path: PathBuf;
+        let springs = match springs {
+            Some(s) => match s.cast::<crate::fit::PyFit>() {
+                Ok(fit) => ExportSprings::Fitted(&fit.get().run.outcome),
+                Err(_) => {
+                    path = s
                         .extract()
                         .map_err(|_| setting("springs", "must be a springfit.Fit or the path of a bom.csv"))?;
-                    let rows = springfit::files::bom::read(&path).py()?;
-                    if let Some(r) = rows.iter().find(|r| r.element.coupling.len() != d.dof()) {
-                        return Err(crate::errors::to_py(Error::invalid(
-                            &path,
-                            "coupling",
-                            format!(
-                                "{}: the springs act on {} joints but the design has {}",
-                                r.id,
-                                r.element.coupling.len(),
-                                d.dof()
-                            ),
-                        )));
-                    }
-                    (rows, format!("the bill of materials {}", path.display()))
+                    ExportSprings::Bom(&path)
                 }
-            }
-            None => {
-                let catalog = self.catalog_or("the design names no spring catalogue; give springs")?;
-                let progress = crate::progress::Progress::new(progress);
-                progress.stage("fitting the springs");
-                let o = py.detach(|| springfit::fit::run::fit(&d, catalog, &d.fit, &|_| {}));
-                progress.raised()?;
-                let o = o.map_err(|e| crate::errors::in_design(e, &d.path))?;
-                (o.bom.clone(), format!("a fit of {} with catalogue {}", d.path.display(), o.catalog))
-            }
+            },
+            None => ExportSprings::Fit(self.catalog_or("the design names no spring catalogue; give springs")?),
         };
-        let (_, written) = py.detach(|| springfit::export::mujoco::write_folder(claim, &d, &rows, &from)).py()?;
+        let progress = crate::progress::Progress::new(progress);
+        let run = py.detach(|| export::export(&d, springs, progress.observer()));
+        progress.raised()?;
+        let run = run.map_err(|e| crate::errors::in_design(e, &d.path))?;
+        let (_, written) = py.detach(|| run.write(&d, claim)).py()?;
         Ok(written.join(format!("{}.xml", d.name)))
     }
 
@@ -467,19 +450,11 @@ impl PyDesign {
     /// `tune.json` as a dict, with the tuned bill's CSV text under `bom_tuned_csv`.
     fn tune<'py>(&self, py: Python<'py>, measured: PathBuf) -> PyResult<Bound<'py, PyAny>> {
         let d = self.design.clone();
-        let (bom, rates) = springfit::files::bom::load_measured(&measured).py()?;
-        if bom.first().is_some_and(|r| r.element.coupling.len() != d.dof()) {
-            return Err(crate::errors::to_py(Error::invalid(
-                &measured,
-                "line 2: coupling",
-                format!("has {} entries but the design's robot has {} joints", bom[0].element.coupling.len(), d.dof()),
-            )));
-        }
-        let outcome = py
-            .detach(|| springfit::asbuilt::tune::tune(&d, &bom, &rates))
+        let run = py
+            .detach(|| springfit::jobs::tune::tune(&d, &measured, springfit::progress::Progress::none()))
             .map_err(|e| crate::errors::in_design(e, &d.path))?;
-        let out = json(py, &outcome)?;
-        out.set_item("bom_tuned_csv", springfit::files::bom::to_csv(&outcome.bom))?;
+        let out = json(py, &run.outcome)?;
+        out.set_item("bom_tuned_csv", springfit::files::bom::to_csv(&run.outcome.bom))?;
         Ok(out)
     }
 

@@ -1,6 +1,7 @@
-//! `Design.fit()` and its result: the bill of materials, the residual angles as arrays, the
-//! summary and the as-built figures, the fitted potential, and `write(folder)` through the
-//! command's own writer.
+//! `Design.fit()` and its result: the bill of materials (as data), the residual angles as
+//! arrays, the summary and the as-built figures, the fitted potential, and `write(folder)`
+//! through the command's own writer. The fit is the library's fit job
+//! ([`springfit::jobs::fit`]), the one `springfit fit` runs.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -8,33 +9,29 @@ use std::sync::Arc;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use springfit::Error;
-use springfit::asbuilt::AsBuilt;
 use springfit::design::Design;
 use springfit::design::fit::SolverKind;
-use springfit::fit::FitOutcome;
+use springfit::files::bom::{HEADER, Value, records};
+use springfit::jobs::fit::{FitJob, FitRequest, FitRun};
 use springfit::report::output::{Edits, Plan};
 
 use crate::arrays::shaped;
 use crate::convert::json;
 use crate::design::PyDesign;
-use crate::errors::{IntoPy, in_design, setting, to_py};
+use crate::errors::{IntoPy, in_design, setting};
 use crate::potential::PyPotential;
 use crate::progress::Progress;
 
-/// A fit of a design (or the exact reference ½ω²r²), with its as-built figures.
+/// A fit of a design (or the exact reference ½ω²r²), with its parts and as-built figures.
 #[pyclass(name = "Fit", module = "springfit", frozen)]
 pub struct PyFit {
     pub design: Arc<Design>,
-    pub outcome: Arc<FitOutcome>,
-    as_built: Option<AsBuilt>,
-    /// The parts of the fitted bill, as `springfit fit` chooses them (None: the exact reference).
-    parts: Option<springfit::parts::Parts>,
-    exact: bool,
+    /// What `springfit fit` computes: the fit, its parts, its as-built figures.
+    pub run: FitRun,
 }
 
 impl PyFit {
-    /// Runs the fit as `springfit fit` does (same settings, checks, as-built builds).
+    /// Runs the fit job `springfit fit` runs (same settings, checks, parts and as-built builds).
     pub fn run(
         py: Python<'_>,
         d: &PyDesign,
@@ -44,72 +41,31 @@ impl PyFit {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PyFit> {
         let design = d.design.clone();
-        let mut settings = design.fit;
-        if let Some(s) = solver {
-            settings.solver = match s {
-                "nnls" => SolverKind::Nnls,
-                "qp" => SolverKind::Qp,
-                other => return Err(setting("solver", format!("must be \"nnls\" or \"qp\", got \"{other}\""))),
-            };
-        }
-        if let Some(k) = max_elements {
-            settings.max_elements = k;
-        }
-        settings.validate().map_err(|(field, reason)| to_py(Error::Setting { field, reason }))?;
-        let catalog = if exact {
-            None
-        } else {
-            Some(d.catalog_or(
-                "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
-            )?)
+        let solver = match solver {
+            None => None,
+            Some("nnls") => Some(SolverKind::Nnls),
+            Some("qp") => Some(SolverKind::Qp),
+            Some(other) => return Err(setting("solver", format!("must be \"nnls\" or \"qp\", got \"{other}\""))),
         };
-        let stock = if exact { Vec::new() } else { springfit::files::stock::of_design(&design).py()? };
+        let job = FitJob::new(&design, d.catalog.as_deref(), FitRequest { exact, solver, max_elements }).py()?;
         let progress = Progress::new(progress);
-        let result = py.detach(|| {
-            let stage = |name: &str| progress.stage(name);
-            // The parts are chosen with the fit: `tolerance = "parts"` refits at their tolerances.
-            let outcome = match catalog {
-                None => springfit::fit::run::exact_reference(&design, &settings, &stage).map(|o| (o, None)),
-                Some(c) => {
-                    springfit::parts::fit_with_parts(&design, c, &settings, &stock, &stage).map(|(o, p)| (o, Some(p)))
-                }
-            };
-            let outcome = outcome.map_err(|e| match catalog {
-                Some(c) => springfit::fit::hints::explain(&design, &settings, c, settings.max_elements, e),
-                None => e,
-            });
-            let (outcome, parts) = match outcome {
-                Ok(o) => o,
-                Err(e) => return Err(e),
-            };
-            let as_built = if exact {
-                None
-            } else {
-                progress.stage("as-built Monte Carlo builds");
-                springfit::asbuilt::of_fit(&design, &outcome)?
-            };
-            Ok((outcome, as_built, parts))
-        });
+        let result = py.detach(|| job.run(progress.observer()));
         progress.raised()?;
-        let (outcome, as_built, parts) = result.map_err(|e| in_design(e, &design.path))?;
-        Ok(PyFit { design, outcome: Arc::new(outcome), as_built, parts, exact })
+        let run = result.map_err(|e| in_design(e, &design.path))?;
+        Ok(PyFit { design, run })
     }
-}
 
-impl PyFit {
     /// The fit as `compare` records it (with its as-built brief).
     pub fn record(&self) -> springfit::studies::compare::FitRecord {
-        let mut r = springfit::studies::compare::record_of(&self.outcome, &self.design.path);
-        r.as_built = self.as_built.as_ref().map(springfit::asbuilt::Brief::of);
-        r
+        self.run.record(&self.design.path)
     }
 
     /// The fitted springs as a potential (an error for the exact reference).
     pub fn potential_springs(&self) -> PyResult<PyPotential> {
-        if self.exact {
+        if self.run.exact {
             return Err(setting("potential", "the exact reference has no springs: use Potential.exact(design)"));
         }
-        Ok(PyPotential::springs(self.design.clone(), self.outcome.springs.clone(), "fit".into()))
+        Ok(PyPotential::springs(self.design.clone(), self.run.outcome.springs.clone(), "fit".into()))
     }
 }
 
@@ -119,32 +75,69 @@ impl PyFit {
     /// (numbers as floats, blanks as None).
     #[getter]
     fn bom<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        csv_records(py, &springfit::files::bom::to_csv(&self.outcome.bom))
+        let out = PyList::empty(py);
+        for line in records(&self.run.outcome.bom) {
+            let row = PyDict::new(py);
+            for (k, v) in HEADER.split(',').zip(line) {
+                match cell(v) {
+                    Cell::Blank => row.set_item(k, py.None())?,
+                    Cell::Number(x) => row.set_item(k, x)?,
+                    Cell::Text(t) => row.set_item(k, t)?,
+                }
+            }
+            out.append(row)?;
+        }
+        Ok(out)
     }
 
     /// The bill of materials as a NumPy structured array, one field per column of `bom.csv`:
     /// float64 where every entry is a number (blanks NaN), a string otherwise.
     #[getter]
     fn bom_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        structured(py, &springfit::files::bom::to_csv(&self.outcome.bom))
+        let lines: Vec<Vec<Cell>> =
+            records(&self.run.outcome.bom).into_iter().map(|l| l.into_iter().map(cell).collect()).collect();
+        let columns: Vec<&str> = HEADER.split(',').collect();
+        let numeric: Vec<bool> =
+            (0..columns.len()).map(|c| lines.iter().all(|l| !matches!(l.get(c), Some(Cell::Text(_))))).collect();
+        let dtype = PyList::empty(py);
+        for (c, name) in columns.iter().enumerate() {
+            let width = lines.iter().map(|l| l.get(c).map_or(0, Cell::width)).max().unwrap_or(0).max(1);
+            let kind = if numeric[c] { "f8".to_string() } else { format!("U{width}") };
+            dtype.append((*name, kind))?;
+        }
+        let rows = PyList::empty(py);
+        for l in &lines {
+            let fields = PyList::empty(py);
+            for (c, v) in l.iter().enumerate() {
+                match (numeric[c], v) {
+                    (true, Cell::Number(x)) => fields.append(*x)?,
+                    (true, _) => fields.append(f64::NAN)?,
+                    (false, Cell::Text(t)) => fields.append(t)?,
+                    (false, Cell::Number(x)) => fields.append(format!("{x}"))?,
+                    (false, Cell::Blank) => fields.append("")?,
+                }
+            }
+            rows.append(pyo3::types::PyTuple::new(py, fields)?)?;
+        }
+        py.import("numpy")?.call_method1("array", (rows, dtype))
     }
 
     /// The text of `bom.csv`, byte for byte what `springfit fit` writes.
     #[getter]
     fn bom_csv(&self) -> String {
-        springfit::files::bom::to_csv(&self.outcome.bom)
+        springfit::files::bom::to_csv(&self.run.outcome.bom)
     }
 
     /// Number of elements used (a cam counts as one).
     #[getter]
     fn used(&self) -> usize {
-        self.outcome.used()
+        self.run.outcome.used()
     }
 
     /// Residual angles on the held-out geodesics, degrees, shape (N,) (signed for two joints).
     #[getter]
     fn residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let r = &self.outcome.metrics.residuals;
+        let r = &self.run.outcome.metrics.residuals;
         shaped(py, r.iter().map(|s| s.angle_deg).collect(), false, r.len(), &[])
     }
 
@@ -152,8 +145,8 @@ impl PyFit {
     /// `s` (N,), `q` (N, n) and `angle_deg` (N,).
     #[getter]
     fn residual_samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let r = &self.outcome.metrics.residuals;
-        let n = self.outcome.dof;
+        let r = &self.run.outcome.metrics.residuals;
+        let n = self.run.outcome.dof;
         let out = PyDict::new(py);
         let dirs: Vec<i64> = r.iter().map(|s| s.direction as i64).collect();
         out.set_item("direction", numpy::PyArray1::from_vec(py, dirs))?;
@@ -166,9 +159,10 @@ impl PyFit {
     /// `summary.json` as a dict (with the as-built figures).
     #[getter]
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let mut s = springfit::report::fit::Summary::new(&self.outcome, &self.design);
-        s.as_built = self.as_built;
-        s.realised = self.parts.as_ref().map(springfit::report::parts::RealisedSummary::new);
+        let run = &self.run;
+        let mut s = springfit::report::fit::Summary::new(&run.outcome, &self.design);
+        s.as_built = run.as_built;
+        s.realised = run.parts.as_ref().map(springfit::report::parts::RealisedSummary::new);
         json(py, &s)
     }
 
@@ -176,7 +170,7 @@ impl PyFit {
     /// when the fit states no tolerance (or for the exact reference).
     #[getter]
     fn as_built<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        match &self.as_built {
+        match &self.run.as_built {
             Some(a) => json(py, a),
             None => Ok(py.None().into_bound(py)),
         }
@@ -195,23 +189,20 @@ impl PyFit {
     #[pyo3(signature = (folder, overwrite_edits = false))]
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let (design, outcome, as_built) = (&self.design, &self.outcome, self.as_built.as_ref());
-        let plan = Plan::new("fit", springfit::report::fit::files(!self.exact)).with_edits(edits).for_design(design);
-        let parts = self.parts.as_ref();
-        py.detach(|| {
-            let claim = springfit::report::output::check(&folder, &plan)?;
-            springfit::report::fit::write_folder(claim, design, outcome, as_built, parts)
-        })
-        .py()
+        let (design, run) = (&self.design, &self.run);
+        let files = FitRequest { exact: run.exact, ..FitRequest::default() }.files();
+        let plan = Plan::new("fit", files).with_edits(edits).for_design(design);
+        py.detach(|| run.write(design, springfit::report::output::check(&folder, &plan)?)).py()
     }
 
     fn __repr__(&self) -> String {
-        let st = &self.outcome.metrics.stats;
+        let o = &self.run.outcome;
+        let st = &o.metrics.stats;
         format!(
             "<springfit.Fit {}: {} {}, p99 {:.4}°, max {:.4}°>",
-            self.outcome.design,
-            self.outcome.used(),
-            self.outcome.used_noun(),
+            o.design,
+            o.used(),
+            o.used_noun(),
             st.p99_abs,
             st.max_abs
         )
@@ -241,33 +232,32 @@ pub fn csv_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyLi
     Ok(out)
 }
 
-/// A structured array from CSV text (see `Fit.bom_array`).
-pub fn structured<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
-    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-    let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
-    let rows: Vec<Vec<String>> =
-        lines.map(|l| springfit::csv::split_csv_line(l).map_err(|e| setting("bom", e))).collect::<PyResult<_>>()?;
-    let numeric: Vec<bool> = (0..header.len())
-        .map(|c| rows.iter().all(|r| r.get(c).is_none_or(|v| v.is_empty() || v.parse::<f64>().is_ok())))
-        .collect();
-    let dtype = PyList::empty(py);
-    for (c, name) in header.iter().enumerate() {
-        let width = rows.iter().map(|r| r.get(c).map_or(0, |v| v.chars().count())).max().unwrap_or(0).max(1);
-        let kind = if numeric[c] { "f8".to_string() } else { format!("U{width}") };
-        dtype.append((name.as_str(), kind))?;
-    }
-    let records = PyList::empty(py);
-    for r in &rows {
-        let fields = PyList::empty(py);
-        for c in 0..header.len() {
-            let v = r.get(c).map(String::as_str).unwrap_or("");
-            if numeric[c] {
-                fields.append(if v.is_empty() { f64::NAN } else { v.parse::<f64>().unwrap_or(f64::NAN) })?;
-            } else {
-                fields.append(v)?;
-            }
+/// A value of the bill as `Fit.bom` and `Fit.bom_array` give it: the CSV's rule kept (a text
+/// that reads as a number, as a one-joint coupling `1`, has always come out as that number).
+enum Cell {
+    Blank,
+    Number(f64),
+    Text(String),
+}
+
+impl Cell {
+    /// Characters of the value as the CSV writes it (the width of a text column).
+    fn width(&self) -> usize {
+        match self {
+            Cell::Blank => 0,
+            Cell::Number(x) => format!("{x}").chars().count(),
+            Cell::Text(t) => t.chars().count(),
         }
-        records.append(pyo3::types::PyTuple::new(py, fields)?)?;
     }
-    py.import("numpy")?.call_method1("array", (records, dtype))
+}
+
+fn cell(v: Value) -> Cell {
+    match v {
+        Value::Blank => Cell::Blank,
+        Value::Number(x) => Cell::Number(x),
+        Value::Text(t) => match t.parse::<f64>() {
+            Ok(x) => Cell::Number(x),
+            Err(_) => Cell::Text(t),
+        },
+    }
 }

@@ -14,7 +14,7 @@ use springfit::potential::{ExactPotential, GroupedSet, Potential, SpringSet};
 
 use crate::arrays::{points, shaped};
 use crate::design::{PyDesign, map_rows};
-use crate::errors::{IntoPy, to_py};
+use crate::errors::IntoPy;
 
 /// What the potential is.
 #[derive(Clone)]
@@ -45,14 +45,7 @@ impl PyPotential {
     /// The springs of the bill of materials at `path`, checked against the design's joints.
     pub fn from_bom_path(design: &PyDesign, path: &std::path::Path) -> PyResult<PyPotential> {
         let rows = springfit::files::bom::read(path).py()?;
-        let n = design.design.dof();
-        if let Some(r) = rows.iter().find(|r| r.element.coupling.len() != n) {
-            return Err(to_py(springfit::Error::invalid(
-                path,
-                "coupling",
-                format!("{}: the springs act on {} joints but the design has {n}", r.id, r.element.coupling.len()),
-            )));
-        }
+        springfit::jobs::check_couplings(&design.design, path, &rows, springfit::jobs::Couplings::Any).py()?;
         Ok(PyPotential::springs(
             design.design.clone(),
             springfit::fit::bill::spring_set(&rows),

@@ -7,38 +7,28 @@ use std::sync::Arc;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use springfit::Error;
 use springfit::design::Design;
-use springfit::design::simulate::LabelKind;
-use springfit::dynamics::control::ElasticPotential;
-use springfit::dynamics::scenario::{ScenarioOutcome, label_source, run_scenario};
+use springfit::dynamics::scenario::ScenarioOutcome;
 use springfit::dynamics::simulate::SOURCES;
-use springfit::geodesic::Fan;
-use springfit::report::output::{Edits, OutputDir, Plan};
+use springfit::jobs::simulate::{self, SimulateRequest, SimulateRun, Springs};
+use springfit::report::output::{Edits, Plan};
 
 use crate::arrays::shaped;
 use crate::convert::json;
 use crate::design::PyDesign;
-use crate::errors::{IntoPy, in_design, setting, to_py};
+use crate::errors::{IntoPy, in_design, setting};
 use crate::progress::Progress;
 
 /// The outcome of `Design.simulate()`.
 #[pyclass(name = "Simulation", module = "springfit", frozen)]
 pub struct PySimulation {
     design: Arc<Design>,
-    outcomes: Vec<ScenarioOutcome>,
-    potential: ElasticPotential,
-    potential_name: String,
-    label_name: String,
-    label_error_deg: Option<f64>,
-    fan: Fan,
-    /// The one scenario asked for by name (a write keeps the others' files).
-    only: Option<String>,
+    run: SimulateRun,
 }
 
 impl PySimulation {
-    /// Runs the scenarios as `springfit simulate` does.
-    #[allow(clippy::too_many_arguments)]
+    /// Runs the scenarios as `springfit simulate` does (its job, [`springfit::jobs::simulate`],
+    /// without the backbone).
     pub fn run(
         py: Python<'_>,
         d: &PyDesign,
@@ -49,88 +39,27 @@ impl PySimulation {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PySimulation> {
         let design = d.design.clone();
-        if design.file.scenario.is_empty() {
-            return Err(to_py(Error::invalid(
-                &design.path,
-                "scenario",
-                "the design declares no [[scenario]] to simulate",
-            )));
-        }
-        let indices: Vec<usize> = match scenario {
-            Some(name) => vec![design.file.scenario.iter().position(|s| s.name == name).ok_or_else(|| {
-                setting(
-                    "scenario",
-                    format!(
-                        "no scenario `{name}` in {} (it has: {})",
-                        design.path.display(),
-                        design.file.scenario.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
-                    ),
-                )
-            })?],
-            None => (0..design.file.scenario.len()).collect(),
-        };
+        simulate::scenarios(&design, scenario).py()?;
         if exact && springs.is_some() {
             return Err(setting("exact", "give springs or exact = True, not both"));
         }
-        let given = match springs {
-            Some(s) => Some((crate::controller::potential_of(d, s)?, source_name(s)?)),
-            None => None,
+        let springs = match springs {
+            Some(s) => Springs::Given { potential: crate::controller::potential_of(d, s)?, name: source_name(s)? },
+            None if exact => Springs::Exact,
+            None => Springs::Fit(d.catalog_or("the design names no spring catalogue; give springs or exact = True")?),
         };
-        let catalog = if exact || given.is_some() {
-            None
-        } else {
-            Some(d.catalog_or("the design names no spring catalogue; give springs or exact = True")?)
-        };
-        let mut settings = design.simulate;
-        if exact_label {
-            settings.label = LabelKind::Exact;
-        }
+        let request = SimulateRequest { scenario, springs, exact_label, backbone: false };
         let progress = Progress::new(progress);
-        let result = py.detach(|| -> springfit::Result<PySimulation> {
-            let (potential, potential_name) = match (exact, given, catalog) {
-                (true, _, _) => (ElasticPotential::Exact { omega: design.fit.frequency }, "exact ½ω²r²".to_string()),
-                (false, Some((p, name)), _) => (p, name),
-                (false, None, Some(c)) => {
-                    progress.stage("fitting the springs");
-                    let outcome = springfit::fit::run::fit(&design, c, &design.fit, &|_| {}).map_err(|e| {
-                        springfit::fit::hints::explain(&design, &design.fit, c, design.fit.max_elements, e)
-                    })?;
-                    (ElasticPotential::Springs(outcome.springs), "springs (fit)".to_string())
-                }
-                (false, None, None) => unreachable!("a catalogue was required above"),
-            };
-            progress.stage("preparing the mode label");
-            let (label, label_error) = label_source(&design, &settings)?;
-            let label_name = if label_error.is_some() { "table" } else { "exact" };
-            let fan = springfit::report::simulate::plot_fan(&design)?;
-            let mut outcomes = Vec::new();
-            for &i in &indices {
-                progress.stage(&format!("scenario {}", design.file.scenario[i].name));
-                outcomes.push(run_scenario(&design, &potential, &label, &settings, &design.controllers, i)?);
-            }
-            Ok(PySimulation {
-                design: design.clone(),
-                outcomes,
-                potential,
-                potential_name,
-                label_name: label_name.to_string(),
-                label_error_deg: label_error.map(|e| e.0),
-                fan,
-                only: scenario.map(str::to_string),
-            })
-        });
+        let result = py.detach(|| simulate::simulate(&design, &request, progress.observer()));
         progress.raised()?;
-        result.map_err(|e| in_design(e, &d.design.path))
+        let run = result.map_err(|e| in_design(e, &d.design.path))?;
+        Ok(PySimulation { design, run })
     }
 
     fn outcome(&self, name: &str) -> PyResult<&ScenarioOutcome> {
-        self.outcomes.iter().find(|o| o.scenario.name == name).ok_or_else(|| {
-            setting("scenario", format!("`{name}` was not simulated (simulated: {})", self.names().join(", ")))
+        self.run.scenarios.iter().map(|s| &s.outcome).find(|o| o.scenario.name == name).ok_or_else(|| {
+            setting("scenario", format!("`{name}` was not simulated (simulated: {})", self.run.names().join(", ")))
         })
-    }
-
-    fn names(&self) -> Vec<String> {
-        self.outcomes.iter().map(|o| o.scenario.name.clone()).collect()
     }
 }
 
@@ -150,19 +79,20 @@ impl PySimulation {
     /// The names of the scenarios simulated.
     #[getter]
     fn scenarios(&self) -> Vec<String> {
-        self.names()
+        self.run.names()
     }
 
     /// `sim_<name>.json` of scenario `name` as a dict.
     fn summary<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let o = self.outcome(name)?;
+        let r = &self.run;
         let s = springfit::report::simulate::summary(
             &self.design,
             o,
-            &self.potential,
-            &self.potential_name,
-            &self.label_name,
-            self.label_error_deg,
+            &r.potential,
+            &r.potential_name,
+            r.label_name,
+            r.label_error.map(|e| e.0),
         );
         json(py, &s)
     }
@@ -208,30 +138,10 @@ impl PySimulation {
     #[pyo3(signature = (folder, overwrite_edits = false))]
     fn write(&self, py: Python<'_>, folder: PathBuf, overwrite_edits: bool) -> PyResult<PathBuf> {
         let edits = if overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-        let names = self.names();
-        let plan = Plan::new("simulate", springfit::report::simulate::files(names.iter().map(String::as_str)))
+        let names = self.run.names();
+        let plan = Plan::new("simulate", simulate::files(names.iter().map(String::as_str)))
             .with_edits(edits)
             .for_design(&self.design);
-        py.detach(|| -> springfit::Result<PathBuf> {
-            let mut dir = OutputDir::create(&folder, &plan)?;
-            if let Some(only) = &self.only {
-                springfit::report::simulate::keep_other_scenarios(&mut dir, only)?;
-            }
-            for o in &self.outcomes {
-                springfit::report::simulate::write(
-                    &dir,
-                    &self.design,
-                    o,
-                    &self.potential,
-                    &self.potential_name,
-                    &self.label_name,
-                    self.label_error_deg,
-                    &self.fan,
-                )?;
-            }
-            springfit::report::html::write_simulate(&dir, &self.design)?;
-            dir.commit()
-        })
-        .py()
+        py.detach(|| self.run.write(&self.design, springfit::report::output::check(&folder, &plan)?)).py()
     }
 }

@@ -789,7 +789,7 @@ mod tests {
             builds: 0,
             ..design.fit
         };
-        crate::fit::run::fit(design, &catalog, &settings, &|_| {}).unwrap().bom
+        crate::fit::run::fit(design, &catalog, &settings, crate::progress::Progress::none()).unwrap().bom
     }
 
     /// The analytic residual Jacobian against central differences of the residual itself, on the

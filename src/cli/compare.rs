@@ -1,4 +1,4 @@
-//! `springfit compare` and `springfit pareto`.
+//! `springfit compare` and `springfit pareto` (the jobs: [`springfit::jobs::compare`]).
 
 use std::path::{Path, PathBuf};
 
@@ -7,8 +7,8 @@ use springfit::design::Design;
 use springfit::elements::catalog::Catalog;
 use springfit::error::Error;
 use springfit::files::fit_folder::load_fit_dir;
-use springfit::fit::run::{exact_reference, fit};
-use springfit::studies::compare::{FitRecord, budget_curve, disambiguate, radius_curve, record_of};
+use springfit::jobs::compare::{self, Comparison, ParetoJob, ParetoRequest};
+use springfit::studies::compare::FitRecord;
 
 use super::Session;
 use super::progress::Progress;
@@ -30,13 +30,7 @@ enum Input {
 
 pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &Session) -> Result<()> {
     let progress = &session.progress;
-    if inputs.is_empty() {
-        return Err(Error::Setting {
-            field: "inputs".into(),
-            reason: "give fit output folders or design files to compare".into(),
-        }
-        .into());
-    }
+    compare::inputs(inputs.len())?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join("compare"));
     let plan = session.plan("compare", springfit::report::compare::COMPARE_FILES.iter().copied());
     let claim = springfit::report::output::check(&target, &plan)?;
@@ -50,18 +44,11 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
         });
     }
     let exact_design = if exact {
-        let file = read
-            .iter()
-            .find_map(|r| match r {
-                Input::Fitted(r) => r.design_file.clone(),
-                Input::Design(p, _) => Some(p.clone()),
-            })
-            .ok_or_else(|| Error::Setting {
-                field: "--exact".into(),
-                reason:
-                    "no input names its design file (fit folders of older springfit versions do not): add a design file"
-                        .into(),
-            })?;
+        let file = compare::exact_file(read.iter().map(|r| match r {
+            Input::Fitted(r) => r.design_file.as_deref(),
+            Input::Design(p, _) => Some(p.as_path()),
+        }))
+        .map_err(|e| super::flag(e, "exact", "--exact"))?;
         Some((file.clone(), super::load_design(&file, progress)?.0))
     } else {
         None
@@ -71,33 +58,18 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
         records.push(match input {
             Input::Fitted(r) => *r,
             Input::Design(path, dc) => {
-                let (design, catalog) = *dc;
-                let step = progress.step(&format!("fitting {}", path.display()));
-                let outcome = fit(&design, &catalog, &design.fit, &|_| {})
-                    .map_err(|e| super::fit_failed(&design, &design.fit, Some(&catalog), e));
-                let as_built = match &outcome {
-                    Ok(o) => springfit::asbuilt::of_fit(&design, o)?,
-                    Err(_) => None,
-                };
-                step.finish();
-                let mut r = record_of(&outcome?, &path);
-                r.as_built = as_built.as_ref().map(springfit::asbuilt::Brief::of);
-                r
+                let (design, catalog) = &*dc;
+                progress.run(|p| compare::fitted(design, catalog, &path, p)).map_err(|e| super::in_design(design, e))?
             }
         });
     }
     if let Some((file, design)) = exact_design {
-        let step = progress.step("evaluating the exact potential");
-        let outcome = exact_reference(&design, &design.fit, &|_| {});
-        step.finish();
-        let mut r = record_of(&outcome.map_err(|e| super::fit_failed(&design, &design.fit, None, e))?, &file);
-        r.design = "exact ½ω²r²".to_string();
-        r.label = r.design.clone();
-        records.push(r);
+        records.push(progress.run(|p| compare::exact(&design, &file, p)).map_err(|e| super::in_design(&design, e))?);
     }
-    disambiguate(&mut records);
-    let written = springfit::report::compare::write_compare_folder(claim, &records)?;
-    for r in &records {
+    let comparison = Comparison::new(records)?;
+    let written = comparison.write(claim)?;
+    let records = &comparison.records;
+    for r in records {
         progress.say(format!(
             "{}: {} springs, p99 {}, max {}{}",
             r.label,
@@ -132,48 +104,15 @@ pub fn pareto(
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
     let plan = session.plan_for(&design, "pareto", springfit::report::compare::PARETO_FILES.iter().copied());
     let claim = springfit::report::output::check(&target, &plan)?;
-    let k_max = k_max.unwrap_or(design.fit.max_elements.max(16));
-    if k_max < 2 {
-        return Err(Error::Setting { field: "--k-max".into(), reason: "must be at least 2".into() }.into());
-    }
-    if k_max > 1000 {
-        return Err(Error::Setting { field: "--k-max".into(), reason: format!("at most 1000, got {k_max}") }.into());
-    }
-    for (i, r) in radii.iter().flatten().enumerate() {
-        if !(r.is_finite() && *r > 0.0) {
-            return Err(Error::Setting {
-                field: format!("--radii[{i}]"),
-                reason: format!("must be a positive geodesic-ball radius, got {r}"),
-            }
-            .into());
-        }
-    }
-    // The radii are checked against the region check before any fit, so a radius past the
-    // largest valid one is blamed on --radii, not on the design's region.radius.
-    let radii = pareto_radii(&design, radii, progress)?;
-    let budgets: Vec<usize> = (2..=k_max).collect();
-    let step = progress.step(&format!("budgets 2 … {k_max}"));
-    let curve = budget_curve(&design, &catalog, &design.fit, &budgets, &|_| {});
-    step.finish();
-    let curve = curve.map_err(|e| super::fit_failed(&design, &design.fit, Some(&catalog), e))?;
-    let step = progress.step("region sizes");
-    let rcurve = radius_curve(&design, &catalog, &design.fit, &radii, &|_| {});
-    step.finish();
-    let rcurve = rcurve.map_err(|e| super::fit_failed(&design, &design.fit, Some(&catalog), e))?;
-    if curve.iter().all(|b| b.infeasible.is_some()) && rcurve.iter().all(|r| r.infeasible.is_some()) {
-        let last = curve.last().and_then(|b| b.infeasible.clone()).unwrap_or_default();
-        return Err(Error::Infeasible {
-            constraint: format!("every budget K = 2 … {k_max} and every radius"),
-            reason: last,
-        }
-        .into());
-    }
-    let dir = claim.open()?;
-    springfit::report::compare::write_pareto(&dir, &design.name, &curve, &rcurve, design.fit.max_elements)?;
-    springfit::report::html::write_pareto(&dir, &design)?;
-    let written = dir.commit()?;
+    // The job's arguments as the command line names them.
+    let options = |e| super::flag(super::flag(e, "k_max", "--k-max"), "radii", "--radii");
+    let job = ParetoJob::new(&design, &catalog, ParetoRequest { k_max, radii }).map_err(options)?;
+    let run = progress.run(|p| job.run(p)).map_err(|e| super::in_design(&design, options(e)))?;
+    run.feasible()?;
+    let written = run.write(&design, claim)?;
+    let (curve, rcurve) = (&run.budgets, &run.radii);
     progress.say("budget K: springs used, p99, max; as built p99 p50 / p95 over builds (untrimmed; trimmed)");
-    for b in &curve {
+    for b in curve {
         match &b.infeasible {
             None => progress.say(format!(
                 "  {:>3}: {:>3}  {:.4}°  {:.4}°  {}{}",
@@ -190,7 +129,7 @@ pub fn pareto(
             Some(why) => progress.say(format!("  {:>3}: infeasible ({why})", b.budget)),
         }
     }
-    if let Some(best) = springfit::studies::compare::best_as_built(&curve) {
+    if let Some(best) = springfit::studies::compare::best_as_built(curve) {
         progress.say(format!(
             "best as built: K = {} (as-built p95 of the p99 {:.3}°{})",
             best.budget,
@@ -202,7 +141,7 @@ pub fn pareto(
             .say("as built: no tolerance to draw builds at ([fit] tolerance = \"none\" and no catalogue tolerance)");
     }
     progress.say("radius: springs used, p99, max");
-    for r in &rcurve {
+    for r in rcurve {
         match &r.infeasible {
             None => progress
                 .say(format!("  {:.2}: {:>3}  {:.4}°  {:.4}°", r.radius, r.used, r.stats.p99_abs, r.stats.max_abs)),
@@ -211,61 +150,4 @@ pub fn pareto(
     }
     progress.say(format!("wrote {}", written.display()));
     Ok(())
-}
-
-/// Number of radii of the default region-size curve.
-const DEFAULT_RADII: usize = 8;
-
-/// The radii of the region-size curve: the given ones, each checked against the largest valid
-/// geodesic-ball radius, or [`DEFAULT_RADII`] evenly from 0.5 (less for small regions) up to the
-/// largest valid radius.
-fn pareto_radii(design: &Design, given: Option<Vec<f64>>, progress: &Progress) -> Result<Vec<f64>> {
-    match given {
-        Some(radii) => {
-            let Some(top) = radii.iter().copied().reduce(f64::max) else {
-                return Err(
-                    Error::Setting { field: "--radii".into(), reason: "give at least one radius".into() }.into()
-                );
-            };
-            let mut probe = design.clone();
-            probe.region = springfit::geodesic::Region::Ball { radius: top };
-            let step = progress.step("checking the largest radius");
-            let report = probe.region_report();
-            step.finish();
-            let report = report?;
-            if !report.valid {
-                let i = radii.iter().position(|r| *r > report.largest_radius).unwrap_or(0);
-                return Err(Error::Setting {
-                    field: format!("--radii[{i}]"),
-                    reason: format!(
-                        "{} is past the largest valid geodesic-ball radius {:.4} of {}: {}",
-                        radii[i],
-                        report.largest_radius,
-                        design.path.display(),
-                        report.reason
-                    ),
-                }
-                .into());
-            }
-            Ok(radii)
-        }
-        None => {
-            let step = progress.step("checking the region");
-            let report = design.region_report();
-            step.finish();
-            let report = report?;
-            // A probed bound is itself valid; a conjugate point or a crossing is not: stay below.
-            let top =
-                if report.largest_radius_is_lower_bound { report.largest_radius } else { 0.98 * report.largest_radius };
-            let top = (top * 100.0).floor() / 100.0;
-            let start = 0.5_f64.min(top / 4.0);
-            let mut radii: Vec<f64> = (0..DEFAULT_RADII)
-                .map(|i| start + (top - start) * i as f64 / (DEFAULT_RADII - 1) as f64)
-                .map(|r| (r * 100.0).round() / 100.0)
-                .filter(|r| *r > 0.0 && *r <= top)
-                .collect();
-            radii.dedup();
-            Ok(radii)
-        }
-    }
 }

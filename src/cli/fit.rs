@@ -3,12 +3,16 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use springfit::asbuilt::AsBuilt;
+use springfit::design::fit::FitSettings;
 use springfit::design::fit::SolverKind;
 use springfit::design::tolerance::TrimRule;
-use springfit::error::Error;
-use springfit::fit::run::exact_reference;
+use springfit::jobs::fit::{FitJob, FitRequest, FitRun};
+use springfit::jobs::{Topic, about};
+use springfit::realise::cam::FittedCam;
 
 use super::Session;
+use super::progress::Progress;
 
 pub struct FitArgs {
     pub design: PathBuf,
@@ -21,74 +25,48 @@ pub struct FitArgs {
 pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     let progress = &session.progress;
     let (design, validated) = super::load_design(&args.design, progress)?;
-    let mut settings = design.fit;
-    if let Some(s) = args.solver {
-        settings.solver = s;
-    }
-    if let Some(k) = args.max_elements {
-        settings.max_elements = k;
-    }
-    settings.validate().map_err(|(field, reason)| Error::Setting { field, reason })?;
+    let request = FitRequest { exact: args.exact, solver: args.solver, max_elements: args.max_elements };
+    let job = FitJob::new(&design, validated.catalog.as_ref(), request)?;
+    let settings = *job.settings();
     let default_name = if args.exact { format!("{}_exact", design.name) } else { design.name.clone() };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(default_name));
-    let plan = session.plan_for(&design, "fit", springfit::report::fit::files(!args.exact));
+    let plan = session.plan_for(&design, "fit", request.files());
     let claim = springfit::report::output::check(&target, &plan)?;
-    let stock = if args.exact { Vec::new() } else { super::parts::load_stock(&design)? };
-    let catalog = match (&validated.catalog, args.exact) {
-        (_, true) => None,
-        (Some(c), false) => Some(c),
-        (None, false) => {
-            return Err(Error::invalid(
-                &design.path,
-                "catalog",
-                "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
-            )
-            .into());
-        }
-    };
-    let (outcome, parts) = {
-        let step = std::cell::RefCell::new(None::<super::progress::Step>);
-        let stage = |name: &str| {
-            if let Some(s) = step.borrow_mut().take() {
-                s.finish();
-            }
-            *step.borrow_mut() = Some(progress.step(name));
-        };
-        // The parts are chosen with the fit: `tolerance = "parts"` refits at their tolerances.
-        let result = match catalog {
-            None => exact_reference(&design, &settings, &stage).map(|o| (o, None)),
-            Some(catalog) => {
-                springfit::parts::fit_with_parts(&design, catalog, &settings, &stock, &stage).map(|(o, p)| (o, Some(p)))
-            }
-        };
-        let result = result.map_err(|e| super::fit_failed(&design, &settings, catalog, e));
-        if let Some(s) = step.borrow_mut().take() {
-            s.finish();
-        }
-        result?
-    };
-    let as_built = if args.exact {
-        None
-    } else {
-        let step = progress.step("as-built Monte Carlo builds");
-        let t = std::time::Instant::now();
-        let ab = springfit::asbuilt::of_fit(&design, &outcome)
-            .map_err(|e| anyhow::Error::new(e).context(design.path.display().to_string()))?;
-        step.finish();
-        Some((ab, t.elapsed().as_secs_f64()))
-    };
+    let run = progress.run(|p| job.run(p)).map_err(|e| super::in_design(&design, e))?;
     let step = progress.step("writing outputs");
-    let written = springfit::report::fit::write_folder(
-        claim,
-        &design,
-        &outcome,
-        as_built.as_ref().and_then(|a| a.0.as_ref()),
-        parts.as_ref(),
-    );
+    let written = run.write(&design, claim);
     step.finish();
     let written = written?;
+    say_fit(&run, &settings, progress);
+    for (i, cam) in run.outcome.cams.iter().enumerate() {
+        say_cam(cam, about(&run.warnings, &Topic::Cam(i)), progress);
+    }
+    match (&run.as_built, args.exact) {
+        (Some(ab), _) => say_as_built(ab, run.as_built_seconds, progress),
+        (None, false) => progress.say(
+            "as built: skipped (tolerance \"none\" and no catalogue tolerance, or builds = 0); set [fit] tolerance = 0.05 for ±5 % builds",
+        ),
+        (None, true) => {}
+    }
+    if let Some(p) = &run.parts {
+        super::parts::say(p, &run.warnings, session);
+    }
+    let files = if args.exact {
+        "summary.json, residuals.csv, histogram, potential, report.md, report.html"
+    } else {
+        "bom.csv, bom.md, parts.csv, parts.md, summary.json, residuals.csv, histogram, potential, report.md, report.html"
+    };
+    let files = if run.outcome.cams.is_empty() { files.to_string() } else { format!("{files}, cams/") };
+    progress.say(format!("wrote {} ({files})", display(&written)));
+    Ok(())
+}
+
+/// The fit's lines: what was fitted, the residual angles, the equalities, the verdict; with the
+/// warnings about the equalities and the bill.
+fn say_fit(run: &FitRun, settings: &FitSettings, progress: &Progress) {
+    let (outcome, warnings) = (&run.outcome, &run.warnings);
     let st = &outcome.metrics.stats;
-    if args.exact {
+    if run.exact {
         progress.say(format!("{}: exact potential ½ω²r² (ω = {} rad/s)", outcome.design, settings.frequency));
     } else {
         progress.say(format!(
@@ -121,9 +99,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         outcome.metrics.monotone_violations,
         outcome.timings.total
     ));
-    if !args.exact
-        && let Some(w) = springfit::fit::hints::fit_equality_warning(&design, &settings, &outcome.metrics)
-    {
+    for w in about(warnings, &Topic::Equalities) {
         progress.warn(w);
     }
     let verdict = springfit::fit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
@@ -137,14 +113,15 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             springfit::fit::hints::poor_fit_advice(&outcome.region)
         )
     });
-    if let Some(c) = catalog {
-        for w in springfit::fit::hints::bom_warnings(c, &outcome.bom) {
-            progress.warn(w);
-        }
+    for w in about(warnings, &Topic::Bill) {
+        progress.warn(w);
     }
-    for cam in &outcome.cams {
-        let r = &cam.realisation;
-        progress.say(format!(
+}
+
+/// A cam's drawing in one line, then the warnings about it.
+fn say_cam<'a>(cam: &FittedCam, warnings: impl Iterator<Item = &'a str>, progress: &Progress) {
+    let r = &cam.realisation;
+    progress.say(format!(
             "cam {} on ({}): follower {:.3} N/mm preloaded {:.2} mm, gear ratio {:.4}, max pressure angle {:.1}°, smallest convex pitch radius of curvature {:.1} mm",
             cam.id,
             cam.coupling.iter().map(|a| springfit::elements::fmt_number(*a)).collect::<Vec<_>>().join(", "),
@@ -154,13 +131,14 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
             r.max_pressure_angle,
             r.min_convex_curvature
         ));
-        for v in &r.violations {
-            progress.warn(format!("cam {}: {v}", cam.id));
-        }
+    for w in warnings {
+        progress.warn(w);
     }
-    match &as_built {
-        Some((Some(ab), secs)) => {
-            progress.say(format!(
+}
+
+/// The as-built figures: untrimmed, trimmed, with the cams' preloads re-set.
+fn say_as_built(ab: &AsBuilt, secs: f64, progress: &Progress) {
+    progress.say(format!(
                 "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {:.3}° / {:.3}° (p95 within {}° at 95 % confidence), max {:.3}° / {:.3}°, shift {:.4} / {:.4} rad (Euclidean), {:.4} / {:.4} (metric); {:.2} s",
                 plural(ab.builds, "build"),
                 ab.tolerance.label(),
@@ -176,8 +154,8 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
                 ab.shift_metric.p95,
                 secs
             ));
-            if let Some(t) = &ab.trimmed {
-                progress.say(format!(
+    if let Some(t) = &ab.trimmed {
+        progress.say(format!(
                     "as built and trimmed: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} {}",
                     t.p99_deg.p50,
                     t.p99_deg.p95,
@@ -192,9 +170,9 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
                         TrimRule::Residual => "with a trim at the end of its range",
                     }
                 ));
-            }
-            if let Some(t) = &ab.preload_trimmed {
-                progress.say(format!(
+    }
+    if let Some(t) = &ab.preload_trimmed {
+        progress.say(format!(
                     "as built, each cam's follower preload re-set to the drawing's force{}: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°",
                     if ab.trimmed.is_some() { " and the trims re-set" } else { "" },
                     t.p99_deg.p50,
@@ -203,30 +181,17 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
                     t.max_deg.p50,
                     t.max_deg.p95,
                 ));
-            }
-            if ab.builds_without_equilibrium > 0 {
-                progress.say(format!(
-                    "{} no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
-                    if ab.builds_without_equilibrium == 1 { "1 build has".to_string() } else { format!("{} builds have", ab.builds_without_equilibrium) }
-                ));
-            }
-        }
-        Some((None, _)) => progress.say(
-            "as built: skipped (tolerance \"none\" and no catalogue tolerance, or builds = 0); set [fit] tolerance = 0.05 for ±5 % builds",
-        ),
-        None => {}
     }
-    if let Some(p) = &parts {
-        super::parts::say(p, session);
+    if ab.builds_without_equilibrium > 0 {
+        progress.say(format!(
+            "{} no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
+            if ab.builds_without_equilibrium == 1 {
+                "1 build has".to_string()
+            } else {
+                format!("{} builds have", ab.builds_without_equilibrium)
+            }
+        ));
     }
-    let files = if args.exact {
-        "summary.json, residuals.csv, histogram, potential, report.md, report.html"
-    } else {
-        "bom.csv, bom.md, parts.csv, parts.md, summary.json, residuals.csv, histogram, potential, report.md, report.html"
-    };
-    let files = if outcome.cams.is_empty() { files.to_string() } else { format!("{files}, cams/") };
-    progress.say(format!("wrote {} ({files})", display(&written)));
-    Ok(())
 }
 
 fn display(p: &Path) -> String {

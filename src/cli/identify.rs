@@ -1,14 +1,15 @@
 //! `springfit identify`: a built arm's spring rates, damping and friction from logged swings, or
-//! (`--plan`) the releases to log.
+//! (`--plan`) the releases to log (the job: [`springfit::jobs::identify`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use springfit::files::{bom, log};
+use springfit::identify::plan::Plan;
 use springfit::identify::{Identification, Status};
-use springfit::report::identify::{FILES, PLAN_FILES};
+use springfit::jobs::identify::{Identified, IdentifyRequest};
 
 use super::Session;
+use super::progress::Progress;
 
 pub struct IdentifyArgs {
     pub design: PathBuf,
@@ -23,54 +24,59 @@ pub fn run(args: IdentifyArgs, session: &Session) -> Result<()> {
     let (design, _) = super::load_design(&args.design, progress)?;
     let suffix = if args.plan { "identify_plan" } else { "identify" };
     let target = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("{}_{suffix}", design.name)));
-    let plan = session.plan_for(&design, "identify", if args.plan { PLAN_FILES } else { FILES }.iter().copied());
+    let request = if args.plan { IdentifyRequest::Plan } else { IdentifyRequest::Logs(&args.logs) };
+    let plan = session.plan_for(&design, "identify", request.files().iter().copied());
     let claim = springfit::report::output::check(&target, &plan)?;
-    let rows = bom::read(&args.bom)?;
-    if args.plan {
-        let step = progress.step("planning releases");
-        let proposal = springfit::identify::plan::plan(&design, &args.bom, &rows);
-        step.finish();
-        let proposal = proposal?;
-        let dir = claim.open()?;
-        springfit::report::identify::write_plan(&dir, &design.name, &proposal, &rows)?;
-        springfit::report::html::write_identify(&dir, &design)?;
-        let written = dir.commit()?;
-        progress.say(format!(
-            "plan: {} releases, {:.0} s of log at {} Hz, from {} candidates ({} leave the region); {}-bit encoder",
-            proposal.releases.iter().map(|r| r.releases).sum::<usize>(),
-            proposal.total_seconds,
-            proposal.rate_hz,
-            proposal.candidates,
-            proposal.dropped,
-            proposal.encoder_bits
-        ));
-        for (i, r) in proposal.releases.iter().enumerate() {
-            let q: Vec<String> = r.q0.iter().map(|x| format!("{x:.4}")).collect();
+    let run = progress.run(|p| springfit::jobs::identify::identify(&design, &args.bom, request, p))?;
+    let written = run.write(&design, claim)?;
+    match &run.made {
+        Identified::Plan(proposal) => say_plan(proposal, &written, progress),
+        Identified::Rates(outcome) => {
+            say_identified(outcome, progress);
+            let cams = if run.rows.iter().any(|r| r.cam.is_some()) { ", cams/" } else { "" };
             progress.say(format!(
-                "  {}. hold at q = ({}) rad (distance {:.3}, {:.2} J), release {}×, log {} s each",
-                i + 1,
-                q.join(", "),
-                r.distance,
-                r.energy_j,
-                r.releases,
-                r.seconds
+                "wrote {} (identify.md, identify.json, identified.csv{cams}, identify_torque, identify_rates, report.html); \
+                 next: springfit tune {} --measured {}",
+                written.display(),
+                args.design.display(),
+                written.join("identified.csv").display()
             ));
         }
-        for line in rate_lines(&proposal.predicted, "predicted") {
-            progress.say(line);
-        }
-        progress.say(format!("wrote {} (plan.md, plan.json, plan_rates, report.html)", written.display()));
-        return Ok(());
     }
-    let logs = args.logs.iter().map(|p| log::read(p, design.dof())).collect::<springfit::Result<Vec<_>>>()?;
-    let step = progress.step("identifying");
-    let outcome = springfit::identify::identify(&design, &args.bom, &rows, &logs, &design.file.identify);
-    step.finish();
-    let outcome = outcome?;
-    let dir = claim.open()?;
-    springfit::report::identify::write(&dir, &design.name, &outcome, &rows)?;
-    springfit::report::html::write_identify(&dir, &design)?;
-    let written = dir.commit()?;
+    Ok(())
+}
+
+/// The releases to log.
+fn say_plan(proposal: &Plan, written: &Path, progress: &Progress) {
+    progress.say(format!(
+        "plan: {} releases, {:.0} s of log at {} Hz, from {} candidates ({} leave the region); {}-bit encoder",
+        proposal.releases.iter().map(|r| r.releases).sum::<usize>(),
+        proposal.total_seconds,
+        proposal.rate_hz,
+        proposal.candidates,
+        proposal.dropped,
+        proposal.encoder_bits
+    ));
+    for (i, r) in proposal.releases.iter().enumerate() {
+        let q: Vec<String> = r.q0.iter().map(|x| format!("{x:.4}")).collect();
+        progress.say(format!(
+            "  {}. hold at q = ({}) rad (distance {:.3}, {:.2} J), release {}×, log {} s each",
+            i + 1,
+            q.join(", "),
+            r.distance,
+            r.energy_j,
+            r.releases,
+            r.seconds
+        ));
+    }
+    for line in rate_lines(&proposal.predicted, "predicted") {
+        progress.say(line);
+    }
+    progress.say(format!("wrote {} (plan.md, plan.json, plan_rates, report.html)", written.display()));
+}
+
+/// The logs, the rates identified, and each joint's damping and friction.
+fn say_identified(outcome: &Identification, progress: &Progress) {
     let seconds: f64 = outcome.runs.iter().map(|r| r.seconds).sum();
     progress.say(format!(
         "{} runs, {:.1} s of log, {} rows for {} unknowns; condition {}; low-pass {:.3} Hz",
@@ -81,7 +87,7 @@ pub fn run(args: IdentifyArgs, session: &Session) -> Result<()> {
         if outcome.condition.is_finite() { format!("{:.3e}", outcome.condition) } else { "∞ (rank short)".into() },
         outcome.cutoff_hz
     ));
-    for line in rate_lines(&outcome, "identified") {
+    for line in rate_lines(outcome, "identified") {
         progress.say(line);
     }
     for j in &outcome.joints {
@@ -98,15 +104,6 @@ pub fn run(args: IdentifyArgs, session: &Session) -> Result<()> {
             progress.say(format!("  {}: {d}{}{f}", j.joint, if d.is_empty() || f.is_empty() { "" } else { ", " }));
         }
     }
-    let cams = if rows.iter().any(|r| r.cam.is_some()) { ", cams/" } else { "" };
-    progress.say(format!(
-        "wrote {} (identify.md, identify.json, identified.csv{cams}, identify_torque, identify_rates, report.html); \
-         next: springfit tune {} --measured {}",
-        written.display(),
-        args.design.display(),
-        written.join("identified.csv").display()
-    ));
-    Ok(())
 }
 
 /// One line per part: δ ± standard error, or the group it is in; then each group's reason and

@@ -374,23 +374,25 @@ pub fn load_design(path: &Path, progress: &progress::Progress) -> springfit::Res
     Ok((design, validated))
 }
 
-/// A failed fit of `design`: an infeasible fit gets the key to change, and errors that carry
-/// no file of their own (infeasible, numerical) are prefixed with the design's path.
-pub fn fit_failed(
-    design: &Design,
-    settings: &springfit::design::fit::FitSettings,
-    catalog: Option<&springfit::elements::catalog::Catalog>,
-    e: Error,
-) -> anyhow::Error {
-    let e = match catalog {
-        Some(c) => springfit::fit::hints::explain(design, settings, c, settings.max_elements, e),
-        None => e,
-    };
+/// An error of a job on `design`: errors that carry no file of their own (infeasible,
+/// numerical) are prefixed with the design's path.
+pub fn in_design(design: &Design, e: Error) -> anyhow::Error {
     match e {
         Error::Infeasible { .. } | Error::Numerical { .. } => {
             anyhow::Error::new(e).context(design.path.display().to_string())
         }
         other => other.into(),
+    }
+}
+
+/// A job's error about its argument `name` (as the library and the Python package name it:
+/// `scenario`, `radii[2]`) named as the command line's option `flag` (`--scenario`, `--radii[2]`).
+pub fn flag(e: Error, name: &str, flag: &str) -> Error {
+    match e {
+        Error::Setting { field, reason } if field == name || field.starts_with(&format!("{name}[")) => {
+            Error::Setting { field: field.replacen(name, flag, 1), reason }
+        }
+        other => other,
     }
 }
 

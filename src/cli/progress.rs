@@ -1,5 +1,6 @@
 //! Progress reporting on stderr: a spinner per step that takes longer than a moment.
 
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -48,6 +49,12 @@ impl Progress {
         Step { bar, started: Instant::now() }
     }
 
+    /// Runs `job` with its stages shown as spinners (see [`Spinners`]).
+    pub fn run<T>(&self, job: impl FnOnce(springfit::progress::Progress<'_>) -> T) -> T {
+        let spinners = Spinners { progress: self, step: Mutex::new(None) };
+        job(springfit::progress::Progress::to(&spinners))
+    }
+
     /// Prints a warning on stderr, `springfit: warning: …`, even when quiet (a warning is about
     /// the input, like an error).
     pub fn warn(&self, w: impl std::fmt::Display) {
@@ -78,5 +85,45 @@ impl Step {
             bar.finish_and_clear();
         }
         self.started.elapsed().as_secs_f64()
+    }
+}
+
+/// The library's [`springfit::progress::Observer`] on the command line: each stage a spinner
+/// (a counted stage a bar) that the next stage, or the end of the job, clears.
+struct Spinners<'a> {
+    progress: &'a Progress,
+    step: Mutex<Option<Step>>,
+}
+
+impl Spinners<'_> {
+    /// Ends the current step and starts `next`.
+    fn replace(&self, next: Option<Step>) {
+        // A panic cannot happen while the lock is held, so a poisoned lock still holds a step.
+        let mut step = self.step.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(s) = std::mem::replace(&mut *step, next) {
+            s.finish();
+        }
+    }
+}
+
+impl springfit::progress::Observer for Spinners<'_> {
+    fn stage(&self, name: &str) {
+        self.replace(Some(self.progress.step(name)));
+    }
+
+    fn counted(&self, name: &str, total: usize) {
+        self.replace(Some(self.progress.counted(name, total as u64)));
+    }
+
+    fn item_done(&self) {
+        if let Some(s) = &*self.step.lock().unwrap_or_else(|p| p.into_inner()) {
+            s.inc();
+        }
+    }
+}
+
+impl Drop for Spinners<'_> {
+    fn drop(&mut self) {
+        self.replace(None);
     }
 }

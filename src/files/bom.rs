@@ -152,6 +152,63 @@ fn lines(name: &str, rows: &[BomRow]) -> Vec<Line> {
     out
 }
 
+/// One value of a line of `bom.csv` as data: what the Python package's `Fit.bom` hands over,
+/// and what the CSV writes (text quoted where it must be, numbers in Rust's shortest round-trip
+/// form, blanks empty).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Value {
+    /// Text: an id, a family, a profile, a side, a coupling `1;-2`, a unit, a file.
+    Text(String),
+    /// A number.
+    Number(f64),
+    /// Nothing: a column that does not apply to the line.
+    Blank,
+}
+
+impl Value {
+    fn csv(&self) -> String {
+        match self {
+            Value::Text(t) => csv_field(t),
+            Value::Number(x) => format!("{x}"),
+            Value::Blank => String::new(),
+        }
+    }
+}
+
+impl Line {
+    /// The line's values, one per column of [`HEADER`].
+    fn values(&self) -> Vec<Value> {
+        let text = |t: &str| if t.is_empty() { Value::Blank } else { Value::Text(t.to_string()) };
+        let number = |x: Option<f64>| x.map_or(Value::Blank, Value::Number);
+        vec![
+            text(&self.id),
+            text(&self.family),
+            text(self.profile),
+            text(&self.side),
+            text(&coupling_text(&self.coupling)),
+            Value::Number(self.offset),
+            Value::Number(self.stiffness),
+            text(self.unit),
+            Value::Number(self.max_torque_nm),
+            Value::Number(self.max_deflection_rad),
+            number(self.stock_rate),
+            Value::Number(self.tolerance),
+            number(self.preload_nm),
+            number(self.adjust.adjust_range),
+            number(self.adjust.trim_range.map(|x| x[0])),
+            number(self.adjust.trim_range.map(|x| x[1])),
+            number(self.cam.as_ref().map(|(_, f)| f.realisation.gear_ratio)),
+            self.cam.as_ref().map_or(Value::Blank, |(p, _)| text(p)),
+        ]
+    }
+}
+
+/// The lines of `bom.csv` as data, without the CSV: per line the values of the columns of
+/// [`HEADER`], in order (cams collapsed into one line each, as written).
+pub fn records(rows: &[BomRow]) -> Vec<Vec<Value>> {
+    lines("bom.csv", rows).iter().map(Line::values).collect()
+}
+
 /// A coupling as `bom.csv` writes it (as [`Element::coupling_text`]).
 fn coupling_text(a: &[f64]) -> String {
     a.iter().map(|x| fmt_number(*x)).collect::<Vec<_>>().join(";")
@@ -165,26 +222,7 @@ pub fn files(name: &str, rows: &[BomRow]) -> Vec<(String, String)> {
     s.push('\n');
     let mut cams = Vec::new();
     for l in &lines {
-        let fields = [
-            csv_field(&l.id),
-            csv_field(&l.family),
-            l.profile.to_string(),
-            l.side.clone(),
-            coupling_text(&l.coupling),
-            format!("{}", l.offset),
-            format!("{}", l.stiffness),
-            l.unit.to_string(),
-            format!("{}", l.max_torque_nm),
-            format!("{}", l.max_deflection_rad),
-            l.stock_rate.map(|x| format!("{x}")).unwrap_or_default(),
-            format!("{}", l.tolerance),
-            l.preload_nm.map(|x| format!("{x}")).unwrap_or_default(),
-            l.adjust.adjust_range.map(|x| format!("{x}")).unwrap_or_default(),
-            l.adjust.trim_range.map(|x| format!("{}", x[0])).unwrap_or_default(),
-            l.adjust.trim_range.map(|x| format!("{}", x[1])).unwrap_or_default(),
-            l.cam.as_ref().map(|(_, f)| format!("{}", f.realisation.gear_ratio)).unwrap_or_default(),
-            l.cam.as_ref().map(|(p, _)| csv_field(p)).unwrap_or_default(),
-        ];
+        let fields: Vec<String> = l.values().iter().map(Value::csv).collect();
         s.push_str(&fields.join(","));
         s.push('\n');
         if let Some((path, f)) = &l.cam {

@@ -1,6 +1,8 @@
 //! The fit: non-negative stiffnesses of catalogue elements that make every geodesic from the
-//! equilibrium a strict mode as nearly as the catalogue allows. `run.rs` is the pipeline; each
-//! stage has a file of its own.
+//! equilibrium a strict mode as nearly as the catalogue allows. `run.rs` runs one fit through its
+//! stages (prepare, solve, evaluate, bill), each in a file of its own. What `springfit fit` does
+//! around it (the parts, a refit at their tolerances, the as-built builds, the files) is the fit
+//! job, [`crate::jobs::fit`].
 
 pub mod bill;
 pub mod evaluate;
@@ -14,6 +16,6 @@ pub mod run;
 pub mod smoothing;
 pub mod solve;
 
-pub use outcome::{Evaluation, FitOutcome, SolveReport, Timings};
+pub use outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
 pub use prepare::Prepared;
 pub use run::{exact_reference, fit};

@@ -3,12 +3,14 @@
 
 use serde::Serialize;
 
-use crate::design::fit::FitSettings;
+use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::group::Grouping;
 use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, RegionReport};
 use crate::potential::SpringSet;
 use crate::residual::{AngleSample, AngleStats, BandStats};
+use crate::solve::qp::QpStatus;
+
 /// Wall-clock seconds per step.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Timings {
@@ -24,13 +26,78 @@ pub struct Timings {
     pub total: f64,
 }
 
+/// What found the stiffnesses: one of the solvers `[fit] solver` names, or none (the exact
+/// reference ½ω²r², which has no stiffnesses). Written as `nnls`, `qp` or `exact` (its
+/// `Display` and serde form, the text of `summary.json` and the command's lines).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Solver {
+    /// Lawson–Hanson non-negative least squares.
+    Nnls,
+    /// The Clarabel quadratic program.
+    Qp,
+    /// No solve: the exact potential evaluated as a reference.
+    Exact,
+}
+
+impl From<SolverKind> for Solver {
+    fn from(kind: SolverKind) -> Solver {
+        match kind {
+            SolverKind::Nnls => Solver::Nnls,
+            SolverKind::Qp => Solver::Qp,
+        }
+    }
+}
+
+impl std::fmt::Display for Solver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Solver::Nnls => SolverKind::Nnls.name(),
+            Solver::Qp => SolverKind::Qp.name(),
+            Solver::Exact => "exact",
+        })
+    }
+}
+
+/// How the solve ended. Written as `solved`, `almost_solved` or `reference` (its `Display` and
+/// serde form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolveStatus {
+    /// Solved to tolerance (NNLS always; the QP when Clarabel says so).
+    Solved,
+    /// The QP solved to Clarabel's reduced accuracy.
+    AlmostSolved,
+    /// No solve: the exact potential evaluated as a reference.
+    Reference,
+}
+
+impl From<QpStatus> for SolveStatus {
+    fn from(status: QpStatus) -> SolveStatus {
+        match status {
+            QpStatus::Solved => SolveStatus::Solved,
+            QpStatus::AlmostSolved => SolveStatus::AlmostSolved,
+        }
+    }
+}
+
+impl std::fmt::Display for SolveStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SolveStatus::Solved => "solved",
+            SolveStatus::AlmostSolved => "almost_solved",
+            SolveStatus::Reference => "reference",
+        })
+    }
+}
+
 /// How the stiffnesses were found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SolveReport {
-    /// `nnls`, `qp` or `exact`.
-    pub solver: String,
-    /// `solved`, `almost_solved` (QP at reduced accuracy) or `reference` (exact potential).
-    pub status: String,
+    /// The solver (`exact` for the reference).
+    pub solver: Solver,
+    /// How it ended (`reference` for the exact potential).
+    pub status: SolveStatus,
     /// Sparse selection: subset refits performed (0 without a limit).
     pub selection_evaluations: usize,
     /// Sparse selection: exchange moves accepted.

@@ -22,6 +22,7 @@ use crate::elements::group::Grouping;
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, FanSpec, RegionReport, Stop};
 use crate::potential::SpringSet;
+use crate::progress::Progress;
 use crate::solve::lsq::{CoupledRows, Gram, from_factors};
 
 /// A fit up to the solve: region, fans, candidates and the assembled problem. One preparation
@@ -66,15 +67,15 @@ impl<'a> Prepared<'a> {
         design: &'a Design,
         catalog: &'a Catalog,
         settings: &FitSettings,
-        stage: &dyn Fn(&str),
+        progress: Progress<'_>,
     ) -> Result<Prepared<'a>> {
         settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
         let t0 = Instant::now();
-        stage("checking the region");
+        progress.stage("checking the region");
         let (region, training, evaluation) = fans(design, settings)?;
         let t_geo = t0.elapsed().as_secs_f64();
 
-        stage("assembling the fit");
+        progress.stage("assembling the fit");
         let t1 = Instant::now();
         let q_eq = design.q_eq.as_slice();
         let (candidates, n_expanded) = engaging_candidates(design, catalog, settings, &training, &evaluation)?;
@@ -98,7 +99,7 @@ impl<'a> Prepared<'a> {
             assemble_with_gram(design, settings, &training, &candidates, &grouping, &trims, req);
         let mut appended = None;
         if grouping.any() {
-            stage("choosing the groups' smoothing");
+            progress.stage("choosing the groups' smoothing");
             let penalty = group_smoothing(&SmoothingInputs {
                 design,
                 catalog,
@@ -398,7 +399,7 @@ mod tests {
         let design = Design::load(&path).unwrap();
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let settings = FitSettings { training_directions: 144, training_samples: 60, ..design.fit };
-        let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
+        let prepared = Prepared::new(&design, &catalog, &settings, Progress::none()).unwrap();
         assert!(!prepared.problem.has_rows(), "the rows were kept");
         let rows = prepared.rows();
         assert_eq!(rows.shape(), (prepared.problem.row_count(), prepared.candidates.len()));
@@ -420,8 +421,8 @@ mod tests {
         let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
         let bare = FitSettings { tolerance: ToleranceSpec::None, ..design.fit };
         let kept = FitSettings { tolerance: ToleranceSpec::Fraction(0.05), ..design.fit };
-        let without = Prepared::new(&design, &catalog, &bare, &|_| {}).unwrap();
-        let with = Prepared::new(&design, &catalog, &kept, &|_| {}).unwrap();
+        let without = Prepared::new(&design, &catalog, &bare, Progress::none()).unwrap();
+        let with = Prepared::new(&design, &catalog, &kept, Progress::none()).unwrap();
         assert!(without.grouping.any() && with.problem.has_rows() && !without.problem.has_rows());
         assert_eq!(without.problem.row_count(), with.problem.rows.nrows());
         assert!(with.appended.as_ref().is_some_and(|a| a.0.nrows() > 0), "no smoothing rows");
@@ -452,7 +453,7 @@ mod tests {
             ..design.fit
         };
         assert!(!settings.tolerance.is_none(), "the shipped design fits for a tolerance");
-        let prepared = Prepared::new(&design, &catalog, &settings, &|_| {}).unwrap();
+        let prepared = Prepared::new(&design, &catalog, &settings, Progress::none()).unwrap();
         let (trims, mid) = mid_range(&catalog, design.q_eq.as_slice());
         assert_eq!(trims.len(), 3);
 
@@ -492,7 +493,7 @@ mod tests {
         let trims_hessian = full.equalities[1].matrix.columns(p, 3) * DVector::from_column_slice(&mid.stiffness);
         assert!(trims_hessian.amax() > 0.01, "{trims_hessian}");
 
-        let o = prepared.solve(&settings, &|_| {}).unwrap();
+        let o = prepared.solve(&settings, Progress::none()).unwrap();
         assert!(o.solve.expected_build_spread.is_some());
         assert_eq!(o.bom.iter().filter(|r| r.adjust.trim_range.is_some()).count(), 3);
         let q = design.q_eq.as_slice();

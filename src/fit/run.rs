@@ -1,4 +1,5 @@
-//! Fitting a design end to end, in the order the guide's "What `fit` does" tells it:
+//! One fit of a design, in the order the guide's "What `fit` does" tells it (the command's
+//! whole pipeline, with the parts and the as-built builds, is [`crate::jobs::fit`]):
 //!
 //! 1. **prepare** ([`Prepared::new`]): check the region, trace a training fan of geodesics from
 //!    the equilibrium and a held-out evaluation fan between its directions, expand the catalogue
@@ -16,7 +17,7 @@ use std::time::Instant;
 use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
-use super::outcome::{Evaluation, FitOutcome, SolveReport, Timings};
+use super::outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
 use super::prepare::{Prepared, fans};
 use super::solve::solve;
 use crate::design::Design;
@@ -24,14 +25,15 @@ use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::potential::{ExactPotential, Potential, SpringSet};
+use crate::progress::Progress;
 use crate::residual::{band_stats, fan_angles, stats};
 
-/// Fits `design` with the elements of `catalog`. `stage` is told when each step starts (for
+/// Fits `design` with the elements of `catalog`. `progress` is told when each step starts (for
 /// progress bars); the library itself prints nothing.
-pub fn fit(design: &Design, catalog: &Catalog, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+pub fn fit(design: &Design, catalog: &Catalog, settings: &FitSettings, progress: Progress<'_>) -> Result<FitOutcome> {
     let t0 = Instant::now();
-    let prepared = Prepared::new(design, catalog, settings, stage)?;
-    let mut outcome = prepared.solve(settings, stage)?;
+    let prepared = Prepared::new(design, catalog, settings, progress)?;
+    let mut outcome = prepared.solve(settings, progress)?;
     outcome.timings.total = t0.elapsed().as_secs_f64();
     Ok(outcome)
 }
@@ -40,16 +42,16 @@ impl Prepared<'_> {
     /// Solves, evaluates and writes the bill with `settings` (which must agree with the
     /// preparation's in frequency, Hessian match and monotonicity; the solver, budget and
     /// weights may differ: one preparation serves every budget of a Pareto sweep).
-    pub fn solve(&self, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+    pub fn solve(&self, settings: &FitSettings, progress: Progress<'_>) -> Result<FitOutcome> {
         settings.validate().map_err(|(f, r)| Error::invalid(&self.design.path, f, r))?;
         let (design, catalog) = (self.design, self.catalog);
         let q_eq = design.q_eq.as_slice();
-        stage("solving");
+        progress.stage("solving");
         let t2 = Instant::now();
-        let (k, report) = self.solve_within_budget(settings, stage)?;
+        let (k, report) = self.solve_within_budget(settings, progress)?;
         let t_solve = t2.elapsed().as_secs_f64();
 
-        stage("evaluating on held-out geodesics");
+        progress.stage("evaluating on held-out geodesics");
         let t3 = Instant::now();
         // The bill of the elements above `threshold`, and how its potential does.
         let billed = |threshold: f64| -> Result<_> {
@@ -117,19 +119,19 @@ impl Prepared<'_> {
     /// and the first that succeeds is the answer, noted in [`SolveReport::budget_met_at`]. Only
     /// when no budget succeeds is K's own error returned. The Pareto curve uses this same
     /// search.
-    fn solve_within_budget(&self, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<(Vec<f64>, SolveReport)> {
+    fn solve_within_budget(&self, settings: &FitSettings, progress: Progress<'_>) -> Result<(Vec<f64>, SolveReport)> {
         let asked = settings.max_elements;
         let mut first_error = None;
         for budget in (1..=asked.max(1)).rev() {
             let here = FitSettings { max_elements: if asked == 0 { 0 } else { budget }, ..*settings };
-            match self.solve_for_the_build(&here, stage) {
+            match self.solve_for_the_build(&here, progress) {
                 Ok((k, mut report)) => {
                     report.budget_met_at = (budget < asked).then_some(budget);
                     return Ok((k, report));
                 }
                 Err(e @ Error::Infeasible { .. }) if asked > 1 => {
                     first_error.get_or_insert(e);
-                    stage(&format!("budget {budget} infeasible: trying {}", budget - 1));
+                    progress.stage(&format!("budget {budget} infeasible: trying {}", budget - 1));
                 }
                 Err(e) => return Err(first_error.unwrap_or(e)),
             }
@@ -139,7 +141,7 @@ impl Prepared<'_> {
 
     /// The stiffness of every candidate: the nominal solve, and with a tolerance the robust
     /// refit for the build (see `fit::robust`).
-    fn solve_for_the_build(&self, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<(Vec<f64>, SolveReport)> {
+    fn solve_for_the_build(&self, settings: &FitSettings, progress: Progress<'_>) -> Result<(Vec<f64>, SolveReport)> {
         let q_eq = self.design.q_eq.as_slice();
         let columns = (&self.candidates[..], &self.grouping);
         if settings.tolerance.is_none() {
@@ -149,7 +151,7 @@ impl Prepared<'_> {
         // enough there.
         let first = FitSettings { restarts: 0, pair_swaps: false, ..*settings };
         let (k, nominal) = solve(&self.problem, &self.gram, columns, q_eq, &first, None)?;
-        stage("fitting for the build tolerance");
+        progress.stage("fitting for the build tolerance");
         let penalty = self.build_penalty(&k, settings)?;
         let (k, mut report) = solve(&self.problem, &self.gram, columns, q_eq, settings, Some(&penalty))?;
         report.selection_evaluations += nominal.selection_evaluations;
@@ -161,13 +163,13 @@ impl Prepared<'_> {
 }
 
 /// The exact reference U* = ½ω²r² evaluated like a fit (no springs, no bill of materials).
-pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&str)) -> Result<FitOutcome> {
+pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progress<'_>) -> Result<FitOutcome> {
     settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
     let t0 = Instant::now();
-    stage("checking the region");
+    progress.stage("checking the region");
     let (region, training, evaluation) = fans(design, settings)?;
     let t_geo = t0.elapsed().as_secs_f64();
-    stage("evaluating the exact potential (log map per sample)");
+    progress.stage("evaluating the exact potential (log map per sample)");
     let t3 = Instant::now();
     let exact = ExactPotential::new(&design.chain, &design.q_eq, settings.frequency, design.geodesics.ode);
     let residuals = fan_angles(&design.chain, &evaluation, &exact)?;
@@ -195,8 +197,8 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, stage: &dyn Fn(&
         cams: Vec::new(),
         metrics,
         solve: SolveReport {
-            solver: "exact".into(),
-            status: "reference".into(),
+            solver: Solver::Exact,
+            status: SolveStatus::Reference,
             selection_evaluations: 0,
             selection_swaps: 0,
             cut_rounds: 0,

@@ -8,7 +8,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::outcome::SolveReport;
+use super::outcome::{SolveReport, SolveStatus};
 use super::problem::FitProblem;
 use super::problem::unit_preloads;
 use super::robust::BuildPenalty;
@@ -97,8 +97,8 @@ pub fn solve_gram(
     let p = candidates.len();
     let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
     let mut report = SolveReport {
-        solver: settings.solver.name().into(),
-        status: "solved".into(),
+        solver: settings.solver.into(),
+        status: SolveStatus::Solved,
         selection_evaluations: 0,
         selection_swaps: 0,
         cut_rounds: 0,
@@ -264,7 +264,7 @@ fn solve_qp(
     };
     report.cut_rounds = sol.cut_rounds;
     if sol.status == QpStatus::AlmostSolved {
-        report.status = "almost_solved".into();
+        report.status = SolveStatus::AlmostSolved;
     }
     Ok(sol.k)
 }

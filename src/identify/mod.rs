@@ -13,6 +13,10 @@
 //! 4. the rates the identified δ give, for `tune` ([`Identification::measured`]).
 //!
 //! [`plan`] proposes releases that make every rate identifiable before anything is logged.
+//!
+//! The feature's files outside this folder: the settings `design/identify.rs`, the logs
+//! `files/log.rs`, the files written `report/identify.rs`, the job that runs it all
+//! [`crate::jobs::identify`] and the command `cli/identify.rs`.
 
 pub mod estimate;
 pub mod filter;

@@ -276,23 +276,23 @@ pub fn fit_with_parts(
     catalog: &crate::elements::catalog::Catalog,
     settings: &crate::design::fit::FitSettings,
     stock: &[StockPart],
-    stage: &dyn Fn(&str),
+    progress: crate::progress::Progress<'_>,
 ) -> Result<(crate::fit::FitOutcome, Parts)> {
     let t0 = std::time::Instant::now();
-    let mut prepared = crate::fit::prepare::Prepared::new(design, catalog, settings, stage)?;
-    let mut outcome = prepared.solve(settings, stage)?;
+    let mut prepared = crate::fit::prepare::Prepared::new(design, catalog, settings, progress)?;
+    let mut outcome = prepared.solve(settings, progress)?;
     // The fit's own time (what `fit::run::fit` reports), the refit's added below.
     let mut total = t0.elapsed().as_secs_f64();
-    stage("choosing parts");
+    progress.stage("choosing parts");
     let mut parts = of_fit(design, &outcome, settings.frequency, stock)?;
     if settings.tolerance == crate::design::tolerance::ToleranceSpec::Parts {
         let chosen: Vec<(Element, f64)> =
             outcome.bom.iter().filter_map(|r| part_tolerance(&parts, r).map(|t| (r.element.clone(), t))).collect();
         prepared.set_tolerances(|c| chosen.iter().find(|(e, _)| *e == c.element).map(|&(_, t)| t));
         let t1 = std::time::Instant::now();
-        outcome = prepared.solve(settings, stage)?;
+        outcome = prepared.solve(settings, progress)?;
         total += t1.elapsed().as_secs_f64();
-        stage("choosing parts");
+        progress.stage("choosing parts");
         parts = of_fit(design, &outcome, settings.frequency, stock)?;
         for r in &mut outcome.bom {
             if let Some(t) = part_tolerance(&parts, r) {

@@ -9,7 +9,7 @@ use crate::design::Design;
 use crate::design::tolerance::TrimRule;
 use crate::error::Result;
 use crate::files::bom;
-use crate::fit::{FitOutcome, Timings};
+use crate::fit::{FitOutcome, SolveStatus, Solver, Timings};
 use crate::potential::{ExactPotential, Potential};
 use crate::residual::{AngleSample, AngleStats, BandStats};
 
@@ -21,7 +21,7 @@ pub struct Summary {
     pub design_file: String,
     pub dof: usize,
     pub catalog: String,
-    pub solver: String,
+    pub solver: Solver,
     pub candidates: usize,
     pub dropped: usize,
     pub used: usize,
@@ -32,7 +32,7 @@ pub struct Summary {
     pub monotone_violations: usize,
     pub timings_s: Timings,
     /// `solved`, `almost_solved` or `reference`.
-    pub status: String,
+    pub status: SolveStatus,
     /// The element budget (0: none).
     pub max_elements: usize,
     /// The smaller budget whose selection met every constraint when the search at
@@ -91,7 +91,7 @@ impl Summary {
                 .to_string(),
             dof: o.dof,
             catalog: o.catalog.clone(),
-            solver: o.solve.solver.clone(),
+            solver: o.solve.solver,
             candidates: o.candidates,
             dropped: o.dropped,
             used: o.used(),
@@ -101,7 +101,7 @@ impl Summary {
             hessian_rel_error: o.metrics.hessian_rel_error,
             monotone_violations: o.metrics.monotone_violations,
             timings_s: o.timings,
-            status: o.solve.status.clone(),
+            status: o.solve.status,
             max_elements: o.settings.max_elements,
             budget_met_at: o.solve.budget_met_at,
             selection_evaluations: o.solve.selection_evaluations,
@@ -122,7 +122,7 @@ impl Summary {
             },
             verdict: crate::fit::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
-            spring_set: (o.solve.solver != "exact").then(|| crate::fit::bill::fingerprint(&o.springs)),
+            spring_set: (o.solve.solver != Solver::Exact).then(|| crate::fit::bill::fingerprint(&o.springs)),
             as_built: None,
             realised: None,
         }
@@ -211,7 +211,7 @@ pub fn write_all(
     if let Some(p) = parts {
         super::parts::write(out, design, p)?;
     }
-    let exact = o.solve.solver == "exact";
+    let exact = o.solve.solver == Solver::Exact;
     let label = if exact {
         format!("{} — exact ½ω²r²", o.design)
     } else {
@@ -326,7 +326,7 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
 }
 
 fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool) -> String {
-    let exact = o.solve.solver == "exact";
+    let exact = o.solve.solver == Solver::Exact;
     let mut r = format!("# springfit fit: {}\n\n", o.design);
     if !design.description.is_empty() {
         r.push_str(&format!("{}\n\n", design.description));

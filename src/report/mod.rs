@@ -12,3 +12,4 @@ pub mod parts;
 pub mod plot;
 pub mod simulate;
 pub mod sweep;
+pub mod tune;

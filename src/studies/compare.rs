@@ -14,6 +14,7 @@ use crate::error::{Error, Result};
 use crate::fit::run::fit;
 use crate::fit::{FitOutcome, Prepared};
 use crate::geodesic::Region;
+use crate::progress::Progress;
 use crate::residual::AngleStats;
 
 /// One fit as the comparison sees it.
@@ -54,7 +55,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         design: outcome.design.clone(),
         design_file: Some(design_file.to_path_buf()),
         catalog: outcome.catalog.clone(),
-        solver: outcome.solve.solver.clone(),
+        solver: outcome.solve.solver.to_string(),
         used: outcome.used(),
         stats: outcome.metrics.stats,
         angles: outcome.metrics.residuals.iter().map(|r| r.angle_deg).collect(),
@@ -219,16 +220,16 @@ pub fn budget_curve(
     catalog: &Catalog,
     settings: &FitSettings,
     budgets: &[usize],
-    stage: &dyn Fn(&str),
+    progress: Progress<'_>,
 ) -> Result<Vec<BudgetPoint>> {
-    let prepared = Prepared::new(design, catalog, settings, stage)?;
+    let prepared = Prepared::new(design, catalog, settings, progress)?;
     let mut sorted = budgets.to_vec();
     sorted.sort_unstable();
     let mut best: Option<BudgetPoint> = None;
     let mut out = Vec::new();
     for k in sorted {
-        stage(&format!("budget {k}"));
-        let here = match prepared.solve(&FitSettings { max_elements: k, ..*settings }, &|_| {}) {
+        progress.stage(&format!("budget {k}"));
+        let here = match prepared.solve(&FitSettings { max_elements: k, ..*settings }, Progress::none()) {
             Ok(o) => {
                 let as_built = crate::asbuilt::of_fit(design, &o)?.map(|a| crate::asbuilt::Brief::of(&a));
                 BudgetPoint { budget: k, used: o.used(), stats: o.metrics.stats, infeasible: None, as_built }
@@ -274,15 +275,15 @@ pub fn radius_curve(
     catalog: &Catalog,
     settings: &FitSettings,
     radii: &[f64],
-    stage: &dyn Fn(&str),
+    progress: Progress<'_>,
 ) -> Result<Vec<RadiusPoint>> {
     radii
         .iter()
         .map(|&r| {
-            stage(&format!("radius {r:.2}"));
+            progress.stage(&format!("radius {r:.2}"));
             let mut d = design.clone();
             d.region = Region::Ball { radius: r };
-            match fit(&d, catalog, settings, &|_| {}) {
+            match fit(&d, catalog, settings, Progress::none()) {
                 Ok(o) => Ok(RadiusPoint { radius: r, used: o.used(), stats: o.metrics.stats, infeasible: None }),
                 Err(e @ Error::Infeasible { .. }) => Ok(RadiusPoint {
                     radius: r,

@@ -38,6 +38,7 @@ use crate::fit::bill::nearest;
 use crate::fit::refit::refit_with_fixed;
 use crate::numerics::rng::SplitMix64;
 use crate::potential::{Potential, SpringSet};
+use crate::progress::Progress;
 use crate::residual::{percentile, percentile_interval};
 
 pub use crate::design::tolerance::Distribution;
@@ -201,25 +202,15 @@ impl<'a> SweepContext<'a> {
         })
     }
 
-    /// Runs the items `indices` of `items` in parallel; results in index order.
-    pub fn run(&self, items: &[WorkItem], indices: &[usize]) -> Result<Vec<ItemResult>> {
-        self.run_observed(items, indices, &|| {})
-    }
-
-    /// [`SweepContext::run`], calling `done` after each item (for a progress count; the order of
-    /// the calls depends on the threads, the results do not).
-    pub fn run_observed(
-        &self,
-        items: &[WorkItem],
-        indices: &[usize],
-        done: &(dyn Fn() + Sync),
-    ) -> Result<Vec<ItemResult>> {
+    /// Runs the items `indices` of `items` in parallel; results in index order. `progress` hears
+    /// of each item done (a count whose order depends on the threads; the results do not).
+    pub fn run(&self, items: &[WorkItem], indices: &[usize], progress: Progress<'_>) -> Result<Vec<ItemResult>> {
         use rayon::prelude::*;
         let results: Vec<Result<ItemResult>> = indices
             .par_iter()
             .map(|&i| {
                 let r = self.run_item(i, items[i]);
-                done();
+                progress.item_done();
                 r
             })
             .collect();

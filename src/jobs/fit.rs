@@ -1,0 +1,177 @@
+//! `springfit fit` and Python's `Design.fit()`: the fit with its parts (or the exact reference),
+//! then the as-built builds.
+//!
+//! The feature's files: the settings `design/fit.rs` and `design/tolerance.rs`, the fit itself
+//! `fit/` (`fit/run.rs` fits once; `parts::fit_with_parts` refits at the parts' tolerances), the
+//! parts `parts/` and `realise/`, the builds `asbuilt/`, the files `files/bom.rs`, `files/cam.rs`
+//! and `report/fit.rs`, the command `cli/fit.rs`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::{Topic, Warning};
+use crate::asbuilt::AsBuilt;
+use crate::design::Design;
+use crate::design::fit::{FitSettings, SolverKind};
+use crate::elements::catalog::Catalog;
+use crate::error::{Error, Result};
+use crate::fit::FitOutcome;
+use crate::fit::hints;
+use crate::parts::Parts;
+use crate::progress::Progress;
+use crate::report::output::Claim;
+use crate::studies::compare::FitRecord;
+
+/// What a fit is asked beyond the design: the command's options.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FitRequest {
+    /// The exact potential ½ω²r² (the physical limit) instead of springs (`--exact`).
+    pub exact: bool,
+    /// Replaces `[fit] solver`.
+    pub solver: Option<SolverKind>,
+    /// Replaces `[fit] max_elements` (0: no limit).
+    pub max_elements: Option<usize>,
+}
+
+impl FitRequest {
+    /// The design's `[fit]` with the request's replacements, checked.
+    pub fn settings(&self, design: &Design) -> Result<FitSettings> {
+        let mut settings = design.fit;
+        if let Some(s) = self.solver {
+            settings.solver = s;
+        }
+        if let Some(k) = self.max_elements {
+            settings.max_elements = k;
+        }
+        settings.validate().map_err(|(field, reason)| Error::Setting { field, reason })?;
+        Ok(settings)
+    }
+
+    /// The names the fit's output folder may hold (for its [`crate::report::output::Plan`]).
+    pub fn files(&self) -> Vec<&'static str> {
+        crate::report::fit::files(!self.exact)
+    }
+}
+
+/// A fit whose settings are checked, ready to run.
+#[derive(Debug)]
+pub struct FitJob<'a> {
+    design: &'a Design,
+    catalog: Option<&'a Catalog>,
+    settings: FitSettings,
+    exact: bool,
+}
+
+impl<'a> FitJob<'a> {
+    /// Checks the settings `request` gives `design`. The stock list and the catalogue are
+    /// checked when the job runs, after the command has claimed its output folder: a refused
+    /// folder is the first error, as it always was.
+    pub fn new(design: &'a Design, catalog: Option<&'a Catalog>, request: FitRequest) -> Result<FitJob<'a>> {
+        let settings = request.settings(design)?;
+        Ok(FitJob { design, catalog, settings, exact: request.exact })
+    }
+
+    /// The settings the fit runs with.
+    pub fn settings(&self) -> &FitSettings {
+        &self.settings
+    }
+
+    /// Reads the stock list `[parts] stock` names and fits (the parts are chosen with the fit:
+    /// `tolerance = "parts"` refits at their tolerances), then draws the as-built builds; or
+    /// evaluates the exact reference. An infeasible fit's error names the key to change
+    /// ([`hints::explain`]).
+    pub fn run(self, progress: Progress<'_>) -> Result<FitRun> {
+        let (design, settings) = (self.design, &self.settings);
+        let catalog = match (self.exact, self.catalog) {
+            (true, _) => None,
+            (false, catalog) => {
+                let stock = crate::files::stock::of_design(design)?;
+                let Some(catalog) = catalog else {
+                    return Err(Error::invalid(
+                        &design.path,
+                        "catalog",
+                        "the design names no spring catalogue (catalog = \"../catalogs/paper.toml\"); `springfit fit --exact` needs none",
+                    ));
+                };
+                Some((catalog, stock))
+            }
+        };
+        let (outcome, parts) = match &catalog {
+            None => (crate::fit::run::exact_reference(design, settings, progress)?, None),
+            Some((catalog, stock)) => crate::parts::fit_with_parts(design, catalog, settings, stock, progress)
+                .map(|(o, p)| (o, Some(p)))
+                .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?,
+        };
+        let t = Instant::now();
+        let as_built = match catalog {
+            None => None,
+            Some(_) => {
+                progress.stage("as-built Monte Carlo builds");
+                crate::asbuilt::of_fit(design, &outcome)?
+            }
+        };
+        let as_built_seconds = t.elapsed().as_secs_f64();
+        let warnings =
+            catalog.map(|(c, _)| warnings(design, settings, c, &outcome, parts.as_ref())).unwrap_or_default();
+        Ok(FitRun { outcome, parts, as_built, as_built_seconds, exact: self.exact, warnings })
+    }
+}
+
+/// A fit run: the outcome, the parts of its bill, its as-built figures and its warnings.
+#[derive(Debug, Clone)]
+pub struct FitRun {
+    /// The fit (or the exact reference).
+    pub outcome: FitOutcome,
+    /// The parts of the fitted bill (None for the exact reference).
+    pub parts: Option<Parts>,
+    /// The as-built figures (None for the exact reference, without a tolerance, or with
+    /// `builds = 0`).
+    pub as_built: Option<AsBuilt>,
+    /// Seconds the as-built builds took.
+    pub as_built_seconds: f64,
+    /// Whether it is the exact reference.
+    pub exact: bool,
+    /// What the fit's result warns of, in the order the command prints them.
+    pub warnings: Vec<Warning>,
+}
+
+impl FitRun {
+    /// Writes every file `springfit fit` writes into the claimed folder (see
+    /// [`crate::report::fit::write_folder`]); returns the folder.
+    pub fn write(&self, design: &Design, claim: Claim) -> Result<PathBuf> {
+        crate::report::fit::write_folder(claim, design, &self.outcome, self.as_built.as_ref(), self.parts.as_ref())
+    }
+
+    /// The fit as `compare` records it, with its as-built brief.
+    pub fn record(&self, design_file: &Path) -> FitRecord {
+        let mut r = crate::studies::compare::record_of(&self.outcome, design_file);
+        r.as_built = self.as_built.as_ref().map(crate::asbuilt::Brief::of);
+        r
+    }
+}
+
+/// The warnings of a fit of springs: its equalities as evaluated, its bill against the
+/// catalogue, each cam's drawing, the elements no part meets.
+fn warnings(
+    design: &Design,
+    settings: &FitSettings,
+    catalog: &Catalog,
+    outcome: &FitOutcome,
+    parts: Option<&Parts>,
+) -> Vec<Warning> {
+    let mut out = Vec::new();
+    let mut push = |topic: Topic, message: String| out.push(Warning { topic, message });
+    if let Some(w) = hints::fit_equality_warning(design, settings, &outcome.metrics) {
+        push(Topic::Equalities, w);
+    }
+    for w in hints::bom_warnings(catalog, &outcome.bom) {
+        push(Topic::Bill, w);
+    }
+    for (i, cam) in outcome.cams.iter().enumerate() {
+        for v in &cam.realisation.violations {
+            push(Topic::Cam(i), format!("cam {}: {v}", cam.id));
+        }
+    }
+    out.extend(parts.map(super::parts::warnings).unwrap_or_default());
+    out
+}

@@ -1,0 +1,115 @@
+//! The pipelines users run, one home each: what `springfit <command>` and the Python package's
+//! calls do between reading their arguments and showing the result.
+//!
+//! A job takes a design (loaded and validated: [`crate::design::validate`]) and a typed request
+//! (the command's options as data), runs the stages below it in order (reporting them to a
+//! [`Progress`](crate::progress::Progress)), and returns a typed run result with a `write`
+//! method that writes the command's output folder into a claimed folder
+//! ([`crate::report::output::check`]). It prints nothing: what the command line prints is read
+//! from the result, and a warning is a [`Warning`] in it. The command line (`src/cli/`) and the
+//! Python package (`python/src/`) only convert arguments, call a job and show its result, so
+//! neither holds a step the other lacks.
+//!
+//! | job | command | stages it runs |
+//! | --- | --- | --- |
+//! | [`fit`] | `fit` | the fit with its parts (`parts::fit_with_parts`) or the exact reference, the as-built builds (`asbuilt::of_fit`) |
+//! | [`parts`] | `parts` | a fit or a bill read back, the parts (`parts::choose`) |
+//! | [`simulate`] | `simulate` | the springs (given, exact or fitted), the mode label, the scenarios, the backbone |
+//! | [`sweep`] | `sweep` | the fit and the label, the sweep's items (all, a shard, or shards merged), the tables |
+//! | [`compare`] | `compare`, `pareto` | fits of designs with their as-built builds, the exact reference; the budget and radius curves |
+//! | [`export`] | `export --mujoco` | a fit or a bill read back, the MuJoCo model |
+//! | [`tune`] | `tune` | the measured bill, offsets and trims (`asbuilt::tune`) |
+//! | [`identify`] | `identify` | the logs, the identified rates (`identify`), or the plan of releases (`identify::plan`) |
+//! | [`geodesics`] | `geodesics` | the region check and the fan |
+//!
+//! `springfit check` is no job: it reports the design itself ([`crate::design::Design`]).
+//!
+//! **One feature, its files.** A job names the folders its feature spans, e.g. identification:
+//! the settings `design/identify.rs`, the logs `files/log.rs`, the maths `identify/` (the
+//! estimate, the filter, the plan), the files written `report/identify.rs`, the job
+//! `jobs/identify.rs` and the command `cli/identify.rs`. Each job file's first lines list its
+//! feature's files the same way.
+
+pub mod compare;
+pub mod export;
+pub mod fit;
+pub mod geodesics;
+pub mod identify;
+pub mod parts;
+pub mod simulate;
+pub mod sweep;
+pub mod tune;
+
+/// What a warning is about, so that a caller can show it beside the line it concerns (the CLI
+/// prints the fit's Hessian warning after the equilibrium line, a cam's after the cam's).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Topic {
+    /// The fit's equalities at q_eq (∇U = 0, ∇²U = ω²M) as evaluated.
+    Equalities,
+    /// The bill of materials against its catalogue.
+    Bill,
+    /// The cam of this index in the fit's cams.
+    Cam(usize),
+    /// The parts of the bill (an element no spring meets).
+    Parts,
+}
+
+/// A warning a job found about the input or its result: shown, not fatal (the CLI prints
+/// `springfit: warning: <message>` on stderr).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Warning {
+    /// What it is about.
+    pub topic: Topic,
+    /// The sentence shown.
+    pub message: String,
+}
+
+/// The messages of the warnings in `warnings` about `topic`, in order.
+pub fn about<'a>(warnings: &'a [Warning], topic: &'a Topic) -> impl Iterator<Item = &'a str> + 'a {
+    warnings.iter().filter(move |w| w.topic == *topic).map(|w| w.message.as_str())
+}
+
+/// Refuses a bill read from `path` whose couplings do not have one entry per joint of the design,
+/// in the wording `how` each command has always used.
+pub fn check_couplings(
+    design: &crate::design::Design,
+    path: &std::path::Path,
+    rows: &[crate::fit::bill::BomRow],
+    how: Couplings,
+) -> crate::Result<()> {
+    let n = design.dof();
+    let bad = match how {
+        Couplings::First | Couplings::Line2 => rows.first().filter(|r| r.element.coupling.len() != n),
+        Couplings::Any => rows.iter().find(|r| r.element.coupling.len() != n),
+    };
+    let Some(r) = bad else { return Ok(()) };
+    let m = r.element.coupling.len();
+    Err(match how {
+        Couplings::First => {
+            crate::Error::invalid(path, "coupling", format!("the springs act on {m} joints but the design has {n}"))
+        }
+        Couplings::Any => crate::Error::invalid(
+            path,
+            "coupling",
+            format!("{}: the springs act on {m} joints but the design has {n}", r.id),
+        ),
+        Couplings::Line2 => crate::Error::invalid(
+            path,
+            "line 2: coupling",
+            format!("has {m} entries but the design's robot has {n} joints"),
+        ),
+    })
+}
+
+/// How a command checks a bill's couplings against the design (see [`check_couplings`]): the
+/// wordings users and tests know.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Couplings {
+    /// The first row, `coupling`: "the springs act on m joints but the design has n" (`simulate`).
+    First,
+    /// Every row, `coupling`: "<id>: the springs act on …" (`export`).
+    Any,
+    /// The first row, `line 2: coupling`: "has m entries but the design's robot has n joints"
+    /// (`parts`, `tune`).
+    Line2,
+}
