@@ -27,14 +27,89 @@ use rayon::prelude::*;
 
 use crate::design::Design;
 use crate::design::tolerance::TrimRule;
+use crate::elements::trim::TrimSolution;
 use crate::error::Result;
 use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, Stop};
 use crate::potential::{Potential, SpringSet};
 
 /// |∇U(q_eq)| (N·m) below which the equilibrium counts as restored, relative to the largest
-/// element torque scale (1 + max k).
+/// element torque scale (1 + max k): where step 1's Gauss–Newton iteration stops.
 const GRADIENT_TOLERANCE: f64 = 1e-12;
+
+/// |∇U(q_eq)| relative to the same scale below which the outcome reports the equilibrium
+/// restored: looser than [`GRADIENT_TOLERANCE`], since step 1 may stop a little short of that
+/// when its line search runs out ([`SMALLEST_STEP`]) and step 3 only keeps steps that leave the
+/// constraints no worse.
+const RESTORED_TOLERANCE: f64 = 1e-9;
+
+/// Gauss–Newton iterations of step 1 at most. The offsets enter ∇U through smooth profiles, so
+/// near the solution a few iterations converge; the cap only ends an iteration that stalls
+/// against the bounds.
+const EQUILIBRIUM_ITERATIONS: usize = 60;
+
+/// The step fraction at which step 1's backtracking line search (halving from the full step)
+/// gives up: the clamped step is then taken as it is and the iteration ends, since the gradient
+/// no longer falls along the bounded direction.
+const SMALLEST_STEP: f64 = 1e-6;
+
+/// How near (rad) a bound an offset must sit to count as held there when its step pushes
+/// outward in step 1: round-off only, so an offset clamped to its bound is held.
+const AT_BOUND: f64 = 1e-15;
+
+/// How near a bound a variable counts as at it in step 3 and in the settings: such a variable
+/// is left out of the step (clamping would undo its move) and reported `at_limit`.
+const AT_LIMIT: f64 = 1e-12;
+
+/// The settings of step 3's Levenberg–Marquardt loop ([`LM`]).
+struct LevenbergMarquardt {
+    /// Steps at most. Each must lower the residual and the fit has already put the designed arm
+    /// at its optimum, so the measured arm's is near: a dozen steps take what the freedom left
+    /// gives, and bound the cost (every try re-runs steps 1 and 2).
+    iterations: usize,
+    /// Tries of one step with a growing damping before the loop stops: six tries raise μ by
+    /// `damping_up`⁶ = 10⁶ over where the last taken step left it, from a near Gauss–Newton step
+    /// to a short gradient step.
+    tries: usize,
+    /// The damping μ of the first try (added to AᵀA, A the residual's Jacobian in rad per unit
+    /// of the variables): small, a near Gauss–Newton step first.
+    damping_start: f64,
+    /// The factor μ grows by after a refused try (a shorter step, nearer the gradient's
+    /// direction).
+    damping_up: f64,
+    /// The factor μ shrinks by after a taken step (nearer Gauss–Newton again).
+    damping_down: f64,
+    /// The least μ, so that AᵀA + μ I stays invertible where A loses rank.
+    damping_floor: f64,
+}
+
+/// Step 3's loop as tune runs it.
+const LM: LevenbergMarquardt = LevenbergMarquardt {
+    iterations: 12,
+    tries: 6,
+    damping_start: 1e-3,
+    damping_up: 10.0,
+    damping_down: 0.3,
+    damping_floor: 1e-9,
+};
+
+/// Relative step of the constraints' forward differences, h = this × (1 + |z|): offsets in rad
+/// and rates in N·m/rad are of order one or more, and the constraints (∇U and ∇²U at q_eq) are
+/// smooth, so a step near √ε balances truncation against round-off.
+const DIFFERENCE_STEP: f64 = 1e-6;
+
+/// The constraint violation a step may always reach: a step must leave the constraints no
+/// worse than they are, but when they already hold to round-off, round-off must not refuse
+/// every step.
+const FEASIBILITY_FLOOR: f64 = 1e-12;
+
+/// Geodesics of the fan from q_eq on which tune judges and lowers the residual: fewer than a
+/// fit's default training fan (72 for two joints), since every try of step 3 evaluates the
+/// residual on all of them.
+const FAN_DIRECTIONS: usize = 48;
+
+/// Samples along each geodesic of that fan: its spacing is the region's extent over this.
+const FAN_SAMPLES: f64 = 20.0;
 
 /// Figures of the built arm before or after tuning.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -156,7 +231,7 @@ impl Problem<'_> {
         }
         let q = self.design.q_eq.as_slice();
         let n = self.design.dof();
-        for _ in 0..60 {
+        for _ in 0..EQUILIBRIUM_ITERATIONS {
             let g = self.gradient(z)?;
             if g.amax() < GRADIENT_TOLERANCE * self.scale() {
                 return Ok(());
@@ -186,7 +261,8 @@ impl Problem<'_> {
                 let mut changed = false;
                 for &a in &cols {
                     let [lo, hi] = self.bounds(a);
-                    if (z[a] + step[a] > hi && z[a] >= hi - 1e-15) || (z[a] + step[a] < lo && z[a] <= lo + 1e-15) {
+                    if (z[a] + step[a] > hi && z[a] >= hi - AT_BOUND) || (z[a] + step[a] < lo && z[a] <= lo + AT_BOUND)
+                    {
                         active[a] = false;
                         changed = true;
                     }
@@ -205,13 +281,13 @@ impl Problem<'_> {
                     })
                     .chain(z[na..].iter().copied())
                     .collect();
-                if self.gradient(&trial)?.norm() < before || t < 1e-6 {
+                if self.gradient(&trial)?.norm() < before || t < SMALLEST_STEP {
                     z.copy_from_slice(&trial);
                     break;
                 }
                 t *= 0.5;
             }
-            if t < 1e-6 {
+            if t < SMALLEST_STEP {
                 return Ok(());
             }
         }
@@ -219,7 +295,7 @@ impl Problem<'_> {
     }
 
     /// Step 2: trim rates by the design's rule.
-    fn restore_hessian(&self, z: &mut [f64]) -> Result<crate::elements::trim::TrimSolution> {
+    fn restore_hessian(&self, z: &mut [f64]) -> Result<TrimSolution> {
         let q = self.design.q_eq.as_slice();
         let na = self.adjustable.len();
         let s = self.springs(z);
@@ -235,9 +311,9 @@ impl Problem<'_> {
         let couplings: Vec<Vec<f64>> = self.trims.iter().map(|&j| self.bom[j].element.coupling.clone()).collect();
         let ranges: Vec<[f64; 2]> = (0..self.trims.len()).map(|i| self.bounds(na + i)).collect();
         let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
-        let sol = match self.design.fit.trim_rule {
-            TrimRule::Residual if !self.trims.is_empty() => {
-                let frame = self.row_frame.as_ref().expect("built with the residual rule's trims");
+        // The row frame is there exactly under the residual rule with trims.
+        let sol = match &self.row_frame {
+            Some(frame) => {
                 let r0 = crate::asbuilt::rows_without_trims(frame, &s, &self.trims);
                 let rows = (&self.trim_columns, &r0);
                 crate::elements::trim::solve_rows(&h_rest, &m, &couplings, rows, &ranges, &nominal)
@@ -354,234 +430,348 @@ fn state(design: &Design, extent: f64, springs: &SpringSet) -> Result<State> {
 /// Tunes a built arm. `bom` is the bill of materials as designed; `measured[j]` the measured
 /// rate of row j (None: as designed). A trim's measured rate is where tuning starts (the
 /// `before` figures use it); tune then sets the trim's rate.
+///
+/// The steps of the module's documentation in order: the equilibrium (1), the trims (2), then
+/// the residual (3) with (1) and (2) redone after every step; the outcome says what binds.
 pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result<TuneOutcome> {
     let region = design.valid_region()?;
     let extent = region.extent;
-    let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
-    let k: Vec<f64> = bom
-        .iter()
-        .zip(measured)
-        .map(|(r, m)| if r.adjust.trim_range.is_some() { r.stiffness } else { m.unwrap_or(r.stiffness) })
-        .collect();
-    let adjustable: Vec<(usize, f64)> = (0..bom.len())
-        .filter(|&j| bom[j].adjust.trim_range.is_none())
-        .filter_map(|j| bom[j].adjust.adjust_range.map(|r| (j, r)))
-        .collect();
-    let stop = match &design.region {
-        crate::geodesic::Region::Ball { radius } => Stop::Arc(*radius),
-        region => Stop::Region { region, max_arc: design.geodesics.max_arc },
-    };
-    let fan = Fan::trace(
-        &design.chain,
-        &design.q_eq,
-        FanSpec { count: 48, phase: 0.0, stop, spacing: extent / 20.0 },
-        design.geodesics.ode,
-    )?;
-    let designed = crate::fit::bill::spring_set(bom);
-    let row_frame = (design.fit.trim_rule == TrimRule::Residual && !trims.is_empty())
-        .then(|| crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency));
-    // The trims' own rows: they sit relaxed at q_eq whatever tune sets, so their columns are fixed.
-    let trim_columns = match &row_frame {
-        Some(frame) => frame.columns(trims.iter().map(|&j| &designed.elements[j])),
-        None => DMatrix::zeros(0, 0),
-    };
-    let p = Problem { design, bom, k, adjustable, trims, fan, trim_columns, row_frame };
-    let na = p.adjustable.len();
-    let nv = na + p.trims.len();
-    let mut z: Vec<f64> =
-        (0..na).map(|_| 0.0).chain(p.trims.iter().map(|&j| measured[j].unwrap_or(bom[j].stiffness))).collect();
+    let p = Problem::new(design, bom, measured, extent)?;
+    let mut z = p.start(measured);
     let before = state(design, extent, &p.springs(&z))?;
-
     p.restore_equilibrium(&mut z)?;
-    let mut sol = p.restore_hessian(&mut z)?;
-    let objective = |z: &[f64]| -> Result<f64> { Ok(p.residual(z)?.norm_squared()) };
-    let mut best = objective(&z)?;
-    let feasible = |z: &[f64], w2: f64| -> Result<f64> { Ok(p.constraints(z, w2)?.amax()) };
-    let mut mu = 1e-3;
-    for _ in 0..12 {
+    let sol = p.restore_hessian(&mut z)?;
+    let sol = p.lower_residual(&mut z, sol)?;
+    p.outcome(&z, &sol, before, extent, measured)
+}
+
+/// Step 3's linearisation at z: the free variables (those not at a bound), the residual r₀, the
+/// residual's Jacobian restricted to the null space of the constraints' (A = J_r N) and that
+/// null space N (its last row is w², which the residual does not see).
+struct Linearised {
+    free: Vec<usize>,
+    r0: DVector<f64>,
+    a: DMatrix<f64>,
+    null: DMatrix<f64>,
+}
+
+impl<'a> Problem<'a> {
+    /// The problem of tuning `bom` as measured: the adjustable elements and trims, and the
+    /// training fan from q_eq (with the trims' rows under the residual rule).
+    fn new(design: &'a Design, bom: &'a [BomRow], measured: &[Option<f64>], extent: f64) -> Result<Problem<'a>> {
+        let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
+        let k: Vec<f64> = bom
+            .iter()
+            .zip(measured)
+            .map(|(r, m)| if r.adjust.trim_range.is_some() { r.stiffness } else { m.unwrap_or(r.stiffness) })
+            .collect();
+        let adjustable: Vec<(usize, f64)> = (0..bom.len())
+            .filter(|&j| bom[j].adjust.trim_range.is_none())
+            .filter_map(|j| bom[j].adjust.adjust_range.map(|r| (j, r)))
+            .collect();
+        let stop = match &design.region {
+            crate::geodesic::Region::Ball { radius } => Stop::Arc(*radius),
+            region => Stop::Region { region, max_arc: design.geodesics.max_arc },
+        };
+        let fan = Fan::trace(
+            &design.chain,
+            &design.q_eq,
+            FanSpec { count: FAN_DIRECTIONS, phase: 0.0, stop, spacing: extent / FAN_SAMPLES },
+            design.geodesics.ode,
+        )?;
+        let designed = crate::fit::bill::spring_set(bom);
+        let row_frame = (design.fit.trim_rule == TrimRule::Residual && !trims.is_empty())
+            .then(|| crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency));
+        // The trims' own rows: they sit relaxed at q_eq whatever tune sets, so their columns are fixed.
+        let trim_columns = match &row_frame {
+            Some(frame) => frame.columns(trims.iter().map(|&j| &designed.elements[j])),
+            None => DMatrix::zeros(0, 0),
+        };
+        Ok(Problem { design, bom, k, adjustable, trims, fan, trim_columns, row_frame })
+    }
+}
+
+impl Problem<'_> {
+    /// Number of variables.
+    fn variables(&self) -> usize {
+        self.adjustable.len() + self.trims.len()
+    }
+
+    /// The arm as built: no offset moved, the trims at their measured rates (as designed when
+    /// not measured).
+    fn start(&self, measured: &[Option<f64>]) -> Vec<f64> {
+        (0..self.adjustable.len())
+            .map(|_| 0.0)
+            .chain(self.trims.iter().map(|&j| measured[j].unwrap_or(self.bom[j].stiffness)))
+            .collect()
+    }
+
+    /// Whether variable v sits at an end of its range (within [`AT_LIMIT`]).
+    fn at_limit(&self, z: &[f64], v: usize) -> bool {
+        let [lo, hi] = self.bounds(v);
+        z[v] <= lo + AT_LIMIT || z[v] >= hi - AT_LIMIT
+    }
+
+    /// The squared residual angles on the training fan: what step 3 lowers.
+    fn objective(&self, z: &[f64]) -> Result<f64> {
+        Ok(self.residual(z)?.norm_squared())
+    }
+
+    /// The largest constraint violation at z with w².
+    fn violation(&self, z: &[f64], w2: f64) -> Result<f64> {
+        Ok(self.constraints(z, w2)?.amax())
+    }
+
+    /// Step 3: Levenberg–Marquardt steps on the residual within the constraints' null space,
+    /// each followed by steps 1 and 2 and taken only when the residual falls and the
+    /// constraints get no worse. Returns the trim solution at the final z.
+    fn lower_residual(&self, z: &mut Vec<f64>, mut sol: TrimSolution) -> Result<TrimSolution> {
+        let mut best = self.objective(z)?;
+        let mut mu = LM.damping_start;
+        for _ in 0..LM.iterations {
+            let Some(lin) = self.linearise(z, &sol)? else { break };
+            let Some((trial, tsol, obj)) = self.try_steps(z, &sol, &lin, best, &mut mu)? else { break };
+            *z = trial;
+            sol = tsol;
+            best = obj;
+        }
+        Ok(sol)
+    }
+
+    /// Step 3's linearisation at z, or None when nothing can move (no variable, every variable at
+    /// a bound, or the constraints leave no freedom).
+    fn linearise(&self, z: &[f64], sol: &TrimSolution) -> Result<Option<Linearised>> {
+        let nv = self.variables();
         if nv == 0 {
-            break;
+            return Ok(None);
         }
         // Free variables: those not at a bound.
         let free: Vec<usize> = (0..nv)
             .filter(|&v| {
-                let [lo, hi] = p.bounds(v);
-                z[v] > lo + 1e-12 && z[v] < hi - 1e-12
+                let [lo, hi] = self.bounds(v);
+                z[v] > lo + AT_LIMIT && z[v] < hi - AT_LIMIT
             })
             .collect();
         if free.is_empty() {
-            break;
+            return Ok(None);
         }
-        let r0 = p.residual(&z)?;
-        let c0 = p.constraints(&z, sol.w2)?;
-        // Forward differences (the variables are offsets in rad and rates in N·m/rad).
+        let r0 = self.residual(z)?;
+        let c0 = self.constraints(z, sol.w2)?;
         // The residual's columns analytically, the constraints' (∇U and ∇²U at q_eq: cheap) by
         // forward differences; the last column is w², which the residual does not see.
-        let jr = p.residual_jacobian(&z, &free)?.insert_column(free.len(), 0.0);
-        let mut jc = DMatrix::zeros(c0.len(), free.len() + 1);
-        for (c, &v) in free.iter().enumerate() {
-            let h = 1e-6 * (1.0 + z[v].abs());
-            let mut zt = z.clone();
-            zt[v] += h;
-            jc.set_column(c, &((p.constraints(&zt, sol.w2)? - &c0) / h));
-        }
-        // w² enters the Hessian constraints only.
-        let h = 1e-6 * (1.0 + sol.w2.abs());
-        jc.set_column(free.len(), &((p.constraints(&z, sol.w2 + h)? - &c0) / h));
-        let Some((_, null)) = crate::elements::trim::min_residual(&jc, &c0) else { break };
+        let jr = self.residual_jacobian(z, &free)?.insert_column(free.len(), 0.0);
+        let jc = self.constraint_jacobian(z, &free, sol.w2, &c0)?;
+        let Some((_, null)) = crate::elements::trim::min_residual(&jc, &c0) else { return Ok(None) };
         if null.ncols() == 0 {
-            break;
+            return Ok(None);
         }
         let a = &jr * &null;
-        let mut improved = false;
-        for _ in 0..6 {
-            let lhs = a.transpose() * &a + DMatrix::identity(null.ncols(), null.ncols()) * mu;
-            let Some(y) = lhs.lu().solve(&(-(a.transpose() * &r0))) else { break };
-            let dz = &null * y;
-            let mut trial = z.clone();
-            for (c, &v) in free.iter().enumerate() {
-                let [lo, hi] = p.bounds(v);
-                trial[v] = (z[v] + dz[c]).clamp(lo, hi);
-            }
-            p.restore_equilibrium(&mut trial)?;
-            let tsol = p.restore_hessian(&mut trial)?;
-            let obj = objective(&trial)?;
-            if obj < best && feasible(&trial, tsol.w2)? <= feasible(&z, sol.w2)?.max(1e-12) {
-                z = trial;
-                sol = tsol;
-                best = obj;
-                mu = (mu * 0.3).max(1e-9);
-                improved = true;
-                break;
-            }
-            mu *= 10.0;
-        }
-        if !improved {
-            break;
-        }
+        Ok(Some(Linearised { free, r0, a, null }))
     }
 
-    let tuned = p.springs(&z);
-    let after = state(design, extent, &tuned)?;
-    let g = p.gradient(&z)?;
-    let equilibrium_restored = g.amax() < 1e-9 * p.scale();
-    let hessian_restored = p.trims.is_empty() || sol.restored();
-    let trims_reached = p.trims.is_empty() || super::trims_reached(design, &sol);
-    let mut binding = Vec::new();
-    let at_limit = |v: usize| {
-        let [lo, hi] = p.bounds(v);
-        z[v] <= lo + 1e-12 || z[v] >= hi - 1e-12
-    };
-    if !equilibrium_restored {
-        let held: Vec<String> = (0..na).filter(|&v| at_limit(v)).map(|v| bom[p.adjustable[v].0].id.clone()).collect();
-        binding.push(if na == 0 {
+    /// ∂(constraints)/∂(z_free, w²) by forward differences (the variables are offsets in rad and
+    /// rates in N·m/rad; w² enters the Hessian constraints only), `c0` the constraints at z.
+    fn constraint_jacobian(&self, z: &[f64], free: &[usize], w2: f64, c0: &DVector<f64>) -> Result<DMatrix<f64>> {
+        let mut jc = DMatrix::zeros(c0.len(), free.len() + 1);
+        for (c, &v) in free.iter().enumerate() {
+            let h = DIFFERENCE_STEP * (1.0 + z[v].abs());
+            let mut zt = z.to_vec();
+            zt[v] += h;
+            jc.set_column(c, &((self.constraints(&zt, w2)? - c0) / h));
+        }
+        let h = DIFFERENCE_STEP * (1.0 + w2.abs());
+        jc.set_column(free.len(), &((self.constraints(z, w2 + h)? - c0) / h));
+        Ok(jc)
+    }
+
+    /// Up to `LM.tries` tries of one step from z, the damping `mu` raised after each refused
+    /// one and lowered after the taken one: the new z, its trim solution and objective, or None
+    /// when no try lowers the residual.
+    fn try_steps(
+        &self,
+        z: &[f64],
+        sol: &TrimSolution,
+        lin: &Linearised,
+        best: f64,
+        mu: &mut f64,
+    ) -> Result<Option<(Vec<f64>, TrimSolution, f64)>> {
+        let Linearised { free, r0, a, null } = lin;
+        for _ in 0..LM.tries {
+            let lhs = a.transpose() * a + DMatrix::identity(null.ncols(), null.ncols()) * *mu;
+            let Some(y) = lhs.lu().solve(&(-(a.transpose() * r0))) else { break };
+            let dz = null * y;
+            let mut trial = z.to_vec();
+            for (c, &v) in free.iter().enumerate() {
+                let [lo, hi] = self.bounds(v);
+                trial[v] = (z[v] + dz[c]).clamp(lo, hi);
+            }
+            self.restore_equilibrium(&mut trial)?;
+            let tsol = self.restore_hessian(&mut trial)?;
+            let obj = self.objective(&trial)?;
+            if obj < best && self.violation(&trial, tsol.w2)? <= self.violation(z, sol.w2)?.max(FEASIBILITY_FLOOR) {
+                *mu = (*mu * LM.damping_down).max(LM.damping_floor);
+                return Ok(Some((trial, tsol, obj)));
+            }
+            *mu *= LM.damping_up;
+        }
+        Ok(None)
+    }
+
+    /// The outcome at the tuned z: the figures after, whether each step reached its aim (and
+    /// what binds when not), the settings to make and the tuned bill.
+    fn outcome(
+        &self,
+        z: &[f64],
+        sol: &TrimSolution,
+        before: State,
+        extent: f64,
+        measured: &[Option<f64>],
+    ) -> Result<TuneOutcome> {
+        let design = self.design;
+        let tuned = self.springs(z);
+        let after = state(design, extent, &tuned)?;
+        let g = self.gradient(z)?;
+        let equilibrium_restored = g.amax() < RESTORED_TOLERANCE * self.scale();
+        let hessian_restored = self.trims.is_empty() || sol.restored();
+        let trims_reached = self.trims.is_empty() || super::trims_reached(design, sol);
+        let mut binding = Vec::new();
+        if !equilibrium_restored {
+            binding.push(self.equilibrium_binding(z, g.norm(), after.shift_rad));
+        }
+        binding.extend(self.trim_binding(sol, trims_reached, hessian_restored));
+        Ok(TuneOutcome {
+            before,
+            after,
+            settings: self.settings(z),
+            equilibrium_restored,
+            trim_rule: design.fit.trim_rule,
+            hessian_restored,
+            trims_reached,
+            w2: sol.w2,
+            binding,
+            measured_trims: self.measured_trims(z, measured),
+            bom: self.tuned_bom(&tuned),
+        })
+    }
+
+    /// Why the equilibrium is not back: no adjustable element, couplings that span too few
+    /// directions, or offset ranges that bind (`gradient` = |∇U(q_eq)|, `shift` the arm's
+    /// distance to q_eq).
+    fn equilibrium_binding(&self, z: &[f64], gradient: f64, shift: f64) -> String {
+        let na = self.adjustable.len();
+        let held: Vec<String> =
+            (0..na).filter(|&v| self.at_limit(z, v)).map(|v| self.bom[self.adjustable[v].0].id.clone()).collect();
+        if na == 0 {
             format!(
-                "no adjustable element: |∇U(q_eq)| = {:.3e} N·m stays (the arm rests {:.2e} rad from q_eq)",
-                g.norm(),
-                after.shift_rad
+                "no adjustable element: |∇U(q_eq)| = {gradient:.3e} N·m stays (the arm rests {shift:.2e} rad from q_eq)"
             )
         } else if held.is_empty() {
             format!(
-                "the adjustable elements' couplings cannot cancel |∇U(q_eq)| = {:.3e} N·m (they span too few directions)",
-                g.norm()
+                "the adjustable elements' couplings cannot cancel |∇U(q_eq)| = {gradient:.3e} N·m (they span too few directions)"
             )
         } else {
             format!(
-                "the offset ranges of {} bind: |∇U(q_eq)| = {:.3e} N·m remains (the arm rests {:.2e} rad from q_eq)",
-                held.join(", "),
-                g.norm(),
-                after.shift_rad
+                "the offset ranges of {} bind: |∇U(q_eq)| = {gradient:.3e} N·m remains (the arm rests {shift:.2e} rad from q_eq)",
+                held.join(", ")
             )
-        });
+        }
     }
-    if !trims_reached && design.fit.trim_rule == TrimRule::Residual {
-        let names: Vec<String> = sol.binding.iter().map(|&i| bom[p.trims[i]].id.clone()).collect();
-        binding.push(format!(
-            "the trim ranges of {} bind: the least-squares residual wants rates beyond them (∇²U(q_eq) − w² M(q_eq) at {:.2e} of ‖M‖)",
-            names.join(", "),
-            sol.mismatch
-        ));
-    }
-    if !hessian_restored && design.fit.trim_rule == TrimRule::Hessian {
-        let names: Vec<String> = sol.binding.iter().map(|&i| bom[p.trims[i]].id.clone()).collect();
-        binding.push(if names.is_empty() {
-            format!("the trims cannot reach ∇²U(q_eq) = w² M(q_eq): mismatch {:.2e} remains", sol.mismatch)
-        } else {
-            format!(
-                "the trim ranges of {} bind: ∇²U(q_eq) − w² M(q_eq) stays at {:.2e} of ‖M‖",
-                names.join(", "),
+
+    /// Why the trims did not reach what the design's rule sets them for: the trim ranges that
+    /// bind (none when they did).
+    fn trim_binding(&self, sol: &TrimSolution, trims_reached: bool, hessian_restored: bool) -> Option<String> {
+        let rule = self.design.fit.trim_rule;
+        let names = || -> Vec<String> { sol.binding.iter().map(|&i| self.bom[self.trims[i]].id.clone()).collect() };
+        if !trims_reached && rule == TrimRule::Residual {
+            return Some(format!(
+                "the trim ranges of {} bind: the least-squares residual wants rates beyond them (∇²U(q_eq) − w² M(q_eq) at {:.2e} of ‖M‖)",
+                names().join(", "),
                 sol.mismatch
-            )
-        });
-    }
-    let settings: Vec<Setting> = (0..nv)
-        .map(|v| {
-            if v < na {
-                let j = p.adjustable[v].0;
-                Setting {
-                    id: bom[j].id.clone(),
-                    kind: "offset",
-                    designed: bom[j].element.offset,
-                    set: bom[j].element.offset + z[v],
-                    at_limit: at_limit(v),
-                }
+            ));
+        }
+        if !hessian_restored && rule == TrimRule::Hessian {
+            let names = names();
+            return Some(if names.is_empty() {
+                format!("the trims cannot reach ∇²U(q_eq) = w² M(q_eq): mismatch {:.2e} remains", sol.mismatch)
             } else {
-                let j = p.trims[v - na];
-                Setting {
-                    id: bom[j].id.clone(),
-                    kind: "trim rate",
-                    designed: bom[j].stiffness,
-                    set: z[v],
-                    at_limit: at_limit(v),
-                }
-            }
-        })
-        .collect();
-    let tuned_bom: Vec<BomRow> = bom
-        .iter()
-        .enumerate()
-        .map(|(j, r)| {
-            let mut row = r.clone();
-            row.element = tuned.elements[j].clone();
-            row.stiffness = tuned.stiffness[j];
-            // A cam as built: the same profile, its follower spring at the measured rate.
-            if let Some(cam) = row.cam.as_mut().filter(|_| r.stiffness > 0.0) {
-                let ratio = tuned.stiffness[j] / r.stiffness;
-                cam.build.follower_rate *= ratio;
-                cam.max_torque_nm *= ratio;
-                cam.preload_nm = cam.preload_nm.map(|p| p * ratio);
-            }
-            row
-        })
-        .collect();
-    let measured_trims = p
-        .trims
-        .iter()
-        .enumerate()
-        .filter_map(|(i, &j)| {
-            measured[j].map(|k| {
                 format!(
-                    "{} is a trim: its measured {:.6} N·m/rad is the arm before tuning; set it to {:.6}",
-                    bom[j].id,
-                    k,
-                    z[na + i]
+                    "the trim ranges of {} bind: ∇²U(q_eq) − w² M(q_eq) stays at {:.2e} of ‖M‖",
+                    names.join(", "),
+                    sol.mismatch
                 )
+            });
+        }
+        None
+    }
+
+    /// The offsets and trim rates to set, in variable order (the bill's order within each).
+    fn settings(&self, z: &[f64]) -> Vec<Setting> {
+        let (bom, na) = (self.bom, self.adjustable.len());
+        (0..self.variables())
+            .map(|v| {
+                if v < na {
+                    let j = self.adjustable[v].0;
+                    Setting {
+                        id: bom[j].id.clone(),
+                        kind: "offset",
+                        designed: bom[j].element.offset,
+                        set: bom[j].element.offset + z[v],
+                        at_limit: self.at_limit(z, v),
+                    }
+                } else {
+                    let j = self.trims[v - na];
+                    Setting {
+                        id: bom[j].id.clone(),
+                        kind: "trim rate",
+                        designed: bom[j].stiffness,
+                        set: z[v],
+                        at_limit: self.at_limit(z, v),
+                    }
+                }
             })
-        })
-        .collect();
-    Ok(TuneOutcome {
-        before,
-        after,
-        settings,
-        equilibrium_restored,
-        trim_rule: design.fit.trim_rule,
-        hessian_restored,
-        trims_reached,
-        w2: sol.w2,
-        binding,
-        measured_trims,
-        bom: tuned_bom,
-    })
+            .collect()
+    }
+
+    /// The bill as tuned: measured rates, new offsets and trim rates.
+    fn tuned_bom(&self, tuned: &SpringSet) -> Vec<BomRow> {
+        self.bom
+            .iter()
+            .enumerate()
+            .map(|(j, r)| {
+                let mut row = r.clone();
+                row.element = tuned.elements[j].clone();
+                row.stiffness = tuned.stiffness[j];
+                // A cam as built: the same profile, its follower spring at the measured rate.
+                if let Some(cam) = row.cam.as_mut().filter(|_| r.stiffness > 0.0) {
+                    let ratio = tuned.stiffness[j] / r.stiffness;
+                    cam.build.follower_rate *= ratio;
+                    cam.max_torque_nm *= ratio;
+                    cam.preload_nm = cam.preload_nm.map(|p| p * ratio);
+                }
+                row
+            })
+            .collect()
+    }
+
+    /// One sentence per trim given a measured rate: that rate is the arm before tuning, and the
+    /// rate to set.
+    fn measured_trims(&self, z: &[f64], measured: &[Option<f64>]) -> Vec<String> {
+        let na = self.adjustable.len();
+        self.trims
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &j)| {
+                measured[j].map(|k| {
+                    format!(
+                        "{} is a trim: its measured {:.6} N·m/rad is the arm before tuning; set it to {:.6}",
+                        self.bom[j].id,
+                        k,
+                        z[na + i]
+                    )
+                })
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -122,204 +122,20 @@ impl Design {
 
     /// Validates a parsed design file. `path` is used for messages and to resolve the catalogue.
     pub fn from_file(path: &Path, file: DesignFile) -> Result<Design> {
-        if file.robot.urdf.is_some() {
+        let (chain, q_eq) = if file.robot.urdf.is_some() {
             let (chain, q_eq) = urdf_robot(path, &file)?;
-            return Design::with_robot(path, file, Chain::Spatial(chain), q_eq);
-        }
-        let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
-        if !file.robot.joints.is_empty() || !file.robot.locked.is_empty() {
-            let field = if file.robot.joints.is_empty() { "robot.locked" } else { "robot.joints" };
-            return Err(invalid(field, "names URDF joints: it needs robot.urdf".into()));
-        }
-        let gravity = match file.robot.gravity[..] {
-            [] => [0.0, 0.0],
-            [x, y] => [x, y],
-            _ => {
-                return Err(invalid(
-                    "robot.gravity",
-                    format!("has {} numbers: a planar arm takes 2 (in its plane)", file.robot.gravity.len()),
-                ));
-            }
+            (Chain::Spatial(chain), q_eq)
+        } else {
+            let (chain, q_eq) = planar_robot(path, &file)?;
+            (Chain::Planar(chain), q_eq)
         };
-        let links = &file.robot.links;
-        if links.is_empty() {
-            return Err(invalid(
-                "robot.links",
-                "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into(),
-            ));
-        }
-        if links.len() > MAX_LINKS {
-            return Err(invalid(
-                "robot.links",
-                format!("{} links: springfit handles chains of up to {MAX_LINKS} links", links.len()),
-            ));
-        }
-        for (i, l) in links.iter().enumerate() {
-            let f = |name: &str| format!("robot.links[{i}].{name}");
-            let finite = |v: f64, name: &str| -> Result<()> {
-                if v.is_finite() { Ok(()) } else { Err(invalid(&f(name), format!("must be a finite number, got {v}"))) }
-            };
-            finite(l.mass, "mass")?;
-            finite(l.length, "length")?;
-            finite(l.com, "com")?;
-            finite(l.inertia, "inertia")?;
-            for (name, v, max, unit) in [
-                ("mass", l.mass, MAX_MASS_KG, " kg"),
-                ("length", l.length, MAX_LENGTH_M, " m"),
-                ("com", l.com, MAX_LENGTH_M, " m"),
-                ("inertia", l.inertia, MAX_INERTIA_KGM2, " kg·m²"),
-            ] {
-                within(v, max, unit).map_err(|r| invalid(&f(name), r))?;
-            }
-            if l.mass <= 0.0 {
-                return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
-            }
-            if l.length <= 0.0 {
-                return Err(invalid(&f("length"), format!("must be positive (m), got {}", l.length)));
-            }
-            if l.inertia < 0.0 {
-                return Err(invalid(&f("inertia"), format!("must be ≥ 0 (kg·m²), got {}", l.inertia)));
-            }
-        }
-        for (k, g) in file.robot.gravity.iter().enumerate() {
-            within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
-        }
-        let n = links.len();
-        let chain = PlanarChain::new(
-            links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
-            gravity,
-        );
-        // The gravity potential, torque and Hessian are bounded by this (with room for their sums).
-        if !(16.0 * chain.gravity_bound()).is_finite() {
-            return Err(invalid(
-                "robot.gravity",
-                "the gravity potential overflows: gravity times the links' masses and lengths is too large".into(),
-            ));
-        }
-        // Finite inputs can still overflow: M holds products such as mass·length², so a link of
-        // 1e160 m has an infinite mass matrix.
-        let overflow = |m: &nalgebra::DMatrix<f64>| !m.iter().all(|x| x.is_finite());
-        let too_large = || {
-            invalid(
-                "robot.links",
-                "the mass matrix overflows: the links' masses, lengths, centres of mass or inertias are too large"
-                    .into(),
-            )
-        };
-        // A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
-        // outermost such link would make M singular.
-        let singular = || {
-            invalid(
-                "robot.links",
-                "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis"
-                    .into(),
-            )
-        };
-        let m = chain.mass_matrix(&DVector::zeros(n));
-        if overflow(&m) {
-            return Err(too_large());
-        }
-        let scale = m.amax();
-        if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
-            return Err(singular());
-        }
-
-        let q = &file.equilibrium.q;
-        if q.len() != n {
-            return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} joints", q.len())));
-        }
-        let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
-        // M and U_g take sums of joint angles: finite angles of 1e308 rad still overflow.
-        if !chain.link_angles(q_eq.as_slice()).iter().all(|phi| phi.is_finite()) {
-            return Err(invalid("equilibrium.q", "the angles are too large: their sums overflow".into()));
-        }
-        // Everything downstream starts at the equilibrium: M must be finite and invertible there too.
-        let m_eq = chain.mass_matrix(&q_eq);
-        if overflow(&m_eq) {
-            return Err(too_large());
-        }
-        if m_eq.cholesky().is_none() {
-            return Err(singular());
-        }
-        Design::with_robot(path, file, Chain::Planar(chain), q_eq)
+        Design::with_robot(path, file, chain, q_eq)
     }
 
     /// The rest of the validation, the same for every kind of robot: region and settings.
     fn with_robot(path: &Path, file: DesignFile, chain: Chain, q_eq: DVector<f64>) -> Result<Design> {
         let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
-        let n = chain.dof();
-        let spec = file.region.as_ref().ok_or_else(|| {
-            invalid(
-                "region",
-                "missing: add [region] with kind = \"ball\" and radius, or kind = \"box\" with lower and upper".into(),
-            )
-        })?;
-        let region = match spec.kind {
-            RegionKind::Ball => {
-                if spec.lower.is_some() || spec.upper.is_some() {
-                    return Err(invalid(
-                        "region",
-                        "lower/upper belong to kind = \"box\"; a ball has only radius".into(),
-                    ));
-                }
-                let r = spec.radius.ok_or_else(|| invalid("region.radius", "required for kind = \"ball\"".into()))?;
-                if !(r.is_finite() && r > 0.0) {
-                    return Err(invalid("region.radius", format!("must be positive, got {r}")));
-                }
-                Region::Ball { radius: r }
-            }
-            RegionKind::Box => {
-                if spec.radius.is_some() {
-                    return Err(invalid(
-                        "region.radius",
-                        "belongs to kind = \"ball\"; a box has lower and upper".into(),
-                    ));
-                }
-                let get = |v: &Option<Vec<Angle>>, name: &str| -> Result<DVector<f64>> {
-                    let v = v
-                        .as_ref()
-                        .ok_or_else(|| invalid(&format!("region.{name}"), "required for kind = \"box\"".into()))?;
-                    if v.len() != n {
-                        return Err(invalid(
-                            &format!("region.{name}"),
-                            format!("has {} angles but the robot has {n} joints", v.len()),
-                        ));
-                    }
-                    Ok(DVector::from_iterator(n, v.iter().map(|a| a.0)))
-                };
-                let (lower, upper) = (get(&spec.lower, "lower")?, get(&spec.upper, "upper")?);
-                for i in 0..n {
-                    if lower[i].abs() > 1e4 || upper[i].abs() > 1e4 {
-                        return Err(invalid(
-                            &format!("region.lower[{i}]"),
-                            format!(
-                                "box corners beyond ±10⁴ rad ({} … {}) are not a region of an arm",
-                                lower[i], upper[i]
-                            ),
-                        ));
-                    }
-                    if lower[i] >= upper[i] {
-                        return Err(invalid(
-                            &format!("region.lower[{i}]"),
-                            format!("must be below region.upper[{i}] ({} ≥ {})", lower[i], upper[i]),
-                        ));
-                    }
-                    if !(lower[i] < q_eq[i] && q_eq[i] < upper[i]) {
-                        return Err(invalid(
-                            &format!("equilibrium.q[{i}]"),
-                            format!(
-                                "{} lies outside the region: q{} must be strictly between {} and {}",
-                                q_eq[i],
-                                i + 1,
-                                lower[i],
-                                upper[i]
-                            ),
-                        ));
-                    }
-                }
-                Region::Box { lower, upper }
-            }
-        };
+        let region = region(path, file.region.as_ref(), chain.dof(), &q_eq)?;
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
         if let Region::Ball { radius } = &region {
             let radius = *radius;
@@ -336,25 +152,7 @@ impl Design {
                 ));
             }
         }
-        file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        let mut holding = vec![0.0; chain.dof()];
-        chain.gravity_gradient_into(q_eq.as_slice(), &mut holding);
-        file.controllers.check_max_torque(&holding).map_err(|(field, reason)| invalid(&field, reason))?;
-        file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        file.identify.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        file.parts.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        let mut names = std::collections::HashSet::new();
-        for (i, sc) in file.scenario.iter().enumerate() {
-            if !names.insert(sc.name.clone()) {
-                return Err(invalid(
-                    &format!("scenario[{i}].name"),
-                    format!("`{}` is used by an earlier scenario", sc.name),
-                ));
-            }
-        }
-
+        check_sections(path, &file, &chain, &q_eq)?;
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into())
         });
@@ -444,6 +242,237 @@ impl Design {
         };
         Err(Error::invalid(&self.path, field, format!("the region is not valid: {}", report.reason)))
     }
+}
+
+/// A planar arm typed into the design: its links checked one by one, the chain, its mass
+/// matrix finite and invertible at zero, and the equilibrium with the mass matrix finite and
+/// invertible there too.
+fn planar_robot(path: &Path, file: &DesignFile) -> Result<(PlanarChain, DVector<f64>)> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    if !file.robot.joints.is_empty() || !file.robot.locked.is_empty() {
+        let field = if file.robot.joints.is_empty() { "robot.locked" } else { "robot.joints" };
+        return Err(invalid(field, "names URDF joints: it needs robot.urdf".into()));
+    }
+    let gravity = match file.robot.gravity[..] {
+        [] => [0.0, 0.0],
+        [x, y] => [x, y],
+        _ => {
+            return Err(invalid(
+                "robot.gravity",
+                format!("has {} numbers: a planar arm takes 2 (in its plane)", file.robot.gravity.len()),
+            ));
+        }
+    };
+    let links = &file.robot.links;
+    check_links(path, links)?;
+    for (k, g) in file.robot.gravity.iter().enumerate() {
+        within(*g, MAX_GRAVITY, " m/s²").map_err(|r| invalid(&format!("robot.gravity[{k}]"), r))?;
+    }
+    let n = links.len();
+    let chain = PlanarChain::new(
+        links.iter().map(|l| Link { mass: l.mass, length: l.length, com: l.com, inertia: l.inertia }).collect(),
+        gravity,
+    );
+    // The gravity potential, torque and Hessian are bounded by this (with room for their sums).
+    if !(16.0 * chain.gravity_bound()).is_finite() {
+        return Err(invalid(
+            "robot.gravity",
+            "the gravity potential overflows: gravity times the links' masses and lengths is too large".into(),
+        ));
+    }
+    let m = chain.mass_matrix(&DVector::zeros(n));
+    check_mass_matrix(path, &m)?;
+    let scale = m.amax();
+    if m.clone().cholesky().is_none() || m.symmetric_eigen().eigenvalues.min() <= 1e-12 * scale {
+        return Err(singular_mass_matrix(path));
+    }
+    let q = &file.equilibrium.q;
+    if q.len() != n {
+        return Err(invalid("equilibrium.q", format!("has {} angles but the robot has {n} joints", q.len())));
+    }
+    let q_eq = DVector::from_iterator(n, q.iter().map(|a| a.0));
+    // M and U_g take sums of joint angles: finite angles of 1e308 rad still overflow.
+    if !chain.link_angles(q_eq.as_slice()).iter().all(|phi| phi.is_finite()) {
+        return Err(invalid("equilibrium.q", "the angles are too large: their sums overflow".into()));
+    }
+    // Everything downstream starts at the equilibrium: M must be finite and invertible there too.
+    let m_eq = chain.mass_matrix(&q_eq);
+    check_mass_matrix(path, &m_eq)?;
+    if m_eq.cholesky().is_none() {
+        return Err(singular_mass_matrix(path));
+    }
+    Ok((chain, q_eq))
+}
+
+/// A planar arm's links: one to MAX_LINKS of them, each with finite values within the limits,
+/// a positive mass and length and an inertia ≥ 0.
+fn check_links(path: &Path, links: &[LinkSpec]) -> Result<()> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    if links.is_empty() {
+        return Err(invalid(
+            "robot.links",
+            "at least one link is needed ([[robot.links]] with mass, length, com, inertia)".into(),
+        ));
+    }
+    if links.len() > MAX_LINKS {
+        return Err(invalid(
+            "robot.links",
+            format!("{} links: springfit handles chains of up to {MAX_LINKS} links", links.len()),
+        ));
+    }
+    for (i, l) in links.iter().enumerate() {
+        let f = |name: &str| format!("robot.links[{i}].{name}");
+        let finite = |v: f64, name: &str| -> Result<()> {
+            if v.is_finite() { Ok(()) } else { Err(invalid(&f(name), format!("must be a finite number, got {v}"))) }
+        };
+        finite(l.mass, "mass")?;
+        finite(l.length, "length")?;
+        finite(l.com, "com")?;
+        finite(l.inertia, "inertia")?;
+        for (name, v, max, unit) in [
+            ("mass", l.mass, MAX_MASS_KG, " kg"),
+            ("length", l.length, MAX_LENGTH_M, " m"),
+            ("com", l.com, MAX_LENGTH_M, " m"),
+            ("inertia", l.inertia, MAX_INERTIA_KGM2, " kg·m²"),
+        ] {
+            within(v, max, unit).map_err(|r| invalid(&f(name), r))?;
+        }
+        if l.mass <= 0.0 {
+            return Err(invalid(&f("mass"), format!("must be positive (kg), got {}", l.mass)));
+        }
+        if l.length <= 0.0 {
+            return Err(invalid(&f("length"), format!("must be positive (m), got {}", l.length)));
+        }
+        if l.inertia < 0.0 {
+            return Err(invalid(&f("inertia"), format!("must be ≥ 0 (kg·m²), got {}", l.inertia)));
+        }
+    }
+    Ok(())
+}
+
+/// Finite inputs can still overflow: M holds products such as mass·length², so a link of
+/// 1e160 m has an infinite mass matrix.
+fn check_mass_matrix(path: &Path, m: &nalgebra::DMatrix<f64>) -> Result<()> {
+    if !m.iter().all(|x| x.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            "robot.links",
+            "the mass matrix overflows: the links' masses, lengths, centres of mass or inertias are too large",
+        ));
+    }
+    Ok(())
+}
+
+/// A link with zero inertia and its centre of mass on the joint axis adds nothing to M; the
+/// outermost such link would make M singular.
+fn singular_mass_matrix(path: &Path) -> Error {
+    Error::invalid(
+        path,
+        "robot.links",
+        "the mass matrix is singular: a link has neither inertia nor a centre of mass off its joint axis",
+    )
+}
+
+/// The region of `[region]` for an arm of n joints: a ball of positive radius, or a box of n angles a side whose
+/// corners are within ±10⁴ rad, below one another and around the equilibrium.
+fn region(path: &Path, spec: Option<&RegionSpec>, n: usize, q_eq: &DVector<f64>) -> Result<Region> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    let spec = spec.ok_or_else(|| {
+        invalid(
+            "region",
+            "missing: add [region] with kind = \"ball\" and radius, or kind = \"box\" with lower and upper".into(),
+        )
+    })?;
+    match spec.kind {
+        RegionKind::Ball => {
+            if spec.lower.is_some() || spec.upper.is_some() {
+                return Err(invalid("region", "lower/upper belong to kind = \"box\"; a ball has only radius".into()));
+            }
+            let r = spec.radius.ok_or_else(|| invalid("region.radius", "required for kind = \"ball\"".into()))?;
+            if !(r.is_finite() && r > 0.0) {
+                return Err(invalid("region.radius", format!("must be positive, got {r}")));
+            }
+            Ok(Region::Ball { radius: r })
+        }
+        RegionKind::Box => {
+            if spec.radius.is_some() {
+                return Err(invalid("region.radius", "belongs to kind = \"ball\"; a box has lower and upper".into()));
+            }
+            let get = |v: &Option<Vec<Angle>>, name: &str| -> Result<DVector<f64>> {
+                let v = v
+                    .as_ref()
+                    .ok_or_else(|| invalid(&format!("region.{name}"), "required for kind = \"box\"".into()))?;
+                if v.len() != n {
+                    return Err(invalid(
+                        &format!("region.{name}"),
+                        format!("has {} angles but the robot has {n} joints", v.len()),
+                    ));
+                }
+                Ok(DVector::from_iterator(n, v.iter().map(|a| a.0)))
+            };
+            let (lower, upper) = (get(&spec.lower, "lower")?, get(&spec.upper, "upper")?);
+            check_box(path, &lower, &upper, q_eq)?;
+            Ok(Region::Box { lower, upper })
+        }
+    }
+}
+
+/// A box's corners, joint by joint: within ±10⁴ rad, lower below upper, the equilibrium
+/// strictly between them.
+fn check_box(path: &Path, lower: &DVector<f64>, upper: &DVector<f64>, q_eq: &DVector<f64>) -> Result<()> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    for i in 0..lower.len() {
+        if lower[i].abs() > 1e4 || upper[i].abs() > 1e4 {
+            return Err(invalid(
+                &format!("region.lower[{i}]"),
+                format!("box corners beyond ±10⁴ rad ({} … {}) are not a region of an arm", lower[i], upper[i]),
+            ));
+        }
+        if lower[i] >= upper[i] {
+            return Err(invalid(
+                &format!("region.lower[{i}]"),
+                format!("must be below region.upper[{i}] ({} ≥ {})", lower[i], upper[i]),
+            ));
+        }
+        if !(lower[i] < q_eq[i] && q_eq[i] < upper[i]) {
+            return Err(invalid(
+                &format!("equilibrium.q[{i}]"),
+                format!(
+                    "{} lies outside the region: q{} must be strictly between {} and {}",
+                    q_eq[i],
+                    i + 1,
+                    lower[i],
+                    upper[i]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Every settings section checked by its own `validate` (the controllers' torque limits against
+/// the torque that holds the arm at q_eq), and the scenarios' names unique.
+fn check_sections(path: &Path, file: &DesignFile, chain: &Chain, q_eq: &DVector<f64>) -> Result<()> {
+    let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+    file.fit.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    file.simulate.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    file.controllers.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    let mut holding = vec![0.0; chain.dof()];
+    chain.gravity_gradient_into(q_eq.as_slice(), &mut holding);
+    file.controllers.check_max_torque(&holding).map_err(|(field, reason)| invalid(&field, reason))?;
+    file.sweep.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    file.identify.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    file.parts.validate().map_err(|(field, reason)| invalid(&field, reason))?;
+    let mut names = std::collections::HashSet::new();
+    for (i, sc) in file.scenario.iter().enumerate() {
+        if !names.insert(sc.name.clone()) {
+            return Err(invalid(
+                &format!("scenario[{i}].name"),
+                format!("`{}` is used by an earlier scenario", sc.name),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// `[robot] urdf = …`: reads the URDF (relative to the design file) and checks the equilibrium.

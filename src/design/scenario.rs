@@ -176,146 +176,183 @@ impl ScenarioSpec {
     /// reachable inside the region) is left to `resolve`. Errors name `scenario[index].field`.
     pub fn check(&self, index: usize, design: &Design) -> Result<()> {
         let sc = self;
-        let n = design.dof();
-        let bad = |f: &str, r: String| Error::invalid(&design.path, format!("scenario[{index}].{f}"), r);
+        let at = ScenarioAt { path: &design.path, index, n: design.dof(), kind: kind_name(sc.kind) };
         if sc.name.trim().is_empty() || sc.name.contains(['/', '\\']) {
-            return Err(bad("name", format!("`{}` cannot name an output file", sc.name)));
+            return Err(at.bad("name", format!("`{}` cannot name an output file", sc.name)));
         }
-        let kind = kind_name(sc.kind);
-        let unused = |f: &str, present: bool| -> Result<()> {
-            if present { Err(bad(f, format!("does not apply to kind = \"{kind}\""))) } else { Ok(()) }
-        };
         let duration = sc.duration.unwrap_or(if sc.kind == ScenarioKind::Switch { 100.0 } else { 20.0 });
         if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
-            return Err(bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
+            return Err(at.bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
         }
         if let Some(d) = sc.damping
             && !(d.is_finite() && d >= 0.0)
         {
-            return Err(bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
+            return Err(at.bad("damping", format!("must be ≥ 0 (N·m·s/rad), got {d}")));
         }
-        let energy = |f: &str, e: f64| -> Result<()> {
-            if e.is_finite() && e > 0.0 {
-                Ok(())
-            } else {
-                Err(bad(f, format!("must be a positive energy (J), got {e}")))
-            }
-        };
-        let mode = |f: &str, m: &ModeSpec| -> Result<()> {
-            match m {
-                ModeSpec::Angle(a) if n != 2 => Err(bad(
-                    f,
-                    format!("an angle ({a}) names a mode of a two-joint arm; give a direction of {n} joint velocities"),
-                )),
-                ModeSpec::Angle(a) if !a.is_finite() => Err(bad(f, format!("must be finite, got {a}"))),
-                ModeSpec::Angle(_) => Ok(()),
-                ModeSpec::Vector(v) if v.len() != n => {
-                    Err(bad(f, format!("has {} entries but the robot has {n} joints", v.len())))
-                }
-                ModeSpec::Vector(v) if v.iter().any(|x| !x.is_finite()) || v.iter().all(|x| *x == 0.0) => {
-                    Err(bad(f, "must be a finite, non-zero direction".into()))
-                }
-                ModeSpec::Vector(_) => Ok(()),
-            }
-        };
         match sc.kind {
-            ScenarioKind::Free => {
-                unused("mode", sc.mode.is_some())?;
-                unused("energy", sc.energy.is_some())?;
-                unused("step", sc.step.is_some())?;
-                unused("every", sc.every.is_some())?;
-                unused("energy_target", sc.energy_target.is_some())?;
-                unused("e0", sc.e0.is_some())?;
-                unused("ed", sc.ed.is_some())?;
-                unused("variants", !sc.variants.is_empty())?;
-                if sc.starts.is_empty() && sc.releases.is_empty() {
-                    return Err(bad(
-                        "releases",
-                        "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into(),
-                    ));
-                }
-                for (k, s) in sc.starts.iter().enumerate() {
-                    if s.len() != n {
-                        return Err(bad(
-                            &format!("starts[{k}]"),
-                            format!("has {} angles but the robot has {n} joints", s.len()),
-                        ));
-                    }
-                    if let Some(a) = s.iter().find(|a| !a.0.is_finite()) {
-                        return Err(bad(&format!("starts[{k}]"), format!("angles must be finite, got {}", a.0)));
-                    }
-                }
-                for (k, r) in sc.releases.iter().enumerate() {
-                    mode(&format!("releases[{k}].mode"), &r.mode)?;
-                    energy(&format!("releases[{k}].energy"), r.energy)?;
-                }
+            ScenarioKind::Free => sc.check_free(&at),
+            ScenarioKind::Switch => sc.check_switch(&at, duration),
+            ScenarioKind::Swingup => sc.check_swingup(&at),
+        }
+    }
+
+    /// A free scenario: releases or starts (each start one finite angle per joint, each release a
+    /// mode and a positive energy), none of the other kinds' keys.
+    fn check_free(&self, at: &ScenarioAt) -> Result<()> {
+        let sc = self;
+        at.unused("mode", sc.mode.is_some())?;
+        at.unused("energy", sc.energy.is_some())?;
+        at.unused("step", sc.step.is_some())?;
+        at.unused("every", sc.every.is_some())?;
+        at.unused("energy_target", sc.energy_target.is_some())?;
+        at.unused("e0", sc.e0.is_some())?;
+        at.unused("ed", sc.ed.is_some())?;
+        at.unused("variants", !sc.variants.is_empty())?;
+        if sc.starts.is_empty() && sc.releases.is_empty() {
+            return Err(
+                at.bad("releases", "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into())
+            );
+        }
+        let n = at.n;
+        for (k, s) in sc.starts.iter().enumerate() {
+            if s.len() != n {
+                return Err(
+                    at.bad(&format!("starts[{k}]"), format!("has {} angles but the robot has {n} joints", s.len()))
+                );
             }
-            ScenarioKind::Switch => {
-                unused("starts", !sc.starts.is_empty())?;
-                unused("releases", !sc.releases.is_empty())?;
-                unused("e0", sc.e0.is_some())?;
-                unused("ed", sc.ed.is_some())?;
-                unused("variants", !sc.variants.is_empty())?;
-                if n != 2 {
-                    return Err(bad("kind", format!("mode switching by θ steps needs two joints; this arm has {n}")));
-                }
-                if let Some(m) = &sc.mode {
-                    if matches!(m, ModeSpec::Vector(_)) {
-                        return Err(bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
-                    }
-                    mode("mode", m)?;
-                }
-                if let Some(s) = sc.step
-                    && !s.0.is_finite()
-                {
-                    return Err(bad("step", format!("must be finite, got {}", s.0)));
-                }
-                let every = sc.every.unwrap_or(15.0);
-                if !(every.is_finite() && every > 0.0) {
-                    return Err(bad("every", format!("must be positive (s), got {every}")));
-                }
-                if duration / every > 10_000.0 {
-                    return Err(bad(
-                        "every",
-                        format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
-                    ));
-                }
-                energy("energy", sc.energy.unwrap_or(10.0))?;
+            if let Some(a) = s.iter().find(|a| !a.0.is_finite()) {
+                return Err(at.bad(&format!("starts[{k}]"), format!("angles must be finite, got {}", a.0)));
             }
-            ScenarioKind::Swingup => {
-                unused("starts", !sc.starts.is_empty())?;
-                unused("releases", !sc.releases.is_empty())?;
-                unused("energy", sc.energy.is_some())?;
-                unused("step", sc.step.is_some())?;
-                unused("every", sc.every.is_some())?;
-                unused("energy_target", sc.energy_target.is_some())?;
-                energy("e0", sc.e0.unwrap_or(5.0))?;
-                let schedule: Vec<(f64, f64)> = match sc.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
-                    EnergySpec::Value(v) => vec![(0.0, v)],
-                    EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
-                };
-                if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
-                    return Err(bad("ed", "steps must start at t = 0 and increase in time".into()));
-                }
-                for (t, e) in &schedule {
-                    if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
-                        return Err(bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
-                    }
-                }
-                if let Some(m) = &sc.mode {
-                    mode("mode", m)?;
-                }
-                for (k, v) in sc.variants.iter().enumerate() {
-                    if !["energy", "negative_damping", "energy_compensated"].contains(&v.as_str()) {
-                        return Err(bad(
-                            &format!("variants[{k}]"),
-                            format!("unknown variant `{v}`: expected energy, negative_damping or energy_compensated"),
-                        ));
-                    }
-                }
+        }
+        for (k, r) in sc.releases.iter().enumerate() {
+            at.mode(&format!("releases[{k}].mode"), &r.mode)?;
+            at.energy(&format!("releases[{k}].energy"), r.energy)?;
+        }
+        Ok(())
+    }
+
+    /// A switch scenario: two joints, a first mode given as an angle θ, finite steps, a positive
+    /// interval making at most 10000 steps, a positive energy; no starts, releases or swing-up
+    /// keys.
+    fn check_switch(&self, at: &ScenarioAt, duration: f64) -> Result<()> {
+        let sc = self;
+        at.unused("starts", !sc.starts.is_empty())?;
+        at.unused("releases", !sc.releases.is_empty())?;
+        at.unused("e0", sc.e0.is_some())?;
+        at.unused("ed", sc.ed.is_some())?;
+        at.unused("variants", !sc.variants.is_empty())?;
+        if at.n != 2 {
+            return Err(at.bad("kind", format!("mode switching by θ steps needs two joints; this arm has {}", at.n)));
+        }
+        if let Some(m) = &sc.mode {
+            if matches!(m, ModeSpec::Vector(_)) {
+                return Err(at.bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
+            }
+            at.mode("mode", m)?;
+        }
+        if let Some(s) = sc.step
+            && !s.0.is_finite()
+        {
+            return Err(at.bad("step", format!("must be finite, got {}", s.0)));
+        }
+        let every = sc.every.unwrap_or(15.0);
+        if !(every.is_finite() && every > 0.0) {
+            return Err(at.bad("every", format!("must be positive (s), got {every}")));
+        }
+        if duration / every > 10_000.0 {
+            return Err(at.bad(
+                "every",
+                format!("{every} s makes {:.0} mode steps in {duration} s; at most 10000", duration / every),
+            ));
+        }
+        at.energy("energy", sc.energy.unwrap_or(10.0))
+    }
+
+    /// A swing-up scenario: positive start and target energies (the target's steps from t = 0
+    /// on, increasing in time), a valid mode, known variants; no starts, releases or switch keys.
+    fn check_swingup(&self, at: &ScenarioAt) -> Result<()> {
+        let sc = self;
+        at.unused("starts", !sc.starts.is_empty())?;
+        at.unused("releases", !sc.releases.is_empty())?;
+        at.unused("energy", sc.energy.is_some())?;
+        at.unused("step", sc.step.is_some())?;
+        at.unused("every", sc.every.is_some())?;
+        at.unused("energy_target", sc.energy_target.is_some())?;
+        at.energy("e0", sc.e0.unwrap_or(5.0))?;
+        let schedule: Vec<(f64, f64)> = match sc.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
+            EnergySpec::Value(v) => vec![(0.0, v)],
+            EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
+        };
+        if schedule.is_empty() || schedule[0].0 != 0.0 || schedule.windows(2).any(|w| w[1].0 <= w[0].0) {
+            return Err(at.bad("ed", "steps must start at t = 0 and increase in time".into()));
+        }
+        for (t, e) in &schedule {
+            if !(e.is_finite() && *e > 0.0 && t.is_finite()) {
+                return Err(at.bad("ed", format!("energies must be positive (J), got {e} at t = {t}")));
+            }
+        }
+        if let Some(m) = &sc.mode {
+            at.mode("mode", m)?;
+        }
+        for (k, v) in sc.variants.iter().enumerate() {
+            if !["energy", "negative_damping", "energy_compensated"].contains(&v.as_str()) {
+                return Err(at.bad(
+                    &format!("variants[{k}]"),
+                    format!("unknown variant `{v}`: expected energy, negative_damping or energy_compensated"),
+                ));
             }
         }
         Ok(())
+    }
+}
+
+/// Which scenario a check is on, so that every error names `scenario[index].field` in the
+/// design file: the file, the index, the robot's joints and the scenario's kind.
+struct ScenarioAt<'a> {
+    path: &'a std::path::Path,
+    index: usize,
+    n: usize,
+    kind: &'static str,
+}
+
+impl ScenarioAt<'_> {
+    fn bad(&self, f: &str, r: String) -> Error {
+        Error::invalid(self.path, format!("scenario[{}].{f}", self.index), r)
+    }
+
+    /// A key given that the scenario's kind does not take.
+    fn unused(&self, f: &str, present: bool) -> Result<()> {
+        if present { Err(self.bad(f, format!("does not apply to kind = \"{}\"", self.kind))) } else { Ok(()) }
+    }
+
+    /// A positive energy, J.
+    fn energy(&self, f: &str, e: f64) -> Result<()> {
+        if e.is_finite() && e > 0.0 {
+            Ok(())
+        } else {
+            Err(self.bad(f, format!("must be a positive energy (J), got {e}")))
+        }
+    }
+
+    /// A mode: an angle θ of a two-joint arm, or a finite non-zero direction of n joint
+    /// velocities.
+    fn mode(&self, f: &str, m: &ModeSpec) -> Result<()> {
+        let n = self.n;
+        match m {
+            ModeSpec::Angle(a) if n != 2 => Err(self.bad(
+                f,
+                format!("an angle ({a}) names a mode of a two-joint arm; give a direction of {n} joint velocities"),
+            )),
+            ModeSpec::Angle(a) if !a.is_finite() => Err(self.bad(f, format!("must be finite, got {a}"))),
+            ModeSpec::Angle(_) => Ok(()),
+            ModeSpec::Vector(v) if v.len() != n => {
+                Err(self.bad(f, format!("has {} entries but the robot has {n} joints", v.len())))
+            }
+            ModeSpec::Vector(v) if v.iter().any(|x| !x.is_finite()) || v.iter().all(|x| *x == 0.0) => {
+                Err(self.bad(f, "must be a finite, non-zero direction".into()))
+            }
+            ModeSpec::Vector(_) => Ok(()),
+        }
     }
 }
 

@@ -118,105 +118,115 @@ impl ScenarioSpec {
         energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>,
     ) -> Result<Scenario> {
         self.check(index, design)?;
-        let n = design.dof();
-        let bad = |f: &str, r: String| Error::invalid(&design.path, format!("scenario[{index}].{f}"), r);
-        let duration = self.duration.unwrap_or(match self.kind {
-            ScenarioKind::Switch => 100.0,
-            _ => 20.0,
-        });
-        let d = self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 });
-        let base = |name: String, q0: Vec<f64>| RunSpec {
-            name,
-            q0,
-            qd0: vec![0.0; n],
-            duration,
-            damping: vec![d; n],
-            mode: None,
-            energy: None,
-            parasitic: None,
-            stiffness_scale: None,
-            built: None,
+        let base = RunBase {
+            design,
+            index,
+            duration: self.duration.unwrap_or(match self.kind {
+                ScenarioKind::Switch => 100.0,
+                _ => 20.0,
+            }),
+            damping: self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 }),
+            frame: MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?,
         };
-        let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
         let runs = match self.kind {
-            ScenarioKind::Free => {
-                let mut runs = Vec::new();
-                for (k, s) in self.starts.iter().enumerate() {
-                    runs.push(base(format!("start_{}", k + 1), s.iter().map(|a| a.0).collect()));
-                }
-                for (k, r) in self.releases.iter().enumerate() {
-                    let u = mode_direction(&r.mode, n, &frame).map_err(|e| bad(&format!("releases[{k}].mode"), e))?;
-                    let q0 = start_on_mode(design, &u, r.energy, energy_at)
-                        .map_err(|e| bad(&format!("releases[{k}].energy"), e))?;
-                    runs.push(base(format!("release_{}", k + 1), q0));
-                }
-                runs
-            }
-            ScenarioKind::Switch => {
-                // `check` refused a direction vector as the first mode of a switch.
-                let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
-                    ModeSpec::Angle(a) => a,
-                    ModeSpec::Vector(_) => 0.0,
-                };
-                let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
-                let every = self.every.unwrap_or(15.0);
-                let energy = self.energy.unwrap_or(10.0);
-                let u = mode_direction(&ModeSpec::Angle(theta0), n, &frame).map_err(|e| bad("mode", e))?;
-                let q0 = start_on_mode(design, &u, energy, energy_at).map_err(|e| bad("energy", e))?;
-                let steps = (duration / every).ceil() as usize;
-                let schedule = (0..steps.max(1))
-                    .map(|k| (k as f64 * every, ModeTarget::Angle(wrap_angle(theta0 + step * k as f64))))
-                    .collect();
-                let mut run = base("switch".into(), q0);
-                run.mode = Some(ModeControl { schedule });
-                if self.energy_target.unwrap_or_default() == EnergyTarget::Hold {
-                    run.energy = Some(EnergyControl {
-                        law: EnergyLaw::Energy,
-                        schedule: vec![(0.0, energy)],
-                        compensate_damping: false,
-                    });
-                }
-                vec![run]
-            }
-            ScenarioKind::Swingup => {
-                let e0 = self.e0.unwrap_or(5.0);
-                let schedule: Vec<(f64, f64)> = match self.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
-                    EnergySpec::Value(v) => vec![(0.0, v)],
-                    EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
-                };
-                let ed = schedule.iter().map(|s| s.1).fold(0.0, f64::max);
-                let mode = self.mode.clone().unwrap_or(ModeSpec::Angle(0.0));
-                let u = mode_direction(&mode, n, &frame).map_err(|e| bad("mode", e))?;
-                let q0 = start_on_mode(design, &u, e0, energy_at).map_err(|e| bad("e0", e))?;
-                // The energy target must be reachable inside the region along this mode.
-                start_on_mode(design, &u, ed, energy_at).map_err(|e| bad("ed", e))?;
-                let target = match (&mode, n) {
-                    (ModeSpec::Angle(a), 2) => ModeTarget::Angle(*a),
-                    _ => ModeTarget::Direction(frame.to_frame(&u).normalize()),
-                };
-                let variants: Vec<String> = if self.variants.is_empty() {
-                    vec!["energy".into(), "negative_damping".into(), "energy_compensated".into()]
-                } else {
-                    self.variants.clone()
-                };
-                let mut runs = Vec::new();
-                for v in &variants {
-                    let (law, compensate) = match v.as_str() {
-                        "energy" => (EnergyLaw::Energy, false),
-                        "negative_damping" => (EnergyLaw::NegativeDamping, false),
-                        // "energy_compensated": `check` refused any other name.
-                        _ => (EnergyLaw::Energy, true),
-                    };
-                    let mut run = base(v.clone(), q0.clone());
-                    run.mode = Some(ModeControl { schedule: vec![(0.0, target.clone())] });
-                    run.energy =
-                        Some(EnergyControl { law, schedule: schedule.clone(), compensate_damping: compensate });
-                    runs.push(run);
-                }
-                runs
-            }
+            ScenarioKind::Free => self.free_runs(&base, energy_at)?,
+            ScenarioKind::Switch => vec![self.switch_run(&base, energy_at)?],
+            ScenarioKind::Swingup => self.swingup_runs(&base, energy_at)?,
         };
-        let energy_handling = match self.kind {
+        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs, energy_handling: self.energy_handling() })
+    }
+
+    /// A free scenario's runs: each start as given, then each release placed on its mode at its
+    /// energy.
+    fn free_runs(&self, base: &RunBase, energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>) -> Result<Vec<RunSpec>> {
+        let n = base.design.dof();
+        let mut runs = Vec::new();
+        for (k, s) in self.starts.iter().enumerate() {
+            runs.push(base.run(format!("start_{}", k + 1), s.iter().map(|a| a.0).collect()));
+        }
+        for (k, r) in self.releases.iter().enumerate() {
+            let u = mode_direction(&r.mode, n, &base.frame).map_err(|e| base.bad(&format!("releases[{k}].mode"), e))?;
+            let q0 = start_on_mode(base.design, &u, r.energy, energy_at)
+                .map_err(|e| base.bad(&format!("releases[{k}].energy"), e))?;
+            runs.push(base.run(format!("release_{}", k + 1), q0));
+        }
+        Ok(runs)
+    }
+
+    /// A switch scenario's run: started on the first mode at its energy, the mode stepped by
+    /// `step` every `every` seconds, the start energy held unless `energy_target = "none"`.
+    fn switch_run(&self, base: &RunBase, energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>) -> Result<RunSpec> {
+        // `check` refused a direction vector as the first mode of a switch.
+        let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
+            ModeSpec::Angle(a) => a,
+            ModeSpec::Vector(_) => 0.0,
+        };
+        let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
+        let every = self.every.unwrap_or(15.0);
+        let energy = self.energy.unwrap_or(10.0);
+        let u = mode_direction(&ModeSpec::Angle(theta0), base.design.dof(), &base.frame)
+            .map_err(|e| base.bad("mode", e))?;
+        let q0 = start_on_mode(base.design, &u, energy, energy_at).map_err(|e| base.bad("energy", e))?;
+        let steps = (base.duration / every).ceil() as usize;
+        let schedule = (0..steps.max(1))
+            .map(|k| (k as f64 * every, ModeTarget::Angle(wrap_angle(theta0 + step * k as f64))))
+            .collect();
+        let mut run = base.run("switch".into(), q0);
+        run.mode = Some(ModeControl { schedule });
+        if self.energy_target.unwrap_or_default() == EnergyTarget::Hold {
+            run.energy = Some(EnergyControl {
+                law: EnergyLaw::Energy,
+                schedule: vec![(0.0, energy)],
+                compensate_damping: false,
+            });
+        }
+        Ok(run)
+    }
+
+    /// A swing-up scenario's runs, one per variant: started on the mode at E0, the mode held and
+    /// the energy law of the variant driving towards E_d (which must be reachable inside the
+    /// region along the mode).
+    fn swingup_runs(&self, base: &RunBase, energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>) -> Result<Vec<RunSpec>> {
+        let n = base.design.dof();
+        let e0 = self.e0.unwrap_or(5.0);
+        let schedule: Vec<(f64, f64)> = match self.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
+            EnergySpec::Value(v) => vec![(0.0, v)],
+            EnergySpec::Steps(s) => s.iter().map(|p| (p[0], p[1])).collect(),
+        };
+        let ed = schedule.iter().map(|s| s.1).fold(0.0, f64::max);
+        let mode = self.mode.clone().unwrap_or(ModeSpec::Angle(0.0));
+        let u = mode_direction(&mode, n, &base.frame).map_err(|e| base.bad("mode", e))?;
+        let q0 = start_on_mode(base.design, &u, e0, energy_at).map_err(|e| base.bad("e0", e))?;
+        // The energy target must be reachable inside the region along this mode.
+        start_on_mode(base.design, &u, ed, energy_at).map_err(|e| base.bad("ed", e))?;
+        let target = match (&mode, n) {
+            (ModeSpec::Angle(a), 2) => ModeTarget::Angle(*a),
+            _ => ModeTarget::Direction(base.frame.to_frame(&u).normalize()),
+        };
+        let variants: Vec<String> = if self.variants.is_empty() {
+            vec!["energy".into(), "negative_damping".into(), "energy_compensated".into()]
+        } else {
+            self.variants.clone()
+        };
+        let mut runs = Vec::new();
+        for v in &variants {
+            let (law, compensate) = match v.as_str() {
+                "energy" => (EnergyLaw::Energy, false),
+                "negative_damping" => (EnergyLaw::NegativeDamping, false),
+                // "energy_compensated": `check` refused any other name.
+                _ => (EnergyLaw::Energy, true),
+            };
+            let mut run = base.run(v.clone(), q0.clone());
+            run.mode = Some(ModeControl { schedule: vec![(0.0, target.clone())] });
+            run.energy = Some(EnergyControl { law, schedule: schedule.clone(), compensate_damping: compensate });
+            runs.push(run);
+        }
+        Ok(runs)
+    }
+
+    /// How the scenario handles energy, in words.
+    fn energy_handling(&self) -> String {
+        match self.kind {
             ScenarioKind::Free => "none: released without control".to_string(),
             ScenarioKind::Switch => match self.energy_target.unwrap_or_default() {
                 EnergyTarget::Hold => format!(
@@ -226,8 +236,41 @@ impl ScenarioSpec {
                 EnergyTarget::None => "energy_target = \"none\": no energy regulation".to_string(),
             },
             ScenarioKind::Swingup => "τ_E, τ_nD or τ_E + compensation towards E_d (per variant)".to_string(),
-        };
-        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs, energy_handling })
+        }
+    }
+}
+
+/// What every run of a scenario being resolved shares: the design, the metric frame at q_eq,
+/// the duration and the damping; and the scenario's index, which errors name.
+struct RunBase<'a> {
+    design: &'a Design,
+    index: usize,
+    frame: MetricFrame,
+    duration: f64,
+    damping: f64,
+}
+
+impl RunBase<'_> {
+    /// A run from rest at q0 without control, parasitic springs or a build.
+    fn run(&self, name: String, q0: Vec<f64>) -> RunSpec {
+        let n = self.design.dof();
+        RunSpec {
+            name,
+            q0,
+            qd0: vec![0.0; n],
+            duration: self.duration,
+            damping: vec![self.damping; n],
+            mode: None,
+            energy: None,
+            parasitic: None,
+            stiffness_scale: None,
+            built: None,
+        }
+    }
+
+    /// An error on the scenario's key `f`.
+    fn bad(&self, f: &str, r: String) -> Error {
+        Error::invalid(&self.design.path, format!("scenario[{}].{f}", self.index), r)
     }
 }
 

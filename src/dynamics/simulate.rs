@@ -375,7 +375,8 @@ pub fn output_steps(steps: usize, rate: f64, every: f64) -> Vec<usize> {
     out
 }
 
-/// Runs one simulation.
+/// Runs one simulation: the start state checked, the integrator's run recorded into a trace,
+/// then the fluxes and peaks it accumulated.
 pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunResult> {
     let spec = dynamics.spec;
     let n = dynamics.chain.dof();
@@ -389,8 +390,6 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
     let mut y = vec![0.0; dim];
     y[..n].copy_from_slice(&spec.q0);
     y[n..2 * n].copy_from_slice(&spec.qd0);
-    let h = 1.0 / settings.rate;
-    let out_every = settings.output_interval.max(h);
     let mut trace = Trace {
         n,
         t: Vec::new(),
@@ -403,121 +402,9 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         in_ball: Vec::new(),
         geodesic_deviation: Vec::new(),
     };
-    // Records the state y at t; `dy` receives the right-hand side there (which sets the torques
-    // recorded), so that the RK4 step from this state reuses it as its first stage.
-    let record = |d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace, dy: &mut [f64]| -> Result<()> {
-        if !d.rhs(t, y, dy) {
-            return Err(d.take_error(format!("right-hand side failed at t = {t:.4} s")));
-        }
-        trace.t.push(t);
-        trace.q.extend_from_slice(&y[..n]);
-        trace.qd.extend_from_slice(&y[n..2 * n]);
-        for tau in &d.tau {
-            trace.tau.extend_from_slice(tau);
-        }
-        let e = d.energy(&y[..n], &y[n..2 * n])?;
-        trace.energy.push(e);
-        let (label, target, in_ball) = d.label(t, &y[..n])?;
-        trace.label.push(label);
-        trace.label_target.push(target);
-        trace.in_ball.push(in_ball);
-        Ok(())
-    };
     match settings.integrator {
-        Integrator::Rk4 => {
-            let steps = (spec.duration * settings.rate).round();
-            if steps > 1e9 {
-                return Err(Error::Setting {
-                    field: "simulate.rate".into(),
-                    reason: format!("{:.0} steps for {} s at {} Hz: at most 10⁹", steps, spec.duration, settings.rate),
-                });
-            }
-            let steps = steps as usize;
-            let due = output_steps(steps, settings.rate, out_every);
-            let mut next_sample = 0;
-            let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
-            let mut tmp = vec![0.0; dim];
-            for step in 0..=steps {
-                // Times from the step count (k/rate), never from repeated additions of h.
-                let t = step as f64 / settings.rate;
-                // The right-hand side is a function of (t, y) alone (its caches and peak torques
-                // aside, which a second call at the same point leaves as they are), so a recorded
-                // state's evaluation is the step's first stage.
-                let recorded = due.get(next_sample) == Some(&step);
-                if recorded {
-                    record(dynamics, t, &y, &mut trace, &mut k1)?;
-                    next_sample += 1;
-                }
-                if step == steps {
-                    break;
-                }
-                let fail = |d: &mut Dynamics<'_>| d.take_error(format!("right-hand side failed at t = {t:.4} s"));
-                if !recorded && !dynamics.rhs(t, &y, &mut k1) {
-                    return Err(fail(dynamics));
-                }
-                for i in 0..dim {
-                    tmp[i] = y[i] + 0.5 * h * k1[i];
-                }
-                if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k2) {
-                    return Err(fail(dynamics));
-                }
-                for i in 0..dim {
-                    tmp[i] = y[i] + 0.5 * h * k2[i];
-                }
-                if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k3) {
-                    return Err(fail(dynamics));
-                }
-                for i in 0..dim {
-                    tmp[i] = y[i] + h * k3[i];
-                }
-                if !dynamics.rhs(t + h, &tmp, &mut k4) {
-                    return Err(fail(dynamics));
-                }
-                for i in 0..dim {
-                    y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-                }
-                if y[..2 * n].iter().any(|v| !v.is_finite()) {
-                    return Err(Error::numerical(
-                        "simulation",
-                        format!("the state became non-finite at t = {:.4} s", t + h),
-                    ));
-                }
-            }
-        }
-        Integrator::Adaptive => {
-            let mut ode = Dopri5::new(dim, OdeSettings { max_step: h.max(settings.ode.max_step), ..settings.ode })
-                .with_error_components(2 * n);
-            let mut rhs = |t: f64, yy: &[f64], d: &mut [f64]| dynamics.rhs(t, yy, d);
-            ode.start(&mut rhs, 0.0, &y, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
-            let mut samples: Vec<(f64, Vec<f64>)> = vec![(0.0, y.clone())];
-            // Sample j at j·every (one multiplication, no accumulated round-off); a time within
-            // round-off of the end is the end.
-            let slack = 1e-9 * out_every;
-            let sample_time = |j: usize| {
-                let t = j as f64 * out_every;
-                if (t - spec.duration).abs() <= slack { spec.duration } else { t }
-            };
-            let mut next_j = 1;
-            loop {
-                let done =
-                    ode.step(&mut rhs, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
-                while sample_time(next_j) <= spec.duration && sample_time(next_j) <= ode.t() + slack {
-                    let tj = sample_time(next_j).min(ode.t());
-                    let mut s = vec![0.0; dim];
-                    ode.dense(tj, &mut s);
-                    samples.push((sample_time(next_j), s));
-                    next_j += 1;
-                }
-                if done {
-                    break;
-                }
-            }
-            y.copy_from_slice(ode.y());
-            let mut dy = vec![0.0; dim];
-            for (t, s) in samples {
-                record(dynamics, t, &s, &mut trace, &mut dy)?;
-            }
-        }
+        Integrator::Rk4 => integrate_rk4(dynamics, settings, &mut y, &mut trace)?,
+        Integrator::Adaptive => integrate_adaptive(dynamics, settings, &mut y, &mut trace)?,
     }
     let f = &y[2 * n..];
     Ok(RunResult {
@@ -529,6 +416,144 @@ pub fn run(dynamics: &mut Dynamics<'_>, settings: &SimSettings) -> Result<RunRes
         peak_demanded_torque: dynamics.peak_demand,
         saturated_s: f[NSRC],
     })
+}
+
+/// The time between output samples: the settings' interval, never shorter than a step.
+fn output_every(settings: &SimSettings) -> f64 {
+    settings.output_interval.max(1.0 / settings.rate)
+}
+
+/// Records the state y at t; `dy` receives the right-hand side there (which sets the torques
+/// recorded), so that the RK4 step from this state reuses it as its first stage.
+fn record(d: &mut Dynamics<'_>, t: f64, y: &[f64], trace: &mut Trace, dy: &mut [f64]) -> Result<()> {
+    let n = trace.n;
+    if !d.rhs(t, y, dy) {
+        return Err(d.take_error(format!("right-hand side failed at t = {t:.4} s")));
+    }
+    trace.t.push(t);
+    trace.q.extend_from_slice(&y[..n]);
+    trace.qd.extend_from_slice(&y[n..2 * n]);
+    for tau in &d.tau {
+        trace.tau.extend_from_slice(tau);
+    }
+    let e = d.energy(&y[..n], &y[n..2 * n])?;
+    trace.energy.push(e);
+    let (label, target, in_ball) = d.label(t, &y[..n])?;
+    trace.label.push(label);
+    trace.label_target.push(target);
+    trace.in_ball.push(in_ball);
+    Ok(())
+}
+
+/// Classical RK4 at the settings' rate from y (left at the end state), recording the samples
+/// [`output_steps`] schedules.
+fn integrate_rk4(dynamics: &mut Dynamics<'_>, settings: &SimSettings, y: &mut [f64], trace: &mut Trace) -> Result<()> {
+    let spec = dynamics.spec;
+    let (n, dim) = (trace.n, y.len());
+    let h = 1.0 / settings.rate;
+    let steps = (spec.duration * settings.rate).round();
+    if steps > 1e9 {
+        return Err(Error::Setting {
+            field: "simulate.rate".into(),
+            reason: format!("{:.0} steps for {} s at {} Hz: at most 10⁹", steps, spec.duration, settings.rate),
+        });
+    }
+    let steps = steps as usize;
+    let due = output_steps(steps, settings.rate, output_every(settings));
+    let mut next_sample = 0;
+    let (mut k1, mut k2, mut k3, mut k4) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
+    let mut tmp = vec![0.0; dim];
+    for step in 0..=steps {
+        // Times from the step count (k/rate), never from repeated additions of h.
+        let t = step as f64 / settings.rate;
+        // The right-hand side is a function of (t, y) alone (its caches and peak torques
+        // aside, which a second call at the same point leaves as they are), so a recorded
+        // state's evaluation is the step's first stage.
+        let recorded = due.get(next_sample) == Some(&step);
+        if recorded {
+            record(dynamics, t, y, trace, &mut k1)?;
+            next_sample += 1;
+        }
+        if step == steps {
+            break;
+        }
+        let fail = |d: &mut Dynamics<'_>| d.take_error(format!("right-hand side failed at t = {t:.4} s"));
+        if !recorded && !dynamics.rhs(t, y, &mut k1) {
+            return Err(fail(dynamics));
+        }
+        for i in 0..dim {
+            tmp[i] = y[i] + 0.5 * h * k1[i];
+        }
+        if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k2) {
+            return Err(fail(dynamics));
+        }
+        for i in 0..dim {
+            tmp[i] = y[i] + 0.5 * h * k2[i];
+        }
+        if !dynamics.rhs(t + 0.5 * h, &tmp, &mut k3) {
+            return Err(fail(dynamics));
+        }
+        for i in 0..dim {
+            tmp[i] = y[i] + h * k3[i];
+        }
+        if !dynamics.rhs(t + h, &tmp, &mut k4) {
+            return Err(fail(dynamics));
+        }
+        for i in 0..dim {
+            y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        if y[..2 * n].iter().any(|v| !v.is_finite()) {
+            return Err(Error::numerical("simulation", format!("the state became non-finite at t = {:.4} s", t + h)));
+        }
+    }
+    Ok(())
+}
+
+/// Dormand–Prince 5(4) with the error controlled on the state alone (not the accumulated fluxes)
+/// and steps of at most one RK4 step, from y (left at the end state); samples are taken from the
+/// dense output at multiples of the output interval, then recorded.
+fn integrate_adaptive(
+    dynamics: &mut Dynamics<'_>,
+    settings: &SimSettings,
+    y: &mut [f64],
+    trace: &mut Trace,
+) -> Result<()> {
+    let spec = dynamics.spec;
+    let (n, dim) = (trace.n, y.len());
+    let h = 1.0 / settings.rate;
+    let out_every = output_every(settings);
+    let mut ode = Dopri5::new(dim, OdeSettings { max_step: h.max(settings.ode.max_step), ..settings.ode })
+        .with_error_components(2 * n);
+    let mut rhs = |t: f64, yy: &[f64], d: &mut [f64]| dynamics.rhs(t, yy, d);
+    ode.start(&mut rhs, 0.0, y, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
+    let mut samples: Vec<(f64, Vec<f64>)> = vec![(0.0, y.to_vec())];
+    // Sample j at j·every (one multiplication, no accumulated round-off); a time within
+    // round-off of the end is the end.
+    let slack = 1e-9 * out_every;
+    let sample_time = |j: usize| {
+        let t = j as f64 * out_every;
+        if (t - spec.duration).abs() <= slack { spec.duration } else { t }
+    };
+    let mut next_j = 1;
+    loop {
+        let done = ode.step(&mut rhs, spec.duration).map_err(|e| Error::numerical("simulation", e.to_string()))?;
+        while sample_time(next_j) <= spec.duration && sample_time(next_j) <= ode.t() + slack {
+            let tj = sample_time(next_j).min(ode.t());
+            let mut s = vec![0.0; dim];
+            ode.dense(tj, &mut s);
+            samples.push((sample_time(next_j), s));
+            next_j += 1;
+        }
+        if done {
+            break;
+        }
+    }
+    y.copy_from_slice(ode.y());
+    let mut dy = vec![0.0; dim];
+    for (t, s) in samples {
+        record(dynamics, t, &s, trace, &mut dy)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -41,7 +41,7 @@ use std::fmt::Write as _;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use crate::design::Design;
-use crate::elements::{Profile, Side};
+use crate::elements::{Element, Profile, Side};
 use crate::error::{Error, Result};
 use crate::fit::bill::BomRow;
 use crate::model::Chain;
@@ -316,6 +316,11 @@ fn body_texts(chain: &Chain) -> Vec<BodyText> {
 
 /// Builds the MJCF model of `design` with the springs of `rows`, integrated by RK4 with step
 /// `timestep` seconds.
+///
+/// Each row becomes MuJoCo's own element where one reproduces it exactly (joint stiffness, a
+/// fixed tendon, a dead band, a spatial tendon between two sites for a crank) and a callback
+/// entry otherwise (a cam once, at its first coefficient row); then the text is written around
+/// the bodies.
 pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoModel> {
     let n = design.dof();
     if !(timestep.is_finite() && timestep > 0.0) {
@@ -327,204 +332,266 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
         });
     }
-    let chain = &design.chain;
-    // Joint attributes, sites per body (index 0 is the world), tendons, callbacks.
-    let mut joint_attrs: Vec<Option<String>> = vec![None; n];
-    let mut sites: Vec<Vec<String>> = vec![Vec::new(); n + 1];
-    let mut tendons = String::new();
-    let mut customs = String::new();
+    let mut parts = Parts::new(n);
     let mut elements = Vec::with_capacity(rows.len());
-    let mut used_names = std::collections::BTreeSet::new();
     let cams = crate::fit::bill::grouped(rows);
     let mut cams_done = vec![false; cams.len()];
     for (i, row) in rows.iter().enumerate() {
-        let e = &row.element;
-        if matches!(e.profile, Profile::Spline(_)) {
+        if matches!(row.element.profile, Profile::Spline(_)) {
             // A cam: one callback entry for all its coefficient rows, at its first.
             let id = row.id.split('.').next().unwrap_or(&row.id);
             let Some(c) = cams.iter().position(|c| c.id == id) else { continue };
-            if std::mem::replace(&mut cams_done[c], true) {
-                continue;
+            if !std::mem::replace(&mut cams_done[c], true) {
+                elements.push(parts.cam(c, &cams[c]));
             }
-            let cam = &cams[c];
-            let mut name = sanitize(&cam.id);
-            if name.is_empty() || !used_names.insert(name.clone()) {
-                name = format!("cam_{}", c + 1);
-                used_names.insert(name.clone());
-            }
-            let mut data = vec![f64::from(cam.knots.count), cam.knots.width, cam.knots.lo];
-            data.extend_from_slice(&cam.coupling);
-            data.extend_from_slice(&cam.coefficients);
-            let data: Vec<String> = data.into_iter().map(num).collect();
-            let _ = writeln!(customs, "    <numeric name=\"{CAM_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
-            elements.push(ExportedElement {
-                id: cam.id.clone(),
-                name,
-                label: format!(
-                    "cam ({}) on {} knots from {:.3}",
-                    cam.coupling.iter().map(|a| crate::elements::fmt_number(*a)).collect::<Vec<_>>().join(";"),
-                    cam.knots.count,
-                    cam.knots.lo
-                ),
-                stiffness: format!("{} coefficients (J)", cam.coefficients.len()),
-                representation: Representation::Callback {
-                    reason: "a cam: MuJoCo has no element for an arbitrary profile".into(),
-                },
-            });
             continue;
         }
-        let k = row.stiffness;
-        let mut name = sanitize(&row.id);
-        if name.is_empty() || !used_names.insert(name.clone()) {
-            name = format!("spring_{}", i + 1);
-            used_names.insert(name.clone());
+        elements.push(parts.spring(&design.chain, i, row));
+    }
+    let xml = parts.xml(design, &elements, timestep);
+    Ok(MujocoModel { xml, elements, timestep })
+}
+
+/// The pieces of the model the elements add to, gathered before the text is written: joint
+/// attributes, sites per body (index 0 is the world), tendons, callback entries, and the names
+/// used so far.
+struct Parts {
+    joint_attrs: Vec<Option<String>>,
+    sites: Vec<Vec<String>>,
+    tendons: String,
+    customs: String,
+    used_names: std::collections::BTreeSet<String>,
+}
+
+impl Parts {
+    fn new(n: usize) -> Parts {
+        Parts {
+            joint_attrs: vec![None; n],
+            sites: vec![Vec::new(); n + 1],
+            tendons: String::new(),
+            customs: String::new(),
+            used_names: std::collections::BTreeSet::new(),
         }
-        let nonzero: Vec<usize> = (0..n).filter(|&j| e.coupling[j] != 0.0).collect();
+    }
+
+    /// The MJCF name of element `id`: the id made a name, or `fallback` when that is empty or
+    /// taken.
+    fn name(&mut self, id: &str, fallback: String) -> String {
+        let mut name = sanitize(id);
+        if name.is_empty() || !self.used_names.insert(name.clone()) {
+            name = fallback;
+            self.used_names.insert(name.clone());
+        }
+        name
+    }
+
+    /// Cam `c` of the bill: a callback entry with its knots, coupling and coefficients.
+    fn cam(&mut self, c: usize, cam: &crate::realise::cam::FittedCam) -> ExportedElement {
+        let name = self.name(&cam.id, format!("cam_{}", c + 1));
+        let mut data = vec![f64::from(cam.knots.count), cam.knots.width, cam.knots.lo];
+        data.extend_from_slice(&cam.coupling);
+        data.extend_from_slice(&cam.coefficients);
+        let data: Vec<String> = data.into_iter().map(num).collect();
+        let _ = writeln!(self.customs, "    <numeric name=\"{CAM_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
+        ExportedElement {
+            id: cam.id.clone(),
+            name,
+            label: format!(
+                "cam ({}) on {} knots from {:.3}",
+                cam.coupling.iter().map(|a| crate::elements::fmt_number(*a)).collect::<Vec<_>>().join(";"),
+                cam.knots.count,
+                cam.knots.lo
+            ),
+            stiffness: format!("{} coefficients (J)", cam.coefficients.len()),
+            representation: Representation::Callback {
+                reason: "a cam: MuJoCo has no element for an arbitrary profile".into(),
+            },
+        }
+    }
+
+    /// Row i, a spring: MuJoCo's own element where one reproduces its profile on its coupling,
+    /// a callback entry otherwise.
+    fn spring(&mut self, chain: &Chain, i: usize, row: &BomRow) -> ExportedElement {
+        let e = &row.element;
+        let k = row.stiffness;
+        let name = self.name(&row.id, format!("spring_{}", i + 1));
+        let nonzero: Vec<usize> = (0..e.coupling.len()).filter(|&j| e.coupling[j] != 0.0).collect();
         let single = if nonzero.len() == 1 { Some(nonzero[0]) } else { None };
-        let coefs = |sign: f64| -> String {
-            let mut s = String::new();
-            for &j in &nonzero {
-                let _ = writeln!(s, "      <joint joint=\"q{}\" coef=\"{}\"/>", j + 1, num(sign * e.coupling[j]));
-            }
-            s
+        let representation = match (e.profile, single) {
+            (Profile::Linear | Profile::Cubic, _) => self.linear_or_cubic(&name, e, k, &nonzero, single),
+            (Profile::Compression(side), _) if !nonzero.is_empty() => self.dead_band(&name, e, k, side, &nonzero),
+            (Profile::Crank, Some(j)) if e.coupling[j].abs() == 1.0 => self.crank(chain, &name, e, k, j),
+            _ => self.callback(&name, e, k, nonzero.is_empty()),
         };
-        let representation = match e.profile {
-            Profile::Linear | Profile::Cubic => {
-                let stiffness = if e.profile == Profile::Linear { num(k) } else { format!("0 0 {}", num(k)) };
-                match single {
-                    Some(j) if e.coupling[j] == 1.0 && joint_attrs[j].is_none() => {
-                        joint_attrs[j] = Some(format!(" stiffness=\"{stiffness}\" springref=\"{}\"", num(e.offset)));
-                        Representation::Joint { joint: j }
-                    }
-                    _ if nonzero.is_empty() => Representation::Callback { reason: "the coupling is zero".into() },
-                    _ => {
-                        // A single springlength of exactly −1 means "the length at qpos_spring" to
-                        // MuJoCo: negate the tendon (L' = −L, L₀' = 1), which leaves the odd
-                        // force laws of linear and cubic springs unchanged.
-                        let negated = e.offset == -1.0;
-                        let sign = if negated { -1.0 } else { 1.0 };
-                        let _ = write!(
-                            tendons,
-                            "    <fixed name=\"{name}\" stiffness=\"{stiffness}\" springlength=\"{}\">\n{}    </fixed>\n",
-                            num(sign * e.offset),
-                            coefs(sign)
-                        );
-                        Representation::FixedTendon { negated }
-                    }
-                }
-            }
-            Profile::Compression(side) if !nonzero.is_empty() => {
-                // No force inside [lo, hi]: side + engages above x₀, side − below.
-                let (lo, hi) = match side {
-                    Side::Plus => (-DEAD_BAND_FAR, e.offset),
-                    Side::Minus => (e.offset, DEAD_BAND_FAR),
-                };
-                let _ = write!(
-                    tendons,
-                    "    <fixed name=\"{name}\" stiffness=\"{}\" springlength=\"{} {}\">\n{}    </fixed>\n",
-                    num(k),
-                    num(lo),
-                    num(hi),
-                    coefs(1.0)
-                );
-                Representation::DeadBand
-            }
-            Profile::Crank if single.is_some_and(|j| e.coupling[j].abs() == 1.0) => {
-                let j = single.expect("checked");
-                // 1 − cos(a q − x₀) = 1 − cos(q − a x₀) for a = ±1.
-                let phase = e.coupling[j] * e.offset;
-                let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
-                let (parent, child) = crank_sites(chain, j, phase);
-                sites[j]
-                    .push(format!("<site name=\"{name}_parent\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, parent)));
-                sites[j + 1]
-                    .push(format!("<site name=\"{name}_child\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, child)));
-                let _ = write!(
-                    tendons,
-                    "    <spatial name=\"{name}\" stiffness=\"{}\" springlength=\"0\" width=\"0.003\">\n      <site site=\"{name}_parent\"/>\n      <site site=\"{name}_child\"/>\n    </spatial>\n",
-                    num(kappa)
-                );
-                Representation::SpatialCrank { joint: j }
-            }
-            _ => {
-                let mut data = vec![f64::from(callback_code(e.profile)), k, e.offset];
-                data.extend_from_slice(&e.coupling);
-                let data: Vec<String> = data.into_iter().map(num).collect();
-                let _ =
-                    writeln!(customs, "    <numeric name=\"{CALLBACK_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
-                Representation::Callback {
-                    reason: if nonzero.is_empty() {
-                        "the coupling is zero".into()
-                    } else {
-                        "a crank on a coupling (or with a gear ratio) has no built-in MuJoCo equivalent".into()
-                    },
-                }
-            }
-        };
-        elements.push(ExportedElement {
+        ExportedElement {
             id: row.id.clone(),
             name,
             label: e.label(),
             stiffness: format!("{} {}", k, e.profile.unit()),
             representation,
-        });
+        }
     }
 
-    let mut x = String::new();
-    let _ = writeln!(
-        x,
-        "<mujoco model=\"{}\">\n  <!-- Exported by springfit from {}: {} links, {} springs ({} exact, {} by passive-force callback).\n       Angles in radians; q = qpos ({}). See elements.md. -->",
-        escape(&design.name),
-        escape(&design.path.display().to_string().replace("--", "-")),
-        n,
-        elements.len(),
-        elements.iter().filter(|e| e.representation.is_exact()).count(),
-        elements.iter().filter(|e| !e.representation.is_exact()).count(),
-        escape(&joint_meaning(chain).replace("--", "-"))
-    );
-    x.push_str("  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\"/>\n");
-    let g: Vec<String> = gravity(chain).into_iter().map(num).collect();
-    let _ = writeln!(
-        x,
-        "  <option timestep=\"{}\" integrator=\"RK4\" gravity=\"{}\">\n    <flag contact=\"disable\" energy=\"enable\"/>\n  </option>",
-        num(timestep),
-        match chain {
-            Chain::Planar(_) => format!("{} {} 0", g[0], g[1]),
-            Chain::Spatial(_) => g.join(" "),
-        }
-    );
-    x.push_str(
-        "  <default>\n    <joint type=\"hinge\" axis=\"0 0 1\" damping=\"0\" armature=\"0\" frictionloss=\"0\" limited=\"false\"/>\n    <geom type=\"capsule\" size=\"0.02\" contype=\"0\" conaffinity=\"0\" rgba=\"0.4 0.5 0.7 1\"/>\n  </default>\n",
-    );
-    x.push_str("  <worldbody>\n");
-    for s in &sites[0] {
-        let _ = writeln!(x, "    {s}");
-    }
-    let mut indent = String::from("    ");
-    for (i, body) in body_texts(chain).iter().enumerate() {
-        let _ = writeln!(x, "{indent}<body name=\"link{}\" {}>", i + 1, body.placement);
-        indent.push_str("  ");
-        let _ =
-            writeln!(x, "{indent}<joint name=\"q{}\"{}{}/>", i + 1, body.axis, joint_attrs[i].as_deref().unwrap_or(""));
-        let _ = writeln!(x, "{indent}{}", body.inertial);
-        let _ = writeln!(x, "{indent}{}", body.geom);
-        for s in &sites[i + 1] {
-            let _ = writeln!(x, "{indent}{s}");
+    /// A linear or cubic spring: joint stiffness on a joint of its own at ratio 1 (the first
+    /// there), a fixed tendon otherwise.
+    fn linear_or_cubic(
+        &mut self,
+        name: &str,
+        e: &Element,
+        k: f64,
+        nonzero: &[usize],
+        single: Option<usize>,
+    ) -> Representation {
+        let stiffness = if e.profile == Profile::Linear { num(k) } else { format!("0 0 {}", num(k)) };
+        match single {
+            Some(j) if e.coupling[j] == 1.0 && self.joint_attrs[j].is_none() => {
+                self.joint_attrs[j] = Some(format!(" stiffness=\"{stiffness}\" springref=\"{}\"", num(e.offset)));
+                Representation::Joint { joint: j }
+            }
+            _ if nonzero.is_empty() => Representation::Callback { reason: "the coupling is zero".into() },
+            _ => {
+                // A single springlength of exactly −1 means "the length at qpos_spring" to
+                // MuJoCo: negate the tendon (L' = −L, L₀' = 1), which leaves the odd
+                // force laws of linear and cubic springs unchanged.
+                let negated = e.offset == -1.0;
+                let sign = if negated { -1.0 } else { 1.0 };
+                let _ = write!(
+                    self.tendons,
+                    "    <fixed name=\"{name}\" stiffness=\"{stiffness}\" springlength=\"{}\">\n{}    </fixed>\n",
+                    num(sign * e.offset),
+                    coefs(e, nonzero, sign)
+                );
+                Representation::FixedTendon { negated }
+            }
         }
     }
-    for _ in 0..n {
-        indent.truncate(indent.len() - 2);
-        let _ = writeln!(x, "{indent}</body>");
+
+    /// A compression spring: a fixed tendon with no force inside its dead band.
+    fn dead_band(&mut self, name: &str, e: &Element, k: f64, side: Side, nonzero: &[usize]) -> Representation {
+        // No force inside [lo, hi]: side + engages above x₀, side − below.
+        let (lo, hi) = match side {
+            Side::Plus => (-DEAD_BAND_FAR, e.offset),
+            Side::Minus => (e.offset, DEAD_BAND_FAR),
+        };
+        let _ = write!(
+            self.tendons,
+            "    <fixed name=\"{name}\" stiffness=\"{}\" springlength=\"{} {}\">\n{}    </fixed>\n",
+            num(k),
+            num(lo),
+            num(hi),
+            coefs(e, nonzero, 1.0)
+        );
+        Representation::DeadBand
     }
-    x.push_str("  </worldbody>\n");
-    if !tendons.is_empty() {
-        let _ = write!(x, "  <tendon>\n{tendons}  </tendon>\n");
+
+    /// A crank on joint j alone at ratio ±1: a zero-length spatial tendon between a site on
+    /// each of the joint's links.
+    fn crank(&mut self, chain: &Chain, name: &str, e: &Element, k: f64, j: usize) -> Representation {
+        // 1 − cos(a q − x₀) = 1 − cos(q − a x₀) for a = ±1.
+        let phase = e.coupling[j] * e.offset;
+        let kappa = k / (CRANK_CHILD_RADIUS * CRANK_PARENT_RADIUS);
+        let (parent, child) = crank_sites(chain, j, phase);
+        self.sites[j].push(format!("<site name=\"{name}_parent\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, parent)));
+        self.sites[j + 1]
+            .push(format!("<site name=\"{name}_child\" pos=\"{}\" size=\"0.01\"/>", site_pos(chain, child)));
+        let _ = write!(
+            self.tendons,
+            "    <spatial name=\"{name}\" stiffness=\"{}\" springlength=\"0\" width=\"0.003\">\n      <site site=\"{name}_parent\"/>\n      <site site=\"{name}_child\"/>\n    </spatial>\n",
+            num(kappa)
+        );
+        Representation::SpatialCrank { joint: j }
     }
-    if !customs.is_empty() {
-        let _ = write!(x, "  <custom>\n{customs}  </custom>\n");
+
+    /// Any other spring: a callback entry with its profile code, rate, offset and coupling.
+    fn callback(&mut self, name: &str, e: &Element, k: f64, zero_coupling: bool) -> Representation {
+        let mut data = vec![f64::from(callback_code(e.profile)), k, e.offset];
+        data.extend_from_slice(&e.coupling);
+        let data: Vec<String> = data.into_iter().map(num).collect();
+        let _ = writeln!(self.customs, "    <numeric name=\"{CALLBACK_PREFIX}{name}\" data=\"{}\"/>", data.join(" "));
+        Representation::Callback {
+            reason: if zero_coupling {
+                "the coupling is zero".into()
+            } else {
+                "a crank on a coupling (or with a gear ratio) has no built-in MuJoCo equivalent".into()
+            },
+        }
     }
-    x.push_str("</mujoco>\n");
-    Ok(MujocoModel { xml: x, elements, timestep })
+
+    /// The MJCF text: the header and options, the bodies with their joints and sites, the
+    /// tendons and the callback entries.
+    fn xml(&self, design: &Design, elements: &[ExportedElement], timestep: f64) -> String {
+        let chain = &design.chain;
+        let mut x = String::new();
+        let _ = writeln!(
+            x,
+            "<mujoco model=\"{}\">\n  <!-- Exported by springfit from {}: {} links, {} springs ({} exact, {} by passive-force callback).\n       Angles in radians; q = qpos ({}). See elements.md. -->",
+            escape(&design.name),
+            escape(&design.path.display().to_string().replace("--", "-")),
+            design.dof(),
+            elements.len(),
+            elements.iter().filter(|e| e.representation.is_exact()).count(),
+            elements.iter().filter(|e| !e.representation.is_exact()).count(),
+            escape(&joint_meaning(chain).replace("--", "-"))
+        );
+        x.push_str("  <compiler angle=\"radian\" inertiafromgeom=\"false\" autolimits=\"true\"/>\n");
+        let g: Vec<String> = gravity(chain).into_iter().map(num).collect();
+        let _ = writeln!(
+            x,
+            "  <option timestep=\"{}\" integrator=\"RK4\" gravity=\"{}\">\n    <flag contact=\"disable\" energy=\"enable\"/>\n  </option>",
+            num(timestep),
+            match chain {
+                Chain::Planar(_) => format!("{} {} 0", g[0], g[1]),
+                Chain::Spatial(_) => g.join(" "),
+            }
+        );
+        x.push_str(
+            "  <default>\n    <joint type=\"hinge\" axis=\"0 0 1\" damping=\"0\" armature=\"0\" frictionloss=\"0\" limited=\"false\"/>\n    <geom type=\"capsule\" size=\"0.02\" contype=\"0\" conaffinity=\"0\" rgba=\"0.4 0.5 0.7 1\"/>\n  </default>\n",
+        );
+        self.write_worldbody(&mut x, chain);
+        if !self.tendons.is_empty() {
+            let _ = write!(x, "  <tendon>\n{}  </tendon>\n", self.tendons);
+        }
+        if !self.customs.is_empty() {
+            let _ = write!(x, "  <custom>\n{}  </custom>\n", self.customs);
+        }
+        x.push_str("</mujoco>\n");
+        x
+    }
+
+    /// The world's sites and the bodies nested one in the next, each with its joint (and the
+    /// joint's spring attributes), inertia, geometry and sites.
+    fn write_worldbody(&self, x: &mut String, chain: &Chain) {
+        x.push_str("  <worldbody>\n");
+        for s in &self.sites[0] {
+            let _ = writeln!(x, "    {s}");
+        }
+        let mut indent = String::from("    ");
+        for (i, body) in body_texts(chain).iter().enumerate() {
+            let _ = writeln!(x, "{indent}<body name=\"link{}\" {}>", i + 1, body.placement);
+            indent.push_str("  ");
+            let attrs = self.joint_attrs[i].as_deref().unwrap_or("");
+            let _ = writeln!(x, "{indent}<joint name=\"q{}\"{}{attrs}/>", i + 1, body.axis);
+            let _ = writeln!(x, "{indent}{}", body.inertial);
+            let _ = writeln!(x, "{indent}{}", body.geom);
+            for s in &self.sites[i + 1] {
+                let _ = writeln!(x, "{indent}{s}");
+            }
+        }
+        for _ in 0..self.joint_attrs.len() {
+            indent.truncate(indent.len() - 2);
+            let _ = writeln!(x, "{indent}</body>");
+        }
+        x.push_str("  </worldbody>\n");
+    }
+}
+
+/// A fixed tendon's joints and coefficients: `sign` × the coupling's non-zero entries.
+fn coefs(e: &Element, nonzero: &[usize], sign: f64) -> String {
+    let mut s = String::new();
+    for &j in nonzero {
+        let _ = writeln!(s, "      <joint joint=\"q{}\" coef=\"{}\"/>", j + 1, num(sign * e.coupling[j]));
+    }
+    s
 }
 
 /// The names `springfit export --mujoco` may write for `design` (see

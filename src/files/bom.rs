@@ -289,207 +289,64 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<BomRow>> {
 
 /// [`parse`], with the data line (0 = the first after the header) each row comes from: a cam's
 /// coefficient rows all come from its one line.
+///
+/// The header says which columns the file has; each line is read into its rows (a cam's into
+/// one per coefficient), ids checked unique across lines; last, every row must act on a robot
+/// with as many joints as the others.
 pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)> {
-    let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
-    let header = header.trim_start_matches('\u{feff}').trim();
-    let columns = if header == HEADER {
-        18
-    } else if header == HEADER_16 {
-        16
-    } else if header == HEADER_13 {
-        13
-    } else if header == HEADER_WITHOUT_PRELOAD {
-        12
-    } else {
-        return Err(bad(
-            1,
-            "header",
-            format!("expected `{HEADER}` (or an older file's first 12, 13 or 16 of those columns)"),
-        ));
-    };
+    let (_, header) = lines.next().ok_or_else(|| bad_line(path, 1, "header", "the file is empty"))?;
+    let columns = header_columns(path, header)?;
     let mut rows = Vec::new();
     let mut origin = Vec::new();
     // Each row's line and coupling length (all rows act on one robot), and the ids seen.
     let mut lengths: Vec<(usize, usize)> = Vec::new();
     let mut ids: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
-    for (line_index, (idx, line)) in lines.enumerate() {
-        let ln = idx + 1;
-        let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
-        if f.len() != columns {
-            return Err(bad(ln, "row", format!("has {} fields, expected {columns}", f.len())));
-        }
-        let num = |i: usize, name: &str| -> Result<f64> {
-            let v: f64 = f[i].trim().parse().map_err(|_| bad(ln, name, format!("`{}` is not a number", f[i])))?;
-            if !v.is_finite() {
-                return Err(bad(ln, name, format!("`{}` is not a finite number", f[i])));
-            }
-            Ok(v)
-        };
-        let angle = |i: usize, name: &str| -> Result<f64> {
-            let v = num(i, name)?;
-            within(v, MAX_ANGLE_RAD, " rad").map_err(|e| bad(ln, name, e))?;
-            Ok(v)
-        };
-        // A cam as one row (side empty) or, in older files, one row per signed coefficient.
-        let whole_cam = f[2].trim() == "cam" && f[3].trim().is_empty();
-        let profile = if whole_cam {
-            None
-        } else {
-            Some(Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| bad(ln, "profile", e))?)
-        };
-        let coupling: Vec<f64> = f[4]
-            .split(';')
-            .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| bad(ln, "coupling", format!("`{}` is not a list of numbers joined by `;`", f[4])))?;
-        if coupling.len() > MAX_LINKS {
-            return Err(bad(
-                ln,
-                "coupling",
-                format!("has {} entries: springfit handles chains of up to {MAX_LINKS} joints", coupling.len()),
-            ));
-        }
-        if coupling.iter().all(|a| *a == 0.0) {
-            return Err(bad(ln, "coupling", "a coupling of all zeros moves nothing".into()));
-        }
-        if let Some(a) = coupling.iter().find(|a| a.abs() > MAX_COUPLING) {
-            return Err(bad(
-                ln,
-                "coupling",
-                format!(
-                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
-                    show(*a),
-                    show(MAX_COUPLING)
-                ),
-            ));
-        }
-        lengths.push((ln, coupling.len()));
-        if let Some(&first) = ids.get(f[0].trim()) {
-            return Err(bad(
-                ln,
-                "id",
-                format!(
-                    "`{}` is also the id of line {first}: every row needs its own id (a row copied twice?)",
-                    f[0].trim()
-                ),
-            ));
-        }
-        ids.insert(f[0].trim().to_string(), ln);
-        let stiffness = num(6, "stiffness")?;
-        if stiffness < 0.0 {
-            return Err(bad(ln, "stiffness", format!("must be ≥ 0, got {}", show(stiffness))));
-        }
-        within(stiffness, MAX_STIFFNESS, "").map_err(|e| bad(ln, "stiffness", e))?;
-        let unit = profile.map_or(CAM_UNIT, |p| p.unit());
-        if f[7].trim() != unit {
-            let what = profile.map_or("cam's follower rate", |p| p.name());
-            return Err(bad(ln, "unit", format!("a {what} element's stiffness is in {unit}, not `{}`", f[7])));
-        }
-        let stock_rate = if f[10].trim().is_empty() { None } else { Some(num(10, "stock_rate")?) };
-        let tolerance = num(11, "tolerance")?;
-        if !(0.0..1.0).contains(&tolerance) {
-            return Err(bad(ln, "tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
-        }
-        let preload_nm = if columns < 13 || f[12].trim().is_empty() { None } else { Some(num(12, "preload_nm")?) };
-        let mut adjust = Adjustment::default();
-        if columns >= 16 {
-            if !f[13].trim().is_empty() {
-                let r = num(13, "adjust_range_rad")?;
-                if !(r > 0.0 && r <= std::f64::consts::PI) {
-                    return Err(bad(ln, "adjust_range_rad", format!("must be in (0, π] rad, got {r}")));
-                }
-                adjust.adjust_range = Some(r);
-            }
-            match (f[14].trim().is_empty(), f[15].trim().is_empty()) {
-                (true, true) => {}
-                (false, false) => {
-                    let (lo, hi) = (num(14, "trim_min")?, num(15, "trim_max")?);
-                    if !(lo >= 0.0 && hi > lo) {
-                        return Err(bad(
-                            ln,
-                            "trim_max",
-                            format!("a trim range needs 0 ≤ trim_min < trim_max, got [{lo}, {hi}]"),
-                        ));
-                    }
-                    if profile != Some(Profile::Linear) {
-                        return Err(bad(ln, "trim_min", "only linear springs can be trims".into()));
-                    }
-                    adjust.trim_range = Some([lo, hi]);
-                }
-                _ => return Err(bad(ln, "trim_max", "trim_min and trim_max are given together or not at all".into())),
-            }
-        }
-        let (gear_ratio, file) = if columns == 18 {
-            let g = if f[16].trim().is_empty() { None } else { Some(num(16, "gear_ratio")?) };
-            (g, f[17].trim())
-        } else {
-            (None, "")
-        };
-        let Some(profile) = profile else {
-            let cam = CamRowText {
-                bom: path,
-                line: ln,
-                id: &f[0],
-                coupling: &coupling,
-                first_knot: angle(5, "offset_rad")?,
-                follower_rate: stiffness,
-                gear_ratio,
-                file,
-            };
-            if stock_rate.is_some() {
-                return Err(bad(ln, "stock_rate", "a cam has no stock rate: leave it empty".into()));
-            }
-            // Written as the knot span; the file's knots say it exactly.
-            num(9, "max_deflection_rad")?;
-            let (coefficients, summary, span) = cam.load(num(8, "max_torque_nm")?, preload_nm)?;
-            for (elements, c) in coefficients {
-                rows.push(BomRow {
-                    id: elements.0,
-                    family: f[1].clone(),
-                    element: elements.1,
-                    stiffness: c,
-                    max_torque_nm: summary.max_torque_nm,
-                    max_deflection_rad: span,
-                    stock_rate: None,
-                    tolerance,
-                    preload_nm: None,
-                    adjust,
-                    cam: Some(summary),
-                });
-                origin.push(line_index);
-            }
-            continue;
-        };
-        if gear_ratio.is_some() || !file.is_empty() {
-            return Err(bad(
-                ln,
-                if file.is_empty() { "gear_ratio" } else { "file" },
-                "only a cam's row (profile `cam`, side empty) has a gear ratio and a file".into(),
-            ));
-        }
-        rows.push(BomRow {
-            id: f[0].clone(),
-            family: f[1].clone(),
-            element: Element { profile, coupling, offset: angle(5, "offset_rad")? },
-            stiffness,
-            max_torque_nm: num(8, "max_torque_nm")?,
-            max_deflection_rad: num(9, "max_deflection_rad")?,
-            stock_rate,
-            tolerance,
-            preload_nm,
-            adjust,
-            cam: None,
-        });
-        origin.push(line_index);
+    for (line_index, (idx, text)) in lines.enumerate() {
+        let line = DataLine::split(path, idx + 1, text, columns)?;
+        let line_rows = line.rows(columns, &mut ids, &mut lengths)?;
+        origin.extend(std::iter::repeat_n(line_index, line_rows.len()));
+        rows.extend(line_rows);
     }
     if rows.is_empty() {
-        return Err(bad(1, "rows", "the bill of materials lists no element".into()));
+        return Err(bad_line(path, 1, "rows", "the bill of materials lists no element"));
     }
-    // Rows for a robot of another size: the line that differs from most rows is the wrong one.
+    check_coupling_lengths(path, &lengths)?;
+    Ok((rows, origin))
+}
+
+/// An error on line `line` of the bill of materials, in column `field`.
+fn bad_line(path: &Path, line: usize, field: &str, reason: impl Into<String>) -> Error {
+    Error::invalid(path, format!("line {line}: {field}"), reason)
+}
+
+/// The number of columns the header announces: this version's 18, or an older file's 16, 13 or
+/// 12 (a byte-order mark and surrounding blanks ignored).
+fn header_columns(path: &Path, header: &str) -> Result<usize> {
+    let header = header.trim_start_matches('\u{feff}').trim();
+    if header == HEADER {
+        Ok(18)
+    } else if header == HEADER_16 {
+        Ok(16)
+    } else if header == HEADER_13 {
+        Ok(13)
+    } else if header == HEADER_WITHOUT_PRELOAD {
+        Ok(12)
+    } else {
+        Err(bad_line(
+            path,
+            1,
+            "header",
+            format!("expected `{HEADER}` (or an older file's first 12, 13 or 16 of those columns)"),
+        ))
+    }
+}
+
+/// Rows for a robot of another size: the line whose coupling length differs from most rows'
+/// is the wrong one (`lengths`: each row's line and coupling length).
+fn check_coupling_lengths(path: &Path, lengths: &[(usize, usize)]) -> Result<()> {
     let mut counts: Vec<(usize, usize)> = Vec::new();
-    for &(_, len) in &lengths {
+    for &(_, len) in lengths {
         match counts.iter_mut().find(|(l, _)| *l == len) {
             Some(c) => c.1 += 1,
             None => counts.push((len, 1)),
@@ -498,14 +355,255 @@ pub fn parse_lines(path: &Path, text: &str) -> Result<(Vec<BomRow>, Vec<usize>)>
     if counts.len() > 1 {
         let (usual, _) = counts.iter().copied().max_by_key(|&(len, n)| (n, std::cmp::Reverse(len))).unwrap_or((0, 0));
         if let Some(&(ln, len)) = lengths.iter().find(|(_, len)| *len != usual) {
-            return Err(bad(
+            return Err(bad_line(
+                path,
                 ln,
                 "coupling",
                 format!("has {len} entries but the other rows have {usual} (one per joint)"),
             ));
         }
     }
-    Ok((rows, origin))
+    Ok(())
+}
+
+/// One data line of the bill of materials, split into its fields: errors name the file, the
+/// line and the column.
+struct DataLine<'a> {
+    path: &'a Path,
+    /// Line number, from 1.
+    ln: usize,
+    f: Vec<String>,
+}
+
+impl<'a> DataLine<'a> {
+    /// Splits line `ln` and checks it has `columns` fields.
+    fn split(path: &'a Path, ln: usize, text: &str, columns: usize) -> Result<DataLine<'a>> {
+        let f = split_csv_line(text).map_err(|e| bad_line(path, ln, "row", e))?;
+        if f.len() != columns {
+            return Err(bad_line(path, ln, "row", format!("has {} fields, expected {columns}", f.len())));
+        }
+        Ok(DataLine { path, ln, f })
+    }
+
+    fn bad(&self, field: &str, reason: impl Into<String>) -> Error {
+        bad_line(self.path, self.ln, field, reason)
+    }
+
+    /// Field i, a finite number.
+    fn num(&self, i: usize, name: &str) -> Result<f64> {
+        let f = &self.f;
+        let v: f64 = f[i].trim().parse().map_err(|_| self.bad(name, format!("`{}` is not a number", f[i])))?;
+        if !v.is_finite() {
+            return Err(self.bad(name, format!("`{}` is not a finite number", f[i])));
+        }
+        Ok(v)
+    }
+
+    /// Field i, a finite number; empty: None.
+    fn optional(&self, i: usize, name: &str) -> Result<Option<f64>> {
+        if self.f[i].trim().is_empty() { Ok(None) } else { Some(self.num(i, name)).transpose() }
+    }
+
+    /// Field i, an angle within the limits, rad.
+    fn angle(&self, i: usize, name: &str) -> Result<f64> {
+        let v = self.num(i, name)?;
+        within(v, MAX_ANGLE_RAD, " rad").map_err(|e| self.bad(name, e))?;
+        Ok(v)
+    }
+
+    /// The line's rows: one for a spring, one per non-zero coefficient for a cam. Its id is
+    /// recorded in `ids` (and must not be there yet), its coupling's length in `lengths`. The
+    /// columns are checked in their order in the file.
+    fn rows(
+        &self,
+        columns: usize,
+        ids: &mut std::collections::HashMap<String, usize>,
+        lengths: &mut Vec<(usize, usize)>,
+    ) -> Result<Vec<BomRow>> {
+        let (f, ln) = (&self.f, self.ln);
+        // A cam as one row (side empty) or, in older files, one row per signed coefficient.
+        let whole_cam = f[2].trim() == "cam" && f[3].trim().is_empty();
+        let profile = if whole_cam {
+            None
+        } else {
+            Some(Profile::parse(f[2].trim(), f[3].trim()).map_err(|e| self.bad("profile", e))?)
+        };
+        let coupling = self.coupling()?;
+        lengths.push((ln, coupling.len()));
+        if let Some(&first) = ids.get(f[0].trim()) {
+            return Err(self.bad(
+                "id",
+                format!(
+                    "`{}` is also the id of line {first}: every row needs its own id (a row copied twice?)",
+                    f[0].trim()
+                ),
+            ));
+        }
+        ids.insert(f[0].trim().to_string(), ln);
+        let stiffness = self.stiffness(profile)?;
+        let stock_rate = self.optional(10, "stock_rate")?;
+        let tolerance = self.num(11, "tolerance")?;
+        if !(0.0..1.0).contains(&tolerance) {
+            return Err(self.bad("tolerance", format!("must be a fraction in [0, 1), got {tolerance}")));
+        }
+        let preload_nm = if columns < 13 { None } else { self.optional(12, "preload_nm")? };
+        let adjust = if columns >= 16 { self.adjustment(profile)? } else { Adjustment::default() };
+        let (gear_ratio, file) =
+            if columns == 18 { (self.optional(16, "gear_ratio")?, f[17].trim()) } else { (None, "") };
+        let common = Common { stock_rate, tolerance, preload_nm, adjust };
+        let Some(profile) = profile else {
+            return self.cam_rows(coupling, stiffness, gear_ratio, file, common);
+        };
+        if gear_ratio.is_some() || !file.is_empty() {
+            return Err(self.bad(
+                if file.is_empty() { "gear_ratio" } else { "file" },
+                "only a cam's row (profile `cam`, side empty) has a gear ratio and a file",
+            ));
+        }
+        Ok(vec![BomRow {
+            id: f[0].clone(),
+            family: f[1].clone(),
+            element: Element { profile, coupling, offset: self.angle(5, "offset_rad")? },
+            stiffness,
+            max_torque_nm: self.num(8, "max_torque_nm")?,
+            max_deflection_rad: self.num(9, "max_deflection_rad")?,
+            stock_rate,
+            tolerance,
+            preload_nm,
+            adjust,
+            cam: None,
+        }])
+    }
+
+    /// The coupling: numbers joined by `;`, at most one per joint springfit handles, not all
+    /// zero, each within the largest gear ratio.
+    fn coupling(&self) -> Result<Vec<f64>> {
+        let f = &self.f;
+        let coupling: Vec<f64> = f[4]
+            .split(';')
+            .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| self.bad("coupling", format!("`{}` is not a list of numbers joined by `;`", f[4])))?;
+        if coupling.len() > MAX_LINKS {
+            return Err(self.bad(
+                "coupling",
+                format!("has {} entries: springfit handles chains of up to {MAX_LINKS} joints", coupling.len()),
+            ));
+        }
+        if coupling.iter().all(|a| *a == 0.0) {
+            return Err(self.bad("coupling", "a coupling of all zeros moves nothing"));
+        }
+        if let Some(a) = coupling.iter().find(|a| a.abs() > MAX_COUPLING) {
+            return Err(self.bad(
+                "coupling",
+                format!(
+                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
+                    show(*a),
+                    show(MAX_COUPLING)
+                ),
+            ));
+        }
+        Ok(coupling)
+    }
+
+    /// The stiffness, ≥ 0 and within the limits, in the unit of the profile (a cam's follower
+    /// rate: [`CAM_UNIT`]).
+    fn stiffness(&self, profile: Option<Profile>) -> Result<f64> {
+        let stiffness = self.num(6, "stiffness")?;
+        if stiffness < 0.0 {
+            return Err(self.bad("stiffness", format!("must be ≥ 0, got {}", show(stiffness))));
+        }
+        within(stiffness, MAX_STIFFNESS, "").map_err(|e| self.bad("stiffness", e))?;
+        let unit = profile.map_or(CAM_UNIT, |p| p.unit());
+        if self.f[7].trim() != unit {
+            let what = profile.map_or("cam's follower rate", |p| p.name());
+            return Err(self.bad("unit", format!("a {what} element's stiffness is in {unit}, not `{}`", self.f[7])));
+        }
+        Ok(stiffness)
+    }
+
+    /// What can be set after assembly (files of 16 columns or more): an adjustable offset's range
+    /// in (0, π], a linear trim spring's rate range, both columns or neither.
+    fn adjustment(&self, profile: Option<Profile>) -> Result<Adjustment> {
+        let f = &self.f;
+        let mut adjust = Adjustment::default();
+        if !f[13].trim().is_empty() {
+            let r = self.num(13, "adjust_range_rad")?;
+            if !(r > 0.0 && r <= std::f64::consts::PI) {
+                return Err(self.bad("adjust_range_rad", format!("must be in (0, π] rad, got {r}")));
+            }
+            adjust.adjust_range = Some(r);
+        }
+        match (f[14].trim().is_empty(), f[15].trim().is_empty()) {
+            (true, true) => {}
+            (false, false) => {
+                let (lo, hi) = (self.num(14, "trim_min")?, self.num(15, "trim_max")?);
+                if !(lo >= 0.0 && hi > lo) {
+                    return Err(
+                        self.bad("trim_max", format!("a trim range needs 0 ≤ trim_min < trim_max, got [{lo}, {hi}]"))
+                    );
+                }
+                if profile != Some(Profile::Linear) {
+                    return Err(self.bad("trim_min", "only linear springs can be trims"));
+                }
+                adjust.trim_range = Some([lo, hi]);
+            }
+            _ => return Err(self.bad("trim_max", "trim_min and trim_max are given together or not at all")),
+        }
+        Ok(adjust)
+    }
+
+    /// A cam's line: its file read and checked against the line, one row per non-zero
+    /// coefficient.
+    fn cam_rows(
+        &self,
+        coupling: Vec<f64>,
+        follower_rate: f64,
+        gear_ratio: Option<f64>,
+        file: &str,
+        common: Common,
+    ) -> Result<Vec<BomRow>> {
+        let cam = CamRowText {
+            bom: self.path,
+            line: self.ln,
+            id: &self.f[0],
+            coupling: &coupling,
+            first_knot: self.angle(5, "offset_rad")?,
+            follower_rate,
+            gear_ratio,
+            file,
+        };
+        if common.stock_rate.is_some() {
+            return Err(self.bad("stock_rate", "a cam has no stock rate: leave it empty"));
+        }
+        // Written as the knot span; the file's knots say it exactly.
+        self.num(9, "max_deflection_rad")?;
+        let (coefficients, summary, span) = cam.load(self.num(8, "max_torque_nm")?, common.preload_nm)?;
+        Ok(coefficients
+            .into_iter()
+            .map(|(elements, c)| BomRow {
+                id: elements.0,
+                family: self.f[1].clone(),
+                element: elements.1,
+                stiffness: c,
+                max_torque_nm: summary.max_torque_nm,
+                max_deflection_rad: span,
+                stock_rate: None,
+                tolerance: common.tolerance,
+                preload_nm: None,
+                adjust: common.adjust,
+                cam: Some(summary),
+            })
+            .collect())
+    }
+}
+
+/// The columns a spring's and a cam's line share, read.
+struct Common {
+    stock_rate: Option<f64>,
+    tolerance: f64,
+    preload_nm: Option<f64>,
+    adjust: Adjustment,
 }
 
 /// A cam's row in `bom.csv`, read: what its file must agree with.

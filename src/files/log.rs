@@ -43,90 +43,104 @@ pub fn read(path: &Path, dof: usize) -> Result<Log> {
     parse(path, &read_text(path)?, dof)
 }
 
-/// Parses the text of a log (see [`read`]).
+/// Parses the text of a log (see [`read`]): the header says which column holds what, then
+/// each line adds a sample to its run, then each run's sampling interval is checked.
 pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Log> {
-    let bad = |line: usize, field: &str, reason: String| Error::invalid(path, format!("line {line}: {field}"), reason);
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines.next().ok_or_else(|| bad(1, "header", "the file is empty".into()))?;
-    let names = split_csv_line(header.trim_start_matches('\u{feff}').trim()).map_err(|e| bad(1, "header", e))?;
-    let names: Vec<String> = names.iter().map(|n| n.trim().to_string()).collect();
-    let expected = format!(
-        "a log has columns t, q1…q{dof}, optionally tau1…tau{dof} and run (the design's robot has {dof} joints)"
-    );
-    let mut columns = Vec::with_capacity(names.len());
-    for name in &names {
-        let joint = |prefix: &str| name.strip_prefix(prefix).and_then(|i| i.parse::<usize>().ok()).filter(|i| *i >= 1);
-        let c = match name.as_str() {
-            "t" => Column::Time,
-            "run" => Column::Run,
-            _ => match (joint("q"), joint("tau")) {
-                (Some(i), _) => Column::Angle(i - 1),
-                (_, Some(i)) => Column::Torque(i - 1),
-                _ => return Err(bad(1, "header", format!("unknown column `{name}`: {expected}"))),
-            },
-        };
-        if columns.contains(&c) {
-            return Err(bad(1, "header", format!("column `{name}` appears twice")));
-        }
-        columns.push(c);
-    }
-    let position = |c: Column| columns.iter().position(|x| *x == c);
-    let time = position(Column::Time).ok_or_else(|| bad(1, "header", format!("no column `t`: {expected}")))?;
-    let widest = columns
-        .iter()
-        .filter_map(|c| match c {
-            Column::Angle(i) | Column::Torque(i) => Some(*i + 1),
-            _ => None,
-        })
-        .max()
-        .unwrap_or(0);
-    if widest > dof {
-        return Err(bad(
-            1,
-            "header",
-            format!("the log has columns for {widest} joints but the design's robot has {dof}: {expected}"),
-        ));
-    }
-    let angles: Vec<usize> = (0..dof)
-        .map(|j| {
-            position(Column::Angle(j)).ok_or_else(|| bad(1, "header", format!("no column `q{}`: {expected}", j + 1)))
-        })
-        .collect::<Result<_>>()?;
-    let torques: Vec<Option<usize>> = (0..dof).map(|j| position(Column::Torque(j))).collect();
-    let torques: Option<Vec<usize>> = match torques.iter().filter(|c| c.is_some()).count() {
-        0 => None,
-        k if k == dof => Some(torques.into_iter().flatten().collect()),
-        _ => {
-            let missing = (0..dof).find(|&j| torques[j].is_none()).unwrap_or(0);
-            return Err(bad(
-                1,
-                "header",
-                format!("no column `tau{}`: torques are given for every joint or for none", missing + 1),
-            ));
-        }
-    };
-    let run_column = position(Column::Run);
-
+    let (_, header) = lines.next().ok_or_else(|| bad_line(path, 1, "header", "the file is empty".into()))?;
+    let header = Header::parse(path, header, dof)?;
     let mut runs: Vec<Run> = Vec::new();
     for (idx, line) in lines {
-        let ln = idx + 1;
-        let f = split_csv_line(line).map_err(|e| bad(ln, "row", e))?;
-        if f.len() != names.len() {
-            return Err(bad(ln, "row", format!("has {} fields, the header {}", f.len(), names.len())));
+        header.add_line(path, idx + 1, line, &mut runs)?;
+    }
+    if runs.is_empty() {
+        return Err(bad_line(path, 2, "row", "the log has no samples".into()));
+    }
+    for run in &mut runs {
+        run.dt = even_interval(path, run)?;
+    }
+    Ok(Log { path: path.to_path_buf(), dof, runs })
+}
+
+/// An error on line `line` of the log, in column `field`.
+fn bad_line(path: &Path, line: usize, field: &str, reason: String) -> Error {
+    Error::invalid(path, format!("line {line}: {field}"), reason)
+}
+
+/// The header of a log: the columns' names and which holds the time, each joint's angle, the
+/// torques (all joints' or none) and the run's name.
+struct Header {
+    names: Vec<String>,
+    time: usize,
+    angles: Vec<usize>,
+    torques: Option<Vec<usize>>,
+    run: Option<usize>,
+}
+
+impl Header {
+    /// Reads the header of a log of an arm with `dof` joints: every column known and given
+    /// once, `t` and every `q` present, torques for every joint or none.
+    fn parse(path: &Path, header: &str, dof: usize) -> Result<Header> {
+        let bad = |reason: String| bad_line(path, 1, "header", reason);
+        let names = split_csv_line(header.trim_start_matches('\u{feff}').trim()).map_err(bad)?;
+        let names: Vec<String> = names.iter().map(|n| n.trim().to_string()).collect();
+        let expected = format!(
+            "a log has columns t, q1…q{dof}, optionally tau1…tau{dof} and run (the design's robot has {dof} joints)"
+        );
+        let columns = columns(&names, &expected).map_err(bad)?;
+        let position = |c: Column| columns.iter().position(|x| *x == c);
+        let time = position(Column::Time).ok_or_else(|| bad(format!("no column `t`: {expected}")))?;
+        let widest = columns
+            .iter()
+            .filter_map(|c| match c {
+                Column::Angle(i) | Column::Torque(i) => Some(*i + 1),
+                _ => None,
+            })
+            .max()
+            .unwrap_or(0);
+        if widest > dof {
+            return Err(bad(format!(
+                "the log has columns for {widest} joints but the design's robot has {dof}: {expected}"
+            )));
+        }
+        let angles: Vec<usize> = (0..dof)
+            .map(|j| position(Column::Angle(j)).ok_or_else(|| bad(format!("no column `q{}`: {expected}", j + 1))))
+            .collect::<Result<_>>()?;
+        let torques: Vec<Option<usize>> = (0..dof).map(|j| position(Column::Torque(j))).collect();
+        let torques: Option<Vec<usize>> = match torques.iter().filter(|c| c.is_some()).count() {
+            0 => None,
+            k if k == dof => Some(torques.into_iter().flatten().collect()),
+            _ => {
+                let missing = (0..dof).find(|&j| torques[j].is_none()).unwrap_or(0);
+                return Err(bad(format!(
+                    "no column `tau{}`: torques are given for every joint or for none",
+                    missing + 1
+                )));
+            }
+        };
+        Ok(Header { names, time, angles, torques, run: position(Column::Run) })
+    }
+
+    /// Adds line `ln` to its run: the last one when it has the same name, a new one otherwise
+    /// (a name must not come back after another run); time must go forward within a run.
+    fn add_line(&self, path: &Path, ln: usize, line: &str, runs: &mut Vec<Run>) -> Result<()> {
+        let bad = |field: &str, reason: String| bad_line(path, ln, field, reason);
+        let f = split_csv_line(line).map_err(|e| bad("row", e))?;
+        if f.len() != self.names.len() {
+            return Err(bad("row", format!("has {} fields, the header {}", f.len(), self.names.len())));
         }
         let num = |c: usize| -> Result<f64> {
             let text = f[c].trim();
-            let v: f64 = text.parse().map_err(|_| bad(ln, &names[c], format!("`{text}` is not a number")))?;
+            let v: f64 = text.parse().map_err(|_| bad(&self.names[c], format!("`{text}` is not a number")))?;
             if !v.is_finite() {
-                return Err(bad(ln, &names[c], format!("`{text}` is not a finite number")));
+                return Err(bad(&self.names[c], format!("`{text}` is not a finite number")));
             }
             Ok(v)
         };
-        let name = run_column.map(|c| f[c].trim().to_string()).unwrap_or_default();
+        let name = self.run.map(|c| f[c].trim().to_string()).unwrap_or_default();
         if runs.last().is_none_or(|r| r.name != name) {
             if runs.iter().any(|r| r.name == name) {
                 return Err(bad(
-                    ln,
                     "run",
                     format!("run `{name}` comes back after another run: a run's lines must be consecutive"),
                 ));
@@ -135,40 +149,53 @@ pub fn parse(path: &Path, text: &str, dof: usize) -> Result<Log> {
                 name,
                 t: Vec::new(),
                 q: Vec::new(),
-                tau: torques.as_ref().map(|_| Vec::new()),
+                tau: self.torques.as_ref().map(|_| Vec::new()),
                 lines: Vec::new(),
                 dt: 0.0,
             });
         }
-        let t = num(time)?;
-        let run = runs.last_mut().expect("pushed above");
+        let t = num(self.time)?;
+        // A run was pushed above when there was none.
+        let Some(run) = runs.last_mut() else { return Ok(()) };
         if let (Some(&before), Some(&line_before)) = (run.t.last(), run.lines.last())
             && t <= before
         {
-            return Err(bad(
-                ln,
-                "t",
-                format!("time goes back or stands still: {t} after {before} on line {line_before}"),
-            ));
+            return Err(bad("t", format!("time goes back or stands still: {t} after {before} on line {line_before}")));
         }
         run.t.push(t);
         run.lines.push(ln);
-        for &c in &angles {
+        for &c in &self.angles {
             run.q.push(num(c)?);
         }
-        if let (Some(cols), Some(tau)) = (&torques, run.tau.as_mut()) {
+        if let (Some(cols), Some(tau)) = (&self.torques, run.tau.as_mut()) {
             for &c in cols {
                 tau.push(num(c)?);
             }
         }
+        Ok(())
     }
-    if runs.is_empty() {
-        return Err(bad(2, "row", "the log has no samples".into()));
+}
+
+/// What each named column holds (`t`, `run`, `q<i>`, `tau<i>`), each at most once; or why not.
+fn columns(names: &[String], expected: &str) -> std::result::Result<Vec<Column>, String> {
+    let mut columns = Vec::with_capacity(names.len());
+    for name in names {
+        let joint = |prefix: &str| name.strip_prefix(prefix).and_then(|i| i.parse::<usize>().ok()).filter(|i| *i >= 1);
+        let c = match name.as_str() {
+            "t" => Column::Time,
+            "run" => Column::Run,
+            _ => match (joint("q"), joint("tau")) {
+                (Some(i), _) => Column::Angle(i - 1),
+                (_, Some(i)) => Column::Torque(i - 1),
+                _ => return Err(format!("unknown column `{name}`: {expected}")),
+            },
+        };
+        if columns.contains(&c) {
+            return Err(format!("column `{name}` appears twice"));
+        }
+        columns.push(c);
     }
-    for run in &mut runs {
-        run.dt = even_interval(path, run)?;
-    }
-    Ok(Log { path: path.to_path_buf(), dof, runs })
+    Ok(columns)
 }
 
 /// The sampling interval of a run (its median interval), or an error naming the first gap or

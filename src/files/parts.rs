@@ -165,81 +165,97 @@ pub fn markdown(design: &str, parts: &Parts, settings: &crate::design::parts::Pa
             e.element.coupling_text().replace(';', ", "),
             e.element.offset
         );
-        let Ok(p) = &e.part else { continue };
-        let _ = writeln!(m, "{}.\n", e.geometry());
-        let (rate, unit) = p.spring.maker_rate();
-        let (free, leg) = lengths(&p.spring);
-        let order = match &e.stock {
-            Some(s) => format!("stock part **{} {}** ({})", s.vendor, s.part_number, s.source),
-            None => "to be wound to this specification".into(),
-        };
-        let _ =
-            writeln!(m, "{} × {} spring, {order}.\n\n| figure | value |\n| --- | ---: |", p.quantity, p.spring.kind());
-        let mut row = |k: &str, v: String| {
-            let _ = writeln!(m, "| {k} | {v} |");
-        };
-        row("material", p.spring.material().to_string());
-        match p.spring {
-            Spring::Leaf { t, b, lengths, lowest_rate } => {
-                row("strip thickness × width", format!("{t} × {b} mm"));
-                row(
-                    "free length in the clamp (highest rate – lowest)",
-                    format!("{:.1} – {:.1} mm", lengths[0], lengths[1]),
-                );
-                row("free length at mid-range", format!("{:.1} mm", lengths[2]));
-                row(
-                    "lowest rate in the clamp's travel",
-                    format!("{lowest_rate:.4} N·m/rad (below it: lift the leaf off)"),
-                );
-            }
-            _ => {
-                row("wire diameter d", format!("{} mm", p.spring.d()));
-                row(
-                    "mean coil diameter D (outer)",
-                    format!("{:.2} mm ({:.2} mm)", p.spring.dm(), p.spring.dm() + p.spring.d()),
-                );
-                row("active coils n", format!("{:.2}", p.spring.coils().unwrap_or(0.0)));
-            }
-        }
-        if let Some(l) = free {
-            row("free length", format!("{l:.1} mm"));
-        }
-        if let Some(l) = leg {
-            row("leg length", format!("{l:.1} mm"));
-        }
-        if let Spring::Extension(_, f0) = p.spring {
-            row("initial tension F₀", format!("{f0:.2} N"));
-        }
-        row("rate", format!("{rate:.4} {unit} (±{:.1} %, grade {})", 100.0 * p.tolerance, settings.grade));
-        row("element rate (fitted → realised)", format!("{:.4} → {:.4} {}", e.stiffness, p.realised_rate, fit_unit(e)));
-        row("mass", format!("{:.3} kg", p.mass));
-        row(
-            "fatigue life at the swing",
-            if p.life >= 1e8 { "≥ 10⁸ cycles".into() } else { format!("{:.3e} cycles", p.life) },
-        );
-        let (pu, lu) = units(p);
-        let _ = writeln!(m, "\n| working point | position ({pu}) | load ({lu}) |\n| --- | ---: | ---: |");
-        for w in &p.points {
-            let _ = writeln!(m, "| {} | {:.2} | {:.2} |", w.at, w.position, w.load);
-        }
-        let _ = writeln!(m, "\n| check | value | limit | utilisation |\n| --- | ---: | ---: | ---: |");
-        for c in &p.checks {
-            let _ = writeln!(
-                m,
-                "| {} | {:.4} {} | {} {:.4} {} | {:.3} |",
-                c.name,
-                c.value,
-                c.unit,
-                if c.upper { "≤" } else { "≥" },
-                c.limit,
-                c.unit,
-                c.ratio()
-            );
-        }
-        let _ = writeln!(m, "\n![{0}](sketch_{0}.svg)\n", e.id);
-        if let crate::realise::mechanism::Mechanism::CubicCam { .. } = p.mechanism {
-            let _ = writeln!(m, "The disc cam, 1:1 in mm:\n\n![{0} cam](cams/{0}.svg)\n", e.id);
+        if let Ok(p) = &e.part {
+            part_section(&mut m, e, p, settings);
         }
     }
     m
+}
+
+/// An element's part in `parts.md`: its geometry, how to order it, its figures, its working
+/// points, its checks and its sketch (and a cam's drawing).
+fn part_section(m: &mut String, e: &ElementPart, p: &Part, settings: &crate::design::parts::PartsSettings) {
+    let _ = writeln!(m, "{}.\n", e.geometry());
+    let order = match &e.stock {
+        Some(s) => format!("stock part **{} {}** ({})", s.vendor, s.part_number, s.source),
+        None => "to be wound to this specification".into(),
+    };
+    let _ = writeln!(m, "{} × {} spring, {order}.\n\n| figure | value |\n| --- | ---: |", p.quantity, p.spring.kind());
+    for (k, v) in figures(e, p, settings) {
+        let _ = writeln!(m, "| {k} | {v} |");
+    }
+    let (pu, lu) = units(p);
+    let _ = writeln!(m, "\n| working point | position ({pu}) | load ({lu}) |\n| --- | ---: | ---: |");
+    for w in &p.points {
+        let _ = writeln!(m, "| {} | {:.2} | {:.2} |", w.at, w.position, w.load);
+    }
+    let _ = writeln!(m, "\n| check | value | limit | utilisation |\n| --- | ---: | ---: | ---: |");
+    for c in &p.checks {
+        let _ = writeln!(
+            m,
+            "| {} | {:.4} {} | {} {:.4} {} | {:.3} |",
+            c.name,
+            c.value,
+            c.unit,
+            if c.upper { "≤" } else { "≥" },
+            c.limit,
+            c.unit,
+            c.ratio()
+        );
+    }
+    let _ = writeln!(m, "\n![{0}](sketch_{0}.svg)\n", e.id);
+    if let Mechanism::CubicCam { .. } = p.mechanism {
+        let _ = writeln!(m, "The disc cam, 1:1 in mm:\n\n![{0} cam](cams/{0}.svg)\n", e.id);
+    }
+}
+
+/// The figures of a part, as (figure, value) rows of its table: the material, the spring's
+/// dimensions (a leaf's or a coil's), lengths and initial tension where it has them, its rate,
+/// the element's rate fitted and realised, its mass and its fatigue life.
+fn figures(e: &ElementPart, p: &Part, settings: &crate::design::parts::PartsSettings) -> Vec<(&'static str, String)> {
+    let (rate, unit) = p.spring.maker_rate();
+    let (free, leg) = lengths(&p.spring);
+    let mut rows = vec![("material", p.spring.material().to_string())];
+    match p.spring {
+        Spring::Leaf { t, b, lengths, lowest_rate } => {
+            rows.push(("strip thickness × width", format!("{t} × {b} mm")));
+            rows.push((
+                "free length in the clamp (highest rate – lowest)",
+                format!("{:.1} – {:.1} mm", lengths[0], lengths[1]),
+            ));
+            rows.push(("free length at mid-range", format!("{:.1} mm", lengths[2])));
+            rows.push((
+                "lowest rate in the clamp's travel",
+                format!("{lowest_rate:.4} N·m/rad (below it: lift the leaf off)"),
+            ));
+        }
+        _ => {
+            rows.push(("wire diameter d", format!("{} mm", p.spring.d())));
+            rows.push((
+                "mean coil diameter D (outer)",
+                format!("{:.2} mm ({:.2} mm)", p.spring.dm(), p.spring.dm() + p.spring.d()),
+            ));
+            rows.push(("active coils n", format!("{:.2}", p.spring.coils().unwrap_or(0.0))));
+        }
+    }
+    if let Some(l) = free {
+        rows.push(("free length", format!("{l:.1} mm")));
+    }
+    if let Some(l) = leg {
+        rows.push(("leg length", format!("{l:.1} mm")));
+    }
+    if let Spring::Extension(_, f0) = p.spring {
+        rows.push(("initial tension F₀", format!("{f0:.2} N")));
+    }
+    rows.push(("rate", format!("{rate:.4} {unit} (±{:.1} %, grade {})", 100.0 * p.tolerance, settings.grade)));
+    rows.push((
+        "element rate (fitted → realised)",
+        format!("{:.4} → {:.4} {}", e.stiffness, p.realised_rate, fit_unit(e)),
+    ));
+    rows.push(("mass", format!("{:.3} kg", p.mass)));
+    rows.push((
+        "fatigue life at the swing",
+        if p.life >= 1e8 { "≥ 10⁸ cycles".into() } else { format!("{:.3e} cycles", p.life) },
+    ));
+    rows
 }

@@ -213,70 +213,9 @@ pub fn bill_of_materials(
     q_eq: &[f64],
     threshold: f64,
 ) -> Vec<BomRow> {
-    // A group's + and − columns become one signed coefficient cⱼ = k⁺ − k⁻ on the column of its
-    // sign, as `bom.csv` writes it: the set evaluated below is the one its files rebuild. (The
-    // solve already leaves one of each pair at zero; then this changes no bit.)
-    let mut k = k.to_vec();
-    for (j, n) in grouping.minus_of().into_iter().enumerate() {
-        if let Some(n) = n
-            && k[j] > 0.0
-            && k[n] > 0.0
-        {
-            let c = k[j] - k[n];
-            k[j] = c.max(0.0);
-            k[n] = (-c).max(0.0);
-        }
-    }
+    let k = signed_coefficients(grouping, k);
     let k = k.as_slice();
-    // Peak torque on x and engaged deflection of each candidate over the region, in parallel
-    // over the couplings (a·q at the held-out samples, 10⁵–10⁶ of them for a whole arm, computed
-    // once per coupling for all its candidates). Only used columns are read below, and an unused
-    // one adds nothing to the largest peak (its torque is zero).
-    let (class_of, classes) = coupling_classes(candidates);
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); classes.len()];
-    for (j, &class) in class_of.iter().enumerate() {
-        if k[j] != 0.0 {
-            members[class].push(j);
-        }
-    }
-    let per_class: Vec<Vec<(usize, (f64, f64))>> = classes
-        .par_iter()
-        .zip(&members)
-        .map(|(a, members)| {
-            if members.is_empty() {
-                return Vec::new();
-            }
-            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
-            let at_q: Vec<f64> =
-                evaluation.geodesics.iter().flat_map(|g| (0..g.len()).map(move |i| g.q(i))).map(at).collect();
-            members
-                .iter()
-                .map(|&j| {
-                    let e = &candidates[j].element;
-                    let kj = k[j];
-                    let mut torque: f64 = 0.0;
-                    let mut defl: f64 = 0.0;
-                    // d = e.deflection(q), term for term.
-                    let mut visit = |d: f64| {
-                        let slope = e.profile.slope(d);
-                        torque = torque.max((kj * slope).abs());
-                        if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
-                            defl = defl.max(d.abs());
-                        }
-                    };
-                    visit(e.deflection(q_eq));
-                    for &x in &at_q {
-                        visit(x - e.offset);
-                    }
-                    (j, (torque, defl))
-                })
-                .collect()
-        })
-        .collect();
-    let mut peaks = vec![(0.0, 0.0); candidates.len()];
-    for (j, peak) in per_class.into_iter().flatten() {
-        peaks[j] = peak;
-    }
+    let peaks = peaks(candidates, k, evaluation, q_eq);
     let max_peak = peaks.iter().map(|p| p.0).fold(0.0, f64::max);
     let in_group = |j: usize| grouping.of[j].is_some();
     let used: Vec<usize> =
@@ -312,6 +251,77 @@ pub fn bill_of_materials(
             }
         })
         .collect()
+}
+
+/// A group's + and − columns as one signed coefficient cⱼ = k⁺ − k⁻ on the column of its sign,
+/// as `bom.csv` writes it: the set evaluated from the bill is the one its files rebuild. (The
+/// solve already leaves one of each pair at zero; then this changes no bit.)
+fn signed_coefficients(grouping: &Grouping, k: &[f64]) -> Vec<f64> {
+    let mut k = k.to_vec();
+    for (j, n) in grouping.minus_of().into_iter().enumerate() {
+        if let Some(n) = n
+            && k[j] > 0.0
+            && k[n] > 0.0
+        {
+            let c = k[j] - k[n];
+            k[j] = c.max(0.0);
+            k[n] = (-c).max(0.0);
+        }
+    }
+    k
+}
+
+/// Peak torque on x and engaged deflection of each candidate over the region (the equilibrium
+/// and the held-out samples), in parallel over the couplings (a·q at the held-out samples,
+/// 10⁵–10⁶ of them for a whole arm, computed once per coupling for all its candidates). Only
+/// used columns (k ≠ 0) are computed; an unused one adds nothing to the largest peak (its
+/// torque is zero) and is left at (0, 0).
+fn peaks(candidates: &[Candidate], k: &[f64], evaluation: &Fan, q_eq: &[f64]) -> Vec<(f64, f64)> {
+    let (class_of, classes) = coupling_classes(candidates);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); classes.len()];
+    for (j, &class) in class_of.iter().enumerate() {
+        if k[j] != 0.0 {
+            members[class].push(j);
+        }
+    }
+    let per_class: Vec<Vec<(usize, (f64, f64))>> = classes
+        .par_iter()
+        .zip(&members)
+        .map(|(a, members)| {
+            if members.is_empty() {
+                return Vec::new();
+            }
+            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+            let at_q: Vec<f64> =
+                evaluation.geodesics.iter().flat_map(|g| (0..g.len()).map(move |i| g.q(i))).map(at).collect();
+            members.iter().map(|&j| (j, peak(&candidates[j].element, k[j], q_eq, &at_q))).collect()
+        })
+        .collect();
+    let mut peaks = vec![(0.0, 0.0); candidates.len()];
+    for (j, peak) in per_class.into_iter().flatten() {
+        peaks[j] = peak;
+    }
+    peaks
+}
+
+/// An element's peak |torque| at rate `kj` and its largest engaged |deflection| over q_eq and
+/// the samples where its coupling reads `at_q` (d = e.deflection(q), term for term); a
+/// compression spring's deflection counts only where it pushes.
+fn peak(e: &Element, kj: f64, q_eq: &[f64], at_q: &[f64]) -> (f64, f64) {
+    let mut torque: f64 = 0.0;
+    let mut defl: f64 = 0.0;
+    let mut visit = |d: f64| {
+        let slope = e.profile.slope(d);
+        torque = torque.max((kj * slope).abs());
+        if slope != 0.0 || !matches!(e.profile, crate::elements::Profile::Compression(_)) {
+            defl = defl.max(d.abs());
+        }
+    };
+    visit(e.deflection(q_eq));
+    for &x in at_q {
+        visit(x - e.offset);
+    }
+    (torque, defl)
 }
 
 /// The parts of a bill of materials realised (its cams: disc cams with their followers, from their

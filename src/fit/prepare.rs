@@ -12,7 +12,7 @@ use super::problem::{
     FitProblem, Requirements, RowsOut, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
 };
 use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
-use super::smoothing::{append_rows, group_smoothing};
+use super::smoothing::{SmoothingInputs, append_rows, group_smoothing};
 use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::design::tolerance::ToleranceSpec;
@@ -60,7 +60,9 @@ pub struct Prepared<'a> {
 }
 
 impl<'a> Prepared<'a> {
-    /// Checks the region, traces the fans, expands the catalogue and assembles the problem.
+    /// Checks the region, traces the fans, expands the catalogue and assembles the problem:
+    /// the candidates that engage, the rows with the trims folded in, their normal equations,
+    /// then the groups' smoothing where there are groups.
     pub fn new(
         design: &'a Design,
         catalog: &'a Catalog,
@@ -76,26 +78,7 @@ impl<'a> Prepared<'a> {
         progress.stage("assembling the fit");
         let t1 = Instant::now();
         let q_eq = design.q_eq.as_slice();
-        let range = |a: &[f64]| {
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
-            for g in training.geodesics.iter().chain(&evaluation.geodesics) {
-                for i in 0..g.len() {
-                    let x = at(g.q(i));
-                    lo = lo.min(x);
-                    hi = hi.max(x);
-                }
-            }
-            let x = at(q_eq);
-            (lo.min(x), hi.max(x))
-        };
-        let expanded = catalog.expand(q_eq, range);
-        let n_expanded = expanded.len();
-        let mut candidates: Vec<Candidate> =
-            expanded.into_iter().filter(|c| engages(c, q_eq, &training, &evaluation)).collect();
-        if settings.max_element_torque > 0.0 {
-            bound_torque(&mut candidates, settings.max_element_torque, q_eq, &training, &evaluation);
-        }
+        let (candidates, n_expanded) = engaging_candidates(design, catalog, settings, &training, &evaluation)?;
         let grouping = Grouping::new(candidates.iter().map(|c| (c.family, &c.element)));
         if candidates.is_empty() {
             return Err(Error::invalid(
@@ -112,52 +95,22 @@ impl<'a> Prepared<'a> {
         // Trim springs sit at mid-range in every build as drawn: the fit is solved around them.
         let (_, trims) = mid_range(catalog, q_eq);
         check_trimmed_weight(design, catalog, settings)?;
-        // A group's columns are zero away from its part's support (a B-spline basis function
-        // spans four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows
-        // of two or more per sample (three joints or more), G comes from the rows' factors:
-        // n − 1 times fewer products (the shipped designs of up to three joints have fewer rows
-        // and keep the bits of the row-by-row product). Which rows are kept, `RowsOut::for_fit`
-        // says: dense rows would be 1.7 GB at seven joints and 2.4 GB for ur5_six_cams, whose
-        // first write was most of the assembly.
-        let rows = training_samples(&training).count() * (design.dof().max(2) - 1);
-        let factored = from_factors(design.dof(), rows, grouping.any());
-        let tolerance = settings.tolerance != ToleranceSpec::None;
-        let out = RowsOut::for_fit(design.dof(), rows, grouping.any(), !trims.elements.is_empty(), tolerance);
-        let (mut problem, mut factors) =
-            assemble_factored(&design.chain, &design.q_eq, &training, &candidates, req, out);
-        fold_fixed(&mut problem, &design.chain, &design.q_eq, &training, &trims.elements, &trims.stiffness, req);
-        let mut gram = if let Some(sparse) = factors.sparse.take() {
-            Gram::from_sparse(&sparse, &problem.rhs)
-        } else if grouping.any() {
-            Gram::from_sparse_rows(&problem.rows, &problem.rhs)
-        } else if factored {
-            let c = factors.rows_times_rhs.take().unwrap_or_else(|| problem.rows.tr_mul(&problem.rhs));
-            let slopes = |j: usize, s0: usize, out: &mut [f64]| factors.slopes(&candidates, j, s0, out);
-            let coupled = CoupledRows {
-                slopes: &slopes,
-                factors: &factors.factors,
-                class_of: &factors.class_of,
-                per_sample: design.dof() - 1,
-            };
-            Gram::from_coupled_rows(&coupled, c, &problem.rhs)
-        } else {
-            Gram::from_rows(&problem.rows, &problem.rhs)
-        };
-        drop(factors);
+        let (mut problem, mut gram) =
+            assemble_with_gram(design, settings, &training, &candidates, &grouping, &trims, req);
         let mut appended = None;
         if grouping.any() {
             progress.stage("choosing the groups' smoothing");
-            let penalty = group_smoothing(
+            let penalty = group_smoothing(&SmoothingInputs {
                 design,
                 catalog,
                 settings,
-                &candidates,
-                &grouping,
-                &problem,
-                &gram,
-                &trims,
-                region.extent,
-            )?;
+                candidates: &candidates,
+                grouping: &grouping,
+                problem: &problem,
+                gram: &gram,
+                trims: &trims,
+                extent: region.extent,
+            })?;
             gram.add_sparse_rows(&penalty.0, &penalty.1);
             // Without dense rows only the right-hand side grows (the row count weighs the
             // equalities); `rows()` appends the smoothing rows to the rows it assembles again.
@@ -184,6 +137,84 @@ impl<'a> Prepared<'a> {
             t_asm,
         })
     }
+}
+
+/// The catalogue expanded over the range each coupling sweeps on both fans, the candidates that
+/// never engage dropped (and, with a torque bound, those that exceed it bounded): the
+/// candidates, and how many the catalogue expanded into.
+fn engaging_candidates(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    training: &Fan,
+    evaluation: &Fan,
+) -> Result<(Vec<Candidate>, usize)> {
+    let q_eq = design.q_eq.as_slice();
+    let range = |a: &[f64]| {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let at = |q: &[f64]| a.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
+        for g in training.geodesics.iter().chain(&evaluation.geodesics) {
+            for i in 0..g.len() {
+                let x = at(g.q(i));
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+        }
+        let x = at(q_eq);
+        (lo.min(x), hi.max(x))
+    };
+    let expanded = catalog.expand(q_eq, range);
+    let n_expanded = expanded.len();
+    let mut candidates: Vec<Candidate> =
+        expanded.into_iter().filter(|c| engages(c, q_eq, training, evaluation)).collect();
+    if settings.max_element_torque > 0.0 {
+        bound_torque(&mut candidates, settings.max_element_torque, q_eq, training, evaluation);
+    }
+    Ok((candidates, n_expanded))
+}
+
+/// The problem assembled on the training fan with the trims folded in, and its normal
+/// equations, each the cheapest way the fit's size allows.
+///
+/// A group's columns are zero away from its part's support (a B-spline basis function spans
+/// four knot intervals): the sparse product skips the zeros. Above GRAM_BLOCK rows of two or
+/// more per sample (three joints or more), G comes from the rows' factors: n − 1 times fewer
+/// products (the shipped designs of up to three joints have fewer rows and keep the bits of the
+/// row-by-row product). Which rows are kept, `RowsOut::for_fit` says: dense rows would be 1.7 GB
+/// at seven joints and 2.4 GB for ur5_six_cams, whose first write was most of the assembly.
+fn assemble_with_gram(
+    design: &Design,
+    settings: &FitSettings,
+    training: &Fan,
+    candidates: &[Candidate],
+    grouping: &Grouping,
+    trims: &SpringSet,
+    req: Requirements,
+) -> (FitProblem, Gram) {
+    let rows = training_samples(training).count() * (design.dof().max(2) - 1);
+    let factored = from_factors(design.dof(), rows, grouping.any());
+    let tolerance = settings.tolerance != ToleranceSpec::None;
+    let out = RowsOut::for_fit(design.dof(), rows, grouping.any(), !trims.elements.is_empty(), tolerance);
+    let (mut problem, mut factors) = assemble_factored(&design.chain, &design.q_eq, training, candidates, req, out);
+    fold_fixed(&mut problem, &design.chain, &design.q_eq, training, trims, req);
+    let gram = if let Some(sparse) = factors.sparse.take() {
+        Gram::from_sparse(&sparse, &problem.rhs)
+    } else if grouping.any() {
+        Gram::from_sparse_rows(&problem.rows, &problem.rhs)
+    } else if factored {
+        let c = factors.rows_times_rhs.take().unwrap_or_else(|| problem.rows.tr_mul(&problem.rhs));
+        let slopes = |j: usize, s0: usize, out: &mut [f64]| factors.slopes(candidates, j, s0, out);
+        let coupled = CoupledRows {
+            slopes: &slopes,
+            factors: &factors.factors,
+            class_of: &factors.class_of,
+            per_sample: design.dof() - 1,
+        };
+        Gram::from_coupled_rows(&coupled, c, &problem.rhs)
+    } else {
+        Gram::from_rows(&problem.rows, &problem.rhs)
+    };
+    (problem, gram)
 }
 
 impl Prepared<'_> {

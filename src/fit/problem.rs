@@ -407,27 +407,25 @@ pub fn assemble_factored(
 /// Moves the contribution of elements whose stiffness is fixed (trim springs at mid-range: set
 /// after the build, so not the fit's to choose) to the right-hand sides of `problem`, which was
 /// assembled with the same fan and requirements: with the fixed elements' columns F and
-/// stiffnesses k_f, rows A k ≈ b become A k ≈ b − F k_f, equalities E k = e become
+/// stiffnesses k_f (the set `fixed`), rows A k ≈ b become A k ≈ b − F k_f, equalities E k = e become
 /// E k = e − E_f k_f and inequalities G k ≥ h become G k ≥ h − G_f k_f. Everything solved
 /// afterwards (the nominal fit, the tolerance-aware fit, the selection) then sees the fixed
 /// elements. The preload bound needs no change for trims: they are relaxed at q_eq, so their
 /// preload is zero.
-#[allow(clippy::too_many_arguments)]
 pub fn fold_fixed(
     problem: &mut FitProblem,
     chain: &Chain,
     q_eq: &DVector<f64>,
     fan: &Fan,
-    elements: &[crate::elements::Element],
-    stiffness: &[f64],
+    fixed: &SpringSet,
     req: Requirements,
 ) {
-    if elements.is_empty() {
+    if fixed.elements.is_empty() {
         return;
     }
-    let fixed: Vec<Candidate> = elements.iter().map(|e| Candidate::bare(e.clone())).collect();
-    let f = assemble(chain, q_eq, fan, &fixed, req);
-    let k = DVector::from_column_slice(stiffness);
+    let columns: Vec<Candidate> = fixed.elements.iter().map(|e| Candidate::bare(e.clone())).collect();
+    let f = assemble(chain, q_eq, fan, &columns, req);
+    let k = DVector::from_column_slice(&fixed.stiffness);
     problem.rhs -= &f.rows * &k;
     for (g, gf) in problem.equalities.iter_mut().zip(&f.equalities) {
         g.rhs -= &gf.matrix * &k;

@@ -32,6 +32,22 @@ pub const AUTO_SMOOTHING: [f64; 5] = [1e-7, 1e-6, 1e-5, 1e-4, 1e-3];
 /// UR5's cams: 15 s less, held-out p99 1.4567° against 1.4578°).
 pub const MAX_VALIDATION_DIRECTIONS: usize = 720;
 
+/// What the smoothing choice works on: the design, its catalogue and the fit settings, the
+/// candidates with their grouping, the problem assembled on the training fan with its normal
+/// equations, the trims it was solved around, and the region's arc length from q_eq.
+pub struct SmoothingInputs<'a> {
+    pub design: &'a Design,
+    pub catalog: &'a Catalog,
+    pub settings: &'a FitSettings,
+    pub candidates: &'a [Candidate],
+    pub grouping: &'a Grouping,
+    pub problem: &'a FitProblem,
+    pub gram: &'a Gram,
+    pub trims: &'a SpringSet,
+    /// The region's arc length from q_eq (the region check's, which the fit has already made).
+    pub extent: f64,
+}
+
 /// The groups' smoothing penalty (a cam's ∫V‴² dx, see [`crate::elements::group::Shape`]) as rows
 /// (rhs 0) for the chosen weights. Each group's penalty is scaled by 1/(ω² m̄)² (m̄ the mean
 /// diagonal of M(q_eq)), by the number of tangentiality rows and by the family's weight λ, so
@@ -39,42 +55,12 @@ pub const MAX_VALIDATION_DIRECTIONS: usize = 720;
 /// share one weight, the one of [`AUTO_SMOOTHING`] with the smallest p99 residual on a
 /// *validation* fan (as many directions as the held-out fan, at most
 /// [`MAX_VALIDATION_DIRECTIONS`], shifted by a quarter of their spacing: apart from both the
-/// training and the held-out fans), judged on the dense fit (without `max_elements`). `extent`
-/// is the region's arc length from q_eq (the region check's, which the fit has already made).
-#[allow(clippy::too_many_arguments)]
-pub fn group_smoothing(
-    design: &Design,
-    catalog: &Catalog,
-    settings: &FitSettings,
-    candidates: &[Candidate],
-    grouping: &Grouping,
-    problem: &FitProblem,
-    gram: &Gram,
-    trims: &SpringSet,
-    extent: f64,
-) -> Result<(DMatrix<f64>, DVector<f64>)> {
-    let coefficient = grouping.coefficient_of();
+/// training and the held-out fans), judged on the dense fit (without `max_elements`).
+pub fn group_smoothing(inputs: &SmoothingInputs) -> Result<(DMatrix<f64>, DVector<f64>)> {
+    let SmoothingInputs { design, settings, candidates, grouping, problem, .. } = *inputs;
     let m_bar = design.chain.mass_matrix(&design.q_eq).diagonal().mean();
     let base = (problem.row_count().max(1) as f64).sqrt() / (settings.frequency.powi(2) * m_bar);
-    // Per group: its penalty rows over all candidates, and its weight (None: "auto").
-    let mut blocks: Vec<(DMatrix<f64>, Option<f64>)> = Vec::new();
-    for group in &grouping.groups {
-        let family = &catalog.families[candidates[group.columns[0]].family];
-        let d = group.roughness_rows();
-        let mut block = DMatrix::zeros(d.len(), candidates.len());
-        for &j in &group.columns {
-            let Some((c, negative)) = coefficient[j] else { continue };
-            let sign = if negative { -1.0 } else { 1.0 };
-            for (r, row) in d.iter().enumerate() {
-                block[(r, j)] = sign * row[c] * base;
-            }
-        }
-        let weight = match family.smoothing() {
-            Smoothing::Weight(w) => Some(w),
-            Smoothing::Auto => None,
-        };
-        blocks.push((block, weight));
-    }
+    let blocks = roughness_blocks(inputs, base);
     // A tiny ridge on every group column. Cams on four or more couplings can cancel each other
     // over the whole region (x₁², x₂², (x₁+x₂)² and (x₁−x₂)² are dependent, and so are the
     // linear functions of any three couplings): without the ridge the solve may pick large
@@ -105,6 +91,40 @@ pub fn group_smoothing(
     if blocks.iter().all(|b| b.1.is_some()) {
         return Ok(build(0.0));
     }
+    let w = auto_weight(inputs, &build)?;
+    Ok(build(w))
+}
+
+/// Per group: its penalty rows over all candidates scaled by `base`, and its family's weight
+/// (None: "auto").
+fn roughness_blocks(inputs: &SmoothingInputs, base: f64) -> Vec<(DMatrix<f64>, Option<f64>)> {
+    let SmoothingInputs { catalog, candidates, grouping, .. } = *inputs;
+    let coefficient = grouping.coefficient_of();
+    let mut blocks: Vec<(DMatrix<f64>, Option<f64>)> = Vec::new();
+    for group in &grouping.groups {
+        let family = &catalog.families[candidates[group.columns[0]].family];
+        let d = group.roughness_rows();
+        let mut block = DMatrix::zeros(d.len(), candidates.len());
+        for &j in &group.columns {
+            let Some((c, negative)) = coefficient[j] else { continue };
+            let sign = if negative { -1.0 } else { 1.0 };
+            for (r, row) in d.iter().enumerate() {
+                block[(r, j)] = sign * row[c] * base;
+            }
+        }
+        let weight = match family.smoothing() {
+            Smoothing::Weight(w) => Some(w),
+            Smoothing::Auto => None,
+        };
+        blocks.push((block, weight));
+    }
+    blocks
+}
+
+/// The weight of [`AUTO_SMOOTHING`] whose dense fit (the penalty rows `build` gives for it
+/// added) has the smallest p99 residual on the validation fan.
+fn auto_weight(inputs: &SmoothingInputs, build: &dyn Fn(f64) -> (DMatrix<f64>, DVector<f64>)) -> Result<f64> {
+    let SmoothingInputs { design, settings, candidates, grouping, problem, gram, trims, extent, .. } = *inputs;
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
     let validation = Fan::trace(
         &design.chain,
@@ -143,7 +163,7 @@ pub fn group_smoothing(
         constraint: "smoothing".into(),
         reason: "no smoothing weight of the automatic choice gave a solvable fit".into(),
     })?;
-    Ok(build(w))
+    Ok(w)
 }
 
 /// Appends rows (and their right-hand side) to the tangentiality rows of a problem; to the

@@ -204,7 +204,15 @@ pub struct RateVerdict {
     pub for_tuning: Vec<f64>,
 }
 
+/// A unit combination of the open rates (an eigenvector of their Schur complement), its
+/// estimate and its standard error (NaN and ∞ where the logs give it no information).
+type OpenCombination = (DVector<f64>, f64, f64);
+
 /// Sorts the rates (unknowns `rates`, their δ in `estimate`) into identified ones and groups.
+///
+/// The rates whose standard error is beyond `bound` are open: their information with the
+/// other unknowns eliminated is diagonalised into combinations, the identified ones give the
+/// rates for tuning, and the open rates that the unidentified ones join form the groups.
 pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVerdict {
     let se: Vec<f64> = rates.iter().map(|&u| estimate.standard_error(u)).collect();
     let identified: Vec<bool> = se.iter().map(|s| *s <= bound).collect();
@@ -213,37 +221,8 @@ pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVer
     if open.is_empty() {
         return RateVerdict { identified, groups: Vec::new(), for_tuning };
     }
-    let p = estimate.theta.len();
     let unknowns_open: Vec<usize> = open.iter().map(|&i| rates[i]).collect();
-    let rest: Vec<usize> = (0..p).filter(|u| !unknowns_open.contains(u)).collect();
-    let sub = |a: &[usize], b: &[usize]| DMatrix::from_fn(a.len(), b.len(), |i, j| estimate.information[(a[i], b[j])]);
-    let g_uu = sub(&unknowns_open, &unknowns_open);
-    let g_ur = sub(&unknowns_open, &rest);
-    let g_rr = sub(&rest, &rest);
-    let schur = if rest.is_empty() {
-        g_uu
-    } else {
-        let rr_inv = g_rr.clone().pseudo_inverse(RANK_TOLERANCE * g_rr.amax().max(f64::MIN_POSITIVE)).unwrap_or(g_rr);
-        &g_uu - &g_ur * rr_inv * g_ur.transpose()
-    };
-    let eig = schur.symmetric_eigen();
-    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
-    let cov =
-        DMatrix::from_fn(open.len(), open.len(), |i, j| estimate.covariance[(unknowns_open[i], unknowns_open[j])]);
-    let theta = DVector::from_iterator(open.len(), unknowns_open.iter().map(|&u| estimate.theta[u]));
-    // Each eigenvector: a unit combination, its estimate and standard error.
-    let combos: Vec<(DVector<f64>, f64, f64)> = (0..open.len())
-        .map(|k| {
-            let v = eig.eigenvectors.column(k).into_owned();
-            if eig.eigenvalues[k] <= RANK_TOLERANCE * top.max(f64::MIN_POSITIVE) {
-                (v, f64::NAN, f64::INFINITY)
-            } else {
-                let value = v.dot(&theta);
-                let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
-                (v, value, se)
-            }
-        })
-        .collect();
+    let combos = open_combinations(estimate, &unknowns_open);
     // Reduce the open rates to their identified combinations.
     let mut reduced = DVector::zeros(open.len());
     for (v, value, se) in &combos {
@@ -254,28 +233,7 @@ pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVer
     for (i, &r) in open.iter().enumerate() {
         for_tuning[r] = reduced[i];
     }
-    // Groups: open rates joined through the space of unfixed combinations. Its projector P
-    // does not depend on which basis the eigensolver picked for a repeated eigenvalue: rates i
-    // and j cannot be told apart when |Pᵢⱼ| ≥ LOADING².
-    let mut projector = DMatrix::zeros(open.len(), open.len());
-    for (v, _, se) in &combos {
-        if *se > bound {
-            projector += v * v.transpose();
-        }
-    }
-    let mut group_of: Vec<usize> = (0..open.len()).collect();
-    for i in 0..open.len() {
-        for j in 0..i {
-            if projector[(i, j)].abs() >= LOADING * LOADING {
-                let (a, b) = (group_of[i], group_of[j]);
-                for g in group_of.iter_mut() {
-                    if *g == a {
-                        *g = b;
-                    }
-                }
-            }
-        }
-    }
+    let group_of = open_groups(&combos, bound, open.len());
     let mut labels: Vec<usize> = Vec::new();
     for &g in &group_of {
         if !labels.contains(&g) {
@@ -289,25 +247,89 @@ pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVer
             let identified = combos
                 .iter()
                 .filter(|(v, _, se)| *se <= bound && members.iter().map(|&i| v[i] * v[i]).sum::<f64>() >= 0.5)
-                .map(|(v, value, se)| {
-                    let w: Vec<(usize, f64)> =
-                        members.iter().filter(|&&i| v[i].abs() >= 0.05).map(|&i| (open[i], v[i])).collect();
-                    let sum: f64 = w.iter().map(|x| x.1).sum();
-                    let l1: f64 = w.iter().map(|x| x.1.abs()).sum();
-                    let norm =
-                        if sum.abs() > 0.999 * l1 { sum } else { w.iter().fold(0.0f64, |m, x| m.max(x.1.abs())) };
-                    let norm = if norm == 0.0 { 1.0 } else { norm };
-                    Combination {
-                        weights: w.iter().map(|&(i, x)| (i, x / norm)).collect(),
-                        value: value / norm,
-                        standard_error: se / norm.abs(),
-                    }
-                })
+                .map(|combo| combination(combo, &members, &open))
                 .collect();
             Group { members: members.iter().map(|&i| open[i]).collect(), identified }
         })
         .collect();
     RateVerdict { identified, groups, for_tuning }
+}
+
+/// The combinations of the open unknowns: the eigenvectors of their information with every
+/// other unknown eliminated (the Schur complement), each with its estimate and standard error.
+fn open_combinations(estimate: &Estimate, unknowns_open: &[usize]) -> Vec<OpenCombination> {
+    let p = estimate.theta.len();
+    let n_open = unknowns_open.len();
+    let rest: Vec<usize> = (0..p).filter(|u| !unknowns_open.contains(u)).collect();
+    let sub = |a: &[usize], b: &[usize]| DMatrix::from_fn(a.len(), b.len(), |i, j| estimate.information[(a[i], b[j])]);
+    let g_uu = sub(unknowns_open, unknowns_open);
+    let g_ur = sub(unknowns_open, &rest);
+    let g_rr = sub(&rest, &rest);
+    let schur = if rest.is_empty() {
+        g_uu
+    } else {
+        let rr_inv = g_rr.clone().pseudo_inverse(RANK_TOLERANCE * g_rr.amax().max(f64::MIN_POSITIVE)).unwrap_or(g_rr);
+        &g_uu - &g_ur * rr_inv * g_ur.transpose()
+    };
+    let eig = schur.symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
+    let cov = DMatrix::from_fn(n_open, n_open, |i, j| estimate.covariance[(unknowns_open[i], unknowns_open[j])]);
+    let theta = DVector::from_iterator(n_open, unknowns_open.iter().map(|&u| estimate.theta[u]));
+    // Each eigenvector: a unit combination, its estimate and standard error.
+    (0..n_open)
+        .map(|k| {
+            let v = eig.eigenvectors.column(k).into_owned();
+            if eig.eigenvalues[k] <= RANK_TOLERANCE * top.max(f64::MIN_POSITIVE) {
+                (v, f64::NAN, f64::INFINITY)
+            } else {
+                let value = v.dot(&theta);
+                let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
+                (v, value, se)
+            }
+        })
+        .collect()
+}
+
+/// Each open rate's group label: open rates joined through the space of unfixed combinations.
+/// Its projector P does not depend on which basis the eigensolver picked for a repeated
+/// eigenvalue: rates i and j cannot be told apart when |Pᵢⱼ| ≥ LOADING².
+fn open_groups(combos: &[OpenCombination], bound: f64, n_open: usize) -> Vec<usize> {
+    let mut projector = DMatrix::zeros(n_open, n_open);
+    for (v, _, se) in combos {
+        if *se > bound {
+            projector += v * v.transpose();
+        }
+    }
+    let mut group_of: Vec<usize> = (0..n_open).collect();
+    for i in 0..n_open {
+        for j in 0..i {
+            if projector[(i, j)].abs() >= LOADING * LOADING {
+                let (a, b) = (group_of[i], group_of[j]);
+                for g in group_of.iter_mut() {
+                    if *g == a {
+                        *g = b;
+                    }
+                }
+            }
+        }
+    }
+    group_of
+}
+
+/// An identified combination as reported for a group of `members` (indices into the open
+/// rates `open`): its loadings of at least 0.05 on the members, scaled so that the weights sum
+/// to 1 when they share a sign, else so that the largest is ±1.
+fn combination((v, value, se): &OpenCombination, members: &[usize], open: &[usize]) -> Combination {
+    let w: Vec<(usize, f64)> = members.iter().filter(|&&i| v[i].abs() >= 0.05).map(|&i| (open[i], v[i])).collect();
+    let sum: f64 = w.iter().map(|x| x.1).sum();
+    let l1: f64 = w.iter().map(|x| x.1.abs()).sum();
+    let norm = if sum.abs() > 0.999 * l1 { sum } else { w.iter().fold(0.0f64, |m, x| m.max(x.1.abs())) };
+    let norm = if norm == 0.0 { 1.0 } else { norm };
+    Combination {
+        weights: w.iter().map(|&(i, x)| (i, x / norm)).collect(),
+        value: value / norm,
+        standard_error: se / norm.abs(),
+    }
 }
 
 #[cfg(test)]

@@ -303,67 +303,38 @@ pub fn identify(
     }
     let lag = std::f64::consts::TAU / design.fit.frequency;
     let estimate = estimate::least_squares(&rows, lag);
-    Ok(assemble(design, bom, settings, cutoff, &model, &runs, &rows, &estimate))
+    Ok(assemble(design, bom, settings, &Solved { cutoff, model, runs, rows, estimate }))
+}
+
+/// What the least squares of `identify` worked on and found: the model, the runs with their
+/// filters, the regression rows and the estimate; [`assemble`] makes the outcome of it.
+struct Solved<'a> {
+    cutoff: f64,
+    model: Model,
+    runs: Vec<(&'a Log, &'a Run, Filters)>,
+    rows: Rows,
+    estimate: Estimate,
 }
 
 /// Joins the estimate, the verdict on the rates and the summaries into the outcome.
-#[allow(clippy::too_many_arguments)]
-fn assemble(
-    design: &Design,
-    bom: &[BomRow],
-    settings: &IdentifySettings,
-    cutoff: f64,
-    model: &Model,
-    runs: &[(&Log, &Run, Filters)],
-    rows: &Rows,
-    estimate: &Estimate,
-) -> Identification {
+fn assemble(design: &Design, bom: &[BomRow], settings: &IdentifySettings, solved: &Solved) -> Identification {
+    let Solved { cutoff, model, runs, rows, estimate } = solved;
     let n = design.dof();
     let rate_unknowns: Vec<usize> =
         (0..model.unknowns.len()).filter(|&u| matches!(model.unknowns[u], Unknown::Rate(_))).collect();
     let verdict = estimate::rate_verdict(estimate, &rate_unknowns, settings.max_standard_error);
     let mut status: Vec<Status> =
         verdict.identified.iter().map(|&ok| if ok { Status::Identified } else { Status::Group(0) }).collect();
+    for (g, group) in verdict.groups.iter().enumerate() {
+        for &i in &group.members {
+            status[i] = Status::Group(g);
+        }
+    }
     let residual_rms: f64 = (estimate.residual.iter().map(|e| e * e).sum::<f64>() / rows.len() as f64).sqrt();
     let groups: Vec<RateGroup> = verdict
         .groups
         .iter()
-        .enumerate()
-        .map(|(g, group)| {
-            for &i in &group.members {
-                status[i] = Status::Group(g);
-            }
-            let ids: Vec<String> = group.members.iter().map(|&i| model.parts[i].id.clone()).collect();
-            let reason = if group.members.len() > 1 {
-                format!(
-                    "Their torques over these logs are nearly proportional: the logs fix {} of their {} rates only as \
-                     the combinations below",
-                    group.identified.len(),
-                    group.members.len()
-                )
-            } else {
-                let u = rate_unknowns[group.members[0]];
-                let top = estimate.column_rms.iter().fold(0.0f64, |m, x| m.max(*x));
-                if estimate.column_rms[u] <= 1e-9 * top.max(f64::MIN_POSITIVE) {
-                    "The logs never engage it: it exerts no torque anywhere along them".to_string()
-                } else {
-                    format!(
-                        "Its torque over these logs (rms {:.3e} N·m for δ = 1, against a residual of {:.3e} N·m) leaves \
-                         its δ a standard error of {:.3} %, beyond the bound of {} %",
-                        estimate.column_rms[u],
-                        residual_rms,
-                        100.0 * estimate.standard_error(u),
-                        100.0 * settings.max_standard_error
-                    )
-                }
-            };
-            let combination = |c: &Combination| CombinationReport {
-                weights: c.weights.iter().map(|&(i, w)| (model.parts[i].id.clone(), w)).collect(),
-                value: c.value,
-                standard_error: c.standard_error,
-            };
-            RateGroup { members: ids, reason, identified: group.identified.iter().map(combination).collect() }
-        })
+        .map(|group| rate_group(model, estimate, &rate_unknowns, group, residual_rms, settings.max_standard_error))
         .collect();
     let rates: Vec<RateEstimate> = model
         .parts
@@ -393,29 +364,96 @@ fn assemble(
             friction: value(model.unknowns.iter().position(|u| *u == Unknown::Friction(j))),
         })
         .collect();
-    // The measured rates: each estimated part's rows scaled by 1 + δ (for tuning); known trims and
-    // parts the logs never engaged stay as designed.
+    Identification {
+        cutoff_hz: *cutoff,
+        smoothing_hz: settings.smoothing_hz,
+        max_standard_error: settings.max_standard_error,
+        runs: run_summaries(runs, rows),
+        rows: rows.len(),
+        unknowns: model.unknowns.len(),
+        rank: estimate.rank,
+        condition: estimate.condition,
+        residual_rms_nm: per_joint_rms(rows, n, &|r| estimate.residual[r].powi(2)),
+        torque_rms_nm: per_joint_rms(rows, n, &|r| rows.designed[r].powi(2)),
+        measured: measured_rates(bom, &rates),
+        rates,
+        groups,
+        joints,
+        trace: trace(runs, rows, estimate, n),
+    }
+}
+
+/// A group of rates the logs cannot tell apart: its members, why (nearly proportional
+/// torques, a part the logs never engage, or a torque too small against the residual) and the
+/// combinations of them the logs fix.
+fn rate_group(
+    model: &Model,
+    estimate: &Estimate,
+    rate_unknowns: &[usize],
+    group: &estimate::Group,
+    residual_rms: f64,
+    max_standard_error: f64,
+) -> RateGroup {
+    let ids: Vec<String> = group.members.iter().map(|&i| model.parts[i].id.clone()).collect();
+    let reason = if group.members.len() > 1 {
+        format!(
+            "Their torques over these logs are nearly proportional: the logs fix {} of their {} rates only as \
+             the combinations below",
+            group.identified.len(),
+            group.members.len()
+        )
+    } else {
+        let u = rate_unknowns[group.members[0]];
+        let top = estimate.column_rms.iter().fold(0.0f64, |m, x| m.max(*x));
+        if estimate.column_rms[u] <= 1e-9 * top.max(f64::MIN_POSITIVE) {
+            "The logs never engage it: it exerts no torque anywhere along them".to_string()
+        } else {
+            format!(
+                "Its torque over these logs (rms {:.3e} N·m for δ = 1, against a residual of {:.3e} N·m) leaves \
+                 its δ a standard error of {:.3} %, beyond the bound of {} %",
+                estimate.column_rms[u],
+                residual_rms,
+                100.0 * estimate.standard_error(u),
+                100.0 * max_standard_error
+            )
+        }
+    };
+    let combination = |c: &Combination| CombinationReport {
+        weights: c.weights.iter().map(|&(i, w)| (model.parts[i].id.clone(), w)).collect(),
+        value: c.value,
+        standard_error: c.standard_error,
+    };
+    RateGroup { members: ids, reason, identified: group.identified.iter().map(combination).collect() }
+}
+
+/// The measured rates: each estimated part's rows scaled by 1 + δ (for tuning); known trims and
+/// parts the logs never engaged stay as designed (None).
+fn measured_rates(bom: &[BomRow], rates: &[RateEstimate]) -> Vec<Option<f64>> {
     let mut measured: Vec<Option<f64>> = vec![None; bom.len()];
-    for r in &rates {
+    for r in rates {
         if r.torque_rms_nm > 0.0 {
             for &j in &r.rows {
                 measured[j] = Some(bom[j].stiffness * (1.0 + r.for_tuning));
             }
         }
     }
-    let per_joint = |f: &dyn Fn(usize) -> f64| -> Vec<f64> {
-        (0..n)
-            .map(|j| {
-                let (s, c) =
-                    (0..rows.len()).filter(|&r| rows.joint[r] == j).fold((0.0, 0), |(s, c), r| (s + f(r), c + 1));
-                (s / c.max(1) as f64).sqrt()
-            })
-            .collect()
-    };
-    let residual_rms_nm = per_joint(&|r| estimate.residual[r].powi(2));
-    let torque_rms_nm = per_joint(&|r| rows.designed[r].powi(2));
-    let summaries: Vec<RunSummary> = runs
-        .iter()
+    measured
+}
+
+/// The root mean of f(row) over each joint's rows.
+fn per_joint_rms(rows: &Rows, n: usize, f: &dyn Fn(usize) -> f64) -> Vec<f64> {
+    (0..n)
+        .map(|j| {
+            let (s, c) = (0..rows.len()).filter(|&r| rows.joint[r] == j).fold((0.0, 0), |(s, c), r| (s + f(r), c + 1));
+            (s / c.max(1) as f64).sqrt()
+        })
+        .collect()
+}
+
+/// One summary per run: its file and name, samples, length, rate, whether it was driven and
+/// the regression rows it gave.
+fn run_summaries(runs: &[(&Log, &Run, Filters)], rows: &Rows) -> Vec<RunSummary> {
+    runs.iter()
         .enumerate()
         .map(|(k, (log, run, _))| RunSummary {
             file: log.path.display().to_string(),
@@ -426,24 +464,7 @@ fn assemble(
             driven: run.tau.is_some(),
             rows: rows.run.iter().filter(|&&r| r == k).count(),
         })
-        .collect();
-    Identification {
-        cutoff_hz: cutoff,
-        smoothing_hz: settings.smoothing_hz,
-        max_standard_error: settings.max_standard_error,
-        runs: summaries,
-        rows: rows.len(),
-        unknowns: model.unknowns.len(),
-        rank: estimate.rank,
-        condition: estimate.condition,
-        residual_rms_nm,
-        torque_rms_nm,
-        rates,
-        groups,
-        joints,
-        measured,
-        trace: trace(runs, rows, estimate, n),
-    }
+        .collect()
 }
 
 /// The torque trace of the run with the most rows, its first 10 s of rows.

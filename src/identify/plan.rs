@@ -35,7 +35,7 @@ use crate::error::{Error, Result};
 use crate::fit::bill::BomRow;
 use crate::geodesic::{Fan, FanSpec, Region, Stop};
 use crate::numerics::rng::SplitMix64;
-use crate::potential::Potential;
+use crate::potential::{Potential, SpringSet};
 
 /// One proposed release.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -86,7 +86,9 @@ struct Candidate {
     information: DMatrix<f64>,
 }
 
-/// Proposes releases for identifying `bom` (read from `bom_path`) on `design`.
+/// Proposes releases for identifying `bom` (read from `bom_path`) on `design`: the candidate
+/// release points, each simulated (those that leave the region dropped), then the D-optimal
+/// choice among them until the simulated logs identify every rate or the log budget is spent.
 pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Result<Plan> {
     let settings = &design.file.identify;
     super::check_bill(design, bom_path, bom)?;
@@ -106,7 +108,40 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
             ),
         ));
     }
-    // Candidate release points along a fan of geodesics to the region's boundary.
+    let points = release_points(design)?;
+    let (candidates, dropped) = simulate_candidates(design, &springs, &model, &filters, &points)?;
+    if candidates.is_empty() {
+        return Err(Error::invalid(
+            &design.path,
+            "identify.radii",
+            "every candidate release swings out of the region: choose smaller identify.radii".to_string(),
+        ));
+    }
+    let (chosen, predicted) = choose(design, bom_path, bom, &candidates, model.unknowns.len())?;
+    Ok(Plan {
+        criterion: "D-optimal: each release the candidate that most increases log det of the information ΦᵀΦ".into(),
+        candidates: candidates.len() + dropped,
+        dropped,
+        total_seconds: chosen.len() as f64 * settings.release_seconds,
+        releases: releases(&candidates, &chosen, settings.release_seconds),
+        rate_hz: settings.rate_hz,
+        encoder_bits: settings.encoder_bits,
+        encoder_noise_counts: settings.encoder_noise_counts,
+        complete: predicted.rates.iter().all(|r| r.status == Status::Identified),
+        predicted,
+    })
+}
+
+/// A candidate release point: where to let go, the direction in the metric frame at q_eq and
+/// the metric distance along it.
+type ReleasePoint = (Vec<f64>, Vec<f64>, f64);
+
+/// Candidate release points along a fan of geodesics to the region's boundary, at each
+/// fraction of `radii` of each geodesic's length (for two joints only one of u and −u: they
+/// swing on the same mode).
+fn release_points(design: &Design) -> Result<Vec<ReleasePoint>> {
+    let settings = &design.file.identify;
+    let n = design.dof();
     let extent = match &design.region {
         Region::Ball { radius } => *radius,
         _ => design.geodesics.max_arc,
@@ -122,7 +157,6 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
         FanSpec { count, phase: 0.0, stop, spacing: extent / 400.0 },
         design.geodesics.ode,
     )?;
-    let u_eq = springs.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
     let mut points = Vec::new();
     for (g, u) in fan.geodesics.iter().zip(&fan.frame_directions) {
         // Two joints: u and −u swing on the same mode.
@@ -137,17 +171,32 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
             }
         }
     }
-    let zeros = vec![0.0; n];
+    Ok(points)
+}
+
+/// Each release point's swing simulated as designed (no damping or friction) and its
+/// information: the candidates, and how many were dropped because their swing leaves the
+/// region.
+fn simulate_candidates(
+    design: &Design,
+    springs: &SpringSet,
+    model: &Model,
+    filters: &Filters,
+    points: &[ReleasePoint],
+) -> Result<(Vec<Candidate>, usize)> {
+    let settings = &design.file.identify;
+    let u_eq = springs.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
+    let zeros = vec![0.0; design.dof()];
     let drive = Drive { damping: &zeros, friction: &zeros, torque: None };
     let test = super::region::RegionTest::new(design, settings.region_margin);
     let simulated: Vec<Option<Candidate>> = points
         .par_iter()
         .map(|(q0, direction, distance)| {
-            let run = swing(design, &springs, &drive, q0, settings.release_seconds, settings.rate_hz)?;
+            let run = swing(design, springs, &drive, q0, settings.release_seconds, settings.rate_hz)?;
             if test.first_outside(&run.q).ok()?.is_some() {
                 return None;
             }
-            let rows = super::regression::run_rows(design, &model, &run, 0, &filters);
+            let rows = super::regression::run_rows(design, model, &run, 0, filters);
             let energy = springs.value(q0).ok()? + design.chain.gravity_potential(q0) - u_eq;
             Some(Candidate {
                 q0: q0.clone(),
@@ -160,16 +209,23 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
         })
         .collect();
     let dropped = simulated.iter().filter(|c| c.is_none()).count();
-    let candidates: Vec<Candidate> = simulated.into_iter().flatten().collect();
-    if candidates.is_empty() {
-        return Err(Error::invalid(
-            &design.path,
-            "identify.radii",
-            "every candidate release swings out of the region: choose smaller identify.radii".to_string(),
-        ));
-    }
+    Ok((simulated.into_iter().flatten().collect(), dropped))
+}
+
+/// The D-optimal choice: releases added one at a time, each the candidate that most increases
+/// log det of the summed information (unknowns scaled to unit information over all
+/// candidates, plus a tiny ridge), each read through the simulated encoder and the readings so
+/// far identified; it stops when every rate is identified or the log budget is spent. Returns
+/// the choices as (candidate, repeat) and the last identification.
+fn choose(
+    design: &Design,
+    bom_path: &std::path::Path,
+    bom: &[BomRow],
+    candidates: &[Candidate],
+    p: usize,
+) -> Result<(Vec<(usize, usize)>, Identification)> {
+    let settings = &design.file.identify;
     // Unit scaling of the unknowns over all candidates, and the ridge.
-    let p = model.unknowns.len();
     let total: DMatrix<f64> = candidates.iter().fold(DMatrix::zeros(p, p), |a, c| a + &c.information);
     let scale: Vec<f64> = (0..p).map(|k| if total[(k, k)] > 0.0 { 1.0 / total[(k, k)].sqrt() } else { 1.0 }).collect();
     let scaled = |m: &DMatrix<f64>| DMatrix::from_fn(p, p, |a, b| m[(a, b)] * scale[a] * scale[b]);
@@ -182,9 +238,11 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
     let budget = (settings.max_log_seconds / settings.release_seconds).floor().max(1.0) as usize;
     let mut predicted = None;
     while chosen.len() < budget {
-        let best = (0..candidates.len())
+        let Some(best) = (0..candidates.len())
             .max_by(|&a, &b| log_det(&(&sum + &infos[a])).total_cmp(&log_det(&(&sum + &infos[b]))))
-            .expect("at least one candidate");
+        else {
+            break;
+        };
         sum += &infos[best];
         chosen.push((best, repeats[best]));
         let mut rng = SplitMix64::stream(settings.seed, (best * 1000 + repeats[best]) as u64);
@@ -200,10 +258,16 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
             break;
         }
     }
-    let predicted = predicted.expect("one release at least");
+    // The budget is at least one release and there is a candidate: one was identified.
+    let predicted = predicted.ok_or_else(|| Error::numerical("identify plan", "no release was chosen"))?;
+    Ok((chosen, predicted))
+}
+
+/// The chosen releases in the order first chosen, a repeated choice adding to `releases`.
+fn releases(candidates: &[Candidate], chosen: &[(usize, usize)], seconds: f64) -> Vec<Release> {
     let mut releases: Vec<Release> = Vec::new();
     let mut placed: Vec<Option<usize>> = vec![None; candidates.len()];
-    for &(c, _) in &chosen {
+    for &(c, _) in chosen {
         match placed[c] {
             Some(i) => releases[i].releases += 1,
             None => {
@@ -215,23 +279,12 @@ pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Resu
                     distance: k.distance,
                     energy_j: k.energy,
                     releases: 1,
-                    seconds: settings.release_seconds,
+                    seconds,
                 });
             }
         }
     }
-    Ok(Plan {
-        criterion: "D-optimal: each release the candidate that most increases log det of the information ΦᵀΦ".into(),
-        candidates: candidates.len() + dropped,
-        dropped,
-        total_seconds: chosen.len() as f64 * settings.release_seconds,
-        releases,
-        rate_hz: settings.rate_hz,
-        encoder_bits: settings.encoder_bits,
-        encoder_noise_counts: settings.encoder_noise_counts,
-        complete: predicted.rates.iter().all(|r| r.status == Status::Identified),
-        predicted,
-    })
+    releases
 }
 
 /// Identifies simulated readings as `identify` identifies logs.

@@ -3,6 +3,7 @@
 use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
 use crate::error::Result;
+use crate::residual::AngleStats;
 use crate::studies::compare::{BudgetPoint, FitRecord, RadiusPoint, table_csv, table_md};
 
 /// Edges of `bins` bins even in log₁₀ from a decade at or under the smallest record's 1st
@@ -119,27 +120,57 @@ pub fn write_pareto(
     radii: &[RadiusPoint],
     budget_for_radii: usize,
 ) -> Result<()> {
+    let (csv, md) = pareto_tables(design, budgets, radii, budget_for_radii);
+    out.write("pareto.csv", csv)?;
+    out.write("pareto.md", md)?;
+    render(&pareto_figure(design, budgets, radii), &out.path("pareto"))?;
+    Ok(())
+}
+
+/// A point's count of springs used and residual statistics as CSV cells; an infeasible point
+/// keeps its row with empty numbers.
+fn pareto_numbers(used: usize, s: &AngleStats, why: &Option<String>) -> String {
+    match why {
+        None => format!("{used},{},{},{},{}", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
+        Some(_) => ",,,,".to_string(),
+    }
+}
+
+/// An infeasible point's reason as a CSV field (empty when feasible).
+fn pareto_reason(why: &Option<String>) -> String {
+    why.as_ref().map(|w| crate::csv::csv_field(w)).unwrap_or_default()
+}
+
+/// A point's count of springs used and residual statistics as Markdown cells.
+fn pareto_cells(used: usize, s: &AngleStats, why: &Option<String>) -> String {
+    match why {
+        None => format!("{used} | {:.4}° | {:.4}° | {:.4}° | {:.4}°", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
+        Some(_) => "infeasible | – | – | – | –".to_string(),
+    }
+}
+
+/// The reasons of the infeasible points under a table, if any.
+fn push_infeasible(md: &mut String, why: Vec<String>) {
+    if !why.is_empty() {
+        md.push_str("\nInfeasible:\n\n");
+        for w in why {
+            md.push_str(&format!("- {w}\n"));
+        }
+    }
+}
+
+/// `pareto.csv` and `pareto.md`, a row of each per budget and per radius. The CSV has the
+/// as-built spreads and, for an infeasible point, the reason in the last column; the Markdown
+/// names the best budget as built and lists the infeasible points' reasons under each table.
+fn pareto_tables(
+    design: &str,
+    budgets: &[BudgetPoint],
+    radii: &[RadiusPoint],
+    budget_for_radii: usize,
+) -> (String, String) {
     let mut csv = String::from(
         "curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,infeasible\n",
     );
-    // An infeasible point keeps its row: empty numbers, the reason in the last column.
-    let nums = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
-        None => format!("{used},{},{},{},{}", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
-        Some(_) => ",,,,".to_string(),
-    };
-    let reason = |why: &Option<String>| why.as_ref().map(|w| crate::csv::csv_field(w)).unwrap_or_default();
-    let cells = |used: usize, s: &crate::residual::AngleStats, why: &Option<String>| match why {
-        None => format!("{used} | {:.4}° | {:.4}° | {:.4}° | {:.4}°", s.median_abs, s.p95_abs, s.p99_abs, s.max_abs),
-        Some(_) => "infeasible | – | – | – | –".to_string(),
-    };
-    let notes = |md: &mut String, why: Vec<String>| {
-        if !why.is_empty() {
-            md.push_str("\nInfeasible:\n\n");
-            for w in why {
-                md.push_str(&format!("- {w}\n"));
-            }
-        }
-    };
     let mut md = format!(
         "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
@@ -150,17 +181,17 @@ pub fn write_pareto(
         csv.push_str(&format!(
             "budget,{},,{},{},{},{},{},{}\n",
             b.budget,
-            nums(b.used, &b.stats, &b.infeasible),
+            pareto_numbers(b.used, &b.stats, &b.infeasible),
             opt(ab.map(|a| a.p99_deg.p50)),
             opt(ab.map(|a| a.p99_deg.p95)),
             opt(tr.map(|t| t.p50)),
             opt(tr.map(|t| t.p95)),
-            reason(&b.infeasible)
+            pareto_reason(&b.infeasible)
         ));
         md.push_str(&format!(
             "| {} | {} | {} | {} |\n",
             b.budget,
-            cells(b.used, &b.stats, &b.infeasible),
+            pareto_cells(b.used, &b.stats, &b.infeasible),
             crate::studies::compare::spread_md(ab.map(|a| a.p99_deg)),
             crate::studies::compare::spread_md(tr)
         ));
@@ -172,7 +203,7 @@ pub fn write_pareto(
             if best.as_built.is_some_and(|a| a.trimmed_p99_deg.is_some()) { ", trimmed" } else { "" }
         ));
     }
-    notes(
+    push_infeasible(
         &mut md,
         budgets.iter().filter_map(|b| b.infeasible.as_ref().map(|w| format!("K = {}: {w}", b.budget))).collect(),
     );
@@ -181,17 +212,21 @@ pub fn write_pareto(
         csv.push_str(&format!(
             "radius,,{},{},,,,,{}\n",
             r.radius,
-            nums(r.used, &r.stats, &r.infeasible),
-            reason(&r.infeasible)
+            pareto_numbers(r.used, &r.stats, &r.infeasible),
+            pareto_reason(&r.infeasible)
         ));
-        md.push_str(&format!("| {:.2} | {} |\n", r.radius, cells(r.used, &r.stats, &r.infeasible)));
+        md.push_str(&format!("| {:.2} | {} |\n", r.radius, pareto_cells(r.used, &r.stats, &r.infeasible)));
     }
-    notes(
+    push_infeasible(
         &mut md,
         radii.iter().filter_map(|r| r.infeasible.as_ref().map(|w| format!("r = {}: {w}", r.radius))).collect(),
     );
-    out.write("pareto.csv", csv)?;
-    out.write("pareto.md", md)?;
+    (csv, md)
+}
+
+/// The two curves: p99 and max residual per budget (with the as-built p95 of the p99, untrimmed
+/// and trimmed) and per radius; infeasible points have no residual to draw.
+fn pareto_figure(design: &str, budgets: &[BudgetPoint], radii: &[RadiusPoint]) -> Figure {
     let line = |pts: Vec<(f64, f64)>, i: usize, label: &str| Layer::Lines {
         lines: vec![pts],
         style: Style::line(palette(i), 2),
@@ -249,18 +284,14 @@ pub fn write_pareto(
             ..Panel::default()
         },
     ];
-    render(
-        &Figure {
-            title: Some(format!("{design}: accuracy versus springs and region")),
-            width: 1400,
-            height: 560,
-            rows: 1,
-            cols: 2,
-            panels,
-        },
-        &out.path("pareto"),
-    )?;
-    Ok(())
+    Figure {
+        title: Some(format!("{design}: accuracy versus springs and region")),
+        width: 1400,
+        height: 560,
+        rows: 1,
+        cols: 2,
+        panels,
+    }
 }
 
 /// Box-plot labels sit side by side under narrow boxes: the part of the design names that most

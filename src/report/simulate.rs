@@ -16,7 +16,7 @@ use crate::design::controllers::Blend;
 use crate::design::scenario::{ModeSpec, ScenarioKind};
 use crate::dynamics::backbone::Backbone;
 use crate::dynamics::scenario::{RunMetrics, ScenarioOutcome, unwrap_angles};
-use crate::dynamics::simulate::{ElasticPotential, SOURCES};
+use crate::dynamics::simulate::{ElasticPotential, SOURCES, Trace};
 use crate::error::Result;
 use crate::geodesic::{Fan, FanSpec, Stop};
 
@@ -472,6 +472,7 @@ enum TimePlot {
     Power,
 }
 
+/// One panel per run (the first six, in two columns beyond three) of `what` against time.
 fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure {
     let runs = &outcome.runs;
     let shown: Vec<usize> = (0..runs.len()).take(6).collect();
@@ -482,140 +483,162 @@ fn time_figure(outcome: &ScenarioOutcome, title: &str, what: TimePlot) -> Figure
         .map(|&ri| {
             let (r, m) = &runs[ri];
             let t = &r.trace;
-            let n = t.n;
-            let mut layers = Vec::new();
-            let series =
-                |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> { (0..t.t.len()).map(|k| (t.t[k], f(k))).collect() };
-            let y_label: String;
-            match what {
-                TimePlot::Angles => {
-                    y_label = "q (rad)".into();
-                    for i in 0..n {
-                        layers.push(Layer::Lines {
-                            lines: vec![series(&|k| t.q[k * n + i])],
-                            style: Style::line(palette(i), 2),
-                            label: Some(format!("q{}", i + 1)),
-                        });
-                    }
-                }
-                TimePlot::Torques => {
-                    y_label = "torque (N·m)".into();
-                    let w = SOURCES.len() * n;
-                    for (s, src) in SOURCES.iter().enumerate() {
-                        let active = (0..t.t.len()).any(|k| (0..n).any(|i| t.tau[k * w + s * n + i] != 0.0));
-                        if !active {
-                            continue;
-                        }
-                        for i in 0..n {
-                            // Joint 1 solid, joint 2 dashed, joint 3 dashed and thicker.
-                            let style = match i {
-                                0 => Style::line(palette(s), 1),
-                                1 => Style::line(palette(s), 1).dashed(),
-                                _ => Style::line(palette(s), 2).dashed(),
-                            };
-                            layers.push(Layer::Lines {
-                                lines: vec![series(&|k| t.tau[k * w + s * n + i])],
-                                style,
-                                label: Some(format!("{src} (joint {})", i + 1)),
-                            });
-                        }
-                    }
-                }
+            let (y_label, layers) = match what {
+                TimePlot::Angles => ("q (rad)".into(), angle_layers(t)),
+                TimePlot::Torques => ("torque (N·m)".into(), torque_layers(t)),
                 TimePlot::Label => {
-                    y_label = if n == 2 {
-                        "mode label θ (°, unwrapped)".into()
-                    } else {
-                        "distance to the mode Δ (°)".into()
-                    };
-                    let mut spans = Vec::new();
-                    let mut open: Option<f64> = None;
-                    for k in 0..t.t.len() {
-                        match (t.in_ball[k], open) {
-                            (true, None) => open = Some(t.t[k]),
-                            (false, Some(a)) => {
-                                spans.push((a, t.t[k]));
-                                open = None;
-                            }
-                            _ => {}
-                        }
-                    }
-                    if let Some(a) = open {
-                        spans.push((a, *t.t.last().unwrap_or(&a)));
-                    }
-                    layers.push(Layer::Spans {
-                        spans,
-                        style: Style::fill((150, 150, 150), 0.3),
-                        label: Some("ε-ball".into()),
-                    });
-                    // θ lives on a circle: unwrapped, a label crossing ±180° goes on instead of
-                    // jumping by a full turn; the target is unwrapped alike and starts on the
-                    // label's branch.
-                    let (label, target) = if n == 2 {
-                        let target = unwrap_angles(&t.label_target);
-                        let mut label = unwrap_angles(&t.label);
-                        let first = (0..t.t.len()).find(|&k| label[k].is_finite() && target[k].is_finite());
-                        if let Some(k) = first {
-                            let shift = target[k] - label[k];
-                            let turns = (shift / std::f64::consts::TAU).round() * std::f64::consts::TAU;
-                            label.iter_mut().for_each(|v| *v += turns);
-                        }
-                        (label, target)
-                    } else {
-                        (t.label.clone(), t.label_target.clone())
-                    };
-                    let lab: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.t[k], label[k].to_degrees())).collect();
-                    layers.push(Layer::Lines {
-                        lines: vec![lab],
-                        style: Style::line(palette(0), 2),
-                        label: Some("label".into()),
-                    });
-                    if target.iter().any(|v| v.is_finite()) {
-                        layers.push(Layer::Lines {
-                            lines: vec![series(&|k| target[k].to_degrees())],
-                            style: Style::line((0, 0, 0), 1).dashed(),
-                            label: Some("desired".into()),
-                        });
-                    }
+                    let y_label =
+                        if t.n == 2 { "mode label θ (°, unwrapped)" } else { "distance to the mode Δ (°)" };
+                    (y_label.into(), label_layers(t))
                 }
-                TimePlot::Power => {
-                    y_label = "power (W)".into();
-                    for (s, src) in SOURCES.iter().enumerate() {
-                        let p = t.power(s);
-                        if p.iter().all(|v| *v == 0.0) {
-                            continue;
-                        }
-                        layers.push(Layer::Lines {
-                            lines: vec![(0..t.t.len()).map(|k| (t.t[k], p[k])).collect()],
-                            style: Style::line(palette(s), if s == 0 { 1 } else { 2 }),
-                            label: Some(src.to_string()),
-                        });
-                    }
-                }
-            }
-            let mut notes = vec![
-                format!("actuator share {:.3} %", 100.0 * m.actuator_share),
-                format!("peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm),
-            ];
-            if let Some(d) = &m.geodesic_deviation {
-                notes.push(format!("geodesic deviation ≤ {:.2e}", d.max));
-                notes.push(format!("  √(kg·m²)·rad ({:.2e} of r₀)", d.max_rel));
-            }
-            if let (Some(d), Some(w)) = (m.mode_drift_deg, m.mode_drift_wrapped_deg) {
-                notes.push(format!("label drift {d:.3}° ({w:.3}° wrapped)"));
-            }
-            if let Some(e) = m.energy_signed_error_last5s {
-                notes.push(format!("E − E_d (last 5 s) {:+.2} %", 100.0 * e));
-            }
+                TimePlot::Power => ("power (W)".into(), power_layers(t)),
+            };
             Panel {
                 title: r.name.clone(),
                 x_label: "t (s)".into(),
                 y_label,
                 legend: true,
-                notes,
+                notes: run_notes(m),
                 layers,
                 ..Panel::default()
             }
         })
         .collect();
     Figure { title: Some(title.into()), width: 1100 * cols as u32, height: 380 * rows as u32 + 40, rows, cols, panels }
+}
+
+/// (t, f(k)) for every sample k of a trace.
+fn time_series(t: &Trace, f: &dyn Fn(usize) -> f64) -> Vec<(f64, f64)> {
+    (0..t.t.len()).map(|k| (t.t[k], f(k))).collect()
+}
+
+/// Each joint's angle.
+fn angle_layers(t: &Trace) -> Vec<Layer> {
+    let n = t.n;
+    (0..n)
+        .map(|i| Layer::Lines {
+            lines: vec![time_series(t, &|k| t.q[k * n + i])],
+            style: Style::line(palette(i), 2),
+            label: Some(format!("q{}", i + 1)),
+        })
+        .collect()
+}
+
+/// Each source's torque on each joint, for the sources that act at all.
+fn torque_layers(t: &Trace) -> Vec<Layer> {
+    let n = t.n;
+    let w = SOURCES.len() * n;
+    let mut layers = Vec::new();
+    for (s, src) in SOURCES.iter().enumerate() {
+        let active = (0..t.t.len()).any(|k| (0..n).any(|i| t.tau[k * w + s * n + i] != 0.0));
+        if !active {
+            continue;
+        }
+        for i in 0..n {
+            // Joint 1 solid, joint 2 dashed, joint 3 dashed and thicker.
+            let style = match i {
+                0 => Style::line(palette(s), 1),
+                1 => Style::line(palette(s), 1).dashed(),
+                _ => Style::line(palette(s), 2).dashed(),
+            };
+            layers.push(Layer::Lines {
+                lines: vec![time_series(t, &|k| t.tau[k * w + s * n + i])],
+                style,
+                label: Some(format!("{src} (joint {})", i + 1)),
+            });
+        }
+    }
+    layers
+}
+
+/// The mode label (two joints: θ unwrapped; more: the distance to the mode) with its target,
+/// over the spans spent in the ε-ball.
+fn label_layers(t: &Trace) -> Vec<Layer> {
+    let mut layers = vec![Layer::Spans {
+        spans: ball_spans(t),
+        style: Style::fill((150, 150, 150), 0.3),
+        label: Some("ε-ball".into()),
+    }];
+    // θ lives on a circle: unwrapped, a label crossing ±180° goes on instead of jumping by a
+    // full turn; the target is unwrapped alike and starts on the label's branch.
+    let (label, target) = if t.n == 2 {
+        let target = unwrap_angles(&t.label_target);
+        let mut label = unwrap_angles(&t.label);
+        let first = (0..t.t.len()).find(|&k| label[k].is_finite() && target[k].is_finite());
+        if let Some(k) = first {
+            let shift = target[k] - label[k];
+            let turns = (shift / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+            label.iter_mut().for_each(|v| *v += turns);
+        }
+        (label, target)
+    } else {
+        (t.label.clone(), t.label_target.clone())
+    };
+    let lab: Vec<(f64, f64)> = (0..t.t.len()).map(|k| (t.t[k], label[k].to_degrees())).collect();
+    layers.push(Layer::Lines { lines: vec![lab], style: Style::line(palette(0), 2), label: Some("label".into()) });
+    if target.iter().any(|v| v.is_finite()) {
+        layers.push(Layer::Lines {
+            lines: vec![time_series(t, &|k| target[k].to_degrees())],
+            style: Style::line((0, 0, 0), 1).dashed(),
+            label: Some("desired".into()),
+        });
+    }
+    layers
+}
+
+/// The time spans a run spends in the ε-ball (the last one closed at the end of the run).
+fn ball_spans(t: &Trace) -> Vec<(f64, f64)> {
+    let mut spans = Vec::new();
+    let mut open: Option<f64> = None;
+    for k in 0..t.t.len() {
+        match (t.in_ball[k], open) {
+            (true, None) => open = Some(t.t[k]),
+            (false, Some(a)) => {
+                spans.push((a, t.t[k]));
+                open = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(a) = open {
+        spans.push((a, *t.t.last().unwrap_or(&a)));
+    }
+    spans
+}
+
+/// Each source's power, for the sources that deliver any.
+fn power_layers(t: &Trace) -> Vec<Layer> {
+    let mut layers = Vec::new();
+    for (s, src) in SOURCES.iter().enumerate() {
+        let p = t.power(s);
+        if p.iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        layers.push(Layer::Lines {
+            lines: vec![(0..t.t.len()).map(|k| (t.t[k], p[k])).collect()],
+            style: Style::line(palette(s), if s == 0 { 1 } else { 2 }),
+            label: Some(src.to_string()),
+        });
+    }
+    layers
+}
+
+/// A run's figures beside its panel: actuator share and peak torque, and where measured its
+/// geodesic deviation, label drift and energy error.
+fn run_notes(m: &RunMetrics) -> Vec<String> {
+    let mut notes = vec![
+        format!("actuator share {:.3} %", 100.0 * m.actuator_share),
+        format!("peak actuator torque {:.2} N·m", m.peak_actuator_torque_nm),
+    ];
+    if let Some(d) = &m.geodesic_deviation {
+        notes.push(format!("geodesic deviation ≤ {:.2e}", d.max));
+        notes.push(format!("  √(kg·m²)·rad ({:.2e} of r₀)", d.max_rel));
+    }
+    if let (Some(d), Some(w)) = (m.mode_drift_deg, m.mode_drift_wrapped_deg) {
+        notes.push(format!("label drift {d:.3}° ({w:.3}° wrapped)"));
+    }
+    if let Some(e) = m.energy_signed_error_last5s {
+        notes.push(format!("E − E_d (last 5 s) {:+.2} %", 100.0 * e));
+    }
+    notes
 }

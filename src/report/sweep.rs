@@ -162,154 +162,170 @@ pub fn write(
     out.write("sweep.json", serde_json::to_string_pretty(tables).expect("serialises") + "\n")?;
     out.write("tolerance.md", tables_md(&design.name, design.is_paper_arm(), tables))?;
     if let Some(k) = results.iter().find_map(|r| r.stock_stiffness.clone()) {
-        let rows: Vec<BomRow> = bom
-            .iter()
-            .zip(&k)
-            .map(|(row, &k)| BomRow {
-                stiffness: k,
-                max_torque_nm: row.max_torque_nm * if row.stiffness > 0.0 { k / row.stiffness } else { 1.0 },
-                stock_rate: row.stock_rate.map(|_| k),
-                preload_nm: row.preload_nm.map(|p| if row.stiffness > 0.0 { p * k / row.stiffness } else { p }),
-                ..row.clone()
-            })
-            .collect();
-        bom::write(out, "bom_stock.csv", &rows)?;
+        bom::write(out, "bom_stock.csv", &stock_bill(bom, &k))?;
     }
     let mut parasitic: Vec<&ItemResult> =
         results.iter().filter(|r| matches!(r.item, WorkItem::Parasitic { .. })).collect();
     parasitic.sort_by_key(|r| r.index);
     if !parasitic.is_empty() {
-        let eps = |r: &ItemResult| if let WorkItem::Parasitic { eps } = r.item { eps } else { f64::NAN };
-        let lines: Vec<Layer> = parasitic
-            .iter()
-            .enumerate()
-            .filter_map(|(i, r)| {
-                let s = r.series.as_ref()?;
-                let pts: Vec<(f64, f64)> = s.q.chunks(2).map(|c| (c[0], c[1])).collect();
-                Some(Layer::Lines {
-                    lines: vec![pts],
-                    style: Style::line(palette(i), 1),
-                    label: Some(format!("ε = {}", eps(r))),
-                })
-            })
-            .collect();
-        let phase = Panel {
-            title: "Trajectories with parasitic springs (the paper's Fig. 8a)".into(),
-            x_label: "q₁ (rad)".into(),
-            y_label: "q₂ (rad)".into(),
-            equal_aspect: true,
-            legend: true,
-            layers: lines,
-            ..Panel::default()
-        };
-        render(&Figure::single(phase, 900, 800), &out.path("sweep_parasitic_phase"))?;
-        // Power by source for three ε (the paper's Fig. 8c–e): the smallest non-zero, a middle one
-        // and the largest.
-        let picks: Vec<&ItemResult> = {
-            let nz: Vec<&ItemResult> = parasitic.iter().copied().filter(|r| eps(r) > 0.0).collect();
-            let mut p = Vec::new();
-            if let Some(f) = nz.first() {
-                p.push(*f);
-            }
-            if nz.len() > 2 {
-                p.push(nz[nz.len() / 2]);
-            }
-            if let Some(l) = nz.last()
-                && p.last().is_none_or(|x| x.index != l.index)
-            {
-                p.push(*l);
-            }
-            p
-        };
-        let panels: Vec<Panel> = picks
-            .iter()
-            .filter_map(|r| {
-                let s = r.series.as_ref()?;
-                let ns = SOURCES.len();
-                let layers = [(0usize, "spring"), (3, "mode"), (4, "energy")]
-                    .iter()
-                    .map(|&(src, name)| Layer::Lines {
-                        lines: vec![s.t.iter().enumerate().map(|(k, &t)| (t, s.power[k * ns + src])).collect()],
-                        style: Style::line(palette(src), if src == 0 { 1 } else { 2 }),
-                        label: Some(name.into()),
-                    })
-                    .collect();
-                Some(Panel {
-                    title: format!("ε = {}", eps(r)),
-                    x_label: "t (s)".into(),
-                    y_label: "power (W)".into(),
-                    legend: true,
-                    layers,
-                    ..Panel::default()
-                })
-            })
-            .collect();
-        if !panels.is_empty() {
-            let rows = panels.len();
-            render(
-                &Figure {
-                    title: Some("Power by source with parasitic springs".into()),
-                    width: 1000,
-                    height: 330 * rows as u32 + 40,
-                    rows,
-                    cols: 1,
-                    panels,
-                },
-                &out.path("sweep_parasitic_power"),
-            )?;
-        }
+        render(&Figure::single(parasitic_phase(&parasitic), 900, 800), &out.path("sweep_parasitic_phase"))?;
+        write_parasitic_power(out, &parasitic)?;
     }
-    // Tolerance distributions.
     if !tables.tolerance_levels.is_empty() {
-        let mut share_boxes = Vec::new();
-        let mut resid_layers = Vec::new();
-        for (i, l) in tables.tolerance_levels.iter().enumerate() {
-            let builds: Vec<&ItemResult> = results
-                .iter()
-                .filter(|r| matches!(r.item, WorkItem::Build { level, .. } if level == l.tolerance))
-                .collect();
-            let name = l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into());
-            let shares: Vec<f64> = builds.iter().map(|r| 100.0 * r.actuator_share).collect();
-            share_boxes.push(BoxItem::from_samples(&name, &shares, palette(i)));
-            let resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
-            let hi = resid.iter().fold(0.0f64, |a, v| a.max(*v)) * 1.05 + 1e-9;
-            let edges: Vec<f64> = (0..=30).map(|k| hi * k as f64 / 30.0).collect();
-            let counts = histogram(&resid, &edges);
-            resid_layers.push(Layer::Histogram {
-                edges,
-                counts,
-                style: Style::fill(palette(i), 0.45),
-                label: Some(name),
-            });
-        }
-        let panels = vec![
-            Panel {
-                title: "Actuator share per build".into(),
-                y_label: "actuator share (%)".into(),
-                layers: vec![Layer::Boxes { items: share_boxes }],
-                ..Panel::default()
-            },
-            Panel {
-                title: "p99 residual angle per build".into(),
-                x_label: "p99 |angle| (°)".into(),
-                y_label: "builds".into(),
-                legend: true,
-                layers: resid_layers,
-                ..Panel::default()
-            },
-        ];
-        render(
-            &Figure {
-                title: Some(format!("{}: manufacturing tolerance", design.name)),
-                width: 1300,
-                height: 560,
-                rows: 1,
-                cols: 2,
-                panels,
-            },
-            &out.path("sweep_tolerance"),
-        )?;
+        write_tolerance(out, design, tables, results)?;
     }
+    Ok(())
+}
+
+/// The nominal bill with every stiffness snapped to its stock rate `k[j]`: torques and
+/// preloads scale with it.
+fn stock_bill(bom: &[BomRow], k: &[f64]) -> Vec<BomRow> {
+    bom.iter()
+        .zip(k)
+        .map(|(row, &k)| BomRow {
+            stiffness: k,
+            max_torque_nm: row.max_torque_nm * if row.stiffness > 0.0 { k / row.stiffness } else { 1.0 },
+            stock_rate: row.stock_rate.map(|_| k),
+            preload_nm: row.preload_nm.map(|p| if row.stiffness > 0.0 { p * k / row.stiffness } else { p }),
+            ..row.clone()
+        })
+        .collect()
+}
+
+/// The ε of a parasitic run (NaN for any other item).
+fn parasitic_eps(r: &ItemResult) -> f64 {
+    if let WorkItem::Parasitic { eps } = r.item { eps } else { f64::NAN }
+}
+
+/// The trajectories of the parasitic runs in (q₁, q₂) (the paper's Fig. 8a).
+fn parasitic_phase(parasitic: &[&ItemResult]) -> Panel {
+    let lines: Vec<Layer> = parasitic
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let s = r.series.as_ref()?;
+            let pts: Vec<(f64, f64)> = s.q.chunks(2).map(|c| (c[0], c[1])).collect();
+            Some(Layer::Lines {
+                lines: vec![pts],
+                style: Style::line(palette(i), 1),
+                label: Some(format!("ε = {}", parasitic_eps(r))),
+            })
+        })
+        .collect();
+    Panel {
+        title: "Trajectories with parasitic springs (the paper's Fig. 8a)".into(),
+        x_label: "q₁ (rad)".into(),
+        y_label: "q₂ (rad)".into(),
+        equal_aspect: true,
+        legend: true,
+        layers: lines,
+        ..Panel::default()
+    }
+}
+
+/// Power by source for three ε (the paper's Fig. 8c–e): the smallest non-zero, a middle one and
+/// the largest; one panel each, when the runs kept their series.
+fn write_parasitic_power(out: &OutputDir, parasitic: &[&ItemResult]) -> Result<()> {
+    let nz: Vec<&ItemResult> = parasitic.iter().copied().filter(|r| parasitic_eps(r) > 0.0).collect();
+    let mut picks = Vec::new();
+    if let Some(f) = nz.first() {
+        picks.push(*f);
+    }
+    if nz.len() > 2 {
+        picks.push(nz[nz.len() / 2]);
+    }
+    if let Some(l) = nz.last()
+        && picks.last().is_none_or(|x| x.index != l.index)
+    {
+        picks.push(*l);
+    }
+    let panels: Vec<Panel> = picks
+        .iter()
+        .filter_map(|r| {
+            let s = r.series.as_ref()?;
+            let ns = SOURCES.len();
+            let layers = [(0usize, "spring"), (3, "mode"), (4, "energy")]
+                .iter()
+                .map(|&(src, name)| Layer::Lines {
+                    lines: vec![s.t.iter().enumerate().map(|(k, &t)| (t, s.power[k * ns + src])).collect()],
+                    style: Style::line(palette(src), if src == 0 { 1 } else { 2 }),
+                    label: Some(name.into()),
+                })
+                .collect();
+            Some(Panel {
+                title: format!("ε = {}", parasitic_eps(r)),
+                x_label: "t (s)".into(),
+                y_label: "power (W)".into(),
+                legend: true,
+                layers,
+                ..Panel::default()
+            })
+        })
+        .collect();
+    if panels.is_empty() {
+        return Ok(());
+    }
+    let rows = panels.len();
+    render(
+        &Figure {
+            title: Some("Power by source with parasitic springs".into()),
+            width: 1000,
+            height: 330 * rows as u32 + 40,
+            rows,
+            cols: 1,
+            panels,
+        },
+        &out.path("sweep_parasitic_power"),
+    )?;
+    Ok(())
+}
+
+/// The tolerance distributions: the actuator share per build as a box per level, and the p99
+/// residual per build as a histogram per level.
+fn write_tolerance(out: &OutputDir, design: &Design, tables: &SweepTables, results: &[ItemResult]) -> Result<()> {
+    let mut share_boxes = Vec::new();
+    let mut resid_layers = Vec::new();
+    for (i, l) in tables.tolerance_levels.iter().enumerate() {
+        let builds: Vec<&ItemResult> = results
+            .iter()
+            .filter(|r| matches!(r.item, WorkItem::Build { level, .. } if level == l.tolerance))
+            .collect();
+        let name = l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into());
+        let shares: Vec<f64> = builds.iter().map(|r| 100.0 * r.actuator_share).collect();
+        share_boxes.push(BoxItem::from_samples(&name, &shares, palette(i)));
+        let resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
+        let hi = resid.iter().fold(0.0f64, |a, v| a.max(*v)) * 1.05 + 1e-9;
+        let edges: Vec<f64> = (0..=30).map(|k| hi * k as f64 / 30.0).collect();
+        let counts = histogram(&resid, &edges);
+        resid_layers.push(Layer::Histogram { edges, counts, style: Style::fill(palette(i), 0.45), label: Some(name) });
+    }
+    let panels = vec![
+        Panel {
+            title: "Actuator share per build".into(),
+            y_label: "actuator share (%)".into(),
+            layers: vec![Layer::Boxes { items: share_boxes }],
+            ..Panel::default()
+        },
+        Panel {
+            title: "p99 residual angle per build".into(),
+            x_label: "p99 |angle| (°)".into(),
+            y_label: "builds".into(),
+            legend: true,
+            layers: resid_layers,
+            ..Panel::default()
+        },
+    ];
+    render(
+        &Figure {
+            title: Some(format!("{}: manufacturing tolerance", design.name)),
+            width: 1300,
+            height: 560,
+            rows: 1,
+            cols: 2,
+            panels,
+        },
+        &out.path("sweep_tolerance"),
+    )?;
     Ok(())
 }
 

@@ -95,7 +95,6 @@ pub fn qp(
 /// the end of a nearly flat valley and an interior-point method, which keeps every pair strictly
 /// inside k ≥ 0, converges there slowly or stops with a numerical error. One signed unknown per
 /// coefficient removes those directions, halves the unknowns and needs no sign rows.
-#[allow(clippy::too_many_arguments)]
 pub fn qp_signed(
     gram: &Gram,
     equalities: &[LinearGroup],
@@ -105,57 +104,166 @@ pub fn qp_signed(
     l1: f64,
     settings: &QpSettings,
 ) -> Result<QpSolution> {
-    let p = gram.dim();
-    let free: Vec<bool> = (0..p).map(|j| free.get(j).copied().unwrap_or(false)).collect();
-    let l1s: Vec<f64> = free.iter().map(|&f| if f { 0.0 } else { l1 }).collect();
-    let d: Vec<f64> = (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();
-    let scaled = Scaled::new(gram, &d, &l1s);
-    let eqs: Vec<(DMatrix<f64>, DVector<f64>)> = equalities.iter().map(|g| scale_cols(g, &d)).collect();
-    let ineqs: Vec<(DMatrix<f64>, DVector<f64>)> = inequalities.iter().map(|g| scale_cols(g, &d)).collect();
-    let ub: Vec<Option<f64>> = upper.iter().zip(&d).map(|(u, dj)| u.map(|u| u / dj)).collect();
-    if free.iter().any(|&f| f) && ub.iter().all(Option::is_none) {
-        let x = active_set_with_cuts(gram, &d, &l1s, &eqs, &ineqs, &free, settings, equalities, inequalities)?;
-        let k = DVector::from_fn(p, |j, _| if free[j] { x.0[j] * d[j] } else { (x.0[j] * d[j]).max(0.0) });
-        let max_equality_residual = eqs.iter().map(|(m, f)| (m * &x.0 - f).amax()).fold(0.0, f64::max);
+    let problem = QpProblem { gram, equalities, inequalities, upper, l1 };
+    let qp = ScaledQp::new(&problem, free, settings);
+    let (d, free) = (&qp.d, &qp.free);
+    if free.iter().any(|&f| f) && qp.ub.iter().all(Option::is_none) {
+        let x = active_set_with_cuts(&qp)?;
+        let k = DVector::from_fn(gram.dim(), |j, _| if free[j] { x.0[j] * d[j] } else { (x.0[j] * d[j]).max(0.0) });
         return Ok(QpSolution {
             k,
             status: QpStatus::Solved,
             iterations: x.1,
             cut_rounds: x.2,
             cuts: x.3,
-            max_equality_residual,
+            max_equality_residual: qp.max_equality_residual(&x.0),
         });
     }
+    let (x, status, iterations, rounds, cuts) = interior_point_with_cuts(&qp)?;
+    let x = polish(&qp, x);
+    let k = DVector::from_fn(gram.dim(), |j, _| if free[j] { x[j] * d[j] } else { (x[j] * d[j]).max(0.0) });
+    Ok(QpSolution {
+        k,
+        status: if status == SolverStatus::Solved { QpStatus::Solved } else { QpStatus::AlmostSolved },
+        iterations,
+        cut_rounds: rounds,
+        cuts,
+        max_equality_residual: qp.max_equality_residual(&x),
+    })
+}
 
+/// A QP as [`qp`] takes it: the normal equations, the equality and inequality groups, the
+/// upper bounds (None: unbounded) and the L1 weight.
+#[derive(Clone, Copy)]
+pub struct QpProblem<'a> {
+    pub gram: &'a Gram,
+    pub equalities: &'a [LinearGroup],
+    pub inequalities: &'a [LinearGroup],
+    pub upper: &'a [Option<f64>],
+    pub l1: f64,
+}
+
+/// The QP in scaled unknowns x (k = D x, D the unit-diagonal scaling of G), as every step of
+/// the solve works on it; the groups as given name the culprits of an infeasible problem.
+struct ScaledQp<'a> {
+    gram: &'a Gram,
+    equalities: &'a [LinearGroup],
+    inequalities: &'a [LinearGroup],
+    settings: &'a QpSettings,
+    /// The scaling D.
+    d: Vec<f64>,
+    /// Each unknown's L1 weight (none on a free unknown: it would not be linear there).
+    l1: Vec<f64>,
+    /// The objective in factor form.
+    s: Scaled,
+    /// The equality and inequality groups on the scaled unknowns.
+    eqs: Vec<(DMatrix<f64>, DVector<f64>)>,
+    ineqs: Vec<(DMatrix<f64>, DVector<f64>)>,
+    /// The scaled upper bounds.
+    ub: Vec<Option<f64>>,
+    /// Which unknowns are free of sign.
+    free: Vec<bool>,
+}
+
+impl<'a> ScaledQp<'a> {
+    /// `problem` scaled, with the unknowns `free` of sign (an empty slice means none).
+    fn new(problem: &QpProblem<'a>, free: &[bool], settings: &'a QpSettings) -> ScaledQp<'a> {
+        let gram = problem.gram;
+        let p = gram.dim();
+        let free: Vec<bool> = (0..p).map(|j| free.get(j).copied().unwrap_or(false)).collect();
+        let l1: Vec<f64> = free.iter().map(|&f| if f { 0.0 } else { problem.l1 }).collect();
+        let d: Vec<f64> =
+            (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();
+        let s = Scaled::new(gram, &d, &l1);
+        let eqs = problem.equalities.iter().map(|g| scale_cols(g, &d)).collect();
+        let ineqs = problem.inequalities.iter().map(|g| scale_cols(g, &d)).collect();
+        let ub = problem.upper.iter().zip(&d).map(|(u, dj)| u.map(|u| u / dj)).collect();
+        ScaledQp {
+            gram,
+            equalities: problem.equalities,
+            inequalities: problem.inequalities,
+            settings,
+            d,
+            l1,
+            s,
+            eqs,
+            ineqs,
+            ub,
+            free,
+        }
+    }
+
+    /// The objective ½ xᵀ g x − cᵀ x in the scaled unknowns: g = D G D, c = D (c − λ).
+    fn objective_terms(&self) -> (DMatrix<f64>, DVector<f64>) {
+        let (gram, d, l1) = (self.gram, &self.d, &self.l1);
+        let n = gram.dim();
+        let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
+        let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1[i]) * d[i]);
+        (g, c)
+    }
+
+    /// Every equality group's rows as equations.
+    fn equality_rows(&self) -> Vec<(DVector<f64>, f64)> {
+        let mut rows = Vec::new();
+        for (m, f) in &self.eqs {
+            for i in 0..m.nrows() {
+                rows.push((m.row(i).transpose(), f[i]));
+            }
+        }
+        rows
+    }
+
+    /// Inequality row r of group g as an equation.
+    fn cut_row(&self, g: usize, r: usize) -> (DVector<f64>, f64) {
+        (self.ineqs[g].0.row(r).transpose(), self.ineqs[g].1[r])
+    }
+
+    /// The inequality rows x violates by more than the cut margin, not among `active`, most
+    /// violated first (ties by group and row): (violation, group, row).
+    fn violated(&self, x: &DVector<f64>, active: &[(usize, usize)]) -> Vec<(f64, usize, usize)> {
+        let mut violated: Vec<(f64, usize, usize)> = Vec::new();
+        for (g, (m, h)) in self.ineqs.iter().enumerate() {
+            let r = m * x - h;
+            for (row, v) in r.iter().enumerate() {
+                if *v < -self.settings.cut_margin && !active.contains(&(g, row)) {
+                    violated.push((*v, g, row));
+                }
+            }
+        }
+        violated.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        violated
+    }
+
+    /// The largest violation of an equality at x (scaled units).
+    fn max_equality_residual(&self, x: &DVector<f64>) -> f64 {
+        self.eqs.iter().map(|(m, f)| (m * x - f).amax()).fold(0.0, f64::max)
+    }
+}
+
+/// Clarabel's interior point with cutting planes: solved without the inequality rows, then
+/// with the most violated ones added, until none is violated. Returns (x in scaled units, the
+/// last status, interior-point iterations, rounds, cut rows at the end).
+fn interior_point_with_cuts(qp: &ScaledQp) -> Result<(DVector<f64>, SolverStatus, u32, usize, usize)> {
+    let settings = qp.settings;
     let mut active: Vec<(usize, usize)> = Vec::new(); // (group, row)
     let mut iterations = 0;
     let mut rounds = 0;
-    let x = loop {
-        let cut_rows: Vec<(DVector<f64>, f64)> =
-            active.iter().map(|&(g, r)| (ineqs[g].0.row(r).transpose(), ineqs[g].1[r])).collect();
-        let (status, x, iters) = solve_once(&scaled, &eqs, &cut_rows, &ub, &free, settings)?;
+    loop {
+        let cut_rows: Vec<(DVector<f64>, f64)> = active.iter().map(|&(g, r)| qp.cut_row(g, r)).collect();
+        let (status, x, iters) = solve_once(&qp.s, &qp.eqs, &cut_rows, &qp.ub, &qp.free, settings)?;
         iterations += iters;
         match status {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {}
             SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
-                return Err(diagnose(&scaled, equalities, &eqs, inequalities, &ineqs, &ub, &free, settings));
+                return Err(diagnose(qp));
             }
             other => {
                 return Err(Error::numerical("QP (Clarabel)", format!("the solver stopped with status {other:?}")));
             }
         }
-        // Violated inequality rows, most violated first.
-        let mut violated: Vec<(f64, usize, usize)> = Vec::new();
-        for (g, (m, h)) in ineqs.iter().enumerate() {
-            let r = m * &x - h;
-            for (row, v) in r.iter().enumerate() {
-                if *v < -settings.cut_margin && !active.contains(&(g, row)) {
-                    violated.push((*v, g, row));
-                }
-            }
-        }
+        let violated = qp.violated(&x, &active);
         if violated.is_empty() {
-            break (x, status);
+            return Ok((x, status, iterations, rounds, active.len()));
         }
         rounds += 1;
         if rounds > settings.cut_rounds {
@@ -168,21 +276,8 @@ pub fn qp_signed(
                 ),
             ));
         }
-        violated.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         active.extend(violated.iter().take(settings.cuts_per_round).map(|&(_, g, r)| (g, r)));
-    };
-    let (x, status) = x;
-    let x = polish(&scaled, gram, &d, &l1s, &eqs, &ineqs, &ub, &free, x, settings);
-    let k = DVector::from_fn(p, |j, _| if free[j] { x[j] * d[j] } else { (x[j] * d[j]).max(0.0) });
-    let max_equality_residual = eqs.iter().map(|(m, f)| (m * &x - f).amax()).fold(0.0, f64::max);
-    Ok(QpSolution {
-        k,
-        status: if status == SolverStatus::Solved { QpStatus::Solved } else { QpStatus::AlmostSolved },
-        iterations,
-        cut_rounds: rounds,
-        cuts: active.len(),
-        max_equality_residual,
-    })
+    }
 }
 
 /// The QP with signed unknowns (cam coefficients) and no upper bounds, by a primal active-set
@@ -197,33 +292,18 @@ pub fn qp_signed(
 /// round. Inequality rows enter as cuts (most violated first, like the interior-point path),
 /// held as equations, and leave again when their multiplier says they pull the wrong way.
 /// Returns (x in scaled units, KKT solves, rounds, cut rows at the end).
-#[allow(clippy::too_many_arguments)]
-fn active_set_with_cuts(
-    gram: &Gram,
-    d: &[f64],
-    l1: &[f64],
-    eqs: &[(DMatrix<f64>, DVector<f64>)],
-    ineqs: &[(DMatrix<f64>, DVector<f64>)],
-    free: &[bool],
-    settings: &QpSettings,
-    equalities: &[LinearGroup],
-    inequalities: &[LinearGroup],
-) -> Result<(DVector<f64>, u32, usize, usize)> {
-    let n = gram.dim();
-    let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
-    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1[i]) * d[i]);
-    let mut eq_rows: Vec<(DVector<f64>, f64)> = Vec::new();
-    for (m, f) in eqs {
-        for i in 0..m.nrows() {
-            eq_rows.push((m.row(i).transpose(), f[i]));
-        }
-    }
+fn active_set_with_cuts(qp: &ScaledQp) -> Result<(DVector<f64>, u32, usize, usize)> {
+    let (settings, free, ineqs) = (qp.settings, &qp.free, &qp.ineqs);
+    let (equalities, inequalities) = (qp.equalities, qp.inequalities);
+    let n = qp.gram.dim();
+    let (g, c) = qp.objective_terms();
+    let eq_rows = qp.equality_rows();
     let names = |groups: &[LinearGroup]| groups.iter().map(|g| g.name.clone()).collect::<Vec<_>>().join(", ");
     let mut active: Vec<(usize, usize)> = Vec::new();
     let (mut solves, mut rounds) = (0u32, 0usize);
     loop {
         let mut rows = eq_rows.clone();
-        rows.extend(active.iter().map(|&(gi, r)| (ineqs[gi].0.row(r).transpose(), ineqs[gi].1[r])));
+        rows.extend(active.iter().map(|&(gi, r)| qp.cut_row(gi, r)));
         let Some((x, nu, k)) = active_set(&g, &c, &rows, free) else {
             return Err(Error::Infeasible {
                 constraint: if active.is_empty() { names(equalities) } else { format!("{}; {}", names(equalities), names(inequalities)) },
@@ -235,15 +315,7 @@ fn active_set_with_cuts(
         // Cut rows whose multiplier is positive push x the wrong way (λ = −ν < 0): release them.
         let scale = c.amax().max(1e-300);
         let released: Vec<usize> = (0..active.len()).filter(|&a| nu[eq_rows.len() + a] > 1e-10 * scale).collect();
-        let mut violated: Vec<(f64, usize, usize)> = Vec::new();
-        for (gi, (m, h)) in ineqs.iter().enumerate() {
-            let r = m * &x - h;
-            for (row, v) in r.iter().enumerate() {
-                if *v < -settings.cut_margin && !active.contains(&(gi, row)) {
-                    violated.push((*v, gi, row));
-                }
-            }
-        }
+        let violated = qp.violated(&x, &active);
         if violated.is_empty() && released.is_empty() {
             // Cut rows dependent on others are left out of the KKT system: check them too.
             let worst = active
@@ -273,7 +345,6 @@ fn active_set_with_cuts(
         let keep: Vec<(usize, usize)> =
             active.iter().enumerate().filter(|(a, _)| !released.contains(a)).map(|(_, &r)| r).collect();
         active = keep;
-        violated.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         // Never more equations than unknowns: an active set is a vertex at most.
         let room = n.saturating_sub(eq_rows.len() + active.len()).max(1);
         active.extend(violated.iter().take(settings.cuts_per_round.min(room)).map(|&(_, gi, r)| (gi, r)));
@@ -351,30 +422,13 @@ fn step_back(x: &mut DVector<f64>, z: &DVector<f64>, idx: &[usize], free: &[bool
 /// inequality rows at their bound) kept exact through the KKT system of each passive set walks to
 /// the exact vertex solution: few elements, equalities to round-off. The result is kept only if
 /// it is feasible and no worse than the interior-point solution.
-#[allow(clippy::too_many_arguments)]
-fn polish(
-    s: &Scaled,
-    gram: &Gram,
-    d: &[f64],
-    l1: &[f64],
-    eqs: &[(DMatrix<f64>, DVector<f64>)],
-    ineqs: &[(DMatrix<f64>, DVector<f64>)],
-    ub: &[Option<f64>],
-    free: &[bool],
-    x_ipm: DVector<f64>,
-    settings: &QpSettings,
-) -> DVector<f64> {
-    let n = s.n;
-    let g = DMatrix::from_fn(n, n, |i, j| gram.g[(i, j)] * d[i] * d[j]);
-    let c = DVector::from_fn(n, |i, _| (gram.c[i] - l1[i]) * d[i]);
+fn polish(qp: &ScaledQp, x_ipm: DVector<f64>) -> DVector<f64> {
+    let (eqs, ineqs, ub, free, settings) = (&qp.eqs, &qp.ineqs, &qp.ub, &qp.free, qp.settings);
+    let n = qp.s.n;
+    let (g, c) = qp.objective_terms();
     let objective = |v: &DVector<f64>| 0.5 * v.dot(&(&g * v)) - c.dot(v);
     // Equations: the equality groups and the inequality rows at their bound.
-    let mut rows: Vec<(DVector<f64>, f64)> = Vec::new();
-    for (m, f) in eqs {
-        for i in 0..m.nrows() {
-            rows.push((m.row(i).transpose(), f[i]));
-        }
-    }
+    let mut rows = qp.equality_rows();
     for (m, h) in ineqs {
         let r = m * &x_ipm - h;
         for i in 0..m.nrows() {
@@ -664,17 +718,9 @@ fn solve_once(
 }
 
 /// Names the constraint group(s) that make the QP infeasible by dropping one at a time.
-#[allow(clippy::too_many_arguments)]
-fn diagnose(
-    s: &Scaled,
-    equalities: &[LinearGroup],
-    eqs: &[(DMatrix<f64>, DVector<f64>)],
-    inequalities: &[LinearGroup],
-    ineqs: &[(DMatrix<f64>, DVector<f64>)],
-    ub: &[Option<f64>],
-    free: &[bool],
-    settings: &QpSettings,
-) -> Error {
+fn diagnose(qp: &ScaledQp) -> Error {
+    let (s, equalities, eqs, inequalities, ineqs) = (&qp.s, qp.equalities, &qp.eqs, qp.inequalities, &qp.ineqs);
+    let (ub, free, settings) = (&qp.ub, &qp.free, qp.settings);
     let feasible = |eqs: &[(DMatrix<f64>, DVector<f64>)], cuts: &[(DVector<f64>, f64)], ub: &[Option<f64>]| {
         matches!(
             solve_once(s, eqs, cuts, ub, free, settings),

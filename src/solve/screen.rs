@@ -25,7 +25,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::constraint::LinearGroup;
 use super::lsq::Gram;
-use super::qp::{QpSettings, QpSolution, qp};
+use super::qp::{QpProblem, QpSettings, QpSolution, qp};
 use crate::error::{Error, Result};
 
 /// Most unknowns that enter the working set per round: enough that a support of a few hundred is
@@ -70,13 +70,14 @@ pub fn qp_screened(
     start: &[usize],
 ) -> Result<Screened> {
     let p = gram.dim();
+    let problem = QpProblem { gram, equalities, inequalities, upper, l1 };
     let mut in_w = vec![false; p];
     for &j in start {
         in_w[j] = true;
     }
     if start.is_empty() {
         let k0 = DVector::zeros(p);
-        for j in violators(gram, equalities, inequalities, upper, l1, &k0, &in_w, &[]).0 {
+        for j in violators(&problem, &k0, &in_w, &[]).0 {
             in_w[j] = true;
         }
     }
@@ -117,7 +118,7 @@ pub fn qp_screened(
         for (a, &j) in w.iter().enumerate() {
             k[j] = sub.k[a];
         }
-        let (enter, violation) = violators(gram, equalities, inequalities, upper, l1, &k, &in_w, &w);
+        let (enter, violation) = violators(&problem, &k, &in_w, &w);
         if enter.is_empty() {
             return Ok(Screened { solution: QpSolution { k, ..sub }, working: w, rounds, violation });
         }
@@ -131,17 +132,8 @@ pub fn qp_screened(
 /// lower the objective, at most [`ENTER_PER_ROUND`], most violated first (ties by index), and
 /// the largest violation in the scaling of [`KKT_TOLERANCE`]. `w` lists the working set, whose
 /// unknowns strictly inside their bounds give the multipliers.
-#[allow(clippy::too_many_arguments)]
-fn violators(
-    gram: &Gram,
-    equalities: &[LinearGroup],
-    inequalities: &[LinearGroup],
-    upper: &[Option<f64>],
-    l1: f64,
-    k: &DVector<f64>,
-    in_w: &[bool],
-    w: &[usize],
-) -> (Vec<usize>, f64) {
+fn violators(problem: &QpProblem, k: &DVector<f64>, in_w: &[bool], w: &[usize]) -> (Vec<usize>, f64) {
+    let QpProblem { gram, equalities, inequalities, upper, l1 } = *problem;
     let p = gram.dim();
     // Unit-diagonal scaling, as the QP's own.
     let d: Vec<f64> = (0..p).map(|j| if gram.g[(j, j)] > 0.0 { 1.0 / gram.g[(j, j)].sqrt() } else { 1.0 }).collect();

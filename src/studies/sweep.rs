@@ -315,13 +315,109 @@ impl<'a> SweepContext<'a> {
     }
 
     fn run_item(&self, index: usize, item: WorkItem) -> Result<ItemResult> {
-        let blank = |item| ItemResult {
+        match item {
+            WorkItem::Parasitic { eps } => self.parasitic_item(index, item, eps),
+            WorkItem::Build { level, build } => self.build_item(index, item, level, build),
+            WorkItem::Stock => self.stock_item(index, item),
+        }
+    }
+
+    /// The nominal arm with parasitic springs ε·κ at every joint, in closed loop: its fluxes and
+    /// its path and power by source (for the figures).
+    fn parasitic_item(&self, index: usize, item: WorkItem, eps: f64) -> Result<ItemResult> {
+        let mut spec = self.base.clone();
+        spec.name = format!("eps_{eps}");
+        spec.parasitic = Some(Parasitic { eps, kappa: self.kappa.clone() });
+        let (res, m) = self.closed_loop(&self.nominal, &spec)?;
+        let mut r = ItemResult::of_run(index, item, &m);
+        r.residual_p99_deg = self.fit.metrics.stats.p99_abs;
+        let tr = &res.trace;
+        let n = tr.n;
+        let powers: Vec<Vec<f64>> = (0..SOURCES.len()).map(|s| tr.power(s)).collect();
+        r.series = Some(Series {
+            t: tr.t.clone(),
+            q: (0..tr.t.len()).flat_map(|k| [tr.q[k * n], tr.q[k * n + 1.min(n - 1)]]).collect(),
+            power: (0..tr.t.len()).flat_map(|k| powers.iter().map(move |p| p[k])).collect(),
+        });
+        Ok(r)
+    }
+
+    /// One Monte Carlo build at a tolerance level (None: each row's own): its residual about its
+    /// own equilibrium, trimmed and tuned where the design can be, and its closed-loop run.
+    fn build_item(&self, index: usize, item: WorkItem, level: Option<f64>, build: usize) -> Result<ItemResult> {
+        let springs = self.springs();
+        let mut rng = SplitMix64::stream(self.settings.seed, (index as u64) << 20 | build as u64);
+        // One δ per spring, one per cam (all its basis rows).
+        let scale = crate::asbuilt::factors(
+            &self.fit.bom,
+            |row| level.unwrap_or(row.tolerance),
+            self.settings.distribution,
+            &mut rng,
+        );
+        let built = springs.scaled(&scale);
+        let (p99, shift) = self.residual_about_own_equilibrium(&built)?;
+        let trimmed = self.trimmed_p99(&built)?;
+        let mut spec = self.base.clone();
+        spec.name = format!("build_{build}");
+        spec.stiffness_scale = Some(scale);
+        let tuned = self.tuned(build, &built, &spec)?;
+        let (_, m) = self.closed_loop(&self.nominal, &spec)?;
+        let mut r = ItemResult::of_run(index, item, &m);
+        r.residual_p99_deg = p99;
+        r.residual_p99_deg_trimmed = trimmed;
+        r.equilibrium_shift_rad = Some(shift);
+        r.tuned = tuned;
+        Ok(r)
+    }
+
+    /// Every stiffness snapped to its family's nearest stock rate, the element carrying the
+    /// largest torque first and the rest refitted after each snap (trim springs keep their
+    /// rate: it is set after assembly, not bought); the arm before and after in closed loop.
+    fn stock_item(&self, index: usize, item: WorkItem) -> Result<ItemResult> {
+        let bom = &self.fit.bom;
+        let elements: Vec<_> = bom.iter().map(|r| r.element.clone()).collect();
+        // Trim springs keep their rate: it is set after assembly, not bought.
+        let mut fixed: Vec<Option<f64>> = bom.iter().map(|r| r.adjust.trim_range.map(|_| r.stiffness)).collect();
+        let mut k: Vec<f64> = bom.iter().map(|r| r.stiffness).collect();
+        // Snap the element carrying the largest torque first; refit the rest each time.
+        let mut order: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].stock_rate.is_some()).collect();
+        order.sort_by(|&a, &b| bom[b].max_torque_nm.total_cmp(&bom[a].max_torque_nm).then(a.cmp(&b)));
+        let rates = |j: usize| -> Vec<f64> {
+            let fam = &bom[j].family;
+            // The catalogue's stock rates of the element's family, from the fit's rows.
+            self.fit.stock_rates.get(fam).cloned().unwrap_or_default()
+        };
+        for &j in &order {
+            let snapped = nearest(&rates(j), k[j].max(1e-300)).unwrap_or(k[j]);
+            fixed[j] = Some(snapped);
+            k = refit_with_fixed(self.design, &self.fit.settings, &self.fit.training, &elements, &fixed)?;
+        }
+        let snapped = SpringSet { elements, stiffness: k.clone() };
+        let (p99, shift) = self.residual_about_own_equilibrium(&snapped)?;
+        let (_, before) = self.closed_loop(&self.nominal, &self.base)?;
+        let after_pot = ElasticPotential::Springs(snapped);
+        let (_, after) = self.closed_loop(&after_pot, &self.base)?;
+        let mut r = ItemResult::of_run(index, item, &after);
+        r.residual_p99_deg = p99;
+        r.equilibrium_shift_rad = Some(shift);
+        r.residual_p99_deg_before = Some(self.fit.metrics.stats.p99_abs);
+        r.actuator_share_before = Some(before.actuator_share);
+        r.stock_stiffness = Some(k);
+        Ok(r)
+    }
+}
+
+impl ItemResult {
+    /// The result of item `index` with the fluxes and actuator share of its closed-loop run, the
+    /// rest blank (NaN residual, nothing measured) for the item to fill in.
+    fn of_run(index: usize, item: WorkItem, m: &crate::dynamics::scenario::RunMetrics) -> ItemResult {
+        ItemResult {
             index,
             item,
-            flux_potential: 0.0,
-            flux_mode: 0.0,
-            flux_energy: 0.0,
-            actuator_share: 0.0,
+            flux_potential: m.flux.potential,
+            flux_mode: m.flux.mode,
+            flux_energy: m.flux.energy,
+            actuator_share: m.actuator_share,
             residual_p99_deg: f64::NAN,
             residual_p99_deg_before: None,
             actuator_share_before: None,
@@ -330,92 +426,6 @@ impl<'a> SweepContext<'a> {
             tuned: None,
             stock_stiffness: None,
             series: None,
-        };
-        let fill = |r: &mut ItemResult, m: &crate::dynamics::scenario::RunMetrics| {
-            r.flux_potential = m.flux.potential;
-            r.flux_mode = m.flux.mode;
-            r.flux_energy = m.flux.energy;
-            r.actuator_share = m.actuator_share;
-        };
-        match item {
-            WorkItem::Parasitic { eps } => {
-                let mut spec = self.base.clone();
-                spec.name = format!("eps_{eps}");
-                spec.parasitic = Some(Parasitic { eps, kappa: self.kappa.clone() });
-                let (res, m) = self.closed_loop(&self.nominal, &spec)?;
-                let mut r = blank(item);
-                fill(&mut r, &m);
-                r.residual_p99_deg = self.fit.metrics.stats.p99_abs;
-                let tr = &res.trace;
-                let n = tr.n;
-                let powers: Vec<Vec<f64>> = (0..SOURCES.len()).map(|s| tr.power(s)).collect();
-                r.series = Some(Series {
-                    t: tr.t.clone(),
-                    q: (0..tr.t.len()).flat_map(|k| [tr.q[k * n], tr.q[k * n + 1.min(n - 1)]]).collect(),
-                    power: (0..tr.t.len()).flat_map(|k| powers.iter().map(move |p| p[k])).collect(),
-                });
-                Ok(r)
-            }
-            WorkItem::Build { level, build } => {
-                let springs = self.springs();
-                let mut rng = SplitMix64::stream(self.settings.seed, (index as u64) << 20 | build as u64);
-                // One δ per spring, one per cam (all its basis rows).
-                let scale = crate::asbuilt::factors(
-                    &self.fit.bom,
-                    |row| level.unwrap_or(row.tolerance),
-                    self.settings.distribution,
-                    &mut rng,
-                );
-                let built = springs.scaled(&scale);
-                let (p99, shift) = self.residual_about_own_equilibrium(&built)?;
-                let trimmed = self.trimmed_p99(&built)?;
-                let mut spec = self.base.clone();
-                spec.name = format!("build_{build}");
-                spec.stiffness_scale = Some(scale);
-                let tuned = self.tuned(build, &built, &spec)?;
-                let (_, m) = self.closed_loop(&self.nominal, &spec)?;
-                let mut r = blank(item);
-                fill(&mut r, &m);
-                r.residual_p99_deg = p99;
-                r.residual_p99_deg_trimmed = trimmed;
-                r.equilibrium_shift_rad = Some(shift);
-                r.tuned = tuned;
-                Ok(r)
-            }
-            WorkItem::Stock => {
-                let bom = &self.fit.bom;
-                let elements: Vec<_> = bom.iter().map(|r| r.element.clone()).collect();
-                // Trim springs keep their rate: it is set after assembly, not bought.
-                let mut fixed: Vec<Option<f64>> =
-                    bom.iter().map(|r| r.adjust.trim_range.map(|_| r.stiffness)).collect();
-                let mut k: Vec<f64> = bom.iter().map(|r| r.stiffness).collect();
-                // Snap the element carrying the largest torque first; refit the rest each time.
-                let mut order: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].stock_rate.is_some()).collect();
-                order.sort_by(|&a, &b| bom[b].max_torque_nm.total_cmp(&bom[a].max_torque_nm).then(a.cmp(&b)));
-                let rates = |j: usize| -> Vec<f64> {
-                    let fam = &bom[j].family;
-                    // The catalogue's stock rates of the element's family, from the fit's rows.
-                    self.fit.stock_rates.get(fam).cloned().unwrap_or_default()
-                };
-                for &j in &order {
-                    let snapped = nearest(&rates(j), k[j].max(1e-300)).unwrap_or(k[j]);
-                    fixed[j] = Some(snapped);
-                    k = refit_with_fixed(self.design, &self.fit.settings, &self.fit.training, &elements, &fixed)?;
-                }
-                let snapped = SpringSet { elements, stiffness: k.clone() };
-                let (p99, shift) = self.residual_about_own_equilibrium(&snapped)?;
-                let (_, before) = self.closed_loop(&self.nominal, &self.base)?;
-                let after_pot = ElasticPotential::Springs(snapped);
-                let (_, after) = self.closed_loop(&after_pot, &self.base)?;
-                let mut r = blank(item);
-                fill(&mut r, &after);
-                r.residual_p99_deg = p99;
-                r.equilibrium_shift_rad = Some(shift);
-                r.residual_p99_deg_before = Some(self.fit.metrics.stats.p99_abs);
-                r.actuator_share_before = Some(before.actuator_share);
-                r.stock_stiffness = Some(k);
-                Ok(r)
-            }
         }
     }
 }

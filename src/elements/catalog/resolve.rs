@@ -47,327 +47,21 @@ impl Catalog {
         Catalog::from_file_for(path, file, &numbered_joints(dof))
     }
 
-    /// Validates a parsed catalogue for a robot with these joints.
+    /// Validates a parsed catalogue for a robot with these joints: each family in turn (the
+    /// first problem is the error), the running totals bounded as they grow.
     pub fn from_file_for(path: &Path, file: CatalogFile, joints: &[String]) -> Result<Catalog> {
-        let dof = joints.len();
-        let invalid = |field: String, reason: String| Error::invalid(path, field, reason);
         if file.family.is_empty() {
-            return Err(invalid(
-                "family".into(),
-                "the catalogue has no [[family]]: it yields no candidate element".into(),
+            return Err(Error::invalid(
+                path,
+                "family",
+                "the catalogue has no [[family]]: it yields no candidate element",
             ));
         }
+        let mut totals = Totals::default();
         let mut families = Vec::new();
-        let mut candidates = 0usize;
-        let mut row_nonzeros = 0usize;
-        let mut trims = 0usize;
         for (i, f) in file.family.iter().enumerate() {
-            let field = |name: &str| format!("family[{i}].{name}");
-            let side = f.side.as_deref();
-            let cam = cam_spec(path, f, &field)?;
-            if cam.is_some() && side.is_some() {
-                return Err(invalid(field("side"), "a cam has no side".into()));
-            }
-            let profiles = match (f.profile.as_str(), side) {
-                ("cam", _) => Vec::new(),
-                ("compression", None | Some("both")) => {
-                    vec![Profile::Compression(Side::Plus), Profile::Compression(Side::Minus)]
-                }
-                ("compression", Some("+")) => vec![Profile::Compression(Side::Plus)],
-                ("compression", Some("-")) => vec![Profile::Compression(Side::Minus)],
-                ("compression", Some(s)) => {
-                    return Err(invalid(field("side"), format!("must be \"+\", \"-\" or \"both\", got \"{s}\"")));
-                }
-                (p, None) => vec![Profile::parse(p, "").map_err(|e| invalid(field("profile"), e))?],
-                (p, Some(_)) => {
-                    let e =
-                        Profile::parse(p, "").err().unwrap_or_else(|| "only compression springs have a side".into());
-                    return Err(invalid(field(if e.contains("unknown profile") { "profile" } else { "side" }), e));
-                }
-            };
-            if let Some(u) = &f.unit {
-                let (expected, name) = profiles.first().map_or(("J", "cam"), |p| (p.unit(), p.name()));
-                if normalise_unit(u) != normalise_unit(expected) {
-                    return Err(invalid(
-                        field("unit"),
-                        format!("a {name} element's stiffness is in {expected}, not {u}"),
-                    ));
-                }
-            }
-            let couplings = match &f.couplings {
-                CouplingSpec::Groups { kind, ratios, on } => {
-                    let key = kind.key();
-                    let among = match on {
-                        None => (0..dof).collect(),
-                        Some(list) => {
-                            let at = if *kind == GroupKind::Joints { key } else { "on" };
-                            named_joints(list, joints)
-                                .map_err(|(k, reason)| invalid(format!("family[{i}].couplings.{at}[{k}]"), reason))?
-                        }
-                    };
-                    let size = kind.size();
-                    if among.len() < size {
-                        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
-                        return Err(invalid(
-                            field("couplings"),
-                            format!("{key} need at least {size} joints but {whose} {}", among.len()),
-                        ));
-                    }
-                    let mut out = Vec::new();
-                    for (k, r) in ratios.iter().enumerate() {
-                        if r.iter().any(|x| !x.is_finite() || *x == 0.0 || x.abs() > MAX_COUPLING) {
-                            return Err(invalid(
-                                format!("family[{i}].couplings.{key}[{k}]"),
-                                format!(
-                                    "every gear ratio must be finite and non-zero, at most {} in magnitude",
-                                    show(MAX_COUPLING)
-                                ),
-                            ));
-                        }
-                        for group in groups(*kind, &among) {
-                            let mut a = vec![0.0; dof];
-                            for (&j, &x) in group.iter().zip(r) {
-                                a[j] = x;
-                            }
-                            out.push(a);
-                        }
-                    }
-                    out
-                }
-                CouplingSpec::Runs { lengths, on } => {
-                    let among = match on {
-                        None => (0..dof).collect(),
-                        Some(list) => named_joints(list, joints)
-                            .map_err(|(k, reason)| invalid(format!("family[{i}].couplings.on[{k}]"), reason))?,
-                    };
-                    if lengths.is_empty() {
-                        return Err(invalid(field("couplings.runs"), "lists no run length".into()));
-                    }
-                    let mut out = Vec::new();
-                    for (k, &length) in lengths.iter().enumerate() {
-                        if !(2..=MAX_RUN).contains(&length) {
-                            return Err(invalid(
-                                format!("family[{i}].couplings.runs[{k}]"),
-                                format!("a run is 2 to {MAX_RUN} adjacent joints, got {length}"),
-                            ));
-                        }
-                        for run in among.windows(length) {
-                            let mut a = vec![0.0; dof];
-                            for &j in run {
-                                a[j] = 1.0;
-                            }
-                            out.push(a);
-                        }
-                    }
-                    if out.is_empty() {
-                        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
-                        let shortest = lengths.iter().min().copied().unwrap_or(2);
-                        return Err(invalid(
-                            field("couplings"),
-                            format!("the shortest run is {shortest} joints but {whose} {}", among.len()),
-                        ));
-                    }
-                    out
-                }
-                CouplingSpec::List(list) => {
-                    for (k, a) in list.iter().enumerate() {
-                        let fld = format!("family[{i}].couplings[{k}]");
-                        if a.len() != dof {
-                            return Err(invalid(
-                                fld,
-                                format!("has {} entries but the robot has {dof} joints", a.len()),
-                            ));
-                        }
-                        if a.iter().any(|x| !x.is_finite()) {
-                            return Err(invalid(fld, "entries must be finite".into()));
-                        }
-                        if let Some(x) = a.iter().find(|x| x.abs() > MAX_COUPLING) {
-                            return Err(invalid(
-                                fld,
-                                format!(
-                                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
-                                    show(*x),
-                                    show(MAX_COUPLING)
-                                ),
-                            ));
-                        }
-                        if a.iter().all(|x| *x == 0.0) {
-                            return Err(invalid(fld, "a coupling of all zeros moves nothing".into()));
-                        }
-                    }
-                    list.clone()
-                }
-            };
-            if couplings.is_empty() {
-                return Err(invalid(field("couplings"), "lists no coupling".into()));
-            }
-            let offset_spec = match (&f.offsets, &cam) {
-                (Some(_), Some(_)) => {
-                    return Err(invalid(
-                        field("offsets"),
-                        "a cam's knots follow the region: it takes no offsets".into(),
-                    ));
-                }
-                (None, None) => {
-                    return Err(invalid(field("offsets"), "missing: every spring family needs offsets".into()));
-                }
-                (Some(o), None) => o.clone(),
-                (None, Some(_)) => OffsetSpec::Equilibrium,
-            };
-            let offsets = match &offset_spec {
-                _ if cam.is_some() => 1,
-                OffsetSpec::Grid { count, .. } if *count < 1 || *count > MAX_OFFSETS => {
-                    return Err(invalid(
-                        field("offsets"),
-                        format!("grid must have 1 to {MAX_OFFSETS} points, got {count}"),
-                    ));
-                }
-                OffsetSpec::Phases { count } if *count < 1 || *count > MAX_OFFSETS => {
-                    return Err(invalid(
-                        field("offsets"),
-                        format!("phases must be 1 to {MAX_OFFSETS} per turn, got {count}"),
-                    ));
-                }
-                OffsetSpec::List(l) if l.is_empty() => {
-                    return Err(invalid(field("offsets"), "the list is empty".into()));
-                }
-                OffsetSpec::Equilibrium => 1,
-                OffsetSpec::Grid { count, equilibrium } => count + usize::from(*equilibrium),
-                OffsetSpec::Phases { count } => *count,
-                OffsetSpec::List(l) => l.len(),
-            };
-            // Each coupling × offset × side is one candidate (a column of the fit): bound the total
-            // before `expand` builds them.
-            candidates = couplings
-                .len()
-                .checked_mul(offsets)
-                .and_then(|c| c.checked_mul(cam.map_or(profiles.len(), |c| 2 * (usize::from(c.knots) + 2))))
-                .and_then(|c| c.checked_add(candidates))
-                .filter(|c| *c <= MAX_CANDIDATES)
-                .ok_or_else(|| {
-                    invalid(
-                        format!("family[{i}]"),
-                        format!(
-                            "the catalogue expands into more than {MAX_CANDIDATES} candidate elements for a robot with \
-                             {dof} joints: list fewer couplings or offsets"
-                        ),
-                    )
-                })?;
-            // Within MAX_CANDIDATES, as the count above.
-            row_nonzeros +=
-                couplings.len() * offsets * cam.map_or(profiles.len(), |c| 8.min(2 * (usize::from(c.knots) + 2)));
-            if let Some(k) = f.max_stiffness {
-                if !(k.is_finite() && k > 0.0) {
-                    return Err(invalid(field("max_stiffness"), format!("must be positive, got {}", show(k))));
-                }
-                within(k, MAX_STIFFNESS, "").map_err(|e| invalid(field("max_stiffness"), e))?;
-            }
-            let mut rates = f.stock_rates.clone();
-            for (k, r) in rates.iter().enumerate() {
-                let field = format!("family[{i}].stock_rates[{k}]");
-                if !(r.is_finite() && *r > 0.0) {
-                    return Err(invalid(field, format!("must be positive, got {}", show(*r))));
-                }
-                within(*r, MAX_STIFFNESS, "").map_err(|e| invalid(field, e))?;
-            }
-            rates.sort_by(f64::total_cmp);
-            rates.dedup();
-            if !(f.tolerance.is_finite() && (0.0..1.0).contains(&f.tolerance)) {
-                return Err(invalid(field("tolerance"), format!("must be a fraction in [0, 1), got {}", f.tolerance)));
-            }
-            if f.name.trim().is_empty() {
-                return Err(invalid(field("name"), "must not be empty".into()));
-            }
-            if let Some(j) = file.family[..i].iter().position(|g| g.name.trim() == f.name.trim()) {
-                return Err(invalid(
-                    field("name"),
-                    format!(
-                        "`{}` is also the name of family[{j}]: the bill of materials tells families apart by name",
-                        f.name
-                    ),
-                ));
-            }
-            let adjust_range = match (f.adjustable, f.adjust_range) {
-                (false, None) => None,
-                (true, Some(r)) if r.is_finite() && r > 0.0 && r <= std::f64::consts::PI => Some(r),
-                (true, Some(r)) => {
-                    return Err(invalid(field("adjust_range"), format!("must be in (0, π] rad, got {r}")));
-                }
-                (true, None) => {
-                    return Err(invalid(
-                        field("adjust_range"),
-                        "an adjustable family needs adjust_range (± rad the offset can be moved)".into(),
-                    ));
-                }
-                (false, Some(_)) => {
-                    return Err(invalid(field("adjust_range"), "is only meaningful with adjustable = true".into()));
-                }
-            };
-            let trim_range = match (f.trim, f.trim_range) {
-                (false, None) => None,
-                (false, Some(_)) => {
-                    return Err(invalid(field("trim_range"), "is only meaningful with trim = true".into()));
-                }
-                (true, None) => {
-                    return Err(invalid(
-                        field("trim_range"),
-                        "a trim family needs trim_range = [lo, hi] (N·m/rad the rate can be set to)".into(),
-                    ));
-                }
-                (true, Some([lo, hi])) => {
-                    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
-                        return Err(invalid(
-                            field("trim_range"),
-                            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{}, {}]", show(lo), show(hi)),
-                        ));
-                    }
-                    within(hi, MAX_STIFFNESS, " N·m/rad")
-                        .map_err(|e| invalid(field("trim_range"), format!("the upper rate {e}")))?;
-                    if profiles != [Profile::Linear] {
-                        return Err(invalid(field("profile"), "trim springs are linear".into()));
-                    }
-                    if !matches!(f.offsets, Some(OffsetSpec::Equilibrium)) {
-                        return Err(invalid(
-                            field("offsets"),
-                            "trim springs are relaxed at the equilibrium: offsets = \"equilibrium\"".into(),
-                        ));
-                    }
-                    if adjust_range.is_some() {
-                        return Err(invalid(
-                            field("adjustable"),
-                            "a trim spring is re-relaxed when it is set; it takes no adjust_range".into(),
-                        ));
-                    }
-                    if f.max_stiffness.is_some() || !f.stock_rates.is_empty() {
-                        return Err(invalid(
-                            field("trim_range"),
-                            "a trim family's rates are its trim_range (no max_stiffness or stock_rates)".into(),
-                        ));
-                    }
-                    Some([lo, hi])
-                }
-            };
-            if trim_range.is_some() {
-                trims += couplings.len();
-                if trims > crate::limits::MAX_TRIMS {
-                    return Err(invalid(
-                        field("couplings"),
-                        format!("the catalogue lists more than {} trim springs", crate::limits::MAX_TRIMS),
-                    ));
-                }
-            }
-            families.push(Family {
-                name: f.name.clone(),
-                profiles,
-                couplings,
-                offsets: offset_spec,
-                max_stiffness: f.max_stiffness,
-                stock_rates: rates,
-                tolerance: f.tolerance,
-                cam,
-                adjust_range,
-                trim_range,
-            });
+            let at = At { path, i, joints };
+            families.push(family(&at, f, &file.family[..i], &mut totals)?);
         }
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "catalog".into())
@@ -376,10 +70,390 @@ impl Catalog {
             path: path.to_path_buf(),
             name,
             families,
-            candidate_bound: candidates,
-            row_nonzero_bound: row_nonzeros,
+            candidate_bound: totals.candidates,
+            row_nonzero_bound: totals.row_nonzeros,
         })
     }
+}
+
+/// Where a family sits, so that every error names the file and the family's key: the file, the
+/// family's index and the robot's joints (which `couplings` may name).
+struct At<'a> {
+    path: &'a Path,
+    i: usize,
+    joints: &'a [String],
+}
+
+impl At<'_> {
+    /// The family's key `name`, as errors name it: `family[i].name`.
+    fn field(&self, name: &str) -> String {
+        format!("family[{}].{name}", self.i)
+    }
+
+    /// An error on the family's key `name`.
+    fn invalid(&self, name: &str, reason: impl Into<String>) -> Error {
+        Error::invalid(self.path, self.field(name), reason)
+    }
+}
+
+/// What the families so far add up to, bounded as each family is added so that `expand` never
+/// builds more than the limits allow.
+#[derive(Default)]
+struct Totals {
+    /// Candidate elements (columns of the fit).
+    candidates: usize,
+    /// Non-zeros of one row of the fit over all candidates.
+    row_nonzeros: usize,
+    /// Trim springs.
+    trims: usize,
+}
+
+impl Totals {
+    /// Adds a family's candidates: each coupling × offset × side (or cam coefficient) is one.
+    fn add_candidates(
+        &mut self,
+        at: &At,
+        couplings: usize,
+        offsets: usize,
+        profiles: usize,
+        cam: Option<CamSpec>,
+    ) -> Result<()> {
+        let dof = at.joints.len();
+        // Each coupling × offset × side is one candidate (a column of the fit): bound the total
+        // before `expand` builds them.
+        self.candidates = couplings
+            .checked_mul(offsets)
+            .and_then(|c| c.checked_mul(cam.map_or(profiles, |c| 2 * (usize::from(c.knots) + 2))))
+            .and_then(|c| c.checked_add(self.candidates))
+            .filter(|c| *c <= MAX_CANDIDATES)
+            .ok_or_else(|| {
+                Error::invalid(
+                    at.path,
+                    format!("family[{}]", at.i),
+                    format!(
+                        "the catalogue expands into more than {MAX_CANDIDATES} candidate elements for a robot with \
+                         {dof} joints: list fewer couplings or offsets"
+                    ),
+                )
+            })?;
+        // Within MAX_CANDIDATES, as the count above.
+        self.row_nonzeros += couplings * offsets * cam.map_or(profiles, |c| 8.min(2 * (usize::from(c.knots) + 2)));
+        Ok(())
+    }
+
+    /// Adds a trim family's springs, one per coupling.
+    fn add_trims(&mut self, at: &At, couplings: usize) -> Result<()> {
+        self.trims += couplings;
+        if self.trims > crate::limits::MAX_TRIMS {
+            return Err(at.invalid(
+                "couplings",
+                format!("the catalogue lists more than {} trim springs", crate::limits::MAX_TRIMS),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One family validated, key by key in the order the checks have always run (so the first
+/// problem of a file is always the one reported), and added to the totals.
+fn family(at: &At, f: &FamilySpec, earlier: &[FamilySpec], totals: &mut Totals) -> Result<Family> {
+    let cam = cam_spec(at.path, f, &|name| at.field(name))?;
+    let profiles = profiles(at, f, cam.is_some())?;
+    check_unit(at, f, &profiles)?;
+    let couplings = couplings(at, &f.couplings)?;
+    let (offset_spec, offsets) = offsets(at, f, cam.is_some())?;
+    totals.add_candidates(at, couplings.len(), offsets, profiles.len(), cam)?;
+    let stock_rates = stock_rates(at, f)?;
+    check_tolerance_and_name(at, f, earlier)?;
+    let adjust_range = adjust_range(at, f)?;
+    let trim_range = trim_range(at, f, &profiles, adjust_range)?;
+    if trim_range.is_some() {
+        totals.add_trims(at, couplings.len())?;
+    }
+    Ok(Family {
+        name: f.name.clone(),
+        profiles,
+        couplings,
+        offsets: offset_spec,
+        max_stiffness: f.max_stiffness,
+        stock_rates,
+        tolerance: f.tolerance,
+        cam,
+        adjust_range,
+        trim_range,
+    })
+}
+
+/// The family's profiles: none for a cam, one or two (`side`) for compression springs, the
+/// named one otherwise.
+fn profiles(at: &At, f: &FamilySpec, is_cam: bool) -> Result<Vec<Profile>> {
+    let side = f.side.as_deref();
+    if is_cam && side.is_some() {
+        return Err(at.invalid("side", "a cam has no side"));
+    }
+    Ok(match (f.profile.as_str(), side) {
+        ("cam", _) => Vec::new(),
+        ("compression", None | Some("both")) => {
+            vec![Profile::Compression(Side::Plus), Profile::Compression(Side::Minus)]
+        }
+        ("compression", Some("+")) => vec![Profile::Compression(Side::Plus)],
+        ("compression", Some("-")) => vec![Profile::Compression(Side::Minus)],
+        ("compression", Some(s)) => {
+            return Err(at.invalid("side", format!("must be \"+\", \"-\" or \"both\", got \"{s}\"")));
+        }
+        (p, None) => vec![Profile::parse(p, "").map_err(|e| at.invalid("profile", e))?],
+        (p, Some(_)) => {
+            let e = Profile::parse(p, "").err().unwrap_or_else(|| "only compression springs have a side".into());
+            return Err(at.invalid(if e.contains("unknown profile") { "profile" } else { "side" }, e));
+        }
+    })
+}
+
+/// An optional `unit` must be the profile's (spelt with `*`, `·` or `^` as the user likes).
+fn check_unit(at: &At, f: &FamilySpec, profiles: &[Profile]) -> Result<()> {
+    if let Some(u) = &f.unit {
+        let (expected, name) = profiles.first().map_or(("J", "cam"), |p| (p.unit(), p.name()));
+        if normalise_unit(u) != normalise_unit(expected) {
+            return Err(at.invalid("unit", format!("a {name} element's stiffness is in {expected}, not {u}")));
+        }
+    }
+    Ok(())
+}
+
+/// The family's coupling vectors resolved for the robot, at least one.
+fn couplings(at: &At, spec: &CouplingSpec) -> Result<Vec<Vec<f64>>> {
+    let out = match spec {
+        CouplingSpec::Groups { kind, ratios, on } => grouped_couplings(at, *kind, ratios, on.as_deref())?,
+        CouplingSpec::Runs { lengths, on } => run_couplings(at, lengths, on.as_deref())?,
+        CouplingSpec::List(list) => listed_couplings(at, list)?,
+    };
+    if out.is_empty() {
+        return Err(at.invalid("couplings", "lists no coupling"));
+    }
+    Ok(out)
+}
+
+/// The joints a coupling key ranges over: all of the robot's, or those `on` names (an error
+/// names `key[k]` for the k-th bad name).
+fn among(at: &At, on: Option<&[String]>, key: &str) -> Result<Vec<usize>> {
+    match on {
+        None => Ok((0..at.joints.len()).collect()),
+        Some(list) => {
+            named_joints(list, at.joints).map_err(|(k, reason)| at.invalid(&format!("couplings.{key}[{k}]"), reason))
+        }
+    }
+}
+
+/// `joints`, `pairs`, `all_pairs` or `triples`: every ratio on every group of its kind.
+fn grouped_couplings(at: &At, kind: GroupKind, ratios: &[Vec<f64>], on: Option<&[String]>) -> Result<Vec<Vec<f64>>> {
+    let key = kind.key();
+    let among = among(at, on, if kind == GroupKind::Joints { key } else { "on" })?;
+    let size = kind.size();
+    if among.len() < size {
+        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
+        return Err(at.invalid("couplings", format!("{key} need at least {size} joints but {whose} {}", among.len())));
+    }
+    let mut out = Vec::new();
+    for (k, r) in ratios.iter().enumerate() {
+        if r.iter().any(|x| !x.is_finite() || *x == 0.0 || x.abs() > MAX_COUPLING) {
+            return Err(at.invalid(
+                &format!("couplings.{key}[{k}]"),
+                format!("every gear ratio must be finite and non-zero, at most {} in magnitude", show(MAX_COUPLING)),
+            ));
+        }
+        for group in groups(kind, &among) {
+            let mut a = vec![0.0; at.joints.len()];
+            for (&j, &x) in group.iter().zip(r) {
+                a[j] = x;
+            }
+            out.push(a);
+        }
+    }
+    Ok(out)
+}
+
+/// `runs`: every run of adjacent joints of each length, all at ratio 1.
+fn run_couplings(at: &At, lengths: &[usize], on: Option<&[String]>) -> Result<Vec<Vec<f64>>> {
+    let among = among(at, on, "on")?;
+    if lengths.is_empty() {
+        return Err(at.invalid("couplings.runs", "lists no run length"));
+    }
+    let mut out = Vec::new();
+    for (k, &length) in lengths.iter().enumerate() {
+        if !(2..=MAX_RUN).contains(&length) {
+            return Err(at.invalid(
+                &format!("couplings.runs[{k}]"),
+                format!("a run is 2 to {MAX_RUN} adjacent joints, got {length}"),
+            ));
+        }
+        for run in among.windows(length) {
+            let mut a = vec![0.0; at.joints.len()];
+            for &j in run {
+                a[j] = 1.0;
+            }
+            out.push(a);
+        }
+    }
+    if out.is_empty() {
+        let whose = if on.is_some() { "`on` names" } else { "the robot has" };
+        let shortest = lengths.iter().min().copied().unwrap_or(2);
+        return Err(
+            at.invalid("couplings", format!("the shortest run is {shortest} joints but {whose} {}", among.len()))
+        );
+    }
+    Ok(out)
+}
+
+/// Coupling vectors written out: one entry per joint, finite, within the largest gear ratio,
+/// not all zero.
+fn listed_couplings(at: &At, list: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
+    let dof = at.joints.len();
+    for (k, a) in list.iter().enumerate() {
+        let fld = format!("couplings[{k}]");
+        if a.len() != dof {
+            return Err(at.invalid(&fld, format!("has {} entries but the robot has {dof} joints", a.len())));
+        }
+        if a.iter().any(|x| !x.is_finite()) {
+            return Err(at.invalid(&fld, "entries must be finite"));
+        }
+        if let Some(x) = a.iter().find(|x| x.abs() > MAX_COUPLING) {
+            return Err(at.invalid(
+                &fld,
+                format!(
+                    "entry {} is beyond the largest gear ratio springfit accepts, {}",
+                    show(*x),
+                    show(MAX_COUPLING)
+                ),
+            ));
+        }
+        if a.iter().all(|x| *x == 0.0) {
+            return Err(at.invalid(&fld, "a coupling of all zeros moves nothing"));
+        }
+    }
+    Ok(list.to_vec())
+}
+
+/// The family's offsets and how many each coupling takes: a spring family must list them, a
+/// cam takes none (its knots follow the region: one "offset", the equilibrium).
+fn offsets(at: &At, f: &FamilySpec, is_cam: bool) -> Result<(OffsetSpec, usize)> {
+    let spec = match (&f.offsets, is_cam) {
+        (Some(_), true) => {
+            return Err(at.invalid("offsets", "a cam's knots follow the region: it takes no offsets"));
+        }
+        (None, false) => {
+            return Err(at.invalid("offsets", "missing: every spring family needs offsets"));
+        }
+        (Some(o), false) => o.clone(),
+        (None, true) => OffsetSpec::Equilibrium,
+    };
+    let count = match &spec {
+        _ if is_cam => 1,
+        OffsetSpec::Grid { count, .. } if *count < 1 || *count > MAX_OFFSETS => {
+            return Err(at.invalid("offsets", format!("grid must have 1 to {MAX_OFFSETS} points, got {count}")));
+        }
+        OffsetSpec::Phases { count } if *count < 1 || *count > MAX_OFFSETS => {
+            return Err(at.invalid("offsets", format!("phases must be 1 to {MAX_OFFSETS} per turn, got {count}")));
+        }
+        OffsetSpec::List(l) if l.is_empty() => {
+            return Err(at.invalid("offsets", "the list is empty"));
+        }
+        OffsetSpec::Equilibrium => 1,
+        OffsetSpec::Grid { count, equilibrium } => count + usize::from(*equilibrium),
+        OffsetSpec::Phases { count } => *count,
+        OffsetSpec::List(l) => l.len(),
+    };
+    Ok((spec, count))
+}
+
+/// The optional `max_stiffness` checked, and the stock rates checked, ascending and without
+/// repeats.
+fn stock_rates(at: &At, f: &FamilySpec) -> Result<Vec<f64>> {
+    if let Some(k) = f.max_stiffness {
+        if !(k.is_finite() && k > 0.0) {
+            return Err(at.invalid("max_stiffness", format!("must be positive, got {}", show(k))));
+        }
+        within(k, MAX_STIFFNESS, "").map_err(|e| at.invalid("max_stiffness", e))?;
+    }
+    let mut rates = f.stock_rates.clone();
+    for (k, r) in rates.iter().enumerate() {
+        let field = format!("stock_rates[{k}]");
+        if !(r.is_finite() && *r > 0.0) {
+            return Err(at.invalid(&field, format!("must be positive, got {}", show(*r))));
+        }
+        within(*r, MAX_STIFFNESS, "").map_err(|e| at.invalid(&field, e))?;
+    }
+    rates.sort_by(f64::total_cmp);
+    rates.dedup();
+    Ok(rates)
+}
+
+/// The tolerance is a fraction; the name is set and no earlier family's (the bill of materials
+/// tells families apart by name).
+fn check_tolerance_and_name(at: &At, f: &FamilySpec, earlier: &[FamilySpec]) -> Result<()> {
+    if !(f.tolerance.is_finite() && (0.0..1.0).contains(&f.tolerance)) {
+        return Err(at.invalid("tolerance", format!("must be a fraction in [0, 1), got {}", f.tolerance)));
+    }
+    if f.name.trim().is_empty() {
+        return Err(at.invalid("name", "must not be empty"));
+    }
+    if let Some(j) = earlier.iter().position(|g| g.name.trim() == f.name.trim()) {
+        return Err(at.invalid(
+            "name",
+            format!("`{}` is also the name of family[{j}]: the bill of materials tells families apart by name", f.name),
+        ));
+    }
+    Ok(())
+}
+
+/// ± rad an adjustable family's offset can be moved: required with `adjustable`, refused
+/// without.
+fn adjust_range(at: &At, f: &FamilySpec) -> Result<Option<f64>> {
+    match (f.adjustable, f.adjust_range) {
+        (false, None) => Ok(None),
+        (true, Some(r)) if r.is_finite() && r > 0.0 && r <= std::f64::consts::PI => Ok(Some(r)),
+        (true, Some(r)) => Err(at.invalid("adjust_range", format!("must be in (0, π] rad, got {r}"))),
+        (true, None) => {
+            Err(at.invalid("adjust_range", "an adjustable family needs adjust_range (± rad the offset can be moved)"))
+        }
+        (false, Some(_)) => Err(at.invalid("adjust_range", "is only meaningful with adjustable = true")),
+    }
+}
+
+/// A trim family's rate range: required with `trim`, refused without; a trim family is linear,
+/// relaxed at the equilibrium, not adjustable, and its rates are the range alone.
+fn trim_range(at: &At, f: &FamilySpec, profiles: &[Profile], adjust_range: Option<f64>) -> Result<Option<[f64; 2]>> {
+    let [lo, hi] = match (f.trim, f.trim_range) {
+        (false, None) => return Ok(None),
+        (false, Some(_)) => return Err(at.invalid("trim_range", "is only meaningful with trim = true")),
+        (true, None) => {
+            return Err(
+                at.invalid("trim_range", "a trim family needs trim_range = [lo, hi] (N·m/rad the rate can be set to)")
+            );
+        }
+        (true, Some(range)) => range,
+    };
+    if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && hi > lo) {
+        return Err(at.invalid(
+            "trim_range",
+            format!("must be [lo, hi] with 0 ≤ lo < hi N·m/rad, got [{}, {}]", show(lo), show(hi)),
+        ));
+    }
+    within(hi, MAX_STIFFNESS, " N·m/rad").map_err(|e| at.invalid("trim_range", format!("the upper rate {e}")))?;
+    if profiles != [Profile::Linear] {
+        return Err(at.invalid("profile", "trim springs are linear"));
+    }
+    if !matches!(f.offsets, Some(OffsetSpec::Equilibrium)) {
+        return Err(at.invalid("offsets", "trim springs are relaxed at the equilibrium: offsets = \"equilibrium\""));
+    }
+    if adjust_range.is_some() {
+        return Err(at.invalid("adjustable", "a trim spring is re-relaxed when it is set; it takes no adjust_range"));
+    }
+    if f.max_stiffness.is_some() || !f.stock_rates.is_empty() {
+        return Err(
+            at.invalid("trim_range", "a trim family's rates are its trim_range (no max_stiffness or stock_rates)")
+        );
+    }
+    Ok(Some([lo, hi]))
 }
 
 /// The cam keys of a family: validated for `profile = "cam"`, refused for any other profile.

@@ -180,28 +180,77 @@ pub(super) fn to_log(panel: &Panel) -> Panel {
     }
 }
 
+/// A panel's chart: both axes linear in the values drawn (logarithmic axes are mapped to log₁₀
+/// by [`to_log`] first).
+type Chart<'a, DB> =
+    ChartContext<'a, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>>;
+
+/// The data window of a chart: its ranges and its pixels per data unit on each axis (for dashes
+/// of a fixed length on screen).
+#[derive(Clone, Copy)]
+struct Window {
+    xr: (f64, f64),
+    yr: (f64, f64),
+    scale: (f64, f64),
+}
+
+/// Draws one panel: the side column's width from its texts, the axes' ranges, the chart with
+/// its mesh, each layer clipped to the window, then the legend and notes beside it.
 fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Panel) -> std::result::Result<(), String> {
     let e = |x: DrawingAreaErrorKind<DB::ErrorType>| format!("{x:?}");
     let panel = &to_log(original);
     let entries = if panel.legend { legend_entries(panel) } else { Vec::new() };
-    // The side column for the legend and the notes: as wide as its longest text, at most 45 % of
-    // the cell.
+    let side = side_width(cell, panel, &entries);
     let (w, _) = cell.dim_in_pixel();
+    let (area, column) = cell.split_horizontally(w.saturating_sub(side).max(1));
+    let (aw, ah) = area.dim_in_pixel();
+    let (plot_w, plot_h) = ((aw as f64 - 86.0).max(10.0), (ah as f64 - 84.0).max(10.0));
+    let (xr, yr) = axis_ranges(panel, plot_w, plot_h);
+    let mut chart = ChartBuilder::on(&area)
+        .caption(&panel.title, (FONT, 17))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(62)
+        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
+        .map_err(e)?;
+    draw_mesh(&mut chart, cell, panel, (xr, yr), plot_w).map_err(e)?;
+    let (pw, ph) = chart.plotting_area().dim_in_pixel();
+    let window = Window { xr, yr, scale: (pw as f64 / (xr.1 - xr.0), ph as f64 / (yr.1 - yr.0)) };
+    for layer in &panel.layers {
+        draw_layer(&mut chart, layer, panel.log_y, window).map_err(e)?;
+    }
+    if side > 0 {
+        draw_side_column(&column, &entries, &panel.notes).map_err(e)?;
+    }
+    Ok(())
+}
+
+/// The width of a text in the legend's and labels' font, in pixels (8 px a character when the
+/// backend cannot say).
+fn text_width<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, t: &str) -> u32 {
     let label_font = TextStyle::from((FONT, 13).into_font());
-    let text_width = |t: &str| cell.estimate_text_size(t, &label_font).map(|s| s.0).unwrap_or(8 * t.len() as u32);
+    cell.estimate_text_size(t, &label_font).map(|s| s.0).unwrap_or(8 * t.len() as u32)
+}
+
+/// The side column for the legend and the notes: as wide as its longest text, at most 45 % of
+/// the cell; none without either.
+fn side_width<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, panel: &Panel, entries: &[(Key, String)]) -> u32 {
+    let (w, _) = cell.dim_in_pixel();
     let widest = entries
         .iter()
-        .map(|(_, t)| text_width(t) + 40)
-        .chain(panel.notes.iter().map(|t| text_width(t) + 20))
+        .map(|(_, t)| text_width(cell, t) + 40)
+        .chain(panel.notes.iter().map(|t| text_width(cell, t) + 20))
         .max()
         .unwrap_or(0);
-    let side = if widest > 0 { (widest + 16).min(w * 45 / 100) } else { 0 };
-    let (area, column) = cell.split_horizontally(w.saturating_sub(side).max(1));
+    if widest > 0 { (widest + 16).min(w * 45 / 100) } else { 0 }
+}
+
+/// The axes' ranges: the panel's own or its data's, the too narrow one widened for an equal
+/// aspect on a plot of `plot_w` × `plot_h` pixels.
+fn axis_ranges(panel: &Panel, plot_w: f64, plot_h: f64) -> ((f64, f64), (f64, f64)) {
     let (dx, dy) = data_range(panel);
     let mut xr = panel.x_range.unwrap_or(dx);
     let mut yr = panel.y_range.unwrap_or(dy);
-    let (aw, ah) = area.dim_in_pixel();
-    let (plot_w, plot_h) = ((aw as f64 - 86.0).max(10.0), (ah as f64 - 84.0).max(10.0));
     if panel.equal_aspect {
         // Widen the range that is too narrow for the pixel aspect.
         let sx = (xr.1 - xr.0) / plot_w;
@@ -216,73 +265,94 @@ fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Pane
             xr = (c - half, c + half);
         }
     }
+    (xr, yr)
+}
+
+/// The label of a log₁₀ tick at `v`: the power of ten at a whole decade, two significant digits
+/// between decades (3.2, 0.32, not 3.162).
+fn log_tick(v: f64) -> String {
+    let r = v.round();
+    if (v - r).abs() < 1e-6 {
+        let x = 10f64.powf(r);
+        if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
+    } else {
+        // Between decades: two significant digits (3.2, 0.32), not 3.162.
+        let x = 10f64.powf(v);
+        let digits = (1.0 - v.floor()).max(0.0) as usize;
+        if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.1e}") }
+    }
+}
+
+/// Whether a log₁₀ range spans few decades: it then gets ticks every 0.1 in log₁₀ and labels
+/// only at 1, 2 and 5 × 10ᵏ (0.1, 0.2, 0.5, 1, 2, 5 instead of 0.32 and 3.2 alone); wider ones
+/// a label per decade.
+fn few_decades(r: (f64, f64)) -> bool {
+    r.1 - r.0 <= 2.5
+}
+
+/// How many labels a log₁₀ axis over `r` asks for.
+fn log_labels(r: (f64, f64)) -> usize {
+    if few_decades(r) {
+        ((r.1 - r.0) * 10.0).ceil() as usize + 1
+    } else {
+        ((r.1 - r.0).ceil() as usize + 1).clamp(3, 12)
+    }
+}
+
+/// `label` shortened in the middle, where names of a family agree least, until it is at most
+/// `slot` pixels wide (less a margin) or 4 characters long.
+fn fit_slot<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, label: &str, slot: u32) -> String {
+    let chars: Vec<char> = label.chars().collect();
+    let mut keep = chars.len();
+    let shown = |k: usize| -> String {
+        if k >= chars.len() {
+            return label.to_string();
+        }
+        let head: String = chars[..k.div_ceil(2)].iter().collect();
+        let tail: String = chars[chars.len() - k / 2..].iter().collect();
+        format!("{head}…{tail}")
+    };
+    while keep > 4 && text_width(cell, &shown(keep)) > slot.saturating_sub(6) {
+        keep -= 1;
+    }
+    shown(keep)
+}
+
+/// The axes, their descriptions, the grid and the tick labels: box plots label their
+/// categories, logarithmic axes their decades (or 1, 2, 5 × 10ᵏ over few decades).
+fn draw_mesh<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    cell: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    (xr, yr): ((f64, f64), (f64, f64)),
+    plot_w: f64,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let categories: Option<Vec<String>> = panel.layers.iter().find_map(|l| match l {
         Layer::Boxes { items } => Some(items.iter().map(|b| b.label.clone()).collect()),
         _ => None,
     });
-    let mut chart = ChartBuilder::on(&area)
-        .caption(&panel.title, (FONT, 17))
-        .margin(12)
-        .x_label_area_size(42)
-        .y_label_area_size(62)
-        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
-        .map_err(e)?;
-    let log_tick = |v: f64| {
-        let r = v.round();
-        if (v - r).abs() < 1e-6 {
-            let x = 10f64.powf(r);
-            if (1e-3..1e5).contains(&x) { format_tick(x) } else { format!("{x:.0e}") }
-        } else {
-            // Between decades: two significant digits (3.2, 0.32), not 3.162.
-            let x = 10f64.powf(v);
-            let digits = (1.0 - v.floor()).max(0.0) as usize;
-            if (1e-3..1e5).contains(&x) { format!("{x:.digits$}") } else { format!("{x:.1e}") }
-        }
-    };
-    // An axis of few decades gets ticks every 0.1 in log₁₀ and labels only at 1, 2 and 5 × 10ᵏ
-    // (0.1, 0.2, 0.5, 1, 2, 5 instead of 0.32 and 3.2 alone); wider ones a label per decade.
-    let few = |r: (f64, f64)| r.1 - r.0 <= 2.5;
     // A category label at most as wide as its box's slot (else the first is cut at the panel's
-    // edge and neighbours overlap): shortened in the middle, where names of a family agree least.
+    // edge and neighbours overlap).
     let slot = categories.as_ref().map_or(0, |c| (plot_w / c.len().max(1) as f64) as u32);
-    let fit_slot = |label: &str| -> String {
-        let chars: Vec<char> = label.chars().collect();
-        let mut keep = chars.len();
-        let shown = |k: usize| -> String {
-            if k >= chars.len() {
-                return label.to_string();
-            }
-            let head: String = chars[..k.div_ceil(2)].iter().collect();
-            let tail: String = chars[chars.len() - k / 2..].iter().collect();
-            format!("{head}…{tail}")
-        };
-        while keep > 4 && text_width(&shown(keep)) > slot.saturating_sub(6) {
-            keep -= 1;
-        }
-        shown(keep)
-    };
     let formatter = |v: &f64| -> String {
         match &categories {
             Some(c) => {
                 let i = v.round();
                 if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < c.len() {
-                    fit_slot(&c[i as usize])
+                    fit_slot(cell, &c[i as usize], slot)
                 } else {
                     String::new()
                 }
             }
-            None if panel.log_x && few(xr) => one_two_five(*v),
+            None if panel.log_x && few_decades(xr) => one_two_five(*v),
             None if panel.log_x => log_tick(*v),
             None => format_tick(*v),
         }
     };
-    let y_formatter = |v: &f64| match (panel.log_y, few(yr)) {
+    let y_formatter = |v: &f64| match (panel.log_y, few_decades(yr)) {
         (true, true) => one_two_five(*v),
         (true, false) => log_tick(*v),
         _ => format_tick(*v),
-    };
-    let decades = |r: (f64, f64)| {
-        if few(r) { ((r.1 - r.0) * 10.0).ceil() as usize + 1 } else { ((r.1 - r.0).ceil() as usize + 1).clamp(3, 12) }
     };
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(&panel.x_label)
@@ -297,128 +367,124 @@ fn draw_panel<DB: DrawingBackend>(cell: &DrawingArea<DB, Shift>, original: &Pane
     if let Some(c) = &categories {
         mesh.x_labels(c.len() * 2 + 1);
     } else if panel.log_x {
-        mesh.x_labels(decades(xr));
+        mesh.x_labels(log_labels(xr));
     }
     if panel.log_y {
-        mesh.y_labels(decades(yr));
+        mesh.y_labels(log_labels(yr));
     }
-    mesh.draw().map_err(e)?;
+    mesh.draw()
+}
 
-    // Pixels per data unit, for dashes of a fixed length on screen.
-    let (pw, ph) = chart.plotting_area().dim_in_pixel();
-    let scale = (pw as f64 / (xr.1 - xr.0), ph as f64 / (yr.1 - yr.0));
+/// Draws one layer inside the window, clipped to it (`log_y`: the counts of a histogram are
+/// log₁₀, its bars stand on the bottom of the window).
+fn draw_layer<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    layer: &Layer,
+    log_y: bool,
+    window: Window,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let Window { xr, yr, scale } = window;
     let clip = |line: &[(f64, f64)]| clip_polyline(line, xr, yr);
-    for layer in &panel.layers {
-        match layer {
-            Layer::Lines { lines, style, .. } => {
-                for line in lines {
-                    for run in finite_runs(line) {
-                        for piece in clip(&run) {
-                            draw_line(&mut chart, piece, style, scale).map_err(e)?;
-                        }
-                    }
-                }
-            }
-            Layer::Points { points, style, size, .. } => {
-                let s = style.shape();
-                let inside = |&(x, y): &(f64, f64)| {
-                    x.is_finite() && y.is_finite() && x >= xr.0 && x <= xr.1 && y >= yr.0 && y <= yr.1
-                };
-                let pts: Vec<(f64, f64)> = points.iter().copied().filter(inside).collect();
-                let size = *size;
-                chart.draw_series(pts.into_iter().map(|p| Circle::new(p, size, s))).map_err(e)?;
-            }
-            Layer::Histogram { edges, counts, style, .. } => {
-                let fill = Style { filled: true, ..*style }.shape();
-                let outline = Style { filled: false, alpha: 1.0, ..*style }.shape();
-                let base = if panel.log_y { yr.0 } else { 0.0f64.max(yr.0) };
-                let bars: Vec<(f64, f64, f64)> = edges
-                    .windows(2)
-                    .zip(counts)
-                    .filter(|(w, c)| w[0].is_finite() && w[1].is_finite() && c.is_finite() && **c > base)
-                    .map(|(w, c)| (w[0].max(xr.0), w[1].min(xr.1), c.min(yr.1)))
-                    .filter(|(a, b, _)| a < b)
-                    .collect();
-                chart
-                    .draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], fill)))
-                    .map_err(e)?;
-                chart
-                    .draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], outline)))
-                    .map_err(e)?;
-            }
-            Layer::Contours { x, y, z, levels, style, .. } => {
-                for &lv in levels {
-                    for line in isolines(x, y, z, lv) {
-                        for piece in clip(&line) {
-                            draw_line(&mut chart, piece, style, scale).map_err(e)?;
-                        }
-                    }
-                }
-            }
-            Layer::Spans { spans, style, .. } => {
-                let s = Style { filled: true, ..*style }.shape();
-                chart
-                    .draw_series(
-                        spans
-                            .iter()
-                            .filter(|(a, b)| a.is_finite() && b.is_finite())
-                            .map(|&(a, b)| (a.max(xr.0), b.min(xr.1)))
-                            .filter(|(a, b)| a < b)
-                            .map(|(a, b)| Rectangle::new([(a, yr.0), (b, yr.1)], s)),
-                    )
-                    .map_err(e)?;
-            }
-            Layer::HLine { y, style } => {
-                if y.is_finite() && *y >= yr.0 && *y <= yr.1 {
-                    draw_line(&mut chart, vec![(xr.0, *y), (xr.1, *y)], style, scale).map_err(e)?;
-                }
-            }
-            Layer::VLine { x, style } => {
-                if x.is_finite() && *x >= xr.0 && *x <= xr.1 {
-                    draw_line(&mut chart, vec![(*x, yr.0), (*x, yr.1)], style, scale).map_err(e)?;
-                }
-            }
-            Layer::Boxes { items } => {
-                for (i, b) in items.iter().enumerate() {
-                    if b.five.iter().any(|v| !v.is_finite()) {
-                        continue;
-                    }
-                    let x = i as f64;
-                    let line = Style::line(b.color, 2).shape();
-                    let fill = Style::fill(b.color, 0.25).shape();
-                    let [lo, q1, med, q3, hi] = b.five;
-                    chart
-                        .draw_series(std::iter::once(Rectangle::new([(x - 0.3, q1), (x + 0.3, q3)], fill)))
-                        .map_err(e)?;
-                    chart
-                        .draw_series(std::iter::once(Rectangle::new([(x - 0.3, q1), (x + 0.3, q3)], line)))
-                        .map_err(e)?;
-                    for seg in [
-                        vec![(x - 0.3, med), (x + 0.3, med)],
-                        vec![(x, q3), (x, hi)],
-                        vec![(x, q1), (x, lo)],
-                        vec![(x - 0.15, hi), (x + 0.15, hi)],
-                        vec![(x - 0.15, lo), (x + 0.15, lo)],
-                    ] {
-                        chart.draw_series(LineSeries::new(seg, line)).map_err(e)?;
+    match layer {
+        Layer::Lines { lines, style, .. } => {
+            for line in lines {
+                for run in finite_runs(line) {
+                    for piece in clip(&run) {
+                        draw_line(chart, piece, style, scale)?;
                     }
                 }
             }
         }
+        Layer::Points { points, style, size, .. } => {
+            let s = style.shape();
+            let inside = |&(x, y): &(f64, f64)| {
+                x.is_finite() && y.is_finite() && x >= xr.0 && x <= xr.1 && y >= yr.0 && y <= yr.1
+            };
+            let pts: Vec<(f64, f64)> = points.iter().copied().filter(inside).collect();
+            let size = *size;
+            chart.draw_series(pts.into_iter().map(|p| Circle::new(p, size, s)))?;
+        }
+        Layer::Histogram { edges, counts, style, .. } => {
+            let fill = Style { filled: true, ..*style }.shape();
+            let outline = Style { filled: false, alpha: 1.0, ..*style }.shape();
+            let base = if log_y { yr.0 } else { 0.0f64.max(yr.0) };
+            let bars: Vec<(f64, f64, f64)> = edges
+                .windows(2)
+                .zip(counts)
+                .filter(|(w, c)| w[0].is_finite() && w[1].is_finite() && c.is_finite() && **c > base)
+                .map(|(w, c)| (w[0].max(xr.0), w[1].min(xr.1), c.min(yr.1)))
+                .filter(|(a, b, _)| a < b)
+                .collect();
+            chart.draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], fill)))?;
+            chart.draw_series(bars.iter().map(|&(a, b, c)| Rectangle::new([(a, base), (b, c)], outline)))?;
+        }
+        Layer::Contours { x, y, z, levels, style, .. } => {
+            for &lv in levels {
+                for line in isolines(x, y, z, lv) {
+                    for piece in clip(&line) {
+                        draw_line(chart, piece, style, scale)?;
+                    }
+                }
+            }
+        }
+        Layer::Spans { spans, style, .. } => {
+            let s = Style { filled: true, ..*style }.shape();
+            chart.draw_series(
+                spans
+                    .iter()
+                    .filter(|(a, b)| a.is_finite() && b.is_finite())
+                    .map(|&(a, b)| (a.max(xr.0), b.min(xr.1)))
+                    .filter(|(a, b)| a < b)
+                    .map(|(a, b)| Rectangle::new([(a, yr.0), (b, yr.1)], s)),
+            )?;
+        }
+        Layer::HLine { y, style } => {
+            if y.is_finite() && *y >= yr.0 && *y <= yr.1 {
+                draw_line(chart, vec![(xr.0, *y), (xr.1, *y)], style, scale)?;
+            }
+        }
+        Layer::VLine { x, style } => {
+            if x.is_finite() && *x >= xr.0 && *x <= xr.1 {
+                draw_line(chart, vec![(*x, yr.0), (*x, yr.1)], style, scale)?;
+            }
+        }
+        Layer::Boxes { items } => draw_boxes(chart, items)?,
     }
-    if side > 0 {
-        draw_side_column(&column, &entries, &panel.notes).map_err(e)?;
+    Ok(())
+}
+
+/// Box plots, one per category at x = 0, 1, …: the box from the first to the third quartile, the
+/// median across it, whiskers to the extremes (a box with a non-finite value is left out).
+fn draw_boxes<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    items: &[BoxItem],
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    for (i, b) in items.iter().enumerate() {
+        if b.five.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        let x = i as f64;
+        let line = Style::line(b.color, 2).shape();
+        let fill = Style::fill(b.color, 0.25).shape();
+        let [lo, q1, med, q3, hi] = b.five;
+        chart.draw_series(std::iter::once(Rectangle::new([(x - 0.3, q1), (x + 0.3, q3)], fill)))?;
+        chart.draw_series(std::iter::once(Rectangle::new([(x - 0.3, q1), (x + 0.3, q3)], line)))?;
+        for seg in [
+            vec![(x - 0.3, med), (x + 0.3, med)],
+            vec![(x, q3), (x, hi)],
+            vec![(x, q1), (x, lo)],
+            vec![(x - 0.15, hi), (x + 0.15, hi)],
+            vec![(x - 0.15, lo), (x + 0.15, lo)],
+        ] {
+            chart.draw_series(LineSeries::new(seg, line))?;
+        }
     }
     Ok(())
 }
 
 /// Draws a polyline (already clipped), solid or dashed (7 px on, 4 px off on screen).
 fn draw_line<DB: DrawingBackend>(
-    chart: &mut ChartContext<
-        '_,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
+    chart: &mut Chart<'_, DB>,
     line: Vec<(f64, f64)>,
     style: &Style,
     scale: (f64, f64),
