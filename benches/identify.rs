@@ -43,7 +43,7 @@ fn main() {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         let (mut identified, mut parts) = (0, 0);
         let (med, min) = time(5, || {
-            let id = pool.install(|| identify(&design, &bom_path, &bom, &logs, &design.file.identify).unwrap());
+            let id = pool.install(|| identify(&design, &bom_path, &bom, &logs, &design.identify).unwrap());
             (identified, parts) = (id.identified_count(), id.rates.len());
             black_box(id);
         });

@@ -62,7 +62,7 @@ fn main() {
     let pot =
         ElasticPotential::Springs(fit(&d, &catalog, &d.fit, springfit::progress::Progress::none()).unwrap().springs);
     let (label, _) = label_source(&d, &d.simulate).unwrap();
-    let switch = d.file.scenario.iter().position(|s| s.name == "switch").unwrap();
+    let switch = d.scenarios.iter().position(|s| s.name == "switch").unwrap();
     let run = resolve_scenario(&d, &pot, &label, switch).unwrap().runs.remove(0);
     let mut c = Controller::new(&d.chain, &d.q_eq, &pot, d.controllers.clone(), Some(label.field())).unwrap();
     c.set_mode(run.mode.clone());

@@ -35,7 +35,7 @@ fn main() {
         err.unwrap().1
     );
     let (label, _) = label_source(&d, &d.simulate).unwrap();
-    let switch = d.file.scenario.iter().position(|s| s.name == "switch").unwrap();
+    let switch = d.scenarios.iter().position(|s| s.name == "switch").unwrap();
     let (med, min) = time(5, || {
         black_box(run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, switch).unwrap());
     });
@@ -44,14 +44,14 @@ fn main() {
         ms(med),
         ms(min)
     );
-    let sens = d.file.scenario.iter().position(|s| s.name == "sensitivity").unwrap();
+    let sens = d.scenarios.iter().position(|s| s.name == "sensitivity").unwrap();
     let (med, min) = time(10, || {
         black_box(run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, sens).unwrap());
     });
     println!("sensitivity run (20 s at 1 kHz, both controllers): {:.1} ms / {:.1} ms", ms(med), ms(min));
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let swing = d.file.scenario.iter().position(|s| s.name == "swingup").unwrap();
+        let swing = d.scenarios.iter().position(|s| s.name == "swingup").unwrap();
         let (med, min) = time(5, || {
             pool.install(|| black_box(run_scenario(&d, &pot, &label, &d.simulate, &d.controllers, swing).unwrap()));
         });

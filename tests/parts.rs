@@ -169,7 +169,7 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
     // Ideal eyelets (no rollers): every mechanism's potential is then its element's, with the
     // rate recomputed from the spring's geometry, so the realised residuals are the ideal ones.
     let mut design = quick_design("");
-    design.file.parts.pulley_radius_mm = 0.0;
+    design.parts.pulley_radius_mm = 0.0;
     let (o, parts) = parts_of(&design);
     let messages = |p: &springfit::parts::Parts| -> Vec<String> {
         p.missing().map(|(e, l)| springfit::parts::limit_message(e, l)).collect()
@@ -192,7 +192,7 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
     // Stainless wire (weaker, softer in shear) still gives every element a part, wound from it,
     // with the rate from its own moduli within the grade.
     let mut stainless = design.clone();
-    stainless.file.parts.material = "ASTM-A313-302".into();
+    stainless.parts.material = "ASTM-A313-302".into();
     let ss = choose(&stainless, &o);
     assert_eq!(ss.missing().count(), 0, "{:?}", messages(&ss));
     for e in &ss.elements {
@@ -206,7 +206,7 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
         assert!((p.realised_rate / e.stiffness - 1.0).abs() <= p.tolerance, "{}", e.id);
     }
     let mut small = design.clone();
-    small.file.parts.max_outer_diameter_mm = 40.0;
+    small.parts.max_outer_diameter_mm = 40.0;
     let tight = choose(&small, &o);
     let failed: Vec<_> = tight.missing().collect();
     assert!(!failed.is_empty(), "a 40 mm envelope is too small for the largest elements");

@@ -163,13 +163,13 @@ impl PyController {
         };
         let index = match scenario {
             None => None,
-            Some(name) => Some(d.file.scenario.iter().position(|s| s.name == name).ok_or_else(|| {
+            Some(name) => Some(d.scenarios.iter().position(|s| s.name == name).ok_or_else(|| {
                 setting(
                     "scenario",
                     format!(
                         "no scenario `{name}` in {} (it has: {})",
                         d.path.display(),
-                        d.file.scenario.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+                        d.scenarios.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
                     ),
                 )
             })?),
@@ -187,7 +187,7 @@ impl PyController {
                             field: "run".into(),
                             reason: format!(
                                 "scenario {} has {} run(s), numbered from 0",
-                                o.design.file.scenario[i].name,
+                                o.design.scenarios[i].name,
                                 runs.len()
                             ),
                         });

@@ -196,7 +196,7 @@ impl PyDesign {
     /// The names of the design's `[[scenario]]` tables.
     #[getter]
     fn scenarios(&self) -> Vec<String> {
-        self.design.file.scenario.iter().map(|s| s.name.clone()).collect()
+        self.design.scenarios.iter().map(|s| s.name.clone()).collect()
     }
 
     /// The `[controllers]` settings as a dict.

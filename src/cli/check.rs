@@ -68,11 +68,11 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
         }
         None => progress.say("catalogue: none (fit, sweep and pareto need one; fit --exact and geodesics do not)"),
     }
-    if design.file.scenario.is_empty() {
+    if design.scenarios.is_empty() {
         progress.say("scenarios: none (simulate and sweep need [[scenario]] tables)");
     } else {
-        let names: Vec<&str> = design.file.scenario.iter().map(|s| s.name.as_str()).collect();
-        progress.say(format!("scenarios: {}; sweep runs `{}`", names.join(", "), design.file.sweep.scenario));
+        let names: Vec<&str> = design.scenarios.iter().map(|s| s.name.as_str()).collect();
+        progress.say(format!("scenarios: {}; sweep runs `{}`", names.join(", "), design.sweep.scenario));
     }
     let step = progress.step("checking the region (fan with Jacobi fields)");
     let report = design.region_report();
@@ -114,8 +114,7 @@ fn suggestions(design: &Design, report: &RegionReport) -> Vec<String> {
             100.0 * share
         ));
     }
-    let energies: Vec<(String, f64)> =
-        design.file.scenario.iter().enumerate().flat_map(|(i, s)| s.energies(i)).collect();
+    let energies: Vec<(String, f64)> = design.scenarios.iter().enumerate().flat_map(|(i, s)| s.energies(i)).collect();
     if let Some((field, e)) = energies.iter().cloned().max_by(|a, b| a.1.total_cmp(&b.1)) {
         let reach = 0.5 * omega * omega * radius * radius;
         let needed_omega = (2.0 * e).sqrt() / radius;

@@ -29,7 +29,7 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
     let plan = session.plan_for(
         &design,
         "simulate",
-        simulate::files(indices.iter().map(|&i| design.file.scenario[i].name.as_str())),
+        simulate::files(indices.iter().map(|&i| design.scenarios[i].name.as_str())),
     );
     let claim = springfit::report::output::check(&target, &plan)?;
     let springs = if args.exact {

@@ -49,7 +49,11 @@ use nalgebra::DVector;
 
 use crate::design::controllers::ControllerSettings;
 use crate::design::fit::FitSettings;
+use crate::design::identify::IdentifySettings;
+use crate::design::parts::PartsSettings;
+use crate::design::scenario::ScenarioSpec;
 use crate::design::simulate::SimSettings;
+use crate::design::sweep::SweepSettings;
 use crate::error::{Error, Result};
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
@@ -87,8 +91,18 @@ pub struct Design {
     pub simulate: SimSettings,
     /// Controller gains.
     pub controllers: ControllerSettings,
-    /// The file as written (for sections later steps read).
-    pub file: DesignFile,
+    /// `[[scenario]]`: the simulation scenarios, in file order (resolved against the fit when
+    /// one runs, since starts and energies may depend on the fitted potential).
+    pub scenarios: Vec<ScenarioSpec>,
+    /// `[sweep]`: what the sensitivity sweeps vary.
+    pub sweep: SweepSettings,
+    /// Whether the file has a `[sweep]` table: a sweep scenario the user named and the design
+    /// lacks is an error, the default one missing only a warning (a design may never be swept).
+    pub sweep_given: bool,
+    /// `[identify]`: how a built arm is identified from logged motion.
+    pub identify: IdentifySettings,
+    /// `[parts]`: how the fitted elements become springs to wind or order.
+    pub parts: PartsSettings,
     /// The last region check, with what it was computed from (see [`Design::region_report`]).
     region_memo: std::sync::OnceLock<RegionMemo>,
 }
@@ -172,8 +186,12 @@ impl Design {
             geodesics: file.geodesics,
             fit: file.fit,
             simulate: file.simulate,
-            controllers: file.controllers.clone(),
-            file,
+            controllers: file.controllers,
+            scenarios: file.scenario,
+            sweep: file.sweep,
+            sweep_given: file.sweep_given,
+            identify: file.identify,
+            parts: file.parts,
             region_memo: std::sync::OnceLock::new(),
         })
     }

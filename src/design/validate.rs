@@ -64,17 +64,17 @@ pub fn validate(design: &Design) -> Result<Validated> {
         crate::design::validate::check_trimmed_weight(design, c, &design.fit)?;
         check_fit_memory(design, c, crate::limits::available_memory())?;
     }
-    for (i, sc) in design.file.scenario.iter().enumerate() {
+    for (i, sc) in design.scenarios.iter().enumerate() {
         sc.check(i, design)?;
     }
     // The sweep scenario a `[sweep]` table names must exist; without the table the default one
     // (`sensitivity`) missing is only worth a warning: the design may never be swept, and
     // `springfit sweep` refuses it with the same message.
     let mut warnings = Vec::new();
-    if !design.file.scenario.is_empty()
+    if !design.scenarios.is_empty()
         && let Err(e) = sweep_scenario(design)
     {
-        if design.file.sweep_given {
+        if design.sweep_given {
             return Err(e);
         }
         warnings.push(Warning {
@@ -82,7 +82,7 @@ pub fn validate(design: &Design) -> Result<Validated> {
                 field: "sweep.scenario".into(),
                 message: format!(
                     "no [[scenario]] named `{}`: `springfit sweep` will refuse this design until a [sweep] table names one of its scenarios",
-                    design.file.sweep.scenario
+                    design.sweep.scenario
                 ),
             });
     }
@@ -159,9 +159,9 @@ pub fn check_fit_memory(design: &Design, catalog: &Catalog, available: u64) -> R
 
 /// The index of the `[sweep] scenario`, or an error listing the scenarios the design has.
 pub fn sweep_scenario(design: &Design) -> Result<usize> {
-    let name = &design.file.sweep.scenario;
-    design.file.scenario.iter().position(|s| &s.name == name).ok_or_else(|| {
-        let have: Vec<&str> = design.file.scenario.iter().map(|s| s.name.as_str()).collect();
+    let name = &design.sweep.scenario;
+    design.scenarios.iter().position(|s| &s.name == name).ok_or_else(|| {
+        let have: Vec<&str> = design.scenarios.iter().map(|s| s.name.as_str()).collect();
         let have = if have.is_empty() { "none".to_string() } else { have.join(", ") };
         Error::invalid(
             &design.path,
@@ -175,8 +175,10 @@ pub fn sweep_scenario(design: &Design) -> Result<usize> {
 }
 
 fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
+    // The path as the design file wrote it: the design resolved it against its own folder.
+    let folder = design.path.parent().unwrap_or(Path::new("."));
+    let written = path.strip_prefix(folder).unwrap_or(path).display();
     if path.is_dir() {
-        let written = design.file.catalog.as_deref().unwrap_or_default();
         return Err(Error::invalid(
             &design.path,
             "catalog",
@@ -184,7 +186,6 @@ fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
         ));
     }
     if !path.is_file() {
-        let written = design.file.catalog.as_deref().unwrap_or_default();
         return Err(Error::invalid(
             &design.path,
             "catalog",
@@ -246,7 +247,8 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
             }
         }
     }
-    for (i, l) in design.file.robot.links.iter().enumerate() {
+    let links = design.chain.planar().map(|c| c.links()).unwrap_or_default();
+    for (i, l) in links.iter().enumerate() {
         if l.com > l.length {
             warn(
                 format!("robot.links[{i}].com"),
@@ -258,7 +260,7 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
             );
         }
     }
-    for (k, sc) in design.file.scenario.iter().enumerate() {
+    for (k, sc) in design.scenarios.iter().enumerate() {
         for (j, s) in sc.starts.iter().enumerate() {
             if let Some((i, a)) = s.iter().enumerate().find(|(_, a)| a.0.abs() > MANY_TURNS_RAD) {
                 warn(

@@ -76,7 +76,7 @@ pub fn backbone_modes(n: usize) -> Vec<ModeSpec> {
 /// scenarios name (releases, a switch's energy, a swing-up's e0 and E_d; 10 J without any).
 pub fn backbone_energies(design: &Design) -> Vec<f64> {
     let mut top = 0.0f64;
-    for s in &design.file.scenario {
+    for s in &design.scenarios {
         for r in &s.releases {
             top = top.max(r.energy);
         }

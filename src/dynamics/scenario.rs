@@ -723,7 +723,7 @@ pub fn resolve_scenario<'a>(
     index: usize,
 ) -> Result<Scenario> {
     let mut energy_at = nominal_energy(design, potential, label)?;
-    design.file.scenario[index].resolve(index, design, &mut energy_at)
+    design.scenarios[index].resolve(index, design, &mut energy_at)
 }
 
 /// Resolves and runs scenario `index` of the design with the elastic potential `potential`.
@@ -737,7 +737,7 @@ pub fn run_scenario<'a>(
     index: usize,
 ) -> Result<ScenarioOutcome> {
     use rayon::prelude::*;
-    let spec = &design.file.scenario[index];
+    let spec = &design.scenarios[index];
     let chain = &design.chain;
     let scenario = resolve_scenario(design, potential, label, index)?;
     let results: Vec<Result<(RunResult, RunMetrics)>> = scenario

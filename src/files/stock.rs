@@ -24,7 +24,7 @@ pub const HEADER: &str = "vendor,part_number,type,material,d_mm,D_mm,n,length_mm
 /// The stock list the design's `[parts] stock` names (relative to the design file; none: empty),
 /// read before any work so that a missing file is refused first.
 pub fn of_design(design: &crate::design::Design) -> Result<Vec<StockPart>> {
-    let Some(name) = &design.file.parts.stock else { return Ok(Vec::new()) };
+    let Some(name) = &design.parts.stock else { return Ok(Vec::new()) };
     let path = design.path.parent().unwrap_or(Path::new(".")).join(name);
     if !path.is_file() {
         return Err(Error::invalid(

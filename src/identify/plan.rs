@@ -90,7 +90,7 @@ struct Candidate {
 /// release points, each simulated (those that leave the region dropped), then the D-optimal
 /// choice among them until the simulated logs identify every rate or the log budget is spent.
 pub fn plan(design: &Design, bom_path: &std::path::Path, bom: &[BomRow]) -> Result<Plan> {
-    let settings = &design.file.identify;
+    let settings = &design.identify;
     super::check_bill(design, bom_path, bom)?;
     let n = design.dof();
     let springs = crate::fit::bill::spring_set(bom);
@@ -140,7 +140,7 @@ type ReleasePoint = (Vec<f64>, Vec<f64>, f64);
 /// fraction of `radii` of each geodesic's length (for two joints only one of u and −u: they
 /// swing on the same mode).
 fn release_points(design: &Design) -> Result<Vec<ReleasePoint>> {
-    let settings = &design.file.identify;
+    let settings = &design.identify;
     let n = design.dof();
     let extent = match &design.region {
         Region::Ball { radius } => *radius,
@@ -184,7 +184,7 @@ fn simulate_candidates(
     filters: &Filters,
     points: &[ReleasePoint],
 ) -> Result<(Vec<Candidate>, usize)> {
-    let settings = &design.file.identify;
+    let settings = &design.identify;
     let u_eq = springs.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
     let zeros = vec![0.0; design.dof()];
     let drive = Drive { damping: &zeros, friction: &zeros, torque: None };
@@ -224,7 +224,7 @@ fn choose(
     candidates: &[Candidate],
     p: usize,
 ) -> Result<(Vec<(usize, usize)>, Identification)> {
-    let settings = &design.file.identify;
+    let settings = &design.identify;
     // Unit scaling of the unknowns over all candidates, and the ridge.
     let total: DMatrix<f64> = candidates.iter().fold(DMatrix::zeros(p, p), |a, c| a + &c.information);
     let scale: Vec<f64> = (0..p).map(|k| if total[(k, k)] > 0.0 { 1.0 / total[(k, k)].sqrt() } else { 1.0 }).collect();
@@ -299,7 +299,7 @@ fn identify_readings(
         dof: design.dof(),
         runs: runs.to_vec(),
     };
-    super::identify(design, bom_path, bom, &[log], &design.file.identify)
+    super::identify(design, bom_path, bom, &[log], &design.identify)
 }
 
 /// ΦᵀΦ of a candidate's rows.

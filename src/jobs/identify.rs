@@ -53,7 +53,7 @@ pub fn identify(
         IdentifyRequest::Logs(paths) => {
             let logs = paths.iter().map(|p| crate::files::log::read(p, design.dof())).collect::<Result<Vec<_>>>()?;
             progress.stage("identifying");
-            Identified::Rates(crate::identify::identify(design, bom, &rows, &logs, &design.file.identify)?)
+            Identified::Rates(crate::identify::identify(design, bom, &rows, &logs, &design.identify)?)
         }
     };
     Ok(IdentifyRun { rows, made })

@@ -68,7 +68,7 @@ pub struct SimulateRequest<'a> {
 /// The indices of the design's scenarios a simulation of `only` (None: all) runs. The field
 /// of the error for an unknown name is `scenario`.
 pub fn scenarios(design: &Design, only: Option<&str>) -> Result<Vec<usize>> {
-    let all = &design.file.scenario;
+    let all = &design.scenarios;
     if all.is_empty() {
         return Err(Error::invalid(&design.path, "scenario", "the design declares no [[scenario]] to simulate"));
     }
@@ -116,7 +116,7 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
     let fan = crate::report::simulate::plot_fan(design)?;
     let mut scenarios = Vec::new();
     for i in indices {
-        progress.stage(&format!("scenario {}", design.file.scenario[i].name));
+        progress.stage(&format!("scenario {}", design.scenarios[i].name));
         let t = Instant::now();
         let outcome = run_scenario(design, &potential, &label, &settings, &design.controllers, i)?;
         scenarios.push(ScenarioRun { outcome, seconds: t.elapsed().as_secs_f64() });

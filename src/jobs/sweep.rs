@@ -57,7 +57,7 @@ impl<'a> SweepJob<'a> {
     /// Checks `request` against `design` and its validated `catalog`: the replaced settings, a
     /// catalogue, and the `[sweep]` scenario every item reruns.
     pub fn new(design: &'a Design, catalog: Option<&'a Catalog>, request: SweepRequest) -> Result<SweepJob<'a>> {
-        let mut settings = design.file.sweep.clone();
+        let mut settings = design.sweep.clone();
         if let Some(b) = request.builds {
             if b == 0 {
                 return Err(Error::Setting {
@@ -72,7 +72,7 @@ impl<'a> SweepJob<'a> {
         }
         let catalog = catalog
             .ok_or_else(|| Error::invalid(&design.path, "catalog", "the design names no spring catalogue to sweep"))?;
-        if design.file.scenario.is_empty() {
+        if design.scenarios.is_empty() {
             return Err(Error::invalid(
                 &design.path,
                 "scenario",

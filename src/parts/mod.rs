@@ -186,7 +186,7 @@ pub fn scenario_energy(design: &Design) -> Option<f64> {
     use crate::design::scenario::EnergySpec;
     let mut e: Option<f64> = None;
     let mut see = |v: f64| e = Some(e.map_or(v, |m: f64| m.max(v)));
-    for s in &design.file.scenario {
+    for s in &design.scenarios {
         s.releases.iter().for_each(|r| see(r.energy));
         s.energy.into_iter().chain(s.e0).for_each(&mut see);
         match &s.ed {
@@ -316,7 +316,7 @@ pub fn choose(
     stock: &[StockPart],
     ideal: Option<AngleStats>,
 ) -> Result<Parts> {
-    let s = &design.file.parts;
+    let s = &design.parts;
     s.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
     let q_eq = design.q_eq.as_slice();
     let energy = scenario_energy(design);

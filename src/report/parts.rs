@@ -46,7 +46,7 @@ impl RealisedSummary {
 
 /// Writes `parts.csv`, `parts.md` and the sketches into `out`.
 pub fn write(out: &OutputDir, design: &Design, parts: &Parts) -> Result<()> {
-    let s = &design.file.parts;
+    let s = &design.parts;
     out.write("parts.csv", crate::files::parts::csv(parts, s.grade, s.safety_factor))?;
     out.write("parts.md", crate::files::parts::markdown(&design.name, parts, s))?;
     for e in &parts.elements {
