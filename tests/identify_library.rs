@@ -92,7 +92,7 @@ fn exact_angles_give_back_the_build_exactly() {
     let built = springfit::fit::bill::spring_set(&bom).scaled(&factors);
     let drive = Drive { damping: &[0.05, 0.05], friction: &[0.0, 0.0], torque: None };
     let logs = [log(&design, &built, &drive, &releases(&design, 1.8, 3), 8.0, None)];
-    let settings = springfit::design::identify::IdentifySettings { friction: false, ..design.file.identify.clone() };
+    let settings = springfit::design::identify::IdentifySettings { friction: false, ..design.identify.clone() };
     let id = identify(&design, &path, &bom, &logs, &settings).unwrap();
     let mut checked = 0;
     for (r, truth) in truth_of(&id, &factors) {
@@ -131,7 +131,7 @@ fn a_build_is_identified_from_the_planned_releases_and_tuned() {
     let built = springfit::fit::bill::spring_set(&bom).scaled(&factors);
     let drive = Drive { damping: &[0.05, 0.05], friction: &[0.02, 0.02], torque: None };
     let logs = [log(&design, &built, &drive, &starts, 10.0, Some(1.0))];
-    let id = identify(&design, &path, &bom, &logs, &design.file.identify).unwrap();
+    let id = identify(&design, &path, &bom, &logs, &design.identify).unwrap();
     let mut square = 0.0;
     let mut count = 0;
     for (r, truth) in truth_of(&id, &factors) {
@@ -176,7 +176,7 @@ fn a_log_that_cannot_identify_an_element_says_which_and_why() {
     let built = springfit::fit::bill::spring_set(&bom);
     let drive = Drive { damping: &[0.0, 0.0], friction: &[0.0, 0.0], torque: None };
     let logs = [log(&design, &built, &drive, &releases(&design, 0.3, 1), 6.0, Some(1.0))];
-    let id = identify(&design, &path, &bom, &logs, &design.file.identify).unwrap();
+    let id = identify(&design, &path, &bom, &logs, &design.identify).unwrap();
     let s12 = id.rates.iter().find(|r| r.id == "S12").unwrap();
     let Status::Group(g) = s12.status else { panic!("S12 cannot be identified from a small swing: {s12:?}") };
     assert!(id.groups[g].reason.contains("never engage"), "{}", id.groups[g].reason);

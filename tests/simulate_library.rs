@@ -26,7 +26,7 @@ fn fitted(d: &Design) -> ElasticPotential {
 }
 
 fn scenario_index(d: &Design, name: &str) -> usize {
-    d.file.scenario.iter().position(|s| s.name == name).unwrap()
+    d.scenarios.iter().position(|s| s.name == name).unwrap()
 }
 
 #[test]
@@ -93,7 +93,7 @@ fn a_saturated_swing_up_still_reaches_its_target_energy() {
     let pot = ElasticPotential::Exact { omega: d.fit.frequency };
     let (label, _) = label_source(&d, &d.simulate).unwrap();
     let mut limited = d.clone();
-    limited.file.scenario[scenario_index(&d, "swingup")].variants = vec!["energy_compensated".into()];
+    limited.scenarios[scenario_index(&d, "swingup")].variants = vec!["energy_compensated".into()];
     let controllers = ControllerSettings { max_torque: Some(vec![2.0, 2.0]), ..d.controllers.clone() };
     let out = run_scenario(&limited, &pot, &label, &d.simulate, &controllers, scenario_index(&d, "swingup")).unwrap();
     let m = &out.runs[0].1;
@@ -179,7 +179,7 @@ fn controllers_reach_their_targets_with_fitted_springs() {
     assert!(smooth_peak < 0.9 * hard_peak, "smooth {smooth_peak} N·m, hard {hard_peak} N·m");
     // Without an energy target the mode controller's damping drains the swing.
     let mut none = d.clone();
-    none.file.scenario[index].energy_target = Some(EnergyTarget::None);
+    none.scenarios[index].energy_target = Some(EnergyTarget::None);
     let faded = run_scenario(&none, &pot, &label, &d.simulate, &d.controllers, index).unwrap();
     let (rf, mf) = &faded.runs[0];
     assert!(mf.energy_rel_error_last5s.is_none() && mf.flux.energy == 0.0);
