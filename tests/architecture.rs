@@ -375,6 +375,58 @@ fn src_keeps_to_its_layers_and_has_no_import_circle() {
     assert!(found.is_empty(), "{} breaches of docs/architecture.md:\n{}", found.len(), found.join("\n"));
 }
 
+/// The files of `src/` the per-folder list of docs/architecture.md misses: a file `src/a/b/c.rs`
+/// must be named `` `b/c.rs` `` in the bullet that starts with `` `a/` ``; a file directly in
+/// `src/` in the bullet that starts with `base`.
+fn unnamed_files(src: &Path, doc: &str) -> Vec<String> {
+    let section = doc.split("## What each folder does").nth(1).unwrap_or_default();
+    let section = section.split("\n## ").next().unwrap_or_default();
+    // Bullets, joined across their wrapped lines, keyed by their first word.
+    let mut bullets: BTreeMap<String, String> = BTreeMap::new();
+    let mut current = None;
+    for line in section.lines() {
+        if let Some(rest) = line.strip_prefix("- ") {
+            let key = rest.split([' ', ':']).next().unwrap_or_default().trim_matches('`').to_string();
+            bullets.insert(key.clone(), rest.to_string());
+            current = Some(key);
+        } else if line.starts_with("  ")
+            && let Some(k) = &current
+        {
+            bullets.get_mut(k).unwrap().push_str(line);
+        } else {
+            current = None;
+        }
+    }
+    let mut missing = Vec::new();
+    for path in files(src).into_values().chain([src.join("lib.rs"), src.join("main.rs")]) {
+        let rel = path.strip_prefix(src).unwrap().to_string_lossy().replace('\\', "/");
+        let (folder, name) = match rel.split_once('/') {
+            Some((folder, name)) => (format!("{folder}/"), name.to_string()),
+            None => ("base".to_string(), rel.clone()),
+        };
+        let named = bullets.get(&folder).is_some_and(|b| b.contains(&format!("`{name}`")));
+        if !named {
+            missing.push(format!("src/{rel} (not named `{name}` in the `{folder}` bullet)"));
+        }
+    }
+    missing.sort();
+    missing.dedup();
+    missing
+}
+
+#[test]
+fn every_source_file_is_named_in_its_folders_bullet() {
+    let doc = std::fs::read_to_string(repo().join("docs/architecture.md")).unwrap();
+    let missing = unnamed_files(&repo().join("src"), &doc);
+    assert!(missing.is_empty(), "docs/architecture.md does not name {} files:\n{}", missing.len(), missing.join("\n"));
+    // The check can fail: a bullet without one of its files is caught.
+    let cut = doc.replace("`ode853.rs`", "`ode8.rs`");
+    assert_eq!(
+        unnamed_files(&repo().join("src"), &cut),
+        ["src/numerics/ode853.rs (not named `ode853.rs` in the `numerics/` bullet)"]
+    );
+}
+
 /// The check itself: a small tree with an upward import and a circle is caught, naming the two
 /// files and the imported names; the same tree without them passes.
 #[test]
