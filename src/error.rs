@@ -3,7 +3,7 @@
 //! Every failure a user can meet carries what a person needs to fix it: the file, the field (or the
 //! line and column for TOML syntax), and the reason. The library never prints or exits; the CLI maps
 //! [`Error::kind`] to an exit code. Numbers a message would write out in hundreds of digits are
-//! shown in scientific notation ([`crate::limits::tidy_numbers`]).
+//! shown in scientific notation (`limits::tidy_numbers`).
 
 use std::path::PathBuf;
 

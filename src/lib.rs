@@ -10,12 +10,16 @@
 
 // Index loops mirror the formulas (Σᵢ Mᵢⱼ q̇ⱼ …) and stay the clearest way to write them.
 #![allow(clippy::needless_range_loop)]
+#![warn(unreachable_pub)]
 
 pub mod error;
 
 pub use error::{Error, ErrorKind, Result};
+/// The command line's limit on `--threads` (listed in `docs/limits.md`).
+///
+pub use limits::MAX_THREADS_PER_CORE;
 pub mod asbuilt;
-pub mod csv;
+mod csv;
 pub mod design;
 pub mod dynamics;
 pub mod elements;
@@ -24,9 +28,9 @@ pub mod files;
 pub mod fit;
 pub mod geodesic;
 pub mod identify;
-pub mod input;
+mod input;
 pub mod jobs;
-pub mod limits;
+mod limits;
 pub mod model;
 pub mod numerics;
 pub mod parts;
@@ -37,4 +41,4 @@ pub mod report;
 pub mod residual;
 pub mod solve;
 pub mod studies;
-pub mod units;
+mod units;

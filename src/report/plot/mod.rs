@@ -28,7 +28,7 @@ mod draw;
 mod text;
 
 use draw::draw;
-pub use draw::format_tick;
+pub(crate) use draw::format_tick;
 use text::{FONT_BYTES, TextFix, register_font};
 
 /// An RGB colour.
