@@ -10,7 +10,7 @@
 
 // Index loops mirror the formulas (Σᵢ Mᵢⱼ q̇ⱼ …) and stay the clearest way to write them.
 #![allow(clippy::needless_range_loop)]
-#![warn(unreachable_pub)]
+#![warn(missing_docs, unreachable_pub)]
 
 pub mod error;
 
