@@ -2,7 +2,7 @@
 //! line break), for every CSV file springfit writes or reads back.
 
 /// Quotes a CSV field if it needs it.
-pub fn csv_field(s: &str) -> String {
+pub(crate) fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 

@@ -16,7 +16,7 @@ pub fn read_text(path: &Path) -> Result<String> {
 /// FNV-1a (64-bit) of `bytes` as 16 hexadecimal digits: the fingerprint output folders record of
 /// the files springfit wrote and of the design a run read. Not a cryptographic hash: it tells an
 /// edited or different file from the same one, it does not guard against forgery.
-pub fn fingerprint(bytes: &[u8]) -> String {
+pub(crate) fn fingerprint(bytes: &[u8]) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for &b in bytes {
         h ^= b as u64;
@@ -50,7 +50,7 @@ pub fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
 
 /// The dotted key of the `key = value` line at a byte offset, with its table path
 /// (`robot.links[1].length`), so type errors name the field as validation errors do.
-pub fn key_at(text: &str, offset: usize) -> Option<String> {
+pub(crate) fn key_at(text: &str, offset: usize) -> Option<String> {
     let offset = offset.min(text.len());
     let line_start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
     let line = text[line_start..].lines().next()?;
@@ -77,7 +77,7 @@ pub fn key_at(text: &str, offset: usize) -> Option<String> {
 }
 
 /// 1-based line and column of a byte offset.
-pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map(|l| l.chars().count()).unwrap_or(0) + 1;

@@ -52,11 +52,12 @@
 
 // Index loops mirror the formulas (Σᵢ Mᵢⱼ q̇ⱼ …) and stay the clearest way to write them.
 #![allow(clippy::needless_range_loop)]
+#![warn(missing_docs, unreachable_pub)]
 
 pub mod error;
 
 pub mod asbuilt;
-pub mod csv;
+mod csv;
 pub mod design;
 pub mod dynamics;
 pub mod elements;
@@ -65,9 +66,9 @@ pub mod files;
 pub mod fit;
 pub mod geodesic;
 pub mod identify;
-pub mod input;
+mod input;
 pub mod jobs;
-pub mod limits;
+mod limits;
 pub mod model;
 pub mod numerics;
 pub mod parts;
@@ -78,7 +79,7 @@ pub mod report;
 pub mod residual;
 pub mod solve;
 pub mod studies;
-pub mod units;
+mod units;
 
 // The front door: what the quick start and `examples/` use, named from the crate root.
 pub use design::Design;
@@ -90,3 +91,6 @@ pub use fit::FitOutcome;
 pub use fit::bill::BomRow;
 pub use jobs::fit::{FitJob, FitRequest, FitRun};
 pub use progress::Progress;
+
+/// The command line's limit on `--threads` (listed in `docs/limits.md`).
+pub use limits::MAX_THREADS_PER_CORE;

@@ -10,58 +10,58 @@
 //! not fail, it would run for hours or exhaust the memory.
 
 /// Most joints of a chain (planar links, or the moving joints of a URDF).
-pub const MAX_LINKS: usize = 8;
+pub(crate) const MAX_LINKS: usize = 8;
 
 /// Largest |angle| in rad anywhere (equilibrium, region bounds, offsets, starts, held joints):
 /// about 159 turns. Joint angles are unwrapped, but no arm turns that far.
-pub const MAX_ANGLE_RAD: f64 = 1e3;
+pub(crate) const MAX_ANGLE_RAD: f64 = 1e3;
 
 /// Largest link mass, kg.
-pub const MAX_MASS_KG: f64 = 1e6;
+pub(crate) const MAX_MASS_KG: f64 = 1e6;
 
 /// Largest link length, |centre of mass| or |joint origin| offset, m.
-pub const MAX_LENGTH_M: f64 = 1e3;
+pub(crate) const MAX_LENGTH_M: f64 = 1e3;
 
 /// Largest moment of inertia (any entry of an inertia tensor), kg·m².
-pub const MAX_INERTIA_KGM2: f64 = 1e9;
+pub(crate) const MAX_INERTIA_KGM2: f64 = 1e9;
 
 /// Largest |gravity|, m/s² (a hundred times the Earth's).
-pub const MAX_GRAVITY: f64 = 1e3;
+pub(crate) const MAX_GRAVITY: f64 = 1e3;
 
 /// Largest |entry| of a coupling vector a (a gear ratio).
-pub const MAX_COUPLING: f64 = 1e3;
+pub(crate) const MAX_COUPLING: f64 = 1e3;
 
 /// Largest stiffness, in any element's unit (N·m/rad, N·m/rad³, N·m, J, N/mm), and largest
 /// stock rate, trim rate or `max_stiffness`.
-pub const MAX_STIFFNESS: f64 = 1e9;
+pub(crate) const MAX_STIFFNESS: f64 = 1e9;
 
 /// Largest small-oscillation frequency ω, rad/s.
-pub const MAX_FREQUENCY: f64 = 1e4;
+pub(crate) const MAX_FREQUENCY: f64 = 1e4;
 
 /// Worker threads per core the machine reports (`--threads` above this many times the
 /// available parallelism is refused).
 pub const MAX_THREADS_PER_CORE: usize = 4;
 
 /// Most offsets of one family per coupling (`{ grid = N }`, `{ phases = N }`).
-pub const MAX_OFFSETS: usize = 1000;
+pub(crate) const MAX_OFFSETS: usize = 1000;
 
 /// Most trim springs one design may carry (the trim solve enumerates 3^m faces).
-pub const MAX_TRIMS: usize = 9;
+pub(crate) const MAX_TRIMS: usize = 9;
 
 /// Most candidate elements a catalogue may expand into (the shipped catalogues have about 500).
-pub const MAX_CANDIDATES: usize = 20_000;
+pub(crate) const MAX_CANDIDATES: usize = 20_000;
 
 /// Most knots of a cam.
-pub const MAX_KNOTS: usize = 500;
+pub(crate) const MAX_KNOTS: usize = 500;
 
 /// Memory the fit's least-squares problem (its dense rows, or the rows' factors where the normal
 /// equations come from them) may take when the machine does not say how much it has, bytes
 /// (8 GiB). On Linux the limit is the memory the system reports available.
-pub const DEFAULT_FIT_MEMORY: u64 = 8 << 30;
+pub(crate) const DEFAULT_FIT_MEMORY: u64 = 8 << 30;
 
 /// The memory the system reports available (Linux: `MemAvailable` of `/proc/meminfo`), else
 /// [`DEFAULT_FIT_MEMORY`]: what the fit's problem may take.
-pub fn available_memory() -> u64 {
+pub(crate) fn available_memory() -> u64 {
     let kib = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
         text.lines()
             .find_map(|l| l.strip_prefix("MemAvailable:"))
@@ -71,7 +71,7 @@ pub fn available_memory() -> u64 {
 }
 
 /// Checks that `x` is finite and |x| ≤ `max`; the error says so in words with the unit.
-pub fn within(x: f64, max: f64, unit: &str) -> Result<(), String> {
+pub(crate) fn within(x: f64, max: f64, unit: &str) -> Result<(), String> {
     if !x.is_finite() {
         return Err(format!("must be a finite number, got {x}"));
     }
@@ -83,13 +83,13 @@ pub fn within(x: f64, max: f64, unit: &str) -> Result<(), String> {
 
 /// A number as a message shows it: Rust's shortest round-trip text, in scientific notation when
 /// it would be long (|x| ≥ 1e6 or below 1e-5): `1e300`, not three hundred digits.
-pub fn show(x: f64) -> String {
+pub(crate) fn show(x: f64) -> String {
     if x.is_finite() && x != 0.0 && (x.abs() >= 1e6 || x.abs() < 1e-5) { format!("{x:e}") } else { format!("{x}") }
 }
 
 /// `text` with every number written out in more than 16 digits (Rust prints 1e300 as three
 /// hundred of them) replaced by its scientific notation: what every error message goes through.
-pub fn tidy_numbers(text: &str) -> String {
+pub(crate) fn tidy_numbers(text: &str) -> String {
     let b = text.as_bytes();
     let mut out = String::with_capacity(text.len());
     let mut i = 0;

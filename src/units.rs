@@ -92,7 +92,7 @@ pub fn sci(x: f64, digits: usize) -> String {
 
 /// A unit as people read it (`N·m/rad³`); `bom.csv` and `compare.csv` keep the ASCII spelling
 /// (`N*m/rad^3`) that every CSV reader takes.
-pub fn shown(unit: &str) -> String {
+pub(crate) fn shown(unit: &str) -> String {
     unit.replace('*', "·").replace("^3", "³")
 }
 

@@ -54,7 +54,7 @@ fn num(v: &serde_json::Value) -> f64 {
 /// A CSV file as its header and rows of fields.
 fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut lines = text.lines().map(|l| springfit::csv::split_csv_line(l).unwrap());
+    let mut lines = text.lines().map(|l| springfit::files::split_csv_line(l).unwrap());
     let header = lines.next().unwrap_or_else(|| panic!("{} is empty", path.display()));
     (header, lines.collect())
 }

@@ -54,7 +54,7 @@ fn bom_with(edit: impl Fn(&mut Vec<Vec<String>>)) -> Vec<(&'static str, String)>
     let text = std::fs::read_to_string(repo().join("tests/data/double_pendulum_nominal_bom.csv")).unwrap();
     let mut lines = text.lines();
     let header = lines.next().unwrap().to_string();
-    let mut rows: Vec<Vec<String>> = lines.map(|l| springfit::csv::split_csv_line(l).unwrap()).collect();
+    let mut rows: Vec<Vec<String>> = lines.map(|l| springfit::files::split_csv_line(l).unwrap()).collect();
     edit(&mut rows);
     let body: Vec<String> = rows.iter().map(|r| r.join(",")).collect();
     vec![

@@ -38,7 +38,7 @@ fn compare_takes_solvers_catalogues_and_designs_together() {
         "{csv}"
     );
     // The two fits of one design get distinct labels.
-    let fields: Vec<Vec<String>> = rows.iter().map(|r| springfit::csv::split_csv_line(r).unwrap()).collect();
+    let fields: Vec<Vec<String>> = rows.iter().map(|r| springfit::files::split_csv_line(r).unwrap()).collect();
     assert_ne!(fields[0][0], fields[1][0]);
     assert_eq!(fields[0][3], "nnls");
     assert_eq!(fields[1][3], "qp");

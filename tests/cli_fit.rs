@@ -77,7 +77,7 @@ fn the_default_design_meets_its_accuracy_targets() {
     let parts = std::fs::read_to_string(out.join("parts.csv")).unwrap();
     let header: Vec<&str> = parts.lines().next().unwrap().split(',').collect();
     let col = |n: &str| header.iter().position(|h| *h == n).unwrap_or_else(|| panic!("parts.csv lacks {n}"));
-    let rows: Vec<Vec<String>> = parts.lines().skip(1).map(|l| springfit::csv::split_csv_line(l).unwrap()).collect();
+    let rows: Vec<Vec<String>> = parts.lines().skip(1).map(|l| springfit::files::split_csv_line(l).unwrap()).collect();
     assert_eq!(rows.len() as u64, s["used"].as_u64().unwrap(), "{parts}");
     let num = |r: &[String], n: &str| -> f64 { r[col(n)].parse().unwrap_or_else(|_| panic!("{n}: {:?}", r[col(n)])) };
     for r in &rows {

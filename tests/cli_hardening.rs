@@ -23,7 +23,7 @@ fn a_bill_of_materials_edited_into_nonsense_is_refused() {
     let second = good.lines().nth(1).unwrap().to_string();
     // Row 2 with field `i` replaced.
     let edit = |i: usize, value: &str| {
-        let mut f = springfit::csv::split_csv_line(&second).unwrap();
+        let mut f = springfit::files::split_csv_line(&second).unwrap();
         f[i] = value.to_string();
         good.replacen(&second, &f.join(","), 1)
     };

@@ -172,7 +172,7 @@ fn bad_logs_and_bills_are_refused_before_anything_is_written() {
     // A bill that does not hold the design's equilibrium (one crank three times as stiff).
     let bom = std::fs::read_to_string(bom_path()).unwrap();
     let row = bom.lines().nth(1).unwrap();
-    let mut f = springfit::csv::split_csv_line(row).unwrap();
+    let mut f = springfit::files::split_csv_line(row).unwrap();
     f[6] = format!("{}", 3.0 * f[6].parse::<f64>().unwrap());
     write(&dir, "other_bom.csv", &bom.replacen(row, &f.join(","), 1));
     write(&dir, "long.csv", &log_text(&design, &[design.q_eq.iter().map(|x| x + 0.05).collect()], 3.0));

@@ -122,7 +122,7 @@ const CONVEX: f64 = 1e-6;
 /// rounding change cannot divert (unlike the selection of the support).
 fn support_of(bom: &str, dir: &Path) -> Catalog {
     use toml::Value;
-    let mut lines = bom.lines().map(|l| springfit::csv::split_csv_line(l).unwrap());
+    let mut lines = bom.lines().map(|l| springfit::files::split_csv_line(l).unwrap());
     let header = lines.next().unwrap();
     let trim = header.iter().position(|h| h == "trim_max");
     let mut families: Vec<Value> = Vec::new();

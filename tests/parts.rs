@@ -274,7 +274,7 @@ fn bad_parts_input_and_a_stock_part() {
     let row = csv
         .lines()
         .skip(1)
-        .map(|l| springfit::csv::split_csv_line(l).unwrap())
+        .map(|l| springfit::files::split_csv_line(l).unwrap())
         .find(|f| f[col("spring")] == "torsion")
         .expect("a torsion spring");
     let rate: f64 = row[col("rate_maker")].parse().unwrap();

@@ -63,7 +63,7 @@ impl PyDesign {
 fn with_overrides(path: &Path, text: &str, overrides: &Bound<'_, PyDict>) -> PyResult<String> {
     use springfit::design::RegionSpec;
     use springfit::design::fit::FitSettings;
-    let mut table: toml::Table = springfit::input::parse_toml(path, text).py()?;
+    let mut table: toml::Table = springfit::design::parse_toml(path, text).py()?;
     let mut fit = toml::Table::new();
     let mut region = toml::Table::new();
     for (key, value) in overrides.iter() {
@@ -145,7 +145,7 @@ impl PyDesign {
     #[staticmethod]
     #[pyo3(signature = (path, **overrides))]
     fn load(path: PathBuf, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<PyDesign> {
-        let text = springfit::input::read_text(&path).py()?;
+        let text = springfit::design::read_text(&path).py()?;
         PyDesign::new(&path, &text, overrides)
     }
 

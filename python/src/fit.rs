@@ -213,10 +213,10 @@ impl PyFit {
 /// parsed, blanks None.
 pub fn csv_records<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyList>> {
     let mut lines = text.lines();
-    let header = springfit::csv::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
+    let header = springfit::files::split_csv_line(lines.next().unwrap_or("")).map_err(|e| setting("bom", e))?;
     let out = PyList::empty(py);
     for line in lines.filter(|l| !l.trim().is_empty()) {
-        let fields = springfit::csv::split_csv_line(line).map_err(|e| setting("bom", e))?;
+        let fields = springfit::files::split_csv_line(line).map_err(|e| setting("bom", e))?;
         let row = PyDict::new(py);
         for (k, v) in header.iter().zip(fields) {
             if v.is_empty() {

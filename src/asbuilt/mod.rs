@@ -141,7 +141,7 @@ pub struct Build {
     pub max_deg: f64,
     /// |q′ − q_eq|₂, rad.
     pub shift_rad: f64,
-    /// sqrt(Δqᵀ M(q_eq) Δq).
+    /// sqrt(Δqᵀ M(q_eq) Δq), the metric length of the shift, √(kg·m²)·rad.
     pub shift_metric: f64,
     /// After trimming (with trims in the design): p99 and max, degrees.
     pub trimmed: Option<(f64, f64)>,
@@ -156,7 +156,9 @@ pub struct Build {
 /// default design's p95 moved by about ±0.3° from one draw of 200 builds to the next).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Spread {
+    /// The median over the builds, in the unit of the figure summarised.
     pub p50: f64,
+    /// The 95th percentile over the builds, same unit.
     pub p95: f64,
     /// 95 % confidence interval of the p50 (distribution-free, from order statistics; see
     /// [`crate::residual::percentile_interval`]).
@@ -194,7 +196,9 @@ impl Spread {
 pub struct Trimmed {
     /// What each build's trims were set for (`[fit] trim_rule`).
     pub rule: TrimRule,
+    /// The trimmed builds' p99 |residual angle| about their own equilibrium, degrees.
     pub p99_deg: Spread,
+    /// The trimmed builds' max |residual angle|, degrees.
     pub max_deg: Spread,
     /// Largest |trim rate − nominal| per build, N·m/rad.
     pub trim_change_nm_per_rad: Spread,
@@ -206,7 +210,9 @@ pub struct Trimmed {
 /// The preload-trimmed part of the as-built figures (designs with cams; see [`preload`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PreloadTrimmed {
+    /// The builds' p99 |residual angle| with the cam preloads (and trims) re-set, degrees.
     pub p99_deg: Spread,
+    /// Their max |residual angle|, degrees.
     pub max_deg: Spread,
 }
 
@@ -217,16 +223,19 @@ pub struct AsBuilt {
     pub tolerance: ToleranceSpec,
     /// `uniform` or `normal`.
     pub distribution: Distribution,
+    /// Number of builds drawn (`[fit] builds`).
     pub builds: usize,
     /// Seed of the builds.
     pub seed: u64,
     /// Builds with no stable equilibrium within 0.5 rad of q_eq (counted as the worst).
     pub builds_without_equilibrium: usize,
+    /// p99 |residual angle| of each build about its own equilibrium, degrees.
     pub p99_deg: Spread,
+    /// max |residual angle| of each build, degrees.
     pub max_deg: Spread,
     /// Euclidean |q′ − q_eq|₂, rad.
     pub shift_rad: Spread,
-    /// sqrt(Δqᵀ M(q_eq) Δq).
+    /// sqrt(Δqᵀ M(q_eq) Δq), the metric length of the shift, √(kg·m²)·rad.
     pub shift_metric: Spread,
     /// After each build's trim (designs with trim springs only).
     pub trimmed: Option<Trimmed>,
@@ -251,8 +260,11 @@ pub fn effective_tolerance(spec: ToleranceSpec, bom: &[BomRow]) -> Option<Tolera
 pub struct BuildSettings {
     /// Tolerance (not `None`).
     pub tolerance: ToleranceSpec,
+    /// How each δ is drawn within the tolerance.
     pub distribution: Distribution,
+    /// Number of builds.
     pub builds: usize,
+    /// Seed: build i draws from the stream (seed, i), whatever the thread count.
     pub seed: u64,
     /// Arc length of the region from q_eq (sample spacing).
     pub extent: f64,
@@ -494,7 +506,9 @@ pub fn summarise(s: &BuildSettings, builds: &[Build], rule: TrimRule) -> AsBuilt
 /// The p99 figures compare and pareto list: (untrimmed p50, p95), and trimmed (p50, p95) if any.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Brief {
+    /// [`AsBuilt::p99_deg`], degrees.
     pub p99_deg: Spread,
+    /// The trimmed builds' p99 (designs with trim springs), degrees.
     pub trimmed_p99_deg: Option<Spread>,
 }
 

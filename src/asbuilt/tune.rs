@@ -142,7 +142,9 @@ pub struct Setting {
 /// The outcome of `tune`.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TuneOutcome {
+    /// The built arm as measured, before any setting is made.
     pub before: State,
+    /// The arm with the offsets and trim rates of `settings` made.
     pub after: State,
     /// Offsets and trim rates to set, in BOM order.
     pub settings: Vec<Setting>,

@@ -74,8 +74,8 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
             "{}: {} springs, p99 {}, max {}{}",
             r.label,
             r.used,
-            springfit::units::deg(r.stats.p99_abs),
-            springfit::units::deg(r.stats.max_abs),
+            springfit::report::deg(r.stats.p99_abs),
+            springfit::report::deg(r.stats.max_abs),
             r.actuator_share.map(|a| format!(", actuator share {:.3} %", 100.0 * a)).unwrap_or_default()
         ));
         if let Some(b) = &r.as_built {

@@ -294,13 +294,13 @@ pub fn run() -> Result<()> {
             return Err(Error::Setting { field: "--threads".into(), reason: "must be at least 1".into() }.into());
         }
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let most = springfit::limits::MAX_THREADS_PER_CORE * cores;
+        let most = springfit::MAX_THREADS_PER_CORE * cores;
         if t > most {
             return Err(Error::Setting {
                 field: "--threads".into(),
                 reason: format!(
                     "{t} threads on a machine with {cores} cores: at most {most} ({} per core; more only slow the work down)",
-                    springfit::limits::MAX_THREADS_PER_CORE
+                    springfit::MAX_THREADS_PER_CORE
                 ),
             }
             .into());

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use springfit::asbuilt::tune::{State, TuneOutcome};
-use springfit::units::sci;
+use springfit::report::sci;
 
 use super::Session;
 

@@ -11,7 +11,9 @@ use super::scenario::ScenarioSpec;
 use super::simulate::SimSettings;
 use super::sweep::SweepSettings;
 use crate::geodesic::GeodesicSettings;
-use crate::units::Angle;
+/// The type of the file's angles (`equilibrium.q`, `region.lower`, `robot.locked`, …).
+///
+pub use crate::units::Angle;
 
 /// The design file as written.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]

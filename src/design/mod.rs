@@ -57,7 +57,10 @@ use crate::design::sweep::SweepSettings;
 use crate::error::{Error, Result};
 use crate::geodesic::region::check_region;
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
-use crate::input::{parse_toml, read_text};
+/// For callers that edit a design's text before [`Design::parse`] (the Python package's keyword
+/// overrides), with the errors the design loader gives.
+///
+pub use crate::input::{parse_toml, read_text};
 use crate::limits::{MAX_GRAVITY, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_LINKS, MAX_MASS_KG, within};
 use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::units::Angle;
@@ -67,7 +70,7 @@ use crate::units::Angle;
 pub struct Design {
     /// Where it was read from (for messages).
     pub path: PathBuf,
-    /// Fingerprint of the text it was parsed from ([`crate::input::fingerprint`]; empty for a
+    /// Fingerprint of the text it was parsed from (FNV-1a, 64-bit, as 16 hexadecimal digits; empty for a
     /// design built from a parsed [`DesignFile`]): output folders record it so that another
     /// design does not replace a design's results.
     pub fingerprint: String,

@@ -90,22 +90,34 @@ pub struct GeodesicDeviation {
 /// Fluxes in the JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FluxSummary {
+    /// ∫|τᵀq̇| dt of the elastic potential (springs and parasitic springs) over the run, J.
     pub potential: f64,
+    /// ∫|τ_θᵀq̇| dt of the mode selection, J.
     pub mode: f64,
+    /// ∫|τ_Eᵀq̇| dt of the energy regulation, J.
     pub energy: f64,
+    /// ∫|τᵀq̇| dt of the joint damping −D q̇, J.
     pub damping: f64,
+    /// ∫|τᵀq̇| dt of the damping compensation +D q̇, J.
     pub compensation: f64,
+    /// ∫|τᵀq̇| dt of gravity, J.
     pub gravity: f64,
 }
 
 /// Peak torques in the JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PeakTorques {
+    /// Largest |τᵢ| of the elastic potential over joints and the run (every integrator stage), N·m.
     pub spring: f64,
+    /// Largest |τᵢ| of gravity, N·m.
     pub gravity: f64,
+    /// Largest |τᵢ| of the joint damping, N·m.
     pub damping: f64,
+    /// Largest |τᵢ| of the mode selection τ_θ, N·m.
     pub mode: f64,
+    /// Largest |τᵢ| of the energy regulation τ_E, N·m.
     pub energy: f64,
+    /// Largest |τᵢ| of the damping compensation, N·m.
     pub compensation: f64,
 }
 

@@ -74,16 +74,29 @@ pub const AXIAL_INERTIA_RATIO: f64 = 0.01;
 pub enum Representation {
     /// Joint `stiffness`/`springref` (linear) or polynomial stiffness (cubic) on joint `joint`
     /// (0-based).
-    Joint { joint: usize },
+    Joint {
+        /// The joint, 0-based (the MJCF's `q1` is 0).
+        joint: usize,
+    },
     /// A fixed tendon with `coef` = a (or −a with the length negated, so that x₀ = −1 is not
     /// read as MuJoCo's "length at qpos_spring").
-    FixedTendon { negated: bool },
+    FixedTendon {
+        /// True when x₀ is exactly −1 (MuJoCo's "length at qpos_spring"): written with `coef` −a
+        /// and `springlength` 1, which leaves the force law unchanged.
+        negated: bool,
+    },
     /// A fixed tendon with a two-value `springlength` dead band.
     DeadBand,
     /// A zero-rest-length spatial tendon between two sites (a crank on one joint).
-    SpatialCrank { joint: usize },
+    SpatialCrank {
+        /// The joint the tendon spans (a site on the link either side of it), 0-based.
+        joint: usize,
+    },
     /// A passive-force callback; the reason why no built-in element fits.
-    Callback { reason: String },
+    Callback {
+        /// Why no built-in element fits, in words (`elements.md` lists it).
+        reason: String,
+    },
 }
 
 impl Representation {

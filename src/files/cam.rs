@@ -31,7 +31,7 @@ pub struct CamFile {
     pub first_knot_rad: f64,
     /// Knot spacing h in rad.
     pub knot_spacing_rad: f64,
-    /// Number of knots N (4 to [`crate::limits::MAX_KNOTS`]).
+    /// Number of knots N (4 to 500, `MAX_KNOTS` of `docs/limits.md`).
     pub knots: u16,
     /// The N + 2 signed coefficients cⱼ in J, j = 0 … N + 1.
     pub coefficients_j: Vec<f64>,

@@ -7,3 +7,8 @@ pub mod fit_folder;
 pub mod log;
 pub mod parts;
 pub mod stock;
+
+/// For reading back, one line at a time, the CSV files springfit writes (`bom.csv`, `parts.csv`,
+/// `compare.csv`, …): the fields unquoted as the writers quoted them.
+///
+pub use crate::csv::split_csv_line;

@@ -36,13 +36,22 @@ pub const MAX_VALIDATION_DIRECTIONS: usize = 720;
 /// candidates with their grouping, the problem assembled on the training fan with its normal
 /// equations, the trims it was solved around, and the region's arc length from q_eq.
 pub struct SmoothingInputs<'a> {
+    /// The design: its chain, q_eq and M(q_eq) (for m̄), its region and ODE settings (the
+    /// validation fan).
     pub design: &'a Design,
+    /// The catalogue: each group's family gives its smoothing weight or `"auto"`.
     pub catalog: &'a Catalog,
+    /// The fit settings: ω, the solver (NNLS adds the group ridge), the held-out fan's size.
     pub settings: &'a FitSettings,
+    /// The candidate elements, one per column of the problem.
     pub candidates: &'a [Candidate],
+    /// Which candidates are one part (a cam's coefficients): the groups smoothed.
     pub grouping: &'a Grouping,
+    /// The problem on the training fan: its row count scales the penalty, `"auto"` solves it.
     pub problem: &'a FitProblem,
+    /// The problem's normal equations, to which `"auto"` adds each trial weight's rows.
     pub gram: &'a Gram,
+    /// The trim springs at mid-range the problem was solved around, part of every trial arm.
     pub trims: &'a SpringSet,
     /// The region's arc length from q_eq (the region check's, which the fit has already made).
     pub extent: f64,

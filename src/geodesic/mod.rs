@@ -27,9 +27,17 @@ pub use shoot::{Shooter, Stop};
 #[derive(Debug, Clone, PartialEq)]
 pub enum Region {
     /// The geodesic ball r(q) ≤ radius around the equilibrium.
-    Ball { radius: f64 },
+    Ball {
+        /// The ball's radius in metric arc length from q_eq, √(kg·m²)·rad (`[region] radius`).
+        radius: f64,
+    },
     /// A box lower ≤ q ≤ upper in joint angles (rad); geodesics stop at its boundary.
-    Box { lower: DVector<f64>, upper: DVector<f64> },
+    Box {
+        /// The lower bound of each joint angle, rad (`[region] lower`).
+        lower: DVector<f64>,
+        /// The upper bound of each joint angle, rad (`[region] upper`).
+        upper: DVector<f64>,
+    },
 }
 
 impl Region {

@@ -28,9 +28,23 @@ use crate::model::Chain;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum RegionFailure {
     /// d exp becomes singular on the geodesic in direction `direction` at arc length `s`.
-    Conjugate { s: f64, q: Vec<f64>, direction: usize },
+    Conjugate {
+        /// Arc length from q_eq where d exp is singular, √(kg·m²)·rad.
+        s: f64,
+        /// The configuration there (near the conjugate point), rad.
+        q: Vec<f64>,
+        /// Index of the geodesic in the region check's fan, 0-based.
+        direction: usize,
+    },
     /// Geodesics `directions` meet at `q`, reached at arc lengths `s`.
-    Crossing { s: [f64; 2], q: Vec<f64>, directions: [usize; 2] },
+    Crossing {
+        /// Arc lengths at which each of the two geodesics reaches `q`, √(kg·m²)·rad.
+        s: [f64; 2],
+        /// Where they meet, rad.
+        q: Vec<f64>,
+        /// Indices of the two geodesics in the region check's fan, 0-based.
+        directions: [usize; 2],
+    },
 }
 
 impl RegionFailure {

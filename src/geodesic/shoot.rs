@@ -15,7 +15,12 @@ pub enum Stop<'r> {
     Arc(f64),
     /// Until the region's boundary (event location), or `max_arc` for a box a geodesic never
     /// leaves (an error: the box is not bounded in the metric).
-    Region { region: &'r Region, max_arc: f64 },
+    Region {
+        /// The region whose boundary ends the trace.
+        region: &'r Region,
+        /// The arc length a trace gives up at, √(kg·m²)·rad (`[geodesics] max_arc`).
+        max_arc: f64,
+    },
 }
 
 /// Integrates geodesics from one equilibrium. Holds the scratch space of one thread: create one

@@ -90,8 +90,11 @@ pub struct RateGroup {
 /// An identified combination Σ wᵢ δᵢ.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CombinationReport {
+    /// (part id, wᵢ): the weights sum to 1 when they share a sign, else the largest is ±1.
     pub weights: Vec<(String, f64)>,
+    /// The combination's estimate Σ wᵢ δᵢ, a fraction of the design rates.
     pub value: f64,
+    /// Its standard error, same unit.
     pub standard_error: f64,
 }
 
@@ -109,7 +112,9 @@ pub struct JointEstimate {
 /// An estimate with its standard error (infinite: not estimable from these logs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Value {
+    /// The estimate, in the unit of the quantity (N·m·s/rad for damping, N·m for friction).
     pub value: f64,
+    /// Its standard error, same unit (`null` in `identify.json` when infinite).
     #[serde(serialize_with = "finite_or_null")]
     pub standard_error: f64,
 }
@@ -121,8 +126,11 @@ pub struct RunSummary {
     pub file: String,
     /// The run's name (empty: the whole file).
     pub run: String,
+    /// Logged samples in the run.
     pub samples: usize,
+    /// The run's length, s.
     pub seconds: f64,
+    /// Its sample rate, 1/Δt, Hz.
     pub rate_hz: f64,
     /// Whether motor torques were logged.
     pub driven: bool,
@@ -134,41 +142,55 @@ pub struct RunSummary {
 /// exerted, what the identified model predicts and what the design would have, all through L.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TorqueTrace {
-    /// `file: run`.
+    /// The log's file name, with `, run NAME` when the file holds several runs.
     pub run: String,
+    /// Times of the kept samples in the log's clock, s: the run's first 10 s of rows.
     pub t: Vec<f64>,
-    /// Per joint.
+    /// Per joint, at `t`: the torque the motion shows the elements, damping and friction
+    /// exerted (the regression's y plus the designed torque), N·m.
     pub measured: Vec<Vec<f64>>,
+    /// Per joint: the same as the identified model predicts it (Φθ plus the designed torque), N·m.
     pub predicted: Vec<Vec<f64>>,
+    /// Per joint: the elements' torque as designed, L[−Σ kᵢ ∇uᵢ] (every δ = 0), N·m.
     pub designed: Vec<Vec<f64>>,
 }
 
 /// The outcome of `identify`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Identification {
-    /// Cut-off of the regression's low-pass and of the encoder smoothing, Hz.
+    /// Cut-off of the regression's low-pass L, Hz.
     pub cutoff_hz: f64,
+    /// Cut-off of the encoder smoothing, Hz.
     pub smoothing_hz: f64,
     /// The bound on a rate's standard error for it to count as identified.
     pub max_standard_error: f64,
+    /// Every run of the logs as used, in the order given.
     pub runs: Vec<RunSummary>,
-    /// Regression rows and unknowns.
+    /// Regression rows (one per kept sample and joint).
     pub rows: usize,
+    /// Unknowns: a δ per part, then each joint's damping and friction where the settings
+    /// estimate them.
     pub unknowns: usize,
-    /// Rank of the regression and its condition number (columns scaled to unit length; infinite
-    /// when the rank is short).
+    /// Rank of the regression.
     pub rank: usize,
+    /// Condition number of the regression with its columns scaled to unit length (infinite,
+    /// `null` in `identify.json`, when the rank is short).
     #[serde(serialize_with = "finite_or_null")]
     pub condition: f64,
-    /// rms of the residual and of the elements' designed torque per joint, N·m.
+    /// rms of the regression residual per joint, N·m.
     pub residual_rms_nm: Vec<f64>,
+    /// rms of the elements' designed torque per joint, N·m: the scale the residual compares to.
     pub torque_rms_nm: Vec<f64>,
+    /// Per part of the bill (a cam once): its δ, standard error and status.
     pub rates: Vec<RateEstimate>,
+    /// The groups of rates the logs cannot tell apart (`rates[i].status` points into it).
     pub groups: Vec<RateGroup>,
+    /// Per joint: damping and friction.
     pub joints: Vec<JointEstimate>,
     /// Per row of the bill: the rate to write as `measured_stiffness` (None: as designed).
     #[serde(skip)]
     pub measured: Vec<Option<f64>>,
+    /// The torques of the longest run for `identify_torque.svg` (None: no rows).
     #[serde(skip)]
     pub trace: Option<TorqueTrace>,
 }

@@ -61,6 +61,7 @@ pub struct Plan {
     pub criterion: String,
     /// Candidates considered, and how many were dropped because their swing leaves the region.
     pub candidates: usize,
+    /// Candidates dropped because their swing leaves the region.
     pub dropped: usize,
     /// The releases, in the order they were chosen (a repeated choice adds to `releases`).
     pub releases: Vec<Release>,
@@ -68,7 +69,9 @@ pub struct Plan {
     pub total_seconds: f64,
     /// Log rate and encoder the prediction assumes.
     pub rate_hz: f64,
+    /// The simulated encoder's resolution, bits per turn.
     pub encoder_bits: u32,
+    /// The simulated encoder's rms noise before quantisation, counts.
     pub encoder_noise_counts: f64,
     /// Whether every rate comes out identified.
     pub complete: bool,

@@ -41,7 +41,7 @@ use super::Workspace;
 use crate::numerics::linalg;
 
 /// The largest chain evaluated in the pair form (see the module doc).
-pub const PAIR_FORM_MAX_JOINTS: usize = 3;
+pub(super) const PAIR_FORM_MAX_JOINTS: usize = 3;
 
 /// One rigid link of the chain.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -15,7 +15,7 @@
 //! design locks it itself. Every held joint must sit within its `<limit>` (a pose the arm cannot
 //! take is refused, naming the joint, the value and the limits). Inertial data must be physical:
 //! positive mass, an inertia tensor that is positive definite and satisfies the triangle inequality of its principal moments, every
-//! value finite and within [`crate::limits`].
+//! value finite and within the limits of `docs/limits.md`.
 
 use std::collections::HashMap;
 use std::path::Path;

@@ -60,13 +60,28 @@ impl OdeSettings {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum OdeFailure {
     /// The step size fell below `min_step` at time `t`.
-    StepSizeUnderflow { t: f64 },
+    StepSizeUnderflow {
+        /// Where: the independent variable (time in s for the arm's motion, arc length in
+        /// √(kg·m²)·rad along a geodesic).
+        t: f64,
+    },
     /// The right-hand side could not be evaluated at time `t` (e.g. a singular mass matrix).
-    RhsFailed { t: f64 },
+    RhsFailed {
+        /// Where: the independent variable (time in s for the arm's motion, arc length in
+        /// √(kg·m²)·rad along a geodesic).
+        t: f64,
+    },
     /// More than `max_steps` steps.
-    TooManySteps { t: f64 },
+    TooManySteps {
+        /// How far it got, in the independent variable's unit.
+        t: f64,
+    },
     /// The state became non-finite at time `t`.
-    NonFinite { t: f64 },
+    NonFinite {
+        /// Where: the independent variable (time in s for the arm's motion, arc length in
+        /// √(kg·m²)·rad along a geodesic).
+        t: f64,
+    },
 }
 
 impl std::fmt::Display for OdeFailure {

@@ -13,13 +13,31 @@ pub enum Strength {
     /// Minimum R_m (MPa) at each nominal diameter (mm), as tabulated.
     Table(&'static [(f64, f64)]),
     /// R_m = A / d^m (MPa, d in mm) over a diameter range, with the sizes to design with.
-    Power { a: f64, m: f64, sizes: &'static [f64] },
+    Power {
+        /// A, MPa·mm^m: R_m of a 1 mm wire.
+        a: f64,
+        /// The exponent m, dimensionless.
+        m: f64,
+        /// The wire diameters designed with, mm, thinnest first: the first and last bound the
+        /// range the formula holds over.
+        sizes: &'static [f64],
+    },
     /// R_m = A / d^m piece by piece: `(upper diameter, A, m)` from the thinnest piece up, each
     /// piece reaching from the previous piece's upper diameter (or the first size) to its own;
     /// a diameter on a boundary takes the thinner piece, as the source's ranges are written.
-    PowerPieces { pieces: &'static [(f64, f64, f64)], sizes: &'static [f64] },
+    PowerPieces {
+        /// `(upper diameter in mm, A in MPa·mm^m, m)` per piece, thinnest first.
+        pieces: &'static [(f64, f64, f64)],
+        /// The wire diameters designed with, mm, thinnest first.
+        sizes: &'static [f64],
+    },
     /// One R_m (MPa) for every thickness in the listed sizes (mm): strip.
-    Constant { rm: f64, sizes: &'static [f64] },
+    Constant {
+        /// R_m, MPa.
+        rm: f64,
+        /// The strip thicknesses designed with, mm.
+        sizes: &'static [f64],
+    },
 }
 
 /// A spring material.

@@ -113,7 +113,18 @@ pub enum Spring {
     Compression(HelicalSpring, f64),
     /// A leaf: thickness t, width b and clamp positions (free lengths, mm) for the rate range
     /// and at mid-range.
-    Leaf { t: f64, b: f64, lengths: [f64; 3], lowest_rate: f64 },
+    Leaf {
+        /// Strip thickness, mm.
+        t: f64,
+        /// Strip width, mm.
+        b: f64,
+        /// Free length in the clamp, mm: at the highest rate, at the end of the clamp's travel
+        /// (the lowest rate), and at mid-range (where the trim is drawn and fatigue is checked).
+        lengths: [f64; 3],
+        /// The stack's rate on x at the end of the clamp's travel, N·m/rad: below it the leaf
+        /// must be lifted off.
+        lowest_rate: f64,
+    },
 }
 
 impl Spring {
@@ -190,21 +201,53 @@ pub struct WorkingPoint {
 pub enum Mechanism {
     /// Two equal torsion springs wound against each other; each is wound `preload` rad at
     /// x = x₀ and the pair's rate is twice one spring's.
-    TorsionPair { preload: f64 },
+    TorsionPair {
+        /// Each spring's wind at x = x₀, rad: the largest deflection over the region, so that
+        /// neither leg leaves its stop.
+        preload: f64,
+    },
     /// A torsion spring engaged for x − x₀ of the sign `plus` (true: x > x₀).
-    TorsionStop { plus: bool },
+    TorsionStop {
+        /// True: the leg meets its stop for x > x₀; false: for x < x₀.
+        plus: bool,
+    },
     /// A crank of radius `r` and an anchor at `big_r` (mm) with fairlead rollers of radius
     /// `pulley`; the spring's extension is the cable path less F₀/k_s. The pin sits `phase` rad
     /// ahead of x₀ (set at assembly, with the spring's rate, so that the realised torque and
     /// stiffness at q_eq are the fitted element's).
-    Crank { r: f64, big_r: f64, pulley: f64, phase: f64 },
+    Crank {
+        /// Radius of the crank pin, mm.
+        r: f64,
+        /// Distance of the fairlead from the axis, mm (k_s·r·R = k).
+        big_r: f64,
+        /// Radius of the fairlead's rollers, mm.
+        pulley: f64,
+        /// Angle of the pin ahead of x₀ at assembly, rad.
+        phase: f64,
+    },
     /// A leaf on a lever of radius `lever` (mm) geared `gear` : 1 down from x.
-    Leaf { lever: f64, gear: f64 },
+    Leaf {
+        /// The lever's radius, mm: the leaf's tip deflects lever·(x − x₀)/gear.
+        lever: f64,
+        /// Reduction from x to the lever's shaft (≥ 1), so the lever turns at most
+        /// [`LEAF_LEVER_ANGLE`] over the region.
+        gear: f64,
+    },
     /// A cam's follower spring.
     Follower,
     /// A hardening (cubic) element built as a disc cam storing k (x − x₀)⁴ / 4 over `span`
     /// (rad of x), geared `gear` : 1, its roller follower on the part's compression springs.
-    CubicCam { span: [f64; 2], gear: f64, base_radius: f64, max_pressure_angle: f64 },
+    CubicCam {
+        /// The range of x the cam covers, rad: the element's over the region, x₀ included.
+        span: [f64; 2],
+        /// The gear ratio g: the cam turns by (x − `span[0]`)/g, [`super::cam::CAM_TURN_DEG`] over
+        /// the span.
+        gear: f64,
+        /// Base-circle radius, mm.
+        base_radius: f64,
+        /// Largest |pressure angle| of the pitch curve, degrees.
+        max_pressure_angle: f64,
+    },
 }
 
 /// A realised element: its mechanism, the spring to order (and how many), its figures and checks.

@@ -16,20 +16,33 @@ use crate::residual::{AngleSample, AngleStats, BandStats};
 /// `summary.json`. Key order is fixed; everything but `timings_s` is deterministic.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
+    /// The design's name.
     pub design: String,
     /// The design file the fit came from (absolute when it could be resolved).
     pub design_file: String,
+    /// The number of joints.
     pub dof: usize,
+    /// The catalogue's name (`exact` for `--exact`).
     pub catalog: String,
+    /// What found the stiffnesses: `qp`, `nnls` or `exact`.
     pub solver: Solver,
+    /// Candidate elements after expanding the catalogue, before dropping those that never engage.
     pub candidates: usize,
+    /// Candidates dropped because they never engage in the region.
     pub dropped: usize,
+    /// Elements in the bill of materials (rows of `bom.csv`: a cam counts once).
     pub used: usize,
+    /// The frequency ω of `[fit] frequency`, rad/s.
     pub frequency_rad_s: f64,
+    /// Statistics of |residual angle| on the held-out fan, degrees.
     pub residual_deg: AngleStats,
+    /// |∂U/∂q(q_eq)| of the total potential, N·m (0 when the springs hold the arm exactly at q_eq).
     pub equilibrium_gradient_norm: f64,
+    /// ‖∇²U(q_eq) − ω²M(q_eq)‖_F / ‖ω²M(q_eq)‖_F, dimensionless.
     pub hessian_rel_error: f64,
+    /// Held-out samples where U decreases along the geodesic (∂U/∂q·γ̇ < 0).
     pub monotone_violations: usize,
+    /// Wall-clock per step, s; the only entries that differ between runs.
     pub timings_s: Timings,
     /// `solved`, `almost_solved` or `reference`.
     pub status: SolveStatus,
@@ -38,10 +51,13 @@ pub struct Summary {
     /// The smaller budget whose selection met every constraint when the search at
     /// `max_elements` found no set that does (null: met as asked).
     pub budget_met_at: Option<usize>,
+    /// Subset refits the sparse selection performed (0 without a budget).
     pub selection_evaluations: usize,
+    /// Exchange moves the selection accepted.
     pub selection_swaps: usize,
     /// Residual statistics by distance band from q_eq.
     pub bands: Vec<BandStats>,
+    /// The region the fit covers and its check.
     pub region: RegionSummary,
     /// The directions and samples the fit used (counts of 0 in the design resolved from the
     /// number of joints).
@@ -63,19 +79,29 @@ pub struct Summary {
 /// The region part of the summary.
 #[derive(Debug, Clone, Serialize)]
 pub struct RegionSummary {
+    /// The region in words.
     pub description: String,
+    /// The largest arc length from q_eq inside the region, √(kg·m²)·rad.
     pub extent: f64,
+    /// The largest valid geodesic-ball radius found, √(kg·m²)·rad.
     pub largest_radius: f64,
+    /// True when nothing failed up to the probe radius (the valid ball may be larger than
+    /// `largest_radius`).
     pub largest_radius_is_lower_bound: bool,
 }
 
 /// The sampling part of the summary: the fans as traced.
 #[derive(Debug, Clone, Serialize)]
 pub struct Sampling {
+    /// Geodesics of the training fan the fit's rows come from.
     pub training_directions: usize,
+    /// Samples along each training geodesic.
     pub training_samples: usize,
+    /// Geodesics of the held-out fan the residuals are judged on.
     pub evaluation_directions: usize,
+    /// Samples along each held-out geodesic.
     pub evaluation_samples: usize,
+    /// Geodesics of the region check's fan.
     pub check_directions: usize,
 }
 

@@ -30,10 +30,11 @@ pub fn geodesics_csv(fan: &Fan) -> String {
     s
 }
 
-/// Writes the geodesics outputs.
 /// The names `springfit geodesics` may write (see [`super::output::Plan`]).
 pub const FILES: &[&str] = &["geodesics.csv", "region.json", "geodesics.svg", "geodesics.png"];
 
+/// Writes the geodesics outputs into `out`: the fan's sampled angles (`geodesics.csv`), the region
+/// report (`region.json`) and the figure of the fan over the region (`geodesics.svg`, `.png`).
 pub fn write(out: &OutputDir, design: &Design, fan: &Fan, region: &RegionReport) -> Result<()> {
     out.write("geodesics.csv", geodesics_csv(fan))?;
     let json = serde_json::to_string_pretty(region).expect("the region report serialises");

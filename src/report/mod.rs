@@ -13,3 +13,7 @@ pub mod plot;
 pub mod simulate;
 pub mod sweep;
 pub mod tune;
+
+/// Numbers as springfit's tables, legends and messages write them.
+///
+pub use crate::units::{deg, sci};

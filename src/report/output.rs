@@ -70,8 +70,7 @@ pub struct Manifest {
 pub struct DesignRecord {
     /// The design file, as an absolute path where it could be resolved.
     pub path: String,
-    /// FNV-1a (64-bit) of the design's text, 16 hexadecimal digits (see
-    /// [`crate::input::fingerprint`]).
+    /// FNV-1a (64-bit) of the design's text, 16 hexadecimal digits (as [`crate::design::Design::fingerprint`]).
     pub fnv1a64: String,
 }
 

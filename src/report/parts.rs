@@ -17,11 +17,13 @@ pub const FILES: &[&str] = &["cams/*", "parts.csv", "parts.md", "sketch_*.svg"];
 pub struct RealisedSummary {
     /// Residual angles with each mechanism's own potential in place of the ideal element.
     pub residual_deg: AngleStats,
-    /// p99 and max of the realised design less the ideal one's, degrees.
+    /// p99 |residual angle| of the realised design less the ideal one's, degrees.
     pub p99_change_deg: f64,
+    /// max |residual angle| of the realised design less the ideal one's, degrees.
     pub max_change_deg: f64,
-    /// Elements with a part, and the ids of those without.
+    /// Elements with a part.
     pub parts: usize,
+    /// The ids of the elements no spring meets (`parts.md` gives each one's limit).
     pub missing: Vec<String>,
     /// Parts ordered from a stock list.
     pub stock_parts: usize,

@@ -109,7 +109,9 @@ pub fn write_backbone(out: &OutputDir, design: &Design, potential_name: &str, ba
 /// `sim_<name>.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScenarioSummary {
+    /// The scenario's name.
     pub scenario: String,
+    /// The scenario's kind: `free`, `switch` or `swingup`.
     pub kind: ScenarioKind,
     /// `springs (fit)`, `springs (bom.csv)` or `exact ½ω²r²`.
     pub potential: String,

@@ -25,13 +25,13 @@ mod test_problems {
 
     /// Uniform on [−1, 1) from a linear congruential generator: the same problems on every
     /// machine.
-    pub fn lcg(seed: &mut u64) -> f64 {
+    pub(super) fn lcg(seed: &mut u64) -> f64 {
         *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
 
     /// A named group of constraint rows.
-    pub fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
+    pub(super) fn group(name: &str, m: DMatrix<f64>, rhs: DVector<f64>) -> LinearGroup {
         LinearGroup { name: name.into(), description: format!("{name} rows"), matrix: m, rhs }
     }
 }

@@ -133,14 +133,20 @@ pub fn qp_signed(
 }
 
 /// A QP as [`qp`] takes it: the normal equations, the equality and inequality groups, the
-/// upper bounds (None: unbounded) and the L1 weight.
+/// upper bounds (None: unbounded) and the L1 weight; what [`qp`] and the screened solve of
+/// `screen.rs` share, crate-internal (callers pass the pieces to [`qp`]).
 #[derive(Clone, Copy)]
-pub struct QpProblem<'a> {
-    pub gram: &'a Gram,
-    pub equalities: &'a [LinearGroup],
-    pub inequalities: &'a [LinearGroup],
-    pub upper: &'a [Option<f64>],
-    pub l1: f64,
+pub(crate) struct QpProblem<'a> {
+    /// ½ kᵀGk − cᵀk, the objective before the L1 term.
+    pub(crate) gram: &'a Gram,
+    /// Groups of rows met exactly, A k = b.
+    pub(crate) equalities: &'a [LinearGroup],
+    /// Groups of rows G_in k ≥ h, added by cutting planes as they are violated.
+    pub(crate) inequalities: &'a [LinearGroup],
+    /// u with k ≤ u per unknown (None: unbounded), in the unknown's unit.
+    pub(crate) upper: &'a [Option<f64>],
+    /// λ of the L1 term λ·Σk (not applied to unknowns free of sign).
+    pub(crate) l1: f64,
 }
 
 /// The QP in scaled unknowns x (k = D x, D the unit-diagonal scaling of G), as every step of

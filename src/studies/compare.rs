@@ -67,6 +67,8 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
     }
 }
 
+/// The summed stiffness of a bill per unit (`N*m/rad`, `N*m/rad^3`, …, in the unit's ASCII
+/// spelling, sorted), since rates of different profiles cannot be added: [`FitRecord::totals`].
 pub fn totals(rows: &[BomRow]) -> Vec<(String, f64)> {
     let mut units: Vec<&str> = rows.iter().map(|r| r.element.profile.unit()).collect();
     units.sort_unstable();

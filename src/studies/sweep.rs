@@ -48,9 +48,20 @@ pub use crate::design::tolerance::Distribution;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum WorkItem {
     /// Parasitic springs at scale `eps`.
-    Parasitic { eps: f64 },
+    Parasitic {
+        /// ε, the parasitic stiffness as a fraction of κ (dimensionless; `sweep.csv`'s `eps`).
+        eps: f64,
+    },
     /// Build `build` at tolerance level `level` (None: the catalogue's tolerances).
-    Build { level: Option<f64>, build: usize },
+    Build {
+        /// The ± tolerance as a fraction (0.05 = ±5 %), None for each element's catalogue
+        /// tolerance (`sweep.csv`'s `tolerance`, `catalogue`).
+        level: Option<f64>,
+        /// The build's number within its level, 0-based: the first `tuned_builds` are also tuned,
+        /// and with the seed and the item's index it picks the build's random stream (a shard
+        /// draws the same build as a full run).
+        build: usize,
+    },
     /// Stock-rate snapping.
     Stock,
 }
@@ -435,10 +446,15 @@ pub use crate::asbuilt::equilibrium;
 /// One row of the parasitic table.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ParasiticRow {
+    /// ε, the parasitic stiffness as a fraction of κ.
     pub eps: f64,
+    /// ∫|P_Ũ| dt of the perturbed springs over the closed-loop run, J.
     pub flux_potential: f64,
+    /// ∫|P_θ| dt of the mode controller, J.
     pub flux_mode: f64,
+    /// ∫|P_E| dt of the energy controller, J.
     pub flux_energy: f64,
+    /// (∫|P_θ| + ∫|P_E|) / ∫|P_Ũ|, a fraction: how much of the motion the actuators supply.
     pub actuator_share: f64,
 }
 
@@ -449,18 +465,26 @@ pub struct ToleranceSummary {
     pub tolerance: Option<f64>,
     /// `uniform` or `normal`.
     pub distribution: Distribution,
+    /// Builds drawn at this level.
     pub builds: usize,
+    /// Median over the builds (as built, untuned) of the actuator share, a fraction.
     pub actuator_share_p50: f64,
+    /// 95th percentile over the builds of the actuator share, a fraction.
     pub actuator_share_p95: f64,
+    /// Median over the builds of their p99 |residual angle| about their own equilibrium, degrees.
     pub residual_p99_deg_p50: f64,
+    /// 95th percentile over the builds of their p99 |residual angle|, degrees.
     pub residual_p99_deg_p95: f64,
     /// 95 % confidence interval of `residual_p99_deg_p95` (see [`crate::asbuilt::Spread`]).
     pub residual_p99_deg_p95_ci: [f64; 2],
-    /// |q_eq′ − q_eq| percentiles, rad.
+    /// Median over the builds of how far the equilibrium moved, |q_eq′ − q_eq|, rad.
     pub equilibrium_shift_rad_p50: f64,
+    /// 95th percentile over the builds of |q_eq′ − q_eq|, rad.
     pub equilibrium_shift_rad_p95: f64,
-    /// After each build's trim (designs with trim springs), p99 residual percentiles.
+    /// Median over the builds of their p99 |residual angle| after the builder's trim, degrees
+    /// (None: the design has no trim springs).
     pub trimmed_residual_p99_deg_p50: Option<f64>,
+    /// 95th percentile of the same, degrees (None: no trim springs).
     pub trimmed_residual_p99_deg_p95: Option<f64>,
     /// 95 % confidence interval of `trimmed_residual_p99_deg_p95`.
     pub trimmed_residual_p99_deg_p95_ci: Option<[f64; 2]>,
@@ -475,28 +499,37 @@ pub struct ToleranceSummary {
 pub struct TunedSummary {
     /// How many builds were tuned (the first `tuned_builds` of the level).
     pub builds: usize,
+    /// The tuned builds' actuator share, a fraction (same closed-loop run, nominal controllers).
     pub actuator_share: crate::asbuilt::Spread,
+    /// Their p99 |residual angle| about their own equilibrium, degrees.
     pub residual_p99_deg: crate::asbuilt::Spread,
+    /// Their |q′ − q_eq|₂, rad (0 to solver accuracy when the offsets can restore q_eq).
     pub equilibrium_shift_rad: crate::asbuilt::Spread,
 }
 
 /// Stock snapping before and after.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StockSummary {
+    /// p99 |residual angle| of the fitted springs, degrees.
     pub residual_p99_deg_before: f64,
+    /// p99 |residual angle| after snapping every rate to stock (the rest refitted), degrees.
     pub residual_p99_deg_after: f64,
+    /// Actuator share of the fitted springs, a fraction.
     pub actuator_share_before: f64,
+    /// Actuator share with the stock rates, a fraction.
     pub actuator_share_after: f64,
 }
 
 /// `sweep.json`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SweepTables {
+    /// One row per ε, in the order of the plan.
     pub parasitic: Vec<ParasiticRow>,
     /// The first tolerance level (the schema's single object).
     pub tolerance: Option<ToleranceSummary>,
     /// Every tolerance level.
     pub tolerance_levels: Vec<ToleranceSummary>,
+    /// Stock-rate snapping (None: no used element's family lists `stock_rates`).
     pub stock: Option<StockSummary>,
 }
 

@@ -240,10 +240,19 @@ pub enum OffsetSpec {
     Equilibrium,
     /// `count` offsets evenly spaced over the range a·q takes in the region (ends included), plus
     /// the equilibrium's a·q_eq when `equilibrium` is set.
-    Grid { count: usize, equilibrium: bool },
+    Grid {
+        /// N, the grid points (`grid = N`, 1 to 1000; one point: the middle of the range).
+        count: usize,
+        /// `equilibrium = true`: a·q_eq added to the grid, so the element can also be relaxed at
+        /// the equilibrium.
+        equilibrium: bool,
+    },
     /// `count` phases evenly spaced over one turn starting at the equilibrium:
     /// x₀ = a·q_eq + 2πk/count (for crank mechanisms, whose torque k sin(x − x₀) is periodic).
-    Phases { count: usize },
+    Phases {
+        /// N, the crank angles round the turn (`phases = N`, 1 to 1000).
+        count: usize,
+    },
     /// Explicit offsets in rad.
     List(Vec<f64>),
 }

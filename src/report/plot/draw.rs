@@ -669,7 +669,9 @@ pub(super) fn one_two_five(v: f64) -> String {
     }
 }
 
-pub fn format_tick(v: f64) -> String {
+/// A tick label (and the histogram's first-bin note): at most three decimals without trailing
+/// zeros, scientific notation outside [1e-3, 1e5), and `0` for round-off at a tick meant as zero.
+pub(crate) fn format_tick(v: f64) -> String {
     // Round-off at a tick that should read 0 (e.g. 2.2e-16).
     if v.abs() < 1e-9 {
         return "0".into();

@@ -28,7 +28,7 @@ mod draw;
 mod text;
 
 use draw::draw;
-pub use draw::format_tick;
+pub(crate) use draw::format_tick;
 use text::{FONT_BYTES, TextFix, register_font};
 
 /// An RGB colour.
@@ -101,21 +101,79 @@ impl BoxItem {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Layer {
     /// Polylines, one legend entry for all.
-    Lines { lines: Vec<Vec<(f64, f64)>>, style: Style, label: Option<String> },
+    Lines {
+        /// Each line's points in the panel's data units; a non-finite point breaks the line.
+        lines: Vec<Vec<(f64, f64)>>,
+        /// Colour, width, opacity and dash of every line.
+        style: Style,
+        /// The legend entry (none: not in the legend).
+        label: Option<String>,
+    },
     /// Markers.
-    Points { points: Vec<(f64, f64)>, style: Style, size: u32, label: Option<String> },
+    Points {
+        /// Marker centres in data units (non-finite and out-of-range points are skipped).
+        points: Vec<(f64, f64)>,
+        /// Colour and fill of the markers.
+        style: Style,
+        /// Marker radius in pixels.
+        size: u32,
+        /// The legend entry (none: not in the legend).
+        label: Option<String>,
+    },
     /// Bars between consecutive `edges` with heights `counts`.
-    Histogram { edges: Vec<f64>, counts: Vec<f64>, style: Style, label: Option<String> },
+    Histogram {
+        /// Bin edges on x, one more than `counts`.
+        edges: Vec<f64>,
+        /// Bar heights (counts or fractions, whatever the y axis says).
+        counts: Vec<f64>,
+        /// Fill colour and opacity of the bars.
+        style: Style,
+        /// The legend entry (none: not in the legend).
+        label: Option<String>,
+    },
     /// Isolines of z on a grid (z y-major: z[j·nx + i]) at the given levels.
-    Contours { x: Vec<f64>, y: Vec<f64>, z: Vec<f64>, levels: Vec<f64>, style: Style, label: Option<String> },
+    Contours {
+        /// Grid abscissae, nx of them.
+        x: Vec<f64>,
+        /// Grid ordinates, ny of them.
+        y: Vec<f64>,
+        /// The nx·ny values, row j (y) after row.
+        z: Vec<f64>,
+        /// The values of z an isoline is drawn at.
+        levels: Vec<f64>,
+        /// Colour and width of every isoline.
+        style: Style,
+        /// The legend entry (none: not in the legend).
+        label: Option<String>,
+    },
     /// Shaded vertical bands over the full height.
-    Spans { spans: Vec<(f64, f64)>, style: Style, label: Option<String> },
+    Spans {
+        /// Each band's x from and to, clipped to the x range.
+        spans: Vec<(f64, f64)>,
+        /// Fill colour and opacity.
+        style: Style,
+        /// The legend entry (none: not in the legend).
+        label: Option<String>,
+    },
     /// A horizontal line.
-    HLine { y: f64, style: Style },
+    HLine {
+        /// Where, in data units.
+        y: f64,
+        /// Colour, width and dash.
+        style: Style,
+    },
     /// A vertical line.
-    VLine { x: f64, style: Style },
+    VLine {
+        /// Where, in data units.
+        x: f64,
+        /// Colour, width and dash.
+        style: Style,
+    },
     /// Box plots at x = 0, 1, 2, … (the panel's x axis shows their labels).
-    Boxes { items: Vec<BoxItem> },
+    Boxes {
+        /// The boxes, left to right.
+        items: Vec<BoxItem>,
+    },
 }
 
 /// One chart.
