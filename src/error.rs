@@ -23,7 +23,7 @@ pub enum ErrorKind {
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A file could not be read or written.
-    #[error("{}: {cause}", path.display())]
+    #[error("{}: {}", path.display(), explain(cause))]
     Io {
         /// The file or folder that could not be read or written, as the caller named it.
         path: PathBuf,
@@ -136,3 +136,19 @@ fn position(line: usize, column: usize) -> String {
 
 /// The library's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The operating system's reason in the words of springfit's other messages where the raw one
+/// misleads or says little (a folder given where a file is read, a path that does not exist);
+/// any other reason as the system gives it.
+fn explain(cause: &std::io::Error) -> String {
+    match cause.kind() {
+        std::io::ErrorKind::NotFound => {
+            "no such file (or a folder on its path is missing; relative paths start from the current folder)".into()
+        }
+        std::io::ErrorKind::IsADirectory => "is a folder: a file is expected here".into(),
+        std::io::ErrorKind::PermissionDenied => {
+            "permission denied (check the file's and its folder's permissions)".into()
+        }
+        _ => cause.to_string(),
+    }
+}

@@ -148,3 +148,33 @@ fn suspicious_input_is_warned_about() {
     assert!(warnings.iter().any(|w| w.contains("equilibrium.q[1]") && w.contains("turns")), "{}", run.report());
     assert!(warnings.iter().any(|w| w.contains("robot.links[0].com") && w.contains("beyond")), "{}", run.report());
 }
+
+#[test]
+fn implausible_units_are_warned_about() {
+    let dir = temp_dir("check-units");
+    let text = design_text_anywhere("double_pendulum.toml")
+        .replacen("mass = 1.0      # kg", "mass = 1000.0      # kg", 1)
+        .replacen("inertia = 1.0\n", "inertia = 40.0\n", 1);
+    let path = write(&dir, "units.toml", &text);
+    let run = springfit(&dir, &["check", path.to_str().unwrap()]).ok();
+    let err = run.stderr();
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("springfit: warning: ")).collect();
+    assert!(
+        warnings.iter().any(|w| w.contains("robot.links[0].mass") && w.contains("500 kg per metre")),
+        "{}",
+        run.report()
+    );
+    assert!(
+        warnings.iter().any(|w| w.contains("robot.links[1].inertia") && w.contains("m·L² = 4")),
+        "{}",
+        run.report()
+    );
+    // A URDF arm without `gravity` runs in zero gravity: said, not silent.
+    let urdf = design_text_anywhere("ur5_lift_elbow.toml");
+    let line = urdf.lines().find(|l| l.starts_with("gravity")).unwrap().to_string();
+    let urdf =
+        urdf.replace(&line, "").replace("urdf = \"", &format!("urdf = \"{}/", util::repo().join("designs").display()));
+    let path = write(&dir, "ur5.toml", &urdf);
+    let run = springfit(&dir, &["check", path.to_str().unwrap()]);
+    assert!(run.stderr().contains("field `robot.gravity`: is missing or zero"), "{}", run.report());
+}

@@ -49,13 +49,11 @@ fn a_bill_of_materials_edited_into_nonsense_is_refused() {
 #[test]
 fn a_run_failing_midway_leaves_the_previous_results() {
     let dir = temp_dir("midway");
-    // Two scenarios: the first runs and stages its files, the second asks for an energy the
-    // region cannot hold and fails.
     let catalog = repo().join("catalogs/workshop.toml");
-    let mut text =
+    let text =
         design_text("double_pendulum_workshop.toml").replace("../catalogs/workshop.toml", catalog.to_str().unwrap());
-    text.push_str("\n[[scenario]]\nname = \"too_high\"\nkind = \"swingup\"\nduration = 1.0\ne0 = 5.0\ned = 5000.0\n");
     let design = write(&dir, "design.toml", &text);
+    let d = design.to_str().unwrap();
     write(&dir, "sim/sim_swingup.json", "previous");
     // The folder is a previous output of `simulate` (its manifest says so), so it may be replaced.
     write(
@@ -63,8 +61,12 @@ fn a_run_failing_midway_leaves_the_previous_results() {
         "sim/.springfit-manifest.json",
         r#"{"springfit": "0.1.0", "command": "simulate", "files": ["sim_swingup.json"]}"#,
     );
-    let run = springfit(&dir, &["simulate", design.to_str().unwrap(), "--exact", "--out", "sim"])
-        .fails(2, &["scenario[", "ed", "out of reach"]);
+    // The folder is claimed, then the run fails: a bill whose springs do not hold q_eq (crank
+    // S01's offset typed in degrees).
+    let bom = std::fs::read_to_string(repo().join("tests/data/double_pendulum_bom.csv")).unwrap();
+    write(&dir, "degrees.csv", &bom.replacen(",0.5235987755982988,", ",30,", 1));
+    let run = springfit(&dir, &["simulate", d, "--bom", "degrees.csv", "--out", "sim"])
+        .fails(2, &["degrees.csv", "offset_rad", "bill_tolerance"]);
     assert_eq!(std::fs::read_to_string(dir.join("sim/sim_swingup.json")).unwrap(), "previous", "{}", run.report());
     let staged: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -72,6 +74,16 @@ fn a_run_failing_midway_leaves_the_previous_results() {
         .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
         .collect();
     assert!(staged.is_empty(), "staging folders left behind: {staged:?}");
+    // A scenario whose energy the springs cannot reach is not met (exit 1), not a failure: the
+    // other scenarios run and replace the previous results (issue 42, item 3).
+    let text = format!(
+        "{text}\n[[scenario]]\nname = \"too_high\"\nkind = \"swingup\"\nduration = 1.0\ne0 = 5.0\ned = 5000.0\n"
+    );
+    let design = write(&dir, "design.toml", &text);
+    let run = springfit(&dir, &["simulate", design.to_str().unwrap(), "--exact", "--out", "sim"])
+        .fails(1, &["scenario[", "ed", "out of reach"]);
+    assert_ne!(std::fs::read_to_string(dir.join("sim/sim_swingup.json")).unwrap(), "previous", "{}", run.report());
+    assert!(!dir.join("sim/sim_too_high.json").exists(), "{}", run.report());
 }
 
 /// The default design as shipped but with 64 Monte Carlo builds instead of 1,000: the selection's

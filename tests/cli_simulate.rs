@@ -52,3 +52,25 @@ fn an_unknown_scenario_is_named() {
         .fails(2, &["moonwalk", "free, switch, swingup"]);
     assert!(!dir.join("out").exists());
 }
+
+/// An energy the springs cannot reach depends on the springs, not on the input (`check` passes
+/// the design): the release is not met (exit 1, its error named), and the other releases still
+/// run and are written.
+#[test]
+fn a_release_the_springs_cannot_reach_is_not_met_and_the_others_still_run() {
+    let dir = temp_dir("sim-unreached");
+    let text = util::design_text_anywhere("double_pendulum.toml").replace(
+        "duration = 20.0\nreleases = [\n  { mode = 0.0, energy = 10.0 },\n  { mode = \"pi/3\", energy = 10.0 },",
+        "duration = 1.0\nreleases = [\n  { mode = 0.0, energy = 10.0 },\n  { mode = \"pi/3\", energy = 1000.0 },",
+    );
+    assert!(text.contains("energy = 1000.0"));
+    let design = util::write(&dir, "far.toml", &text);
+    let d = design.to_str().unwrap();
+    springfit(&dir, &["check", d]).ok();
+    let run = springfit(&dir, &["simulate", d, "--exact", "--scenario", "free", "--out", "sim"])
+        .fails(1, &["cannot reach", "scenario[0].releases[1].energy", "1000 J is out of reach"]);
+    let csv = std::fs::read_to_string(dir.join("sim/sim_free.csv")).unwrap_or_else(|e| panic!("{e}\n{}", run.report()));
+    assert!(csv.lines().any(|l| l.starts_with("release_1,")), "release_1 ran");
+    assert!(csv.lines().any(|l| l.starts_with("release_3,")), "release_3 ran");
+    assert!(!csv.lines().any(|l| l.starts_with("release_2,")), "release_2 cannot run");
+}

@@ -49,6 +49,36 @@ fn shards_merge_into_the_same_tables_and_threads_do_not_matter() {
     // An incomplete merge is refused.
     springfit(&dir, &["sweep", d, "--merge", "s1", "--out", "partial"]).fails(2, &["missing", "merge every shard"]);
     springfit(&dir, &["sweep", d, "--shard", "3/2"]).fails(2, &["--shard", "i/N"]);
+    // A folder that is no shard is named before the fit's seconds of work.
+    let run = springfit(&dir, &["sweep", d, "--merge", "s1", "nosuch", "--out", "partial"])
+        .fails(2, &["--merge", "nosuch holds no sweep_shard.json"]);
+    assert!(!run.stderr().contains("fitting the springs"), "{}", run.report());
+}
+
+/// stderr is no terminal here, so progress comes as plain lines (`--progress lines`): one per
+/// step, and for the sweep's counted items the count with the time left, the last item's always.
+/// `--quiet` and `--progress none` print none; `--progress bars` draws nothing off a terminal.
+#[test]
+fn progress_off_a_terminal_is_plain_lines_with_the_time_left() {
+    let dir = temp_dir("sweep-progress");
+    let design = small_design(&dir);
+    let d = design.to_str().unwrap();
+    let run = springfit(&dir, &["sweep", d, "--shard", "1/2", "--out", "s1"]).ok();
+    let err = run.stderr();
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("springfit: ") && !l.contains("warning")).collect();
+    assert!(lines.iter().any(|l| l.starts_with("springfit: fitting the springs")), "{}", run.report());
+    let counts: Vec<&&str> = lines.iter().filter(|l| l.contains(" done, ") && l.contains(" left")).collect();
+    let last = counts.last().unwrap_or_else(|| panic!("no count line\n{}", run.report()));
+    let (done, total) =
+        last.split(": ").nth(2).and_then(|c| c.split(" done").next()).and_then(|c| c.split_once(" of ")).unwrap();
+    assert_eq!(done, total, "the last item's line: {last}");
+    assert!(last.ends_with("about 0 s left"), "{last}");
+    for quiet in [&["--quiet"][..], &["--progress", "none"], &["--progress", "bars"]] {
+        let args: Vec<&str> = quiet.iter().copied().chain(["sweep", d, "--shard", "1/2", "--out", "s1"]).collect();
+        let run = springfit(&dir, &args).ok();
+        assert!(!run.stderr().contains(" done, "), "{quiet:?}\n{}", run.report());
+        assert!(!run.stderr().contains("fitting the springs"), "{quiet:?}\n{}", run.report());
+    }
 }
 
 /// The shipped design has trim springs and adjustable offsets: every build is reported as built

@@ -332,10 +332,15 @@ impl PyController {
 
     #[setter]
     fn set_energy_target(&self, target: Option<f64>) -> PyResult<()> {
+        // E = kinetic + U − U(q_eq) is never negative: a negative target is a sign slip, and the
+        // energy law would push the arm towards it for ever.
         if let Some(e) = target
-            && !e.is_finite()
+            && !(e.is_finite() && e >= 0.0)
         {
-            return Err(setting("energy_target", format!("must be finite, got {e}")));
+            return Err(setting(
+                "energy_target",
+                format!("must be a finite energy ≥ 0 J (kinetic plus U − U(q_eq), never negative), got {e}"),
+            ));
         }
         let mut st = self.lock();
         st.cell.with_dependent_mut(|_, c| {

@@ -46,6 +46,7 @@ impl PyPotential {
     pub fn from_bom_path(design: &PyDesign, path: &std::path::Path) -> PyResult<PyPotential> {
         let rows = springfit::files::bom::read(path).py()?;
         springfit::jobs::check_couplings(&design.design, path, &rows, springfit::jobs::Couplings::Any).py()?;
+        springfit::jobs::check_equilibrium(&design.design, path, &rows).py()?;
         Ok(PyPotential::springs(
             design.design.clone(),
             springfit::fit::bill::spring_set(&rows),

@@ -53,6 +53,10 @@ impl PySimulation {
         let result = py.detach(|| simulate::simulate(&design, &request, progress.observer()));
         progress.raised()?;
         let run = result.map_err(|e| in_design(e, &d.design.path))?;
+        // A release the springs cannot reach is not met (NumericalError), as the command's exit 1.
+        if let Some(e) = run.not_met() {
+            return Err(in_design(e, &d.design.path));
+        }
         Ok(PySimulation { design, run })
     }
 

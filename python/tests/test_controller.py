@@ -113,6 +113,9 @@ def test_targets_are_settable_between_calls(design, fit):
     c.theta_d = None
     c.energy_target = None
     assert np.all(c.torque(q, qd, 0.0).tau == 0.0)
+    # A negative energy can never be reached: refused, naming the attribute.
+    with pytest.raises(springfit.SettingError, match="energy_target.*never negative"):
+        c.energy_target = -1.0
     # Inside the ε-ball the mode law is off and the label undefined.
     c.theta_d = 0.0
     inside = c.torque(design.q_eq + 0.01, qd, 0.0)

@@ -91,3 +91,15 @@ def test_every_error_is_a_springfit_error():
     for cls in [springfit.FileError, springfit.ParseError, springfit.InvalidError, springfit.SettingError,
                 springfit.PlotError, springfit.InfeasibleError, springfit.NumericalError, springfit.NoPartError]:
         assert issubclass(cls, springfit.Error)
+
+
+def test_a_bill_that_does_not_hold_the_equilibrium_is_refused_as_by_the_commands(tmp_path):
+    # Crank S01's offset typed in degrees (30 for π/6 rad): its springs no longer hold q_eq.
+    bom = (REPO / "tests" / "data" / "double_pendulum_bom.csv").read_text()
+    bad = tmp_path / "degrees.csv"
+    bad.write_text(bom.replace(",0.5235987755982988,", ",30,", 1))
+    design = springfit.Design.load(DEFAULT)
+    with pytest.raises(springfit.InvalidError) as e:
+        springfit.Potential.from_bom(design, bad)
+    assert e.value.field == "offset_rad" and "equilibrium.bill_tolerance" in str(e.value)
+    assert str(e.value) == cli_error("export", DEFAULT, "--bom", bad, "--mujoco", "--out", tmp_path / "o", cwd=tmp_path)

@@ -42,8 +42,13 @@ pub struct Cli {
     /// Print nothing but errors and warnings (no progress bars, no summaries).
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// How progress is shown on stderr: `auto` (bars on a terminal, lines otherwise), `bars`,
+    /// `lines` (one plain line per step; counted steps add a line every 10 s with the count
+    /// and an estimate of the time left: for batch schedulers and logs) or `none`.
+    #[arg(long, global = true, value_enum, default_value = "auto", value_name = "MODE")]
+    pub progress: progress::Mode,
     /// Worker threads for parallel steps (default: all cores). Results do not depend on it.
-    #[arg(long, global = true, value_name = "N")]
+    #[arg(long, global = true, value_name = "N", allow_negative_numbers = true)]
     pub threads: Option<usize>,
     /// Let a run replace files of its earlier output that you edited since (a bom.csv with
     /// measured rates filled in); without it such a run is refused before any work.
@@ -75,7 +80,7 @@ report.md into the output folder, all at once (nothing is left half-written on a
         #[arg(long, value_enum)]
         solver: Option<SolverArg>,
         /// Override the design's element budget (0: no limit).
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K", allow_negative_numbers = true)]
         max_elements: Option<usize>,
     },
     /// Simulate the design's scenarios in closed loop: free releases, mode switching, swing-up.
@@ -126,10 +131,10 @@ catalogue lists stock rates, bom_stock.csv. A shard writes sweep_shard.json; mer
         #[arg(long, value_name = "DIR", num_args = 1..)]
         merge: Vec<PathBuf>,
         /// Override the number of Monte Carlo builds per tolerance level.
-        #[arg(long, value_name = "N")]
+        #[arg(long, value_name = "N", allow_negative_numbers = true)]
         builds: Option<usize>,
         /// Override the seed of the builds.
-        #[arg(long, value_name = "S")]
+        #[arg(long, value_name = "S", allow_negative_numbers = true)]
         seed: Option<u64>,
     },
     /// Compare fits side by side: histograms on shared bins, box plots and a table.
@@ -161,7 +166,7 @@ from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.s
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
         /// Largest budget (default: the design's max_elements, at least 16).
-        #[arg(long, value_name = "N")]
+        #[arg(long, value_name = "N", allow_negative_numbers = true)]
         k_max: Option<usize>,
         /// Radii of the region-size curve (default: 8 from 0.5, less for small regions, up to the
         /// largest valid radius).
@@ -308,7 +313,7 @@ pub fn run() -> Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
     }
     let edits = if cli.overwrite_edits { Edits::Overwrite } else { Edits::Refuse };
-    let session = Session { progress: progress::Progress::new(cli.quiet), edits };
+    let session = Session { progress: progress::Progress::new(cli.quiet, cli.progress), edits };
     match cli.command {
         Command::Check { design, json } => check::run(&design, json, &session.progress),
         Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &session),

@@ -57,7 +57,10 @@ pub fn run(args: SimArgs, session: &Session) -> Result<()> {
         say_backbone(b, progress);
     }
     progress.say(format!("wrote {}", written.display()));
-    Ok(())
+    match run.not_met() {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
+    }
 }
 
 /// The springs, the controllers and the label.

@@ -92,6 +92,10 @@ pub struct LinkSpec {
 pub struct EquilibriumSpec {
     /// Joint angles where the spring potential has its minimum, rad.
     pub q: Vec<Angle>,
+    /// How far a bill's springs may miss q_eq before a command that reads the bill refuses it,
+    /// rad (|∇U(q_eq)| with gravity over ‖ω²M(q_eq)‖; default [`super::BILL_TOLERANCE`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bill_tolerance: Option<f64>,
 }
 
 /// The kind of region.

@@ -65,6 +65,12 @@ use crate::limits::{MAX_GRAVITY, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_LINKS, MAX_
 use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::units::Angle;
 
+/// The default `[equilibrium] bill_tolerance`, rad: how far a bill's springs may miss q_eq, as
+/// |∇U(q_eq)| (springs and gravity) over the design's stiffness ‖ω²M(q_eq)‖. Every fitted bill
+/// of the shipped designs holds q_eq to 1e-5 or better (the QP to round-off, NNLS by its weighted
+/// equalities), while one offset typed in degrees misses it by tenths of a radian or more.
+pub const BILL_TOLERANCE: f64 = 1e-3;
+
 /// A validated design, ready to compute with.
 #[derive(Debug, Clone)]
 pub struct Design {
@@ -106,6 +112,9 @@ pub struct Design {
     pub identify: IdentifySettings,
     /// `[parts]`: how the fitted elements become springs to wind or order.
     pub parts: PartsSettings,
+    /// `[equilibrium] bill_tolerance`: how far, in rad at the design's stiffness, the springs of
+    /// a bill a command reads may miss q_eq ([`crate::jobs::check_equilibrium`]).
+    pub bill_tolerance: f64,
     /// The last region check, with what it was computed from (see [`Design::region_report`]).
     region_memo: std::sync::OnceLock<RegionMemo>,
 }
@@ -170,6 +179,13 @@ impl Design {
             }
         }
         check_sections(path, &file, &chain, &q_eq)?;
+        let bill_tolerance = file.equilibrium.bill_tolerance.unwrap_or(BILL_TOLERANCE);
+        if !(bill_tolerance.is_finite() && bill_tolerance > 0.0) {
+            return Err(invalid(
+                "equilibrium.bill_tolerance",
+                format!("{bill_tolerance} must be a positive angle in rad (default {BILL_TOLERANCE})"),
+            ));
+        }
         let name = file.name.clone().unwrap_or_else(|| {
             path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "design".into())
         });
@@ -195,6 +211,7 @@ impl Design {
             sweep_given: file.sweep_given,
             identify: file.identify,
             parts: file.parts,
+            bill_tolerance,
             region_memo: std::sync::OnceLock::new(),
         })
     }

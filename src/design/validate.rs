@@ -198,6 +198,41 @@ fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
     Catalog::load_for(path, &design.chain.joint_names())
 }
 
+/// A link heavier than this per metre of its length is heavier than a solid steel bar 0.18 m
+/// across (7850 kg/m³), far beyond an arm one balances with springs: probably grams typed as
+/// kilograms, or millimetres as metres.
+pub const MAX_PLAUSIBLE_KG_PER_M: f64 = 200.0;
+
+/// Warnings about a planar link's units, as `q = 90` is warned about: a mass too heavy for its
+/// length, an inertia about the centre of mass above m·L² (a thin ring of radius L has m·L²;
+/// a rod m·L²/12), which usually means g·cm² or kg·mm² typed as kg·m², or an inertia about the
+/// joint given where the centre of mass's is read.
+fn implausible_units(i: usize, l: &crate::model::Link, warn: &mut impl FnMut(String, String)) {
+    let per_m = l.mass / l.length;
+    if per_m > MAX_PLAUSIBLE_KG_PER_M {
+        warn(
+            format!("robot.links[{i}].mass"),
+            format!(
+                "{} kg for a link {} m long is {per_m:.0} kg per metre, heavier than a solid steel bar 0.18 m across: \
+                 masses are in kg and lengths in m (grams or millimetres typed?)",
+                l.mass, l.length
+            ),
+        );
+    }
+    let ml2 = l.mass * l.length * l.length;
+    if l.inertia > ml2 {
+        warn(
+            format!("robot.links[{i}].inertia"),
+            format!(
+                "{} kg·m² about the centre of mass is above m·L² = {ml2:.4} kg·m² (a rod has m·L²/12 = {:.4}): \
+                 inertia is in kg·m² about the centre of mass (g·cm² or kg·mm² typed?)",
+                l.inertia,
+                ml2 / 12.0
+            ),
+        );
+    }
+}
+
 /// Legal input that is probably a mistake.
 fn suspicious(design: &Design, out: &mut Vec<Warning>) {
     let mut warn = |field: String, message: String| {
@@ -249,6 +284,7 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
     }
     let links = design.chain.planar().map(|c| c.links()).unwrap_or_default();
     for (i, l) in links.iter().enumerate() {
+        implausible_units(i, l, &mut warn);
         if l.com > l.length {
             warn(
                 format!("robot.links[{i}].com"),
@@ -259,6 +295,14 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
                 ),
             );
         }
+    }
+    if design.chain.spatial().is_some_and(|c| c.gravity() == [0.0; 3]) {
+        warn(
+            "robot.gravity".into(),
+            "is missing or zero: the URDF's arm runs in zero gravity; give the base frame's acceleration, e.g. \
+             gravity = [0.0, 0.0, -9.81] for z up (set [0.0, 0.0, 0.0] and ignore this for an arm in free fall)"
+                .into(),
+        );
     }
     for (k, sc) in design.scenarios.iter().enumerate() {
         for (j, s) in sc.starts.iter().enumerate() {

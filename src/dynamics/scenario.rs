@@ -24,7 +24,15 @@ pub struct Scenario {
     pub runs: Vec<RunSpec>,
     /// How the scenario handles energy, in words (stated in the outputs).
     pub energy_handling: String,
+    /// The releases the springs cannot reach inside the region (an energy the potential never
+    /// rises to along its mode), each as its error's message: the limit depends on the springs,
+    /// so the other runs go on and the command reports these as not met.
+    pub unreached: Vec<String>,
 }
+
+/// The words of [`start_on_mode`]'s error for an energy the potential does not reach inside the
+/// region: the jobs tell it (not met: it depends on the springs) from bad input by them.
+pub const OUT_OF_REACH: &str = "is out of reach";
 
 /// The metrics of one run (`sim_<name>.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -140,17 +148,29 @@ impl ScenarioSpec {
             damping: self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 }),
             frame: MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?,
         };
+        let mut unreached = Vec::new();
         let runs = match self.kind {
-            ScenarioKind::Free => self.free_runs(&base, energy_at)?,
+            ScenarioKind::Free => self.free_runs(&base, energy_at, &mut unreached)?,
             ScenarioKind::Switch => vec![self.switch_run(&base, energy_at)?],
             ScenarioKind::Swingup => self.swingup_runs(&base, energy_at)?,
         };
-        Ok(Scenario { name: self.name.clone(), kind: self.kind, runs, energy_handling: self.energy_handling() })
+        Ok(Scenario {
+            name: self.name.clone(),
+            kind: self.kind,
+            runs,
+            energy_handling: self.energy_handling(),
+            unreached,
+        })
     }
 
     /// A free scenario's runs: each start as given, then each release placed on its mode at its
-    /// energy.
-    fn free_runs(&self, base: &RunBase, energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>) -> Result<Vec<RunSpec>> {
+    /// energy; a release the springs cannot reach goes to `unreached` and the others still run.
+    fn free_runs(
+        &self,
+        base: &RunBase,
+        energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>,
+        unreached: &mut Vec<String>,
+    ) -> Result<Vec<RunSpec>> {
         let n = base.design.dof();
         let mut runs = Vec::new();
         for (k, s) in self.starts.iter().enumerate() {
@@ -158,9 +178,13 @@ impl ScenarioSpec {
         }
         for (k, r) in self.releases.iter().enumerate() {
             let u = mode_direction(&r.mode, n, &base.frame).map_err(|e| base.bad(&format!("releases[{k}].mode"), e))?;
-            let q0 = start_on_mode(base.design, &u, r.energy, energy_at)
-                .map_err(|e| base.bad(&format!("releases[{k}].energy"), e))?;
-            runs.push(base.run(format!("release_{}", k + 1), q0));
+            match start_on_mode(base.design, &u, r.energy, energy_at) {
+                Ok(q0) => runs.push(base.run(format!("release_{}", k + 1), q0)),
+                Err(e) if e.contains(OUT_OF_REACH) => {
+                    unreached.push(base.bad(&format!("releases[{k}].energy"), e).to_string())
+                }
+                Err(e) => return Err(base.bad(&format!("releases[{k}].energy"), e)),
+            }
         }
         Ok(runs)
     }
@@ -349,7 +373,7 @@ pub fn start_on_mode(
         prev = (geo.s(i), e);
     }
     Err(format!(
-        "the potential rises only by {:.3} J along this mode inside the region: {energy} J is out of reach (raise ω or enlarge the region)",
+        "the potential rises only by {:.3} J along this mode inside the region: {energy} J {OUT_OF_REACH} (raise ω or enlarge the region)",
         prev.1
     ))
 }

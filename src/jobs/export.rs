@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{Couplings, check_couplings};
+use super::{Couplings, check_couplings, check_equilibrium};
 use crate::design::Design;
 use crate::elements::catalog::Catalog;
 use crate::error::Result;
@@ -41,6 +41,7 @@ pub fn export(design: &Design, springs: ExportSprings<'_>, progress: Progress<'_
         ExportSprings::Bom(path) => {
             let rows = crate::files::bom::read(path)?;
             check_couplings(design, path, &rows, Couplings::Any)?;
+            check_equilibrium(design, path, &rows)?;
             ExportRun { rows, from: format!("the bill of materials {}", path.display()), fit: None }
         }
         ExportSprings::Fitted(o) => ExportRun { rows: o.bom.clone(), from: fitted_from(o), fit: None },

@@ -45,6 +45,10 @@ pub fn identify(
     progress: Progress<'_>,
 ) -> Result<IdentifyRun> {
     let rows = crate::files::bom::read(bom)?;
+    // A bill of another number of joints is refused by `identify::check_bill` in its own words.
+    if rows.iter().all(|r| r.element.coupling.len() == design.dof()) {
+        super::check_equilibrium(design, bom, &rows)?;
+    }
     let made = match request {
         IdentifyRequest::Plan => {
             progress.stage("planning releases");

@@ -101,6 +101,42 @@ pub fn check_couplings(
     })
 }
 
+/// Refuses a bill read from `path` whose springs do not hold the design's equilibrium: the
+/// torque |∇U(q_eq)| of its springs and gravity, over the design's stiffness ‖ω²M(q_eq)‖ (an
+/// angle in rad: about how far the springs would move the arm from q_eq), above `[equilibrium]
+/// bill_tolerance`. Every command that reads a bill runs it after [`check_couplings`]: a bill
+/// that does not hold q_eq gives a simulation of another arm and an identification whose rates
+/// absorb the miss with small standard errors, so it is refused, not warned about.
+pub fn check_equilibrium(
+    design: &crate::design::Design,
+    path: &std::path::Path,
+    rows: &[crate::fit::bill::BomRow],
+) -> crate::Result<()> {
+    let q = design.q_eq.as_slice();
+    let mut springs = vec![0.0; q.len()];
+    crate::fit::bill::spring_set(rows).gradient_into(q, &mut springs);
+    let mut gravity = vec![0.0; q.len()];
+    design.chain.gravity_gradient_into(q, &mut gravity);
+    let torque = springs.iter().zip(&gravity).map(|(s, g)| (s + g) * (s + g)).sum::<f64>().sqrt();
+    let stiffness = design.chain.mass_matrix(&design.q_eq).norm() * design.fit.frequency.powi(2);
+    let miss = torque / stiffness.max(f64::MIN_POSITIVE);
+    let tolerance = design.bill_tolerance;
+    if miss.is_finite() && miss <= tolerance {
+        return Ok(());
+    }
+    Err(crate::Error::invalid(
+        path,
+        "offset_rad",
+        format!(
+            "the bill's springs do not hold the equilibrium of {}: |∇U(q_eq)| = {torque:.3e} N·m with gravity, {miss:.2e} \
+             rad at the design's stiffness ‖ω²M(q_eq)‖ = {stiffness:.3e} N·m/rad, above equilibrium.bill_tolerance = \
+             {tolerance:e} rad. Typically an offset typed in degrees (offset_rad is in radians), the bill of another \
+             design, or a design changed since the fit: refit, or raise equilibrium.bill_tolerance in the design",
+            design.path.display()
+        ),
+    ))
+}
+
 /// How a command checks a bill's couplings against the design (see [`check_couplings`]): the
 /// wordings users and tests know.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

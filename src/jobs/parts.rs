@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{Couplings, Topic, Warning, check_couplings};
+use super::{Couplings, Topic, Warning, check_couplings, check_equilibrium};
 use crate::design::Design;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
@@ -42,6 +42,7 @@ pub fn parts(
         Some(path) => {
             let mut rows = crate::files::bom::read(path)?;
             check_couplings(design, path, &rows, Couplings::Line2)?;
+            check_equilibrium(design, path, &rows)?;
             progress.stage("tracing the held-out geodesics");
             let (_, _, evaluation) = crate::fit::prepare::fans(design, &settings)?;
             let cams = crate::fit::bill::realise_parts(catalog, &mut rows, &evaluation, design.q_eq.as_slice());

@@ -10,11 +10,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{Couplings, check_couplings};
+use super::{Couplings, check_couplings, check_equilibrium};
 use crate::design::Design;
 use crate::design::simulate::{LabelKind, SimSettings};
 use crate::dynamics::backbone::{Backbone, backbone, backbone_energies, backbone_modes};
-use crate::dynamics::scenario::{ScenarioOutcome, label_source, run_scenario};
+use crate::dynamics::scenario::{OUT_OF_REACH, ScenarioOutcome, label_source, run_scenario};
 use crate::dynamics::simulate::ElasticPotential;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
@@ -45,6 +45,7 @@ impl Springs<'_> {
     pub fn from_bom(design: &Design, path: &Path) -> Result<Springs<'static>> {
         let rows = crate::files::bom::read(path)?;
         check_couplings(design, path, &rows, Couplings::First)?;
+        check_equilibrium(design, path, &rows)?;
         Ok(Springs::Given {
             potential: ElasticPotential::Springs(crate::fit::bill::spring_set(&rows)),
             name: format!("springs ({})", path.display()),
@@ -115,11 +116,24 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
     let (label, label_error) = label_source(design, &settings)?;
     let fan = crate::report::simulate::plot_fan(design)?;
     let mut scenarios = Vec::new();
+    let mut not_met = Vec::new();
     for i in indices {
         progress.stage(&format!("scenario {}", design.scenarios[i].name));
         let t = Instant::now();
-        let outcome = run_scenario(design, &potential, &label, &settings, &design.controllers, i)?;
-        scenarios.push(ScenarioRun { outcome, seconds: t.elapsed().as_secs_f64() });
+        // An energy the springs do not reach depends on the fit, not on the input (`check` passed
+        // the design): the scenario or release is reported as not met and the others still run.
+        match run_scenario(design, &potential, &label, &settings, &design.controllers, i) {
+            Ok(outcome) => {
+                not_met.extend(outcome.scenario.unreached.iter().cloned());
+                if !outcome.runs.is_empty() {
+                    scenarios.push(ScenarioRun { outcome, seconds: t.elapsed().as_secs_f64() });
+                }
+            }
+            Err(e) if matches!(&e, Error::Invalid { reason, .. } if reason.contains(OUT_OF_REACH)) => {
+                not_met.push(e.to_string())
+            }
+            Err(e) => return Err(e),
+        }
     }
     let backbone = if request.backbone {
         progress.stage("backbone (period against energy on every mode)");
@@ -142,6 +156,7 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
         scenarios,
         backbone,
         only: request.scenario.map(str::to_string),
+        not_met,
     })
 }
 
@@ -189,6 +204,9 @@ pub struct SimulateRun {
     pub backbone: Option<BackboneRun>,
     /// The one scenario asked for by name (a write keeps the others' files).
     pub only: Option<String>,
+    /// The releases and scenarios the springs could not reach, each as its error's message
+    /// (see [`SimulateRun::not_met`]).
+    pub not_met: Vec<String>,
 }
 
 impl SimulateRun {
@@ -217,6 +235,20 @@ impl SimulateRun {
         }
         crate::report::html::write_simulate(&dir, design)?;
         dir.commit()
+    }
+
+    /// The error to end with when a release or scenario could not be reached by the springs
+    /// (exit 1, not met): written after the runs that could, naming each one missed.
+    pub fn not_met(&self) -> Option<Error> {
+        (!self.not_met.is_empty()).then(|| {
+            Error::numerical(
+                format!(
+                    "{} release(s) or scenario(s) the springs cannot reach (the others ran and were written)",
+                    self.not_met.len()
+                ),
+                self.not_met.join("; "),
+            )
+        })
     }
 
     /// The names of the scenarios simulated.

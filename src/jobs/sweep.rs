@@ -135,6 +135,16 @@ impl<'a> SweepJob<'a> {
         let sharded = self.shard.is_some() || !self.request.merge.is_empty();
         let fingerprint = if sharded { self.fingerprint()? } else { String::new() };
         if !self.request.merge.is_empty() {
+            // A shard missing is found before the fit, not after its seconds of work.
+            if let Some(dir) = self.request.merge.iter().find(|d| !d.join("sweep_shard.json").is_file()) {
+                return Err(Error::Setting {
+                    field: "--merge".into(),
+                    reason: format!(
+                        "{} holds no sweep_shard.json: give the output folders of `springfit sweep --shard i/N`",
+                        dir.display()
+                    ),
+                });
+            }
             progress.stage("fitting the springs");
             let fit = fit()?;
             let items = plan(&self.settings, fit.bom.iter().any(|r| r.stock_rate.is_some())).len();

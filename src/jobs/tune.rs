@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{Couplings, check_couplings};
+use super::{Couplings, check_couplings, check_equilibrium};
 use crate::asbuilt::tune::TuneOutcome;
 use crate::design::Design;
 use crate::error::Result;
@@ -22,6 +22,7 @@ pub const FILES: &[&str] = crate::report::tune::FILES;
 pub fn tune(design: &Design, measured: &Path, progress: Progress<'_>) -> Result<TuneRun> {
     let (bom, rates) = crate::files::bom::load_measured(measured)?;
     check_couplings(design, measured, &bom, Couplings::Line2)?;
+    check_equilibrium(design, measured, &bom)?;
     progress.stage("tuning");
     Ok(TuneRun { outcome: crate::asbuilt::tune::tune(design, &bom, &rates)? })
 }
