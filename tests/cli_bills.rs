@@ -11,7 +11,7 @@ use util::{repo, springfit, temp_dir, write};
 fn bill_in_degrees() -> String {
     let bom = std::fs::read_to_string(repo().join("tests/data/double_pendulum_bom.csv")).unwrap();
     let row = bom.lines().nth(1).unwrap();
-    let mut f = springfit::csv::split_csv_line(row).unwrap();
+    let mut f = springfit::files::split_csv_line(row).unwrap();
     assert_eq!(f[5], "0.5235987755982988", "S01's offset is π/6 rad: {row}");
     f[5] = "30".into();
     bom.replacen(row, &f.join(","), 1)
