@@ -74,3 +74,108 @@ fn a_release_the_springs_cannot_reach_is_not_met_and_the_others_still_run() {
     assert!(csv.lines().any(|l| l.starts_with("release_3,")), "release_3 ran");
     assert!(!csv.lines().any(|l| l.starts_with("release_2,")), "release_2 cannot run");
 }
+
+/// The default design's switch scenario reports what the springs save against the arm without
+/// them, and the figures match a hand computation from `sim_switch.csv` (rigid torque = actuator
+/// + spring torque, integrals as left sums over the samples) to 3 digits.
+#[test]
+fn switch_savings_match_a_hand_computation_from_the_csv() {
+    let dir = temp_dir("sim-savings");
+    let design = util::with_builds(&dir, "double_pendulum", 0);
+    springfit(&dir, &["simulate", design.to_str().unwrap(), "--scenario", "switch", "--out", "sim"]).ok();
+    let out = dir.join("sim");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sim_switch.json")).unwrap()).unwrap();
+    let savings = &json["runs"]["switch"]["savings"];
+    let csv = std::fs::read_to_string(out.join("sim_switch.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<f64>> =
+        lines.map(|l| l.split(',').skip(1).map(|v| v.parse::<f64>().unwrap_or(f64::NAN)).collect()).collect();
+    // Column indices without the leading `run`.
+    let c = |name: &str| col(name) - 1;
+    let (mut with, mut without, mut copper_with, mut copper_without) = (0.0, 0.0, 0.0, 0.0);
+    let (mut peak_with, mut peak_without) = (0.0f64, 0.0f64);
+    for k in 0..rows.len() {
+        let r = &rows[k];
+        let act: Vec<f64> = (1..=2)
+            .map(|i| {
+                r[c(&format!("tau_mode{i}"))] + r[c(&format!("tau_energy{i}"))] + r[c(&format!("tau_compensation{i}"))]
+            })
+            .collect();
+        let rigid: Vec<f64> = (1..=2).map(|i| act[i - 1] + r[c(&format!("tau_spring{i}"))]).collect();
+        for i in 0..2 {
+            peak_with = peak_with.max(act[i].abs());
+            peak_without = peak_without.max(rigid[i].abs());
+        }
+        if k + 1 == rows.len() {
+            break;
+        }
+        let dt = rows[k + 1][c("t")] - r[c("t")];
+        let qd = [r[c("qd1")], r[c("qd2")]];
+        with += (act[0] * qd[0] + act[1] * qd[1]).abs() * dt;
+        without += (rigid[0] * qd[0] + rigid[1] * qd[1]).abs() * dt;
+        copper_with += (act[0] * act[0] + act[1] * act[1]) * dt;
+        copper_without += (rigid[0] * rigid[0] + rigid[1] * rigid[1]) * dt;
+    }
+    let close = |a: f64, b: f64, what: &str| {
+        assert!((a - b).abs() <= 5e-4 * b.abs().max(1e-12), "{what}: report {a} vs hand {b}");
+    };
+    close(savings["with_springs"]["energy_j"].as_f64().unwrap(), with, "energy with springs");
+    close(savings["without_springs"]["energy_j"].as_f64().unwrap(), without, "energy without springs");
+    close(savings["energy_saved"].as_f64().unwrap(), 1.0 - with / without, "energy saved");
+    close(savings["without_springs"]["peak_torque_nm"].as_f64().unwrap(), peak_without, "peak without springs");
+    close(savings["with_springs"]["peak_torque_nm"].as_f64().unwrap(), peak_with, "peak with springs");
+    // Default motor constants: 1 N·m/√W on each joint.
+    close(savings["copper_loss_saved"].as_f64().unwrap(), 1.0 - copper_with / copper_without, "copper saved");
+    let saved = savings["energy_saved"].as_f64().unwrap();
+    assert!(saved > 0.9, "the springs carry the motion: {saved}");
+    println!("energy saved {:.2} % ({with:.3} J vs {without:.3} J)", 100.0 * saved);
+}
+
+/// A three-joint arm under gravity switches through five mode directions with `modes`: every step
+/// settles (mode error below 3° for the rest of the step), the actuator share stays below 5 % and
+/// the torques within `max_torque`.
+#[test]
+fn a_three_joint_switch_through_five_modes_settles() {
+    let dir = temp_dir("sim-switch3");
+    let mut text = std::fs::read_to_string(repo().join("designs/triple_pendulum.toml")).unwrap();
+    text = text.replace("../catalogs/", &format!("{}/catalogs/", repo().display()));
+    text = text.replace("beta_e = 1.0", "beta_e = 1.0\nmax_torque = [40.0, 20.0, 8.0]");
+    text.push_str(
+        "\n[[scenario]]\nname = \"switch\"\nkind = \"switch\"\nenergy = 2.0\nevery = 10.0\n\
+         modes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, -1.0, 0.5], [0.3, 0.5, -1.0]]\n",
+    );
+    let design = dir.join("triple_switch.toml");
+    std::fs::write(&design, text).unwrap();
+    let run = springfit(&dir, &["simulate", design.to_str().unwrap(), "--scenario", "switch", "--out", "sim"]).ok();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sim/sim_switch.json")).unwrap()).unwrap();
+    let m = &json["runs"]["switch"];
+    let settling: Vec<Option<f64>> = m["settling_s"].as_array().unwrap().iter().map(|v| v.as_f64()).collect();
+    assert_eq!(settling.len(), 5, "{m}");
+    assert!(settling.iter().all(|s| s.is_some_and(|s| s < 10.0)), "{settling:?}\n{}", run.report());
+    assert!(m["actuator_share"].as_f64().unwrap() < 0.05, "{m}");
+    assert!(m["peak_actuator_torque_nm"].as_f64().unwrap() <= 40.0 + 1e-9, "{m}");
+    println!("settling {settling:?}, share {}", m["actuator_share"]);
+}
+
+/// Bad `modes`: one clear error naming the scenario and the field.
+#[test]
+fn bad_modes_are_named_with_their_scenario_and_field() {
+    let dir = temp_dir("sim-badmodes");
+    let base = std::fs::read_to_string(repo().join("designs/triple_pendulum.toml"))
+        .unwrap()
+        .replace("../catalogs/", &format!("{}/catalogs/", repo().display()));
+    let cases = [
+        ("modes = [[1.0, 0.0, 0.0], [1.0, 0.0]]", "scenario[3].modes[1]", "has 2 entries"),
+        ("modes = [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "scenario[3].modes[1]", "non-zero"),
+        ("mode = [1.0, 0.0, 0.0]", "scenario[3].modes", "needs modes"),
+    ];
+    for (k, (line, field, reason)) in cases.iter().enumerate() {
+        let design = dir.join(format!("bad{k}.toml"));
+        std::fs::write(&design, format!("{base}\n[[scenario]]\nname = \"hop\"\nkind = \"switch\"\n{line}\n")).unwrap();
+        springfit(&dir, &["check", design.to_str().unwrap()]).fails(2, &[field, reason, "scenario `hop`"]);
+    }
+}

@@ -138,7 +138,8 @@ impl PyController {
     /// path of a bom.csv). With `scenario` (a name of the design's `[[scenario]]`), it follows
     /// that scenario's run `run` (its θ_d and E_d schedules and damping, as `simulate` does);
     /// without one, mode and energy control are off until targets are set. `label` is `"table"`
-    /// or `"exact"` (default: the design's `[simulate] label`). `damping` (n,) is the joint
+    /// (two joints; refused for more) or `"exact"` (default: the design's `[simulate] label`, which
+    /// for three or more joints is the exact log map). `damping` (n,) is the joint
     /// damping D the compensation feeds forward.
     #[new]
     #[pyo3(signature = (design, springs, scenario = None, run = 0, label = None, damping = None))]
@@ -157,6 +158,14 @@ impl PyController {
         let mut sim = d.simulate;
         sim.label = match label {
             None => sim.label,
+            Some("table") if n != 2 => {
+                return Err(setting(
+                    "label",
+                    format!(
+                        "\"table\" tabulates the label of a two-joint arm; this one has {n} joints: use \"exact\" (or leave label out)"
+                    ),
+                ));
+            }
             Some("table") => LabelKind::Table,
             Some("exact") => LabelKind::Exact,
             Some(other) => return Err(setting("label", format!("must be \"table\" or \"exact\", got \"{other}\""))),

@@ -130,6 +130,24 @@ fn say_scenario(design: &Design, s: &ScenarioRun, progress: &Progress) {
             }
         }
         parts.push(share);
+        if m.flux.mode + m.flux.energy + m.flux.compensation > 0.0 {
+            let (sv, a, b) = (&m.savings, &m.savings.with_springs, &m.savings.without_springs);
+            parts.push(format!(
+                "against the arm without springs: energy {:.3} J vs {:.3} J ({:.1} % saved), peak torque {:.2} vs {:.2} N·m ({:.1} %), RMS {:.3} vs {:.3} N·m ({:.1} %), copper losses {:.4} vs {:.4} J ({:.1} %)",
+                a.energy_j,
+                b.energy_j,
+                100.0 * sv.energy_saved,
+                a.peak_torque_nm,
+                b.peak_torque_nm,
+                100.0 * sv.peak_torque_saved,
+                a.rms_torque_nm,
+                b.rms_torque_nm,
+                100.0 * sv.rms_torque_saved,
+                a.copper_loss_j,
+                b.copper_loss_j,
+                100.0 * sv.copper_loss_saved
+            ));
+        }
         if m.flux.compensation > 0.0 {
             parts.push(format!("with damping compensation {:.3} %", 100.0 * m.actuator_share_with_compensation));
         }

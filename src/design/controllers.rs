@@ -15,11 +15,22 @@ pub enum LabelGradient {
 }
 
 /// Whether M multiplies the mode controller's torque.
+///
+/// The default, `auto`, takes the paper's M in front for the two-joint θ law (the paper's
+/// figures) and the consistent law on the sphere of modes (three or more joints, or a direction
+/// target). Why: with M in front the label's closed loop sees J Jᵀ, which ignores the arm's
+/// inertia, so a light distal link is driven as hard as a heavy proximal one and the gains would
+/// need tuning arm by arm (on a three-joint arm the paper's form asked 900 N·m at the mode steps
+/// and one step in five never settled); without it the label obeys m_θΔ̈ + d_θΔ̇ + k_θΔ = 0 with
+/// m_θ from the arm's own metric (about r²/4 at metric distance r from q_eq), so the damping ratio
+/// is ζ on any arm and the mode turns at ω_θ ≈ 2√k_θ / r.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum ModeInertia {
-    /// τ_θ = M g f, as in the paper.
+    /// `paper` for the two-joint θ law, `consistent` on the sphere of modes (default).
     #[default]
+    Auto,
+    /// τ_θ = M g f, as in the paper.
     Paper,
     /// τ_θ = g f: the closed-loop damping ratio is ζ.
     Consistent,
@@ -63,7 +74,7 @@ pub struct ControllerSettings {
     pub epsilon: f64,
     /// Label gradient: `exact` or `paper`.
     pub gradient: LabelGradient,
-    /// M in front of the mode torque: `paper` or `consistent`.
+    /// M in front of the mode torque: `auto` (default), `paper` or `consistent`.
     pub inertia: ModeInertia,
     /// `smooth` (default): the mode torque fades in between ε and 2ε; `hard`: the paper's switch
     /// at ε.
@@ -77,6 +88,10 @@ pub struct ControllerSettings {
     /// `dynamics::control::saturate`); the design refuses a limit that cannot hold the arm
     /// against gravity at q_eq.
     pub max_torque: Option<Vec<f64>>,
+    /// The motors' constants k_m, N·m/√W per joint (none: 1 N·m/√W each), for the copper losses
+    /// Σ τᵢ²/k_m,ᵢ² that the savings against the arm without springs report. With equal constants
+    /// the fraction saved does not depend on their value.
+    pub motor_constant: Option<Vec<f64>>,
 }
 
 impl Default for ControllerSettings {
@@ -86,11 +101,12 @@ impl Default for ControllerSettings {
             zeta: 0.7,
             epsilon: 0.1,
             gradient: LabelGradient::Exact,
-            inertia: ModeInertia::Paper,
+            inertia: ModeInertia::Auto,
             blend: Blend::Smooth,
             beta_e: 0.13,
             beta_nd: 0.4,
             max_torque: None,
+            motor_constant: None,
         }
     }
 }
@@ -118,15 +134,40 @@ impl ControllerSettings {
                 ));
             }
         }
+        for (i, &v) in self.motor_constant.iter().flatten().enumerate() {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((
+                    format!("controllers.motor_constant[{i}]"),
+                    format!("must be a finite motor constant > 0 N·m/√W, got {v}"),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// k_m per joint for an arm of `n` joints: `motor_constant`, or 1 N·m/√W each (also when the
+    /// list has the wrong length, which [`ControllerSettings::check_max_torque`] refuses first).
+    pub fn motor_constants(&self, n: usize) -> Vec<f64> {
+        match &self.motor_constant {
+            Some(k) if k.len() == n => k.clone(),
+            _ => vec![1.0; n],
+        }
     }
 
     /// Checks `max_torque` against the arm: one entry per joint, each at least the torque that
     /// holds the arm against gravity at q_eq (`holding`, N·m per joint: the actuators hold it
     /// there while the springs are fitted and trimmed, and a limit below it could not).
     pub fn check_max_torque(&self, holding: &[f64]) -> Result<(), (String, String)> {
-        let Some(max) = &self.max_torque else { return Ok(()) };
         let n = holding.len();
+        if let Some(k) = &self.motor_constant
+            && k.len() != n
+        {
+            return Err((
+                "controllers.motor_constant".into(),
+                format!("has {} entries but the robot has {n} joints (one constant per joint, N·m/√W)", k.len()),
+            ));
+        }
+        let Some(max) = &self.max_torque else { return Ok(()) };
         if max.len() != n {
             return Err((
                 "controllers.max_torque".into(),

@@ -146,9 +146,14 @@ pub struct ScenarioSpec {
     /// switch: energy of the start point, J (default 10).
     #[serde(default)]
     pub energy: Option<f64>,
-    /// switch: increment of θ_d (default π/6).
+    /// switch: increment of θ_d (default π/6; two joints, with `mode`).
     #[serde(default)]
     pub step: Option<Angle>,
+    /// switch: the desired modes in turn, one per step of `every` seconds (directions of joint
+    /// velocity at q_eq in joint order, or angles θ on two joints), cycled if the run outlasts
+    /// them; the arm starts on the first. Any number of joints; needed from three on.
+    #[serde(default)]
+    pub modes: Vec<ModeSpec>,
     /// switch: seconds between increments (default 15).
     #[serde(default)]
     pub every: Option<f64>,
@@ -176,11 +181,11 @@ impl ScenarioSpec {
     /// reachable inside the region) is left to `resolve`. Errors name `scenario[index].field`.
     pub fn check(&self, index: usize, design: &Design) -> Result<()> {
         let sc = self;
-        let at = ScenarioAt { path: &design.path, index, n: design.dof(), kind: kind_name(sc.kind) };
+        let at = ScenarioAt { path: &design.path, index, name: &sc.name, n: design.dof(), kind: kind_name(sc.kind) };
         if sc.name.trim().is_empty() || sc.name.contains(['/', '\\']) {
             return Err(at.bad("name", format!("`{}` cannot name an output file", sc.name)));
         }
-        let duration = sc.duration.unwrap_or(if sc.kind == ScenarioKind::Switch { 100.0 } else { 20.0 });
+        let duration = sc.duration_s();
         if !(duration.is_finite() && duration > 0.0 && duration <= 1e5) {
             return Err(at.bad("duration", format!("must be positive and at most 100000 (s), got {duration}")));
         }
@@ -208,6 +213,7 @@ impl ScenarioSpec {
         at.unused("e0", sc.e0.is_some())?;
         at.unused("ed", sc.ed.is_some())?;
         at.unused("variants", !sc.variants.is_empty())?;
+        at.unused("modes", !sc.modes.is_empty())?;
         if sc.starts.is_empty() && sc.releases.is_empty() {
             return Err(
                 at.bad("releases", "a free scenario needs releases = [{ mode, energy }] or starts = [[…]]".into())
@@ -231,9 +237,9 @@ impl ScenarioSpec {
         Ok(())
     }
 
-    /// A switch scenario: two joints, a first mode given as an angle θ, finite steps, a positive
-    /// interval making at most 10000 steps, a positive energy; no starts, releases or swing-up
-    /// keys.
+    /// A switch scenario: either `modes` (any number of joints, each a valid mode, without `mode`
+    /// and `step`) or, on two joints only, a first mode θ and finite steps; a positive interval
+    /// making at most 10000 steps, a positive energy; no starts, releases or swing-up keys.
     fn check_switch(&self, at: &ScenarioAt, duration: f64) -> Result<()> {
         let sc = self;
         at.unused("starts", !sc.starts.is_empty())?;
@@ -241,12 +247,32 @@ impl ScenarioSpec {
         at.unused("e0", sc.e0.is_some())?;
         at.unused("ed", sc.ed.is_some())?;
         at.unused("variants", !sc.variants.is_empty())?;
-        if at.n != 2 {
-            return Err(at.bad("kind", format!("mode switching by θ steps needs two joints; this arm has {}", at.n)));
-        }
-        if let Some(m) = &sc.mode {
+        if !sc.modes.is_empty() {
+            // The n-joint form: a list of modes; `mode` and `step` belong to the θ form.
+            if sc.mode.is_some() {
+                return Err(at.bad("mode", "give either modes = [[…], …] or mode and step, not both".into()));
+            }
+            if sc.step.is_some() {
+                return Err(at.bad("step", "give either modes = [[…], …] or mode and step, not both".into()));
+            }
+            for (k, m) in sc.modes.iter().enumerate() {
+                at.mode(&format!("modes[{k}]"), m)?;
+            }
+        } else if at.n != 2 {
+            return Err(at.bad(
+                "modes",
+                format!(
+                    "a switch on a {}-joint arm needs modes = [[…], …]: one direction of {} joint velocities per step (mode and step by θ are for two joints)",
+                    at.n, at.n
+                ),
+            ));
+        } else if let Some(m) = &sc.mode {
             if matches!(m, ModeSpec::Vector(_)) {
-                return Err(at.bad("mode", "give the first mode of a switch scenario as an angle θ".into()));
+                return Err(at.bad(
+                    "mode",
+                    "give the first mode of a θ switch as an angle θ, or the steps' directions as modes = [[…], …]"
+                        .into(),
+                ));
             }
             at.mode("mode", m)?;
         }
@@ -278,6 +304,7 @@ impl ScenarioSpec {
         at.unused("step", sc.step.is_some())?;
         at.unused("every", sc.every.is_some())?;
         at.unused("energy_target", sc.energy_target.is_some())?;
+        at.unused("modes", !sc.modes.is_empty())?;
         at.energy("e0", sc.e0.unwrap_or(5.0))?;
         let schedule: Vec<(f64, f64)> = match sc.ed.clone().unwrap_or(EnergySpec::Value(20.0)) {
             EnergySpec::Value(v) => vec![(0.0, v)],
@@ -311,13 +338,14 @@ impl ScenarioSpec {
 struct ScenarioAt<'a> {
     path: &'a std::path::Path,
     index: usize,
+    name: &'a str,
     n: usize,
     kind: &'static str,
 }
 
 impl ScenarioAt<'_> {
     fn bad(&self, f: &str, r: String) -> Error {
-        Error::invalid(self.path, format!("scenario[{}].{f}", self.index), r)
+        Error::invalid(self.path, format!("scenario[{}].{f}", self.index), format!("(scenario `{}`) {r}", self.name))
     }
 
     /// A key given that the scenario's kind does not take.
@@ -357,6 +385,16 @@ impl ScenarioAt<'_> {
 }
 
 impl ScenarioSpec {
+    /// The run's duration, s: `duration`, or by default 20 s; a switch 100 s, or with `modes`
+    /// one `every` per mode (15 s each by default), so that each mode is visited once.
+    pub fn duration_s(&self) -> f64 {
+        self.duration.unwrap_or(match self.kind {
+            ScenarioKind::Switch if !self.modes.is_empty() => self.modes.len() as f64 * self.every.unwrap_or(15.0),
+            ScenarioKind::Switch => 100.0,
+            _ => 20.0,
+        })
+    }
+
     /// The energies (U − U(q_eq), J) the scenario asks for, each with the field that asks:
     /// release energies, a switch's energy, a swing-up's start and target energies (defaults
     /// included, as `resolve` uses them).

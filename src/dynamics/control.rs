@@ -49,7 +49,7 @@ use nalgebra::DVector;
 use crate::design::controllers::{Blend, ControllerSettings, EnergyLaw, LabelGradient, ModeInertia};
 use crate::error::{Error, Result};
 use crate::geodesic::MetricFrame;
-use crate::geodesic::label::{LogField, LogValue, angle_label, sphere_distance};
+use crate::geodesic::label::{LogField, LogValue, SphereError, angle_label, sphere_distance, sphere_error};
 use crate::geodesic::logmap::wrap_angle;
 use crate::model::{Chain, Workspace};
 use crate::potential::{GroupedSet, Potential, SpringSet};
@@ -156,7 +156,7 @@ pub fn mode_torque(
     let d_theta = 2.0 * settings.zeta * (settings.k_theta * m_theta).sqrt();
     let f = -settings.k_theta * delta - d_theta * dot(g, qd);
     match settings.inertia {
-        ModeInertia::Paper => {
+        ModeInertia::Paper | ModeInertia::Auto => {
             for i in 0..n {
                 tau[i] = f * (0..n).map(|j| m[i * n + j] * g[j]).sum::<f64>();
             }
@@ -166,6 +166,54 @@ pub fn mode_torque(
                 tau[i] = f * g[i];
             }
         }
+    }
+}
+
+/// The mode torque on the sphere of modes (three or more joints, or a direction target on two):
+/// with the tangent error e and the Jacobian J of [`sphere_error`] (rows rᵢ, already in the chosen
+/// gradient variant) and `minv_jt` = M⁻¹rᵢ row by row,
+///
+/// τ_θ = M Jᵀ (−k_θ e − d_θ J q̇),  d_θ = 2ζ√(k_θ m_θ),  m_θ = (n − 1) / tr(J M⁻¹ Jᵀ),
+///
+/// the gradient of ½k_θ|e|² = ½k_θΔ² plus damping of the label's whole velocity on the sphere
+/// (not only its radial part, as a law on the scalar Δ would). m_θ is the mean inertia of the
+/// n − 1 directions of the sphere. For two joints with the Euclidean frame J = t gᵀ, e = Δθ t
+/// (t the circle's unit tangent) and tr(J M⁻¹ Jᵀ) = gᵀM⁻¹g, so this is [`mode_torque`]
+/// exactly (a test checks it). Writes into `tau`.
+pub fn sphere_mode_torque(
+    settings: &ControllerSettings,
+    err: &SphereError,
+    minv_jt: &[f64],
+    qd: &[f64],
+    m: &[f64],
+    tau: &mut [f64],
+) {
+    let n = qd.len();
+    let j = &err.jacobian;
+    let trace: f64 = (0..n).map(|i| dot(&j[i * n..(i + 1) * n], &minv_jt[i * n..(i + 1) * n])).sum();
+    if trace <= 0.0 || !trace.is_finite() {
+        tau.fill(0.0);
+        return;
+    }
+    let m_theta = (n as f64 - 1.0).max(1.0) / trace;
+    let d_theta = 2.0 * settings.zeta * (settings.k_theta * m_theta).sqrt();
+    // F = Jᵀ f, f = −k e − d J q̇.
+    let mut force = [0.0f64; 16];
+    let force = if n <= 16 { &mut force[..n] } else { return tau.fill(0.0) };
+    for i in 0..n {
+        let row = &j[i * n..(i + 1) * n];
+        let f = -settings.k_theta * err.error[i] - d_theta * dot(row, qd);
+        for (fk, r) in force.iter_mut().zip(row) {
+            *fk += f * r;
+        }
+    }
+    match settings.inertia {
+        ModeInertia::Paper => {
+            for i in 0..n {
+                tau[i] = dot(&m[i * n..(i + 1) * n], force);
+            }
+        }
+        ModeInertia::Consistent | ModeInertia::Auto => tau.copy_from_slice(force),
     }
 }
 
@@ -324,6 +372,9 @@ pub struct Controller<'a> {
     ws: Option<Workspace>,
     gbuf: Vec<f64>,
     buf: Vec<f64>,
+    /// The tangent error and Jacobian of the sphere law, and M⁻¹Jᵀ row by row.
+    serr: SphereError,
+    minv_jt: Vec<f64>,
 }
 
 impl<'a> Controller<'a> {
@@ -377,6 +428,8 @@ impl<'a> Controller<'a> {
             ws: Some(chain.workspace()),
             gbuf: Vec::with_capacity(n),
             buf: vec![0.0; n],
+            serr: SphereError::zeros(n),
+            minv_jt: vec![0.0; n * n],
         };
         let q_eq = c.q_eq.clone();
         c.u0 = c.nominal_potential(&q_eq)?;
@@ -571,18 +624,42 @@ impl<'a> Controller<'a> {
                     reason: "mode control needs a label".into(),
                 })?;
                 field.eval(q, &mut self.lv)?;
-                let mut g = std::mem::take(&mut self.gbuf);
-                let delta = match mode.target(t) {
+                match mode.target(t) {
                     ModeTarget::Angle(theta_d) if n == 2 => {
                         let (theta, grad) = angle_label(&self.lv);
+                        let mut g = std::mem::take(&mut self.gbuf);
                         g.clear();
                         g.extend_from_slice(&grad);
-                        wrap_angle(theta - theta_d)
+                        if self.settings.gradient == LabelGradient::Paper {
+                            for gi in g.iter_mut() {
+                                *gi *= dist2;
+                            }
+                        }
+                        self.buf.copy_from_slice(&g);
+                        ws.solve(&mut self.buf);
+                        let delta = wrap_angle(theta - theta_d);
+                        mode_torque(&self.settings, delta, &g, &self.buf, qd, ws.mass(), &mut self.out.mode);
+                        self.gbuf = g;
                     }
                     ModeTarget::Direction(u) => {
-                        let (delta, grad) = sphere_distance(&self.lv, &self.frame, u);
-                        g = grad;
-                        delta
+                        sphere_error(&self.lv, &self.frame, u, &mut self.serr);
+                        if self.settings.gradient == LabelGradient::Paper {
+                            for ji in self.serr.jacobian.iter_mut() {
+                                *ji *= dist2;
+                            }
+                        }
+                        self.minv_jt.copy_from_slice(&self.serr.jacobian);
+                        for row in self.minv_jt.chunks_mut(n) {
+                            ws.solve(row);
+                        }
+                        sphere_mode_torque(
+                            &self.settings,
+                            &self.serr,
+                            &self.minv_jt,
+                            qd,
+                            ws.mass(),
+                            &mut self.out.mode,
+                        );
                     }
                     ModeTarget::Angle(_) => {
                         return Err(Error::Setting {
@@ -590,19 +667,10 @@ impl<'a> Controller<'a> {
                             reason: "an angle mode needs two joints; give a direction vector".into(),
                         });
                     }
-                };
-                if self.settings.gradient == LabelGradient::Paper {
-                    for gi in g.iter_mut() {
-                        *gi *= dist2;
-                    }
                 }
-                self.buf.copy_from_slice(&g);
-                ws.solve(&mut self.buf);
-                mode_torque(&self.settings, delta, &g, &self.buf, qd, ws.mass(), &mut self.out.mode);
                 for t in self.out.mode.iter_mut() {
                     *t *= weight;
                 }
-                self.gbuf = g;
             }
         }
         // Energy regulation and damping compensation.
@@ -704,6 +772,88 @@ mod tests {
         // The hard switch steps from 0 to 1 at ε.
         assert_eq!(blend_weight(Blend::Hard, eps, eps), 0.0);
         assert_eq!(blend_weight(Blend::Hard, eps, eps + 1e-12), 1.0);
+    }
+
+    #[test]
+    fn the_sphere_law_is_the_papers_law_for_two_joints() {
+        use crate::geodesic::label::ExactLog;
+        use crate::numerics::ode::OdeSettings;
+        // The paper's double pendulum; the n-joint law on the sphere of the Euclidean frame
+        // (directions of joint velocity, the paper's label) against the paper's law on θ.
+        let chain = Chain::paper_double_pendulum();
+        let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
+        let frame = MetricFrame::new(&nalgebra::DMatrix::identity(2, 2)).unwrap();
+        let mut log = ExactLog::new(&chain, &q_eq, OdeSettings::default());
+        let mut lv = LogValue::zeros(2);
+        for (q, qd, theta_d) in [([0.35, 1.95], [0.4, -1.1], 0.3), ([-0.5, 1.2], [-0.2, 0.9], -2.9)] {
+            log.eval(&q, &mut lv).unwrap();
+            let mq = chain.mass_matrix(&DVector::from_column_slice(&q));
+            let m: Vec<f64> = (0..4).map(|k| mq[(k / 2, k % 2)]).collect();
+            let minv = mq.clone().try_inverse().unwrap();
+            // `auto` is the paper's form on θ and the consistent one on the sphere: compare like
+            // with like.
+            for inertia in [ModeInertia::Paper, ModeInertia::Consistent] {
+                let s = ControllerSettings { inertia, k_theta: 2.0, ..ControllerSettings::default() };
+                let (theta, g) = angle_label(&lv);
+                let minv_g: Vec<f64> = (0..2).map(|i| minv[(i, 0)] * g[0] + minv[(i, 1)] * g[1]).collect();
+                let mut paper = [0.0; 2];
+                mode_torque(&s, wrap_angle(theta - theta_d), &g, &minv_g, &qd, &m, &mut paper);
+                let u_d = DVector::from_vec(vec![(theta_d / 2.0).cos(), (theta_d / 2.0).sin()]);
+                let mut err = SphereError::zeros(2);
+                sphere_error(&lv, &frame, &u_d, &mut err);
+                assert!((err.delta - wrap_angle(theta - theta_d).abs()).abs() < 1e-12);
+                let j = &err.jacobian;
+                let minv_jt: Vec<f64> = (0..2)
+                    .flat_map(|r| (0..2).map(move |i| (r, i)))
+                    .map(|(r, i)| minv[(i, 0)] * j[r * 2] + minv[(i, 1)] * j[r * 2 + 1])
+                    .collect();
+                let mut sphere = [0.0; 2];
+                sphere_mode_torque(&s, &err, &minv_jt, &qd, &m, &mut sphere);
+                for i in 0..2 {
+                    assert!(
+                        (sphere[i] - paper[i]).abs() < 1e-9 * (1.0 + paper[i].abs()),
+                        "{inertia:?}: {sphere:?} vs {paper:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_sphere_error_is_smooth_through_the_target_and_its_jacobian_is_the_directions_rate() {
+        use crate::geodesic::label::ExactLog;
+        use crate::numerics::ode::OdeSettings;
+        let chain = Chain::paper_double_pendulum();
+        let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
+        let frame = MetricFrame::new(&chain.mass_matrix(&q_eq)).unwrap();
+        let mut log = ExactLog::new(&chain, &q_eq, OdeSettings::default());
+        let mut lv = LogValue::zeros(2);
+        let q = [0.3, 2.0];
+        log.eval(&q, &mut lv).unwrap();
+        // The target is the label itself: e = 0, Δ = 0.
+        let u = frame.to_frame(&DVector::from_column_slice(&lv.v)).normalize();
+        let mut err = SphereError::zeros(2);
+        sphere_error(&lv, &frame, &u, &mut err);
+        assert!(err.delta < 1e-7 && err.error.iter().all(|e| e.abs() < 1e-7), "{err:?}");
+        // Against −u (the same line) too.
+        sphere_error(&lv, &frame, &(-&u), &mut err);
+        assert!(err.delta < 1e-7 && err.error.iter().all(|e| e.abs() < 1e-7), "{err:?}");
+        // J q̇ is the rate of 2u: finite differences along q̇.
+        let qd = [0.7, -0.4];
+        sphere_error(&lv, &frame, &u, &mut err);
+        let h = 1e-6;
+        let dir = |q: [f64; 2], log: &mut ExactLog| {
+            let mut l = LogValue::zeros(2);
+            log.eval(&q, &mut l).unwrap();
+            frame.to_frame(&DVector::from_column_slice(&l.v)).normalize()
+        };
+        let up = dir([q[0] + h * qd[0], q[1] + h * qd[1]], &mut log);
+        let um = dir([q[0] - h * qd[0], q[1] - h * qd[1]], &mut log);
+        for i in 0..2 {
+            let fd = (up[i] - um[i]) / h; // 2 du/dt
+            let jq = err.jacobian[i * 2] * qd[0] + err.jacobian[i * 2 + 1] * qd[1];
+            assert!((fd - jq).abs() < 1e-5 * (1.0 + fd.abs()), "{fd} vs {jq}");
+        }
     }
 
     #[test]

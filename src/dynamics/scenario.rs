@@ -72,6 +72,88 @@ pub struct RunMetrics {
     pub peak_demanded_torque_nm: f64,
     /// Seconds the controllers spent saturated by `max_torque` (0 without a limit).
     pub saturated_s: f64,
+    /// What the springs save: the same trajectory driven by the actuators alone.
+    pub savings: Savings,
+}
+
+/// The load on the actuators along one trajectory (see [`Savings`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ActuatorLoad {
+    /// ∫|τᵀq̇| dt, J: the mechanical energy through the actuators.
+    pub energy_j: f64,
+    /// Largest |τᵢ| over joints and samples, N·m.
+    pub peak_torque_nm: f64,
+    /// √(∫ Σᵢ τᵢ² dt / (n T)): the root mean square over joints and time, N·m.
+    pub rms_torque_nm: f64,
+    /// ∫ Σᵢ τᵢ²/k_m,ᵢ² dt, J: the copper losses (k_m from `[controllers] motor_constant`).
+    pub copper_loss_j: f64,
+}
+
+/// What the springs save on a closed-loop run: the actuators' load with the springs
+/// (τ_act = τ_θ + τ_E + τ_comp) against the load of the same motion q(t) on the arm without
+/// springs, where the actuators must also supply what the springs gave, τ_rigid = τ_act + τ_spring
+/// (τ_spring = −∂U_e/∂q, the `tau_spring` columns). Integrals are sums over the output samples
+/// (left rectangles, as `sim_<name>.csv` holds them, so a hand computation from the CSV matches);
+/// the fractions saved are 1 − with/without.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Savings {
+    /// The actuators with the springs.
+    pub with_springs: ActuatorLoad,
+    /// The actuators alone on the arm without springs, same motion.
+    pub without_springs: ActuatorLoad,
+    /// 1 − energy with / energy without.
+    pub energy_saved: f64,
+    /// 1 − peak with / peak without.
+    pub peak_torque_saved: f64,
+    /// 1 − RMS with / RMS without.
+    pub rms_torque_saved: f64,
+    /// 1 − copper losses with / without.
+    pub copper_loss_saved: f64,
+}
+
+impl Savings {
+    /// The savings of a run from its samples; `motor_constant` k_m per joint (N·m/√W).
+    pub fn of(trace: &crate::dynamics::simulate::Trace, motor_constant: &[f64]) -> Savings {
+        let n = trace.n;
+        let w = crate::dynamics::simulate::SOURCES.len() * n;
+        // Sources: 0 spring, 3 mode, 4 energy, 5 compensation.
+        let actuator = |k: usize, i: usize| {
+            let tau = &trace.tau[k * w..(k + 1) * w];
+            tau[3 * n + i] + tau[4 * n + i] + tau[5 * n + i]
+        };
+        let spring = |k: usize, i: usize| trace.tau[k * w + i];
+        let load = |with_springs: bool| {
+            let torque = |k: usize, i: usize| actuator(k, i) + if with_springs { 0.0 } else { spring(k, i) };
+            let (mut energy, mut peak, mut square, mut copper) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            let samples = trace.t.len();
+            for k in 0..samples {
+                for i in 0..n {
+                    peak = peak.max(torque(k, i).abs());
+                }
+                if k + 1 == samples {
+                    break;
+                }
+                let dt = trace.t[k + 1] - trace.t[k];
+                let power: f64 = (0..n).map(|i| torque(k, i) * trace.qd[k * n + i]).sum();
+                energy += power.abs() * dt;
+                square += (0..n).map(|i| torque(k, i).powi(2)).sum::<f64>() * dt;
+                copper += (0..n).map(|i| (torque(k, i) / motor_constant[i]).powi(2)).sum::<f64>() * dt;
+            }
+            let span = trace.t.last().copied().unwrap_or(0.0) - trace.t.first().copied().unwrap_or(0.0);
+            let rms = if span > 0.0 { (square / (n as f64 * span)).sqrt() } else { 0.0 };
+            ActuatorLoad { energy_j: energy, peak_torque_nm: peak, rms_torque_nm: rms, copper_loss_j: copper }
+        };
+        let (with, without) = (load(true), load(false));
+        let saved = |a: f64, b: f64| if b > 0.0 { 1.0 - a / b } else { 0.0 };
+        Savings {
+            with_springs: with,
+            without_springs: without,
+            energy_saved: saved(with.energy_j, without.energy_j),
+            peak_torque_saved: saved(with.peak_torque_nm, without.peak_torque_nm),
+            rms_torque_saved: saved(with.rms_torque_nm, without.rms_torque_nm),
+            copper_loss_saved: saved(with.copper_loss_j, without.copper_loss_j),
+        }
+    }
 }
 
 /// The deviation of a free motion from the geodesic of its start's mode.
@@ -141,10 +223,7 @@ impl ScenarioSpec {
         let base = RunBase {
             design,
             index,
-            duration: self.duration.unwrap_or(match self.kind {
-                ScenarioKind::Switch => 100.0,
-                _ => 20.0,
-            }),
+            duration: self.duration_s(),
             damping: self.damping.unwrap_or(if self.kind == ScenarioKind::Swingup { 0.3 } else { 0.0 }),
             frame: MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?,
         };
@@ -190,23 +269,37 @@ impl ScenarioSpec {
     }
 
     /// A switch scenario's run: started on the first mode at its energy, the mode stepped by
-    /// `step` every `every` seconds, the start energy held unless `energy_target = "none"`.
+    /// `step` (or to the next of `modes`) every `every` seconds, the start energy held unless `energy_target = "none"`.
     fn switch_run(&self, base: &RunBase, energy_at: &mut dyn FnMut(&[f64]) -> Result<f64>) -> Result<RunSpec> {
-        // `check` refused a direction vector as the first mode of a switch.
-        let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
-            ModeSpec::Angle(a) => a,
-            ModeSpec::Vector(_) => 0.0,
-        };
-        let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
         let every = self.every.unwrap_or(15.0);
         let energy = self.energy.unwrap_or(10.0);
-        let u = mode_direction(&ModeSpec::Angle(theta0), base.design.dof(), &base.frame)
-            .map_err(|e| base.bad("mode", e))?;
+        let n = base.design.dof();
+        let steps = ((base.duration / every).ceil() as usize).max(1);
+        let (u, schedule): (DVector<f64>, Vec<(f64, ModeTarget)>) = if self.modes.is_empty() {
+            // The θ form (two joints; `check` refused a direction vector as its first mode).
+            let theta0 = match self.mode.clone().unwrap_or(ModeSpec::Angle(0.0)) {
+                ModeSpec::Angle(a) => a,
+                ModeSpec::Vector(_) => 0.0,
+            };
+            let step = self.step.map(|a| a.0).unwrap_or(std::f64::consts::FRAC_PI_6);
+            let u = mode_direction(&ModeSpec::Angle(theta0), n, &base.frame).map_err(|e| base.bad("mode", e))?;
+            let schedule = (0..steps)
+                .map(|k| (k as f64 * every, ModeTarget::Angle(wrap_angle(theta0 + step * k as f64))))
+                .collect();
+            (u, schedule)
+        } else {
+            // Directions on the metric's unit sphere, cycled over the run.
+            let mut targets = Vec::with_capacity(self.modes.len());
+            for (k, m) in self.modes.iter().enumerate() {
+                let u = mode_direction(m, n, &base.frame).map_err(|e| base.bad(&format!("modes[{k}]"), e))?;
+                targets.push((base.frame.to_frame(&u).normalize(), u));
+            }
+            let schedule = (0..steps)
+                .map(|k| (k as f64 * every, ModeTarget::Direction(targets[k % targets.len()].0.clone())))
+                .collect();
+            (targets[0].1.clone(), schedule)
+        };
         let q0 = start_on_mode(base.design, &u, energy, energy_at).map_err(|e| base.bad("energy", e))?;
-        let steps = (base.duration / every).ceil() as usize;
-        let schedule = (0..steps.max(1))
-            .map(|k| (k as f64 * every, ModeTarget::Angle(wrap_angle(theta0 + step * k as f64))))
-            .collect();
         let mut run = base.run("switch".into(), q0);
         run.mode = Some(ModeControl { schedule });
         if self.energy_target.unwrap_or_default() == EnergyTarget::Hold {
@@ -306,7 +399,8 @@ impl RunBase<'_> {
 
     /// An error on the scenario's key `f`.
     fn bad(&self, f: &str, r: String) -> Error {
-        Error::invalid(&self.design.path, format!("scenario[{}].{f}", self.index), r)
+        let name = self.design.scenarios.get(self.index).map_or("", |s| s.name.as_str());
+        Error::invalid(&self.design.path, format!("scenario[{}].{f}", self.index), format!("(scenario `{name}`) {r}"))
     }
 }
 
@@ -379,12 +473,7 @@ pub fn start_on_mode(
 }
 
 /// Metrics of a run. `controllers` gives ε (samples inside the ε-ball are skipped for labels).
-pub fn metrics(
-    result: &RunResult,
-    spec: &RunSpec,
-    _controllers: &ControllerSettings,
-    kind: ScenarioKind,
-) -> RunMetrics {
+pub fn metrics(result: &RunResult, spec: &RunSpec, controllers: &ControllerSettings, kind: ScenarioKind) -> RunMetrics {
     let tr = &result.trace;
     let deg = |x: f64| x.to_degrees();
     let two = tr.n == 2;
@@ -464,6 +553,7 @@ pub fn metrics(
         peak_demanded_torque_nm: result.peak_demanded_torque,
         saturated_s: result.saturated_s,
         geodesic_deviation: None,
+        savings: Savings::of(tr, &controllers.motor_constants(tr.n)),
     }
 }
 

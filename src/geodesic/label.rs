@@ -367,6 +367,63 @@ pub fn sphere_distance(l: &LogValue, frame: &MetricFrame, u_d: &DVector<f64>) ->
     (delta, grad)
 }
 
+/// The mode error of an n-joint arm on the unit sphere of the metric at q_eq, in the tangent
+/// space of the current direction (see [`sphere_error`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereError {
+    /// Δ = 2·∠(±u, u_d) ∈ [0, π]: the doubled angle between the label and the target line.
+    pub delta: f64,
+    /// The error vector e in frame coordinates, tangent to the sphere at ±u, |e| = Δ, pointing
+    /// away from the target (so that −k e pulls towards it).
+    pub error: Vec<f64>,
+    /// J = 2 (I − uuᵀ) Lᵀ (∂v/∂q) / |Lᵀv| (row-major n × n, frame rows, joint columns): the rate
+    /// of the doubled direction, J q̇ = d(2u)/dt.
+    pub jacobian: Vec<f64>,
+}
+
+impl SphereError {
+    /// Zeros for n joints.
+    pub fn zeros(n: usize) -> Self {
+        SphereError { delta: 0.0, error: vec![0.0; n], jacobian: vec![0.0; n * n] }
+    }
+}
+
+/// The mode error of q's label against a target line ±`u_d` (a unit vector in the metric frame),
+/// as a tangent vector on the metric's unit sphere, with the Jacobian of the label direction.
+///
+/// Why a vector and not the scalar Δ: for three or more joints the modes form a sphere of
+/// dimension n − 1 ≥ 2, and Δ is a cone around the target (its gradient has unit length and
+/// turns with the approach direction), so a law on Δ alone damps only the radial part of the
+/// error and lets the label circle round the target. The tangent vector e = log_{±u}(u_d), doubled,
+/// is smooth through the target (½|e|² = ½Δ²), and J pulls it back to joint space through
+/// d(log) = ∂v/∂q. For two joints with the Euclidean frame it is the paper's Δθ along the circle's
+/// tangent, and J = t ∂θ/∂q: the paper's law exactly (see `dynamics::control`).
+pub fn sphere_error(l: &LogValue, frame: &MetricFrame, u_d: &DVector<f64>, out: &mut SphereError) {
+    let n = l.v.len();
+    let w = frame.to_frame(&DVector::from_column_slice(&l.v));
+    let norm = w.norm().max(1e-300);
+    let u = &w / norm;
+    let c = u.dot(u_d);
+    let sign = if c >= 0.0 { 1.0 } else { -1.0 };
+    let a = (c * sign).clamp(-1.0, 1.0);
+    let alpha = a.acos();
+    out.delta = 2.0 * alpha;
+    let sin = (1.0 - a * a).max(0.0).sqrt();
+    // 2α/sin α → 2 at the target: the error is smooth there.
+    let factor = if sin > 1e-9 { 2.0 * alpha / sin } else { 2.0 };
+    for i in 0..n {
+        out.error[i] = -factor * (sign * u_d[i] - a * u[i]);
+    }
+    // J = 2/|w| (I − uuᵀ) Lᵀ ∂v/∂q, column by column.
+    for j in 0..n {
+        let col = frame.to_frame(&DVector::from_iterator(n, (0..n).map(|i| l.dvdq[i * n + j])));
+        let along = u.dot(&col);
+        for i in 0..n {
+            out.jacobian[i * n + j] = 2.0 * (col[i] - along * u[i]) / norm;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
