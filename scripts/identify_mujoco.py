@@ -7,11 +7,16 @@ Usage:
 The pipeline, every step through the springfit binary except the physics:
 
 1. `springfit fit DESIGN` (or --bom), and a build of it: every spring and cam's rate off by a
-   known delta drawn uniformly in +-tolerance (one delta per cam; the trims at the rates the
-   builder set, as `identify` assumes by default), written as a bill of materials;
-2. `springfit export --mujoco` of that build; MuJoCo gets joint damping and Coulomb friction
-   (frictionloss, its constraint time constant at two steps so that it acts as Coulomb friction
-   rather than lagging a reversal by MuJoCo's default 20 ms);
+   known delta drawn uniformly in +-tolerance (one delta per cam; the trims too, unless
+   --exact-trims), written as a bill of materials;
+2. the built arm as MuJoCo sees it, written by this script and not by springfit: an MJCF of the
+   planar chain from the design's `[[robot.links]]` (masses, lengths, centres of mass, inertias,
+   gravity; q1 from the x axis, each joint relative to the link before), and the built bill's
+   springs applied by this script's own `mjcb_passive` from the element laws of docs/theory.md
+   (torque -k u'(a.q - x0) a). With --exported (and for cams or URDF robots, which it needs),
+   `springfit export --mujoco` of the build instead. MuJoCo gets joint damping and Coulomb
+   friction (frictionloss, its constraint time constant at two steps so that it acts as Coulomb
+   friction rather than lagging a reversal by MuJoCo's default 20 ms);
 3. `springfit identify --plan` proposes releases; MuJoCo swings the arm from rest at them (as
    many as fit in --seconds minus --driven, each for the plan's log length) and drives it from
    q_eq with a multisine torque for --driven seconds, all at the plan's rate (1 kHz). The torque
@@ -76,9 +81,9 @@ def write_csv(path, header, rows):
         csv.writer(f, lineterminator="\n").writerows([header] + rows)
 
 
-def draw_build(bom_path, out_dir, tolerance, rng):
+def draw_build(bom_path, out_dir, tolerance, rng, exact_trims):
     """The built bill: each line's rate times 1 + delta (a cam line scales its follower rate and
-    its file's coefficients); trims as drawn. Returns {id: delta}."""
+    its file's coefficients); trims stray too unless `exact_trims`. Returns {id: delta}."""
     header, rows = read_bom(bom_path)
     col = {n: i for i, n in enumerate(header)}
     deltas = {}
@@ -87,7 +92,9 @@ def draw_build(bom_path, out_dir, tolerance, rng):
     for r in rows:
         r = list(r)
         trim = r[col["trim_min"]] != ""
-        d = 0.0 if trim else float(rng.uniform(-tolerance, tolerance))
+        d = float(rng.uniform(-tolerance, tolerance))
+        if trim and exact_trims:
+            d = 0.0
         deltas[r[col["id"]]] = d
         k = float(r[col["stiffness"]]) * (1.0 + d)
         r[col["stiffness"]] = repr(k)
@@ -119,6 +126,56 @@ def measured_bill(bom_path, out_path, rates):
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(bom_path.parent / r[col["file"]], dst)
     write_csv(out_path, header + ["measured_stiffness"], out)
+
+
+def independent_model(design_path, built_bom, timestep):
+    """The built arm for MuJoCo without springfit's dynamics: (MjModel, passive callback). The
+    planar chain from the design file's links, the springs from the built bill's lines."""
+    import tomllib
+
+    design = tomllib.loads(Path(design_path).read_text())
+    robot = design.get("robot", {})
+    links = robot.get("links")
+    if not links or "urdf" in robot:
+        raise Failed(f"{design_path}: the script builds planar [[robot.links]] arms only; use --exported")
+    gravity = list(robot.get("gravity", [0.0, 0.0])) + [0.0]
+    body, close = "", ""
+    for i, link in enumerate(links):
+        pos = 0.0 if i == 0 else float(links[i - 1]["length"])
+        inertia = float(link["inertia"])
+        body += (f'<body name="link{i + 1}" pos="{pos!r} 0 0"><joint name="q{i + 1}" type="hinge" axis="0 0 1"/>'
+                 f'<inertial pos="{float(link["com"])!r} 0 0" mass="{float(link["mass"])!r}" '
+                 f'diaginertia="{inertia!r} {inertia!r} {inertia!r}"/>'
+                 f'<geom type="capsule" fromto="0 0 0 {float(link["length"])!r} 0 0" size="0.02" mass="0" '
+                 f'contype="0" conaffinity="0"/>')
+        close += "</body>"
+    xml = (f'<mujoco model="{design.get("name", "arm")}"><compiler angle="radian" inertiafromgeom="false"/>'
+           f'<option timestep="{timestep!r}" integrator="RK4" gravity="{gravity[0]!r} {gravity[1]!r} 0"/>'
+           f"<worldbody>{body}{close}</worldbody></mujoco>")
+    model = mujoco.MjModel.from_xml_string(xml)
+    header, rows = read_bom(built_bom)
+    col = {c: i for i, c in enumerate(header)}
+    slopes = {
+        ("linear", ""): lambda d: d,
+        ("cubic", ""): lambda d: d ** 3,
+        ("crank", ""): np.sin,
+        ("compression", "+"): lambda d: np.maximum(d, 0.0),
+        ("compression", "-"): lambda d: np.minimum(d, 0.0),
+    }
+    springs = []
+    for r in rows:
+        key = (r[col["profile"]], r[col["side"]])
+        if key not in slopes:
+            raise Failed(f"{built_bom}: {r[col['id']]}: a {key[0]} element; the script's own springs are linear, "
+                         "cubic, crank and compression ones: use --exported")
+        a = np.array([float(x) for x in r[col["coupling"]].split(";")])
+        springs.append((slopes[key], a, float(r[col["offset_rad"]]), float(r[col["stiffness"]])))
+
+    def passive(m, d):
+        for slope, a, x0, k in springs:
+            d.qfrc_passive[:] -= k * slope(float(a @ d.qpos) - x0) * a
+
+    return model, passive
 
 
 def simulate(model, q0, seconds, drive, rng, bits, noise, torque_noise):
@@ -199,6 +256,9 @@ def main():
     ap.add_argument("--bits", type=int, default=17, help="encoder bits per turn (default 17)")
     ap.add_argument("--noise", type=float, default=1.0, help="encoder noise before quantisation, counts rms")
     ap.add_argument("--torque-noise", type=float, default=0.01, help="noise of the logged torques, N*m rms")
+    ap.add_argument("--exact-trims", action="store_true", help="the trims at the rates the bill gives")
+    ap.add_argument("--exported", action="store_true",
+                    help="MuJoCo's model from `springfit export --mujoco` instead of the script's own")
     ap.add_argument("--mujoco-friction", action="store_true",
                     help="keep MuJoCo's default friction time constant (0.02 s: the friction lags each reversal)")
     ap.add_argument("--no-tune", action="store_true", help="stop after the identification")
@@ -208,6 +268,8 @@ def main():
                          "its p99 within 10 %% of tuning from the true rates")
     ap.add_argument("--max-rms", type=float, default=0.005, help="the rms bound of --check (default 0.005)")
     ap.add_argument("--max-error", type=float, help="with --check, also a bound on every identified delta's error")
+    ap.add_argument("--max-damping-error", type=float, default=0.1,
+                    help="the bound of --check on the damping's error, a fraction (default 0.1)")
     args = ap.parse_args()
     out = Path(args.out)
     binary = Path(args.springfit)
@@ -223,25 +285,28 @@ def main():
         else:
             sf("fit", design, "--out", out / "fit")
             bom = out / "fit/bom.csv"
-        truth = draw_build(bom, out / "build", args.tolerance, rng)
-        # A build's rates hold its own equilibrium, not q_eq: a copy of the design lets its bill
-        # through (`[equilibrium] bill_tolerance`) for the export.
-        sf("export", tolerant_copy(design, out / "build"), "--bom", out / "build/built.csv", "--mujoco", "--out", out / "mj")
-        xml = next((out / "mj").glob("*.xml"))
+        truth = draw_build(bom, out / "build", args.tolerance, rng, args.exact_trims)
         sf("identify", design, "--bom", bom, "--plan", "--out", out / "plan")
         plan = json.loads((out / "plan/plan.json").read_text())
+        if args.exported:
+            # A build's rates hold its own equilibrium, not q_eq: a copy of the design lets its bill
+            # through (`[equilibrium] bill_tolerance`) for the export.
+            sf("export", tolerant_copy(design, out / "build"), "--bom", out / "build/built.csv", "--mujoco", "--out", out / "mj")
+            model = mujoco.MjModel.from_xml_path(str(next((out / "mj").glob("*.xml"))))
+            passive = Passive(model)
+            callback = passive if len(passive) else None
+        else:
+            model, callback = independent_model(design, out / "build/built.csv", 1.0 / plan["rate_hz"])
     except Failed as e:
         print(f"identify_mujoco: {e}", file=sys.stderr)
         return 2
 
-    model = mujoco.MjModel.from_xml_path(str(xml))
     model.opt.timestep = 1.0 / plan["rate_hz"]
     model.dof_damping[:] = args.damping
     model.dof_frictionloss[:] = args.friction
     if not args.mujoco_friction:
         model.dof_solref[:, 0] = 2.0 * model.opt.timestep
-    passive = Passive(model)
-    passive.install()
+    mujoco.set_mjcb_passive(callback)
     n = model.nq
     free_seconds = max(0.0, args.seconds - args.driven)
     runs, used = [], 0.0
@@ -280,9 +345,18 @@ def main():
         rows.append({"id": r["id"], "true": true, "delta": r["delta"] if ok else None, "se": se,
                      "z": (r["delta"] - true) / se if ok and se else None, "identified": ok,
                      "for_tuning": r["for_tuning"]})
+    combos = []
+    for g, group in enumerate(ident["groups"]):
+        for c in group["identified"]:
+            true = sum(w * truth[i] for i, w in c["weights"])
+            combos.append({"group": g + 1, "weights": c["weights"], "value": c["value"], "se": c["standard_error"],
+                           "true": true, "z": (c["value"] - true) / c["standard_error"]})
+    unaccounted = [r["id"] for r in ident["rates"] if r["status"] != "identified"
+                   and r["id"] not in ident["groups"][r["status"]["group"]]["members"]]
     good = [r for r in rows if r["identified"]]
     rms = math.sqrt(sum((r["delta"] - r["true"]) ** 2 for r in good) / len(good)) if good else float("nan")
     worst_z = max((abs(r["z"]) for r in good), default=float("nan"))
+    worst_combo_z = max((abs(c["z"]) for c in combos), default=0.0)
     worst_error = max((abs(r["delta"] - r["true"]) for r in good), default=float("nan"))
     joints = []
     for j in ident["joints"]:
@@ -296,7 +370,8 @@ def main():
         "log_seconds": used + (args.driven if args.driven > 0 else 0.0), "releases": len(runs),
         "driven_seconds": args.driven, "rates": rows, "identified": len(good), "parts": len(rows),
         "rms_delta_error": rms, "largest_delta_error": worst_error, "largest_z": worst_z, "joints": joints,
-        "groups": ident["groups"], "condition": ident["condition"],
+        "groups": ident["groups"], "combinations": combos, "largest_combination_z": worst_combo_z,
+        "unaccounted": unaccounted, "condition": ident["condition"], "independent_model": not args.exported,
     }
     print(f"{design}: {len(runs)} releases + {args.driven:g} s driven = {summary['log_seconds']:.1f} s at "
           f"{plan['rate_hz']:g} Hz, {args.bits}-bit encoder; damping {args.damping}, friction {args.friction}")
@@ -308,6 +383,10 @@ def main():
             print(f"{r['id']:6s} {100 * r['true']:+7.3f} %  not identified (for tune {100 * r['for_tuning']:+.3f} %)")
     print(f"identified {len(good)} of {len(rows)} parts: rms error {100 * rms:.3f} % of the rate, largest "
           f"{100 * worst_error:.3f} %, largest |z| {worst_z:.2f}")
+    for c in combos:
+        text = " ".join(f"{w:+.4f} {i}" for i, w in c["weights"])
+        print(f"group {c['group']}: {text} = {100 * c['value']:+.3f} % ± {100 * c['se']:.3f} % (true "
+              f"{100 * c['true']:+.3f} %, z {c['z']:+.2f})")
     for j in joints:
         if j["damping"] is not None:
             print(f"{j['joint']}: damping {j['damping']:.5f} ({100 * j['damping_error']:+.2f} %), friction "
@@ -319,8 +398,7 @@ def main():
             header, bom_rows = read_bom(bom)
             col = {c: i for i, c in enumerate(header)}
             for r in bom_rows:
-                if r[col["trim_min"]] == "":
-                    true_rates[r[col["id"]]] = float(r[col["stiffness"]]) * (1.0 + truth[r[col["id"]]])
+                true_rates[r[col["id"]]] = float(r[col["stiffness"]]) * (1.0 + truth[r[col["id"]]])
             measured_bill(bom, out / "tune_true_input/measured.csv", true_rates)
             sf("tune", design, "--measured", out / "tune_true_input/measured.csv", "--out", out / "tune_true")
             sf("tune", design, "--measured", out / "identify/identified.csv", "--out", out / "tune_identified")
@@ -357,8 +435,12 @@ def main():
             failures.append(f"largest delta error {worst_error:.4f} > {args.max_error}")
         if not (worst_z <= 3.0):
             failures.append(f"largest |z| {worst_z:.2f} > 3")
+        if not (worst_combo_z <= 3.0):
+            failures.append(f"largest |z| of a group combination {worst_combo_z:.2f} > 3")
+        if unaccounted:
+            failures.append(f"parts neither identified nor in a group: {unaccounted}")
         for j in joints:
-            if j["damping_error"] is not None and abs(j["damping_error"]) > 0.1:
+            if j["damping_error"] is not None and abs(j["damping_error"]) > args.max_damping_error:
                 failures.append(f"{j['joint']} damping off by {100 * j['damping_error']:+.1f} %")
         if "tune" in summary:
             t = summary["tune"]

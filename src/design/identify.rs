@@ -7,11 +7,12 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum TrimRates {
-    /// As the bill of materials gives them: a trim is the element the builder sets, so its rate
-    /// is known (the assumption `tune` makes when it says which rate to set).
-    #[default]
+    /// As the bill of materials gives them: the builder set them and trusts the setting.
     Known,
-    /// Estimated like every other element's (a trim whose setting has no scale).
+    /// Estimated like every other element's (the default): a trim leaf's rate goes with the cube
+    /// of its thickness, so a set rate is off by a few per cent, and taking it as exact puts its
+    /// torque into every other estimate.
+    #[default]
     Estimated,
 }
 
@@ -29,7 +30,8 @@ pub struct IdentifySettings {
     pub damping: bool,
     /// Estimate a Coulomb friction f_c per joint.
     pub friction: bool,
-    /// `known` (the bill's trim rates are the ones set) or `estimated`.
+    /// `estimated` (every spring an unknown, the default) or `known` (the bill's trim rates are
+    /// the ones set).
     pub trims: TrimRates,
     /// An element's rate counts as identified when the standard error of its δ is at most this
     /// fraction of its rate.
@@ -37,6 +39,12 @@ pub struct IdentifySettings {
     /// How far a log may reach beyond the design's region, as a fraction of its extent (the
     /// region's arc length for a ball, each side of a box) before it is refused.
     pub region_margin: f64,
+    /// The plan: viscous damping per joint its simulated releases assume, N·m·s/rad (what the
+    /// built arm is expected to have: damping shortens a swing, so it changes what a release
+    /// tells).
+    pub expected_damping: f64,
+    /// The plan: Coulomb friction per joint its simulated releases assume, N·m.
+    pub expected_friction: f64,
     /// The plan: encoder resolution the predicted standard errors assume, bits per turn.
     pub encoder_bits: u32,
     /// The plan: rms noise of an encoder reading before quantisation, in counts.
@@ -63,9 +71,11 @@ impl Default for IdentifySettings {
             smoothing_hz: 50.0,
             damping: true,
             friction: true,
-            trims: TrimRates::Known,
+            trims: TrimRates::Estimated,
             max_standard_error: 0.005,
             region_margin: 0.05,
+            expected_damping: 0.0,
+            expected_friction: 0.0,
             encoder_bits: 17,
             encoder_noise_counts: 1.0,
             rate_hz: 1000.0,
@@ -110,6 +120,14 @@ impl IdentifySettings {
         }
         if !(self.region_margin.is_finite() && (0.0..=1.0).contains(&self.region_margin)) {
             return Err(("identify.region_margin".into(), format!("must be in [0, 1], got {}", self.region_margin)));
+        }
+        for (v, field) in [
+            (self.expected_damping, "identify.expected_damping"),
+            (self.expected_friction, "identify.expected_friction"),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((field.into(), format!("must be ≥ 0, got {v}")));
+            }
         }
         if !(8..=32).contains(&self.encoder_bits) {
             return Err(("identify.encoder_bits".into(), format!("must be 8 to 32 bits, got {}", self.encoder_bits)));
@@ -169,6 +187,7 @@ mod tests {
         assert_eq!(bad(IdentifySettings { max_standard_error: 0.0, ..s.clone() }), "identify.max_standard_error");
         assert_eq!(bad(IdentifySettings { radii: vec![0.5, 1.5], ..s.clone() }), "identify.radii[1]");
         assert_eq!(bad(IdentifySettings { rate_hz: 80.0, ..s.clone() }), "identify.smoothing_hz");
+        assert_eq!(bad(IdentifySettings { expected_friction: -0.1, ..s.clone() }), "identify.expected_friction");
         assert_eq!(bad(IdentifySettings { max_log_seconds: 5.0, ..s }), "identify.max_log_seconds");
     }
 }

@@ -45,6 +45,13 @@ pub struct Estimate {
     pub estimable: Vec<bool>,
     /// ΦᵀΦ in the unknowns' units.
     pub information: DMatrix<f64>,
+    /// The length of each column of Φ: unknown u in unit-column coordinates is θ_u · scale_u.
+    pub scale: Vec<f64>,
+    /// The exact null space of Φ: the right singular vectors whose singular value is at most
+    /// √[`RANK_TOLERANCE`] of the largest, in unit-column coordinates (orthonormal). The logs
+    /// fix Φθ, so a combination c·θ is identifiable exactly when c ./ scale is orthogonal to
+    /// every one of them.
+    pub null_space: Vec<DVector<f64>>,
     /// √(λ_max / λ_min) of ΦᵀΦ with unit columns (infinite when the rank is short).
     pub condition: f64,
     /// Rank of ΦᵀΦ.
@@ -98,6 +105,8 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
     let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
     let kept: Vec<usize> = (0..p).filter(|&k| eig.eigenvalues[k] > RANK_TOLERANCE * top).collect();
     let rank = kept.len();
+    let null_space: Vec<DVector<f64>> =
+        (0..p).filter(|k| !kept.contains(k)).map(|k| eig.eigenvectors.column(k).into_owned()).collect();
     let low = kept.iter().map(|&k| eig.eigenvalues[k]).fold(f64::INFINITY, f64::min);
     let condition = if rank == p && p > 0 { (top / low).sqrt() } else { f64::INFINITY };
     // G⁺ from the kept eigenpairs.
@@ -132,6 +141,8 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
         covariance,
         estimable,
         information,
+        scale,
+        null_space,
         condition,
         rank,
         residual,
@@ -204,15 +215,17 @@ pub struct RateVerdict {
     pub for_tuning: Vec<f64>,
 }
 
-/// A unit combination of the open rates (an eigenvector of their Schur complement), its
-/// estimate and its standard error (NaN and ∞ where the logs give it no information).
+/// A combination of the open rates (coefficients on their δ), its estimate and its standard
+/// error (NaN and ∞ where the logs give it no information).
 type OpenCombination = (DVector<f64>, f64, f64);
 
 /// Sorts the rates (unknowns `rates`, their δ in `estimate`) into identified ones and groups.
 ///
 /// The rates whose standard error is beyond `bound` are open: their information with the
-/// other unknowns eliminated is diagonalised into combinations, the identified ones give the
-/// rates for tuning, and the open rates that the unidentified ones join form the groups.
+/// other unknowns eliminated is diagonalised into combinations, each made exactly orthogonal
+/// to the null space of Φ ([`Estimate::null_space`]); the identified ones give the rates for
+/// tuning, and the open rates that the unidentified ones join form the groups. Each identified
+/// combination is reported with the group it loads on most, with all its weights.
 pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVerdict {
     let se: Vec<f64> = rates.iter().map(|&u| estimate.standard_error(u)).collect();
     let identified: Vec<bool> = se.iter().map(|s| *s <= bound).collect();
@@ -223,13 +236,8 @@ pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVer
     }
     let unknowns_open: Vec<usize> = open.iter().map(|&i| rates[i]).collect();
     let combos = open_combinations(estimate, &unknowns_open);
-    // Reduce the open rates to their identified combinations.
-    let mut reduced = DVector::zeros(open.len());
-    for (v, value, se) in &combos {
-        if *se <= bound {
-            reduced += v * *value;
-        }
-    }
+    let fixed: Vec<&OpenCombination> = combos.iter().filter(|(_, _, se)| *se <= bound).collect();
+    let reduced = reduce_to(&fixed, open.len());
     for (i, &r) in open.iter().enumerate() {
         for_tuning[r] = reduced[i];
     }
@@ -240,54 +248,103 @@ pub fn rate_verdict(estimate: &Estimate, rates: &[usize], bound: f64) -> RateVer
             labels.push(g);
         }
     }
+    // Each identified combination goes to the group it loads on most.
+    let home: Vec<usize> = fixed
+        .iter()
+        .map(|(v, _, _)| {
+            let load =
+                |label: usize| (0..open.len()).filter(|&i| group_of[i] == label).map(|i| v[i] * v[i]).sum::<f64>();
+            (0..labels.len()).max_by(|&a, &b| load(labels[a]).total_cmp(&load(labels[b]))).unwrap_or(0)
+        })
+        .collect();
     let groups = labels
         .iter()
-        .map(|&label| {
+        .enumerate()
+        .map(|(g, &label)| {
             let members: Vec<usize> = (0..open.len()).filter(|&i| group_of[i] == label).collect();
-            let identified = combos
-                .iter()
-                .filter(|(v, _, se)| *se <= bound && members.iter().map(|&i| v[i] * v[i]).sum::<f64>() >= 0.5)
-                .map(|combo| combination(combo, &members, &open))
-                .collect();
+            let identified =
+                fixed.iter().zip(&home).filter(|(_, h)| **h == g).map(|(combo, _)| combination(combo, &open)).collect();
             Group { members: members.iter().map(|&i| open[i]).collect(), identified }
         })
         .collect();
     RateVerdict { identified, groups, for_tuning }
 }
 
+/// The smallest δ of the open rates (Euclidean norm) that has the identified combinations'
+/// values: what the logs leave open stays as designed.
+fn reduce_to(fixed: &[&OpenCombination], n_open: usize) -> DVector<f64> {
+    if fixed.is_empty() {
+        return DVector::zeros(n_open);
+    }
+    let c = DMatrix::from_fn(fixed.len(), n_open, |k, i| fixed[k].0[i]);
+    let b = DVector::from_iterator(fixed.len(), fixed.iter().map(|f| f.1));
+    // The combinations are nearly orthonormal (eigenvectors, projected off a null space they
+    // are already orthogonal to up to rounding), so Cᵀ is the fallback of C⁺.
+    let pinv = c.clone().pseudo_inverse(1e-12).unwrap_or_else(|_| c.transpose());
+    pinv * b
+}
+
 /// The combinations of the open unknowns: the eigenvectors of their information with every
-/// other unknown eliminated (the Schur complement), each with its estimate and standard error.
+/// other unknown eliminated (the Schur complement, formed in unit-column coordinates where it
+/// is well scaled), each projected exactly onto the row space of Φ (off its null space), with
+/// its estimate and standard error.
+///
+/// Why the projection: the logs fix Φθ and nothing else, so c·θ̂ is an unbiased estimate of
+/// c·θ only when c lies in the row space. An eigenvector of a nearly singular matrix is only
+/// as orthogonal to the exact null space as rounding leaves it, and the minimum-norm θ̂ is
+/// zero along that null space while the true θ is not: any leftover component is a bias no
+/// standard error covers.
 fn open_combinations(estimate: &Estimate, unknowns_open: &[usize]) -> Vec<OpenCombination> {
     let p = estimate.theta.len();
     let n_open = unknowns_open.len();
+    let s = &estimate.scale;
     let rest: Vec<usize> = (0..p).filter(|u| !unknowns_open.contains(u)).collect();
-    let sub = |a: &[usize], b: &[usize]| DMatrix::from_fn(a.len(), b.len(), |i, j| estimate.information[(a[i], b[j])]);
+    let sub = |a: &[usize], b: &[usize]| {
+        DMatrix::from_fn(a.len(), b.len(), |i, j| estimate.information[(a[i], b[j])] / (s[a[i]] * s[b[j]]))
+    };
     let g_uu = sub(unknowns_open, unknowns_open);
-    let g_ur = sub(unknowns_open, &rest);
-    let g_rr = sub(&rest, &rest);
-    let schur = if rest.is_empty() {
+    let schur_s = if rest.is_empty() {
         g_uu
     } else {
+        let g_ur = sub(unknowns_open, &rest);
+        let g_rr = sub(&rest, &rest);
         let rr_inv = g_rr.clone().pseudo_inverse(RANK_TOLERANCE * g_rr.amax().max(f64::MIN_POSITIVE)).unwrap_or(g_rr);
         &g_uu - &g_ur * rr_inv * g_ur.transpose()
     };
+    // Back to the rates' own units (δ): D S D with D the open columns' lengths.
+    let schur = DMatrix::from_fn(n_open, n_open, |i, j| schur_s[(i, j)] * s[unknowns_open[i]] * s[unknowns_open[j]]);
     let eig = schur.symmetric_eigen();
     let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
     let cov = DMatrix::from_fn(n_open, n_open, |i, j| estimate.covariance[(unknowns_open[i], unknowns_open[j])]);
     let theta = DVector::from_iterator(n_open, unknowns_open.iter().map(|&u| estimate.theta[u]));
-    // Each eigenvector: a unit combination, its estimate and standard error.
     (0..n_open)
         .map(|k| {
             let v = eig.eigenvectors.column(k).into_owned();
             if eig.eigenvalues[k] <= RANK_TOLERANCE * top.max(f64::MIN_POSITIVE) {
-                (v, f64::NAN, f64::INFINITY)
-            } else {
-                let value = v.dot(&theta);
-                let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
-                (v, value, se)
+                return (v, f64::NAN, f64::INFINITY);
             }
+            let v = row_space(estimate, unknowns_open, &v);
+            let value = v.dot(&theta);
+            let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
+            (v, value, se)
         })
         .collect()
+}
+
+/// The combination `v` of the unknowns `unknowns_open` with its null-space part removed: in
+/// unit-column coordinates c = v ./ scale loses its projection on each null vector, and comes
+/// back as c .* scale. (A null vector has no component on an estimable unknown, so nothing
+/// moves onto the other unknowns.)
+fn row_space(estimate: &Estimate, unknowns_open: &[usize], v: &DVector<f64>) -> DVector<f64> {
+    let s = &estimate.scale;
+    let mut c = DVector::from_iterator(unknowns_open.len(), unknowns_open.iter().zip(v.iter()).map(|(&u, x)| x / s[u]));
+    for n in &estimate.null_space {
+        let along: f64 = unknowns_open.iter().zip(c.iter()).map(|(&u, x)| n[u] * x).sum();
+        for (i, &u) in unknowns_open.iter().enumerate() {
+            c[i] -= along * n[u];
+        }
+    }
+    DVector::from_iterator(unknowns_open.len(), unknowns_open.iter().zip(c.iter()).map(|(&u, x)| x * s[u]))
 }
 
 /// Each open rate's group label: open rates joined through the space of unfixed combinations.
@@ -316,14 +373,17 @@ fn open_groups(combos: &[OpenCombination], bound: f64, n_open: usize) -> Vec<usi
     group_of
 }
 
-/// An identified combination as reported for a group of `members` (indices into the open
-/// rates `open`): its loadings of at least 0.05 on the members, scaled so that the weights sum
-/// to 1 when they share a sign, else so that the largest is ±1.
-fn combination((v, value, se): &OpenCombination, members: &[usize], open: &[usize]) -> Combination {
-    let w: Vec<(usize, f64)> = members.iter().filter(|&&i| v[i].abs() >= 0.05).map(|&i| (open[i], v[i])).collect();
+/// An identified combination as reported (indices into the rates through `open`): every
+/// weight but exact zeros (dropping a small one would report a combination the value is not
+/// an estimate of), scaled so that the weights sum to 1 when they share a sign, else so that
+/// the largest is ±1.
+fn combination((v, value, se): &OpenCombination, open: &[usize]) -> Combination {
+    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let w: Vec<(usize, f64)> =
+        (0..open.len()).filter(|&i| v[i].abs() > 1e-12 * largest).map(|i| (open[i], v[i])).collect();
     let sum: f64 = w.iter().map(|x| x.1).sum();
     let l1: f64 = w.iter().map(|x| x.1.abs()).sum();
-    let norm = if sum.abs() > 0.999 * l1 { sum } else { w.iter().fold(0.0f64, |m, x| m.max(x.1.abs())) };
+    let norm = if sum.abs() > 0.999 * l1 { sum } else { largest };
     let norm = if norm == 0.0 { 1.0 } else { norm };
     Combination {
         weights: w.iter().map(|&(i, x)| (i, x / norm)).collect(),
@@ -430,7 +490,7 @@ mod tests {
         // For tuning: the pair reduced to its combination (minimum norm), the lone rate at 0.
         let t = &v.for_tuning;
         assert!((t[0] + 2.0 * t[1] - 0.04).abs() < 2e-5 && (2.0 * t[0] - t[1]).abs() < 1e-9, "{t:?}");
-        assert_eq!(t[2], 0.0);
+        assert!(t[2].abs() < 1e-15, "{t:?}");
         assert!((t[3] + 0.04).abs() < 1e-5);
     }
 }

@@ -49,6 +49,29 @@ pub enum Status {
     Group(usize),
 }
 
+/// Where the rate `tune` gets for a part comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// Its own δ, identified.
+    Measured,
+    /// Inferred from its group's identified combinations (the smallest δ that has their values).
+    Combination,
+    /// As designed: the logs fix nothing about it.
+    AsDesigned,
+}
+
+impl Source {
+    /// The word `identified_parts.csv` and the reports use.
+    pub fn word(self) -> &'static str {
+        match self {
+            Source::Measured => "measured",
+            Source::Combination => "combination",
+            Source::AsDesigned => "as designed",
+        }
+    }
+}
+
 /// The estimate of one part's rate error.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RateEstimate {
@@ -56,7 +79,7 @@ pub struct RateEstimate {
     pub id: String,
     /// Its catalogue family.
     pub family: String,
-    /// Whether it is a trim spring (estimated only with `trims = "estimated"`).
+    /// Whether it is a trim spring (estimated unless `trims = "known"`).
     pub trim: bool,
     /// Its rows in the bill of materials.
     #[serde(skip)]
@@ -72,6 +95,8 @@ pub struct RateEstimate {
     /// The δ `tune` gets (identified: as estimated; in a group: reduced to the group's
     /// identified combinations).
     pub for_tuning: f64,
+    /// Where that δ comes from.
+    pub source: Source,
     /// rms over the logs of the torque a change δ = 1 would make, N·m.
     pub torque_rms_nm: f64,
 }
@@ -364,6 +389,14 @@ fn assemble(design: &Design, bom: &[BomRow], settings: &IdentifySettings, solved
         .enumerate()
         .map(|(i, part)| {
             let u = rate_unknowns[i];
+            let inferred = |g: usize| {
+                verdict.groups[g].identified.iter().any(|c| c.weights.iter().any(|&(k, w)| k == i && w != 0.0))
+            };
+            let source = match status[i] {
+                Status::Identified => Source::Measured,
+                Status::Group(g) if inferred(g) => Source::Combination,
+                Status::Group(_) => Source::AsDesigned,
+            };
             RateEstimate {
                 id: part.id.clone(),
                 family: part.family.clone(),
@@ -372,7 +405,8 @@ fn assemble(design: &Design, bom: &[BomRow], settings: &IdentifySettings, solved
                 delta: estimate.theta[u],
                 standard_error: estimate.standard_error(u),
                 status: status[i].clone(),
-                for_tuning: verdict.for_tuning[i],
+                for_tuning: if source == Source::AsDesigned { 0.0 } else { verdict.for_tuning[i] },
+                source,
                 torque_rms_nm: estimate.column_rms[u],
             }
         })
@@ -449,11 +483,11 @@ fn rate_group(
 }
 
 /// The measured rates: each estimated part's rows scaled by 1 + δ (for tuning); known trims and
-/// parts the logs never engaged stay as designed (None).
+/// parts the logs fix nothing about stay as designed (None).
 fn measured_rates(bom: &[BomRow], rates: &[RateEstimate]) -> Vec<Option<f64>> {
     let mut measured: Vec<Option<f64>> = vec![None; bom.len()];
     for r in rates {
-        if r.torque_rms_nm > 0.0 {
+        if r.source != Source::AsDesigned {
             for &j in &r.rows {
                 measured[j] = Some(bom[j].stiffness * (1.0 + r.for_tuning));
             }

@@ -4,8 +4,8 @@
 //! **Candidates.** Releases from rest at exp(f·ℓ·u): `directions` metric unit vectors u at q_eq
 //! (for two joints over half a turn: u and −u swing on the same mode) and each distance fraction
 //! f of `radii` of the region's extent ℓ along u. Each is simulated as designed (nominal rates,
-//! no damping or friction) for `release_seconds` at `rate_hz` ([`super::swing`]); a candidate
-//! whose swing leaves the region is dropped.
+//! with the `expected_damping` and `expected_friction` of every joint) for `release_seconds` at
+//! `rate_hz` ([`super::swing`]); a candidate whose swing leaves the region is dropped.
 //!
 //! **Criterion: D-optimal.** The regression of a candidate's noise-free swing gives its
 //! information Φᵀ Φ about the unknowns (δ of every part, damping, friction). Releases are added
@@ -177,7 +177,7 @@ fn release_points(design: &Design) -> Result<Vec<ReleasePoint>> {
     Ok(points)
 }
 
-/// Each release point's swing simulated as designed (no damping or friction) and its
+/// Each release point's swing simulated as designed (with the expected damping and friction) and its
 /// information: the candidates, and how many were dropped because their swing leaves the
 /// region.
 fn simulate_candidates(
@@ -189,8 +189,11 @@ fn simulate_candidates(
 ) -> Result<(Vec<Candidate>, usize)> {
     let settings = &design.identify;
     let u_eq = springs.value(design.q_eq.as_slice())? + design.chain.gravity_potential(design.q_eq.as_slice());
-    let zeros = vec![0.0; design.dof()];
-    let drive = Drive { damping: &zeros, friction: &zeros, torque: None };
+    // The damping and friction the built arm is expected to have: they shorten a swing and
+    // leave the friction's reversals in the logs, so a plan without them over-promises.
+    let damping = vec![settings.expected_damping; design.dof()];
+    let friction = vec![settings.expected_friction; design.dof()];
+    let drive = Drive { damping: &damping, friction: &friction, torque: None };
     let test = super::region::RegionTest::new(design, settings.region_margin);
     let simulated: Vec<Option<Candidate>> = points
         .par_iter()

@@ -13,13 +13,14 @@ use super::plot::{BoxItem, Figure, Layer, Panel, Style, palette, render};
 use crate::error::Result;
 use crate::fit::bill::BomRow;
 use crate::identify::plan::Plan;
-use crate::identify::{CombinationReport, Identification, Status};
+use crate::identify::{CombinationReport, Identification, Source, Status};
 
 /// The file names of an identification.
 pub const FILES: &[&str] = &[
     "identify.md",
     "identify.json",
     "identified.csv",
+    "identified_parts.csv",
     "cams/*",
     "identify_torque.svg",
     "identify_torque.png",
@@ -87,7 +88,7 @@ fn rates_md(id: &Identification, bom: &[BomRow], s: &mut String) {
             Status::Group(g) => (
                 format!("not identified (group {})", g + 1),
                 "–".into(),
-                if r.torque_rms_nm > 0.0 {
+                if r.source == Source::Combination {
                     format!("{:.6} (from the group's combinations)", designed * (1.0 + r.for_tuning))
                 } else {
                     "as designed".into()
@@ -328,6 +329,33 @@ pub fn torque_figure(id: &Identification) -> Option<Figure> {
     })
 }
 
+/// `identified_parts.csv`: per part, where the rate in `identified.csv` comes from (`measured`:
+/// its own δ; `combination`: inferred from its group's identified combinations; `as designed`:
+/// the logs fix nothing about it), with δ, its standard error and the δ `tune` gets. The bill
+/// itself keeps its columns, which `tune` reads.
+pub fn parts_csv(id: &Identification) -> String {
+    let mut s = String::from("id,family,trim,source,group,delta,standard_error,delta_for_tune\n");
+    let num = |x: f64| if x.is_finite() { format!("{x}") } else { String::new() };
+    for r in &id.rates {
+        let group = match r.status {
+            Status::Identified => String::new(),
+            Status::Group(g) => format!("{}", g + 1),
+        };
+        let delta = if r.status == Status::Identified { num(r.delta) } else { String::new() };
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{group},{delta},{},{}",
+            crate::csv::csv_field(&r.id),
+            crate::csv::csv_field(&r.family),
+            r.trim,
+            r.source.word(),
+            num(r.standard_error),
+            num(r.for_tuning)
+        );
+    }
+    s
+}
+
 /// Writes the files of an identification into `out` (`report.html` is the caller's).
 pub fn write(out: &OutputDir, design: &str, id: &Identification, bom: &[BomRow]) -> Result<()> {
     out.write("identify.md", markdown(design, id, bom))?;
@@ -338,6 +366,7 @@ pub fn write(out: &OutputDir, design: &str, id: &Identification, bom: &[BomRow])
     for (path, text) in crate::files::bom::files_measured("identified.csv", bom, &id.measured) {
         out.write(&path, text)?;
     }
+    out.write("identified_parts.csv", parts_csv(id))?;
     render(&rates_figure(id, &format!("{design}: rate errors identified from the logs")), &out.path("identify_rates"))?;
     if let Some(fig) = torque_figure(id) {
         render(&fig, &out.path("identify_torque"))?;
