@@ -5,7 +5,7 @@ use std::path::Path;
 use anyhow::Result;
 use springfit::design::Design;
 use springfit::geodesic::Region;
-use springfit::geodesic::region::{RADIUS_MARGIN, RegionReport};
+use springfit::geodesic::region::RegionReport;
 use springfit::jobs::init::{RATE_ERROR, SHIFT_BUDGET_RAD, stiffness};
 use springfit::model::urdf::JointRange;
 
@@ -109,11 +109,10 @@ fn limited_by(report: &RegionReport) -> Vec<String> {
         .iter()
         .map(|f| format!("  limited by the {} at radius {:.4}: {}", f.kind(), f.radius(), f.describe()))
         .collect();
-    match report.limited_by.first() {
-        Some(f) => out.push(format!(
-            "suggested region.radius: {:.4} ({:.0} % of the nearest limit, the {} at {:.4})",
-            RADIUS_MARGIN * f.radius(),
-            100.0 * RADIUS_MARGIN,
+    match report.suggested_radius() {
+        Some((radius, f)) => out.push(format!(
+            "suggested region.radius: {radius:.4} ({:.0} % of the {} at {:.4}: a joint limit is kept at 80 %, a conjugate point or crossing at 40 %, where fits stay accurate)",
+            100.0 * f.suggested_share(),
             f.kind(),
             f.radius()
         )),

@@ -584,18 +584,19 @@ fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f
     Ok((chain, q_eq, ranges))
 }
 
-/// The equilibrium within every moving joint's `<limit>`: springs cannot hold an arm at a pose
-/// it cannot take.
+/// The equilibrium strictly within every moving joint's `<limit>`: springs cannot hold an arm at
+/// a pose it cannot take, and modes swing both ways from it (so a clipped region has room on
+/// every side).
 fn check_equilibrium_within(path: &Path, q_eq: &DVector<f64>, ranges: &[JointRange], names: &[String]) -> Result<()> {
     for (i, range) in ranges.iter().enumerate() {
         if let JointRange::Limited { lower, upper } = *range
-            && !(lower..=upper).contains(&q_eq[i])
+            && !(lower < q_eq[i] && q_eq[i] < upper)
         {
             return Err(Error::invalid(
                 path,
                 format!("equilibrium.q[{i}]"),
                 format!(
-                    "{} rad is outside joint `{}`'s <limit> [{lower}, {upper}] rad: put the equilibrium within the joint's limits (the middle, {:.4}, leaves the most room)",
+                    "{} rad is not inside joint `{}`'s <limit> [{lower}, {upper}] rad (at or beyond a stop): put the equilibrium within the joint's limits (the middle, {:.4}, leaves the most room)",
                     q_eq[i],
                     names.get(i).map_or("?", String::as_str),
                     0.5 * (lower + upper)

@@ -45,6 +45,14 @@ impl RegionFailure {
         }
     }
 
+    /// The share of this failure's radius a suggested region uses.
+    pub fn suggested_share(&self) -> f64 {
+        match self {
+            RegionFailure::JointLimit { .. } => JOINT_LIMIT_SHARE,
+            RegionFailure::Conjugate { .. } | RegionFailure::Crossing { .. } => MODE_LIMIT_SHARE,
+        }
+    }
+
     /// What kind of limit this is, in a few words (for `check`'s list of what limits the region).
     pub fn kind(&self) -> &'static str {
         match self {
@@ -263,8 +271,8 @@ pub fn check_region_within(
             "{} inside the {}: a ball within the joint limits has radius below {s:.4} (region.radius = {:.4} keeps a {:.0} % margin), or set region.within_joint_limits = true to stop the region at the limits; {radius_text}",
             f.describe(),
             region.describe(),
-            RADIUS_MARGIN * s,
-            100.0 * (1.0 - RADIUS_MARGIN)
+            JOINT_LIMIT_SHARE * s,
+            100.0 * (1.0 - JOINT_LIMIT_SHARE)
         ),
         Some(f) => format!("{} inside the {}; {radius_text}", f.describe(), region.describe()),
     };
@@ -282,10 +290,25 @@ pub fn check_region_within(
     })
 }
 
-/// The share of what limits a region that a suggested radius uses: a fit well inside the largest
-/// valid radius is easier (the error of every finite set of springs grows towards it), and a
-/// joint limit is a hard stop that a built arm's equilibrium shift must not reach.
-pub const RADIUS_MARGIN: f64 = 0.8;
+/// The share of a joint limit's radius a suggested region uses: a hard stop that a built arm's
+/// equilibrium shift and its swing past the region's edge must not reach.
+pub const JOINT_LIMIT_SHARE: f64 = 0.8;
+
+/// The share of a conjugate point's or a crossing's radius a suggested region uses: the error of
+/// every finite set of springs grows fast towards them (the five-link pendulum's catalogue gives
+/// p99 0.51° at 57 % of its largest valid radius, 1.76° at 76 % and 6.7° at 99 %,
+/// `scripts/radius_limit.py`; a planar three-link arm in gravity with `catalogs/chain.toml`
+/// 3.5° at 55 % and 1.0° at 36 %), so a starting region stays well inside half of it.
+pub const MODE_LIMIT_SHARE: f64 = 0.4;
+
+impl RegionReport {
+    /// The radius to suggest: the smallest over what limits the region of its radius times its
+    /// share (JOINT_LIMIT_SHARE, MODE_LIMIT_SHARE), with the failure that sets it; None when
+    /// nothing limits the region up to the probe.
+    pub fn suggested_radius(&self) -> Option<(f64, &RegionFailure)> {
+        self.limited_by.iter().map(|f| (f.suggested_share() * f.radius(), f)).min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+}
 
 /// Segment intersections between the traced polylines of a planar fan. Segments starting within
 /// two sample spacings of q_eq are skipped: every geodesic starts there, and exp is a local

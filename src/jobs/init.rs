@@ -38,8 +38,8 @@ pub struct Stiffness {
     /// How far a build whose springs are all RATE_ERROR too stiff moves its rest position:
     /// RATE_ERROR·max|(ω²M)⁻¹∇U_g| (rad).
     pub shift: f64,
-    /// The smallest ω that keeps `shift` within SHIFT_BUDGET_RAD and gravity's stiffness below
-    /// ω²M (rad/s).
+    /// The smallest ω that keeps `shift` within SHIFT_BUDGET_RAD and gravity's stabilising
+    /// stiffness below ω²M, so the springs' own stiffness ω²M − ∇²U_g stays positive (rad/s).
     pub needed_omega: f64,
 }
 
@@ -63,7 +63,11 @@ pub fn stiffness_of(m: &DMatrix<f64>, torque: &DVector<f64>, hessian: &DMatrix<f
     let l_inv = chol.l().try_inverse()?;
     let reduced = &l_inv * hessian * l_inv.transpose();
     let reduced = (&reduced + reduced.transpose()) * 0.5;
-    let gravity_max = reduced.symmetric_eigen().eigenvalues.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let eigenvalues = reduced.symmetric_eigen().eigenvalues;
+    let gravity_max = eigenvalues.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    // Only a stabilising gravity (positive stiffness) can exceed ω²M and leave the springs a
+    // negative stiffness to supply; a destabilising one only adds to what they carry.
+    let gravity_stiffest = eigenvalues.iter().fold(0.0f64, |a, &x| a.max(x));
     let eig = m.clone().symmetric_eigen();
     let k = eig.eigenvalues.imin();
     let lambda_min = eig.eigenvalues[k];
@@ -72,7 +76,7 @@ pub fn stiffness_of(m: &DMatrix<f64>, torque: &DVector<f64>, hessian: &DMatrix<f
     let per_error = chol.solve(torque).amax();
     let shift = RATE_ERROR * per_error / w2;
     let for_shift = (RATE_ERROR * per_error / SHIFT_BUDGET_RAD).sqrt();
-    let for_gravity = gravity_max.sqrt();
+    let for_gravity = gravity_stiffest.sqrt();
     Some(Stiffness {
         omega,
         gravity_ratio: gravity_max / w2,
@@ -284,13 +288,12 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
     design.geodesics.probe_factor = PROBE_FACTOR;
     let report = design.region_report()?;
     let mut notes = Vec::new();
-    let nearest = report.limited_by.first();
-    let limit = nearest.map_or(report.probe_radius, |f| f.radius());
-    let radius = round_down(crate::geodesic::region::RADIUS_MARGIN * limit);
-    notes.push(match nearest {
-        Some(f) => format!(
-            "region.radius {radius}: {:.0} % of the nearest limit, the {} at {:.4} ({})",
-            100.0 * crate::geodesic::region::RADIUS_MARGIN,
+    let suggested = report.suggested_radius();
+    let radius = round_down(suggested.map_or(crate::geodesic::region::MODE_LIMIT_SHARE * report.probe_radius, |s| s.0));
+    notes.push(match suggested {
+        Some((_, f)) => format!(
+            "region.radius {radius}: {:.0} % of the {} at {:.4} ({})",
+            100.0 * f.suggested_share(),
             f.kind(),
             f.radius(),
             f.describe()
@@ -312,10 +315,10 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
     });
     notes.push(format!(
         "equilibrium: {}",
-        if request.q_eq.is_some() {
-            "as given"
-        } else {
-            "the URDF's zero where it lies well inside the limits, else their middle"
+        match (&request.q_eq, &request.arm) {
+            (Some(_), _) => "as given",
+            (None, InitArm::Urdf { .. }) => "the URDF's zero where it lies well inside the limits, else their middle",
+            (None, InitArm::Planar { .. }) => "every joint at 0 (give --q for another pose)",
         }
     ));
     let text = design_text(&stem, &robot, &q, radius, omega, &notes);
