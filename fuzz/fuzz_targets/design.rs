@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
             let _ = design.chain.joint_positions(q);
             match &design.region {
                 Region::Ball { radius } => assert!(radius.is_finite() && *radius > 0.0),
-                Region::Box { lower, upper } => {
+                Region::Box { lower, upper } | Region::Clipped { lower, upper, .. } => {
                     assert_eq!((lower.len(), upper.len()), (n, n));
                     for i in 0..n {
                         assert!(lower[i] < design.q_eq[i] && design.q_eq[i] < upper[i]);

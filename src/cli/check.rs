@@ -6,6 +6,8 @@ use anyhow::Result;
 use springfit::design::Design;
 use springfit::geodesic::Region;
 use springfit::geodesic::region::RegionReport;
+use springfit::jobs::init::{RATE_ERROR, SHIFT_BUDGET_RAD, stiffness};
+use springfit::model::urdf::JointRange;
 
 use super::progress::Progress;
 
@@ -56,9 +58,11 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     let m = design.chain.mass_matrix(&design.q_eq);
     let rows: Vec<String> = m.row_iter().map(|r| fmt_vec(&r.iter().copied().collect::<Vec<_>>())).collect();
     progress.say(format!("mass matrix at the equilibrium: {}", rows.join(" ")));
-    match &design.region {
-        Region::Ball { radius } => progress.say(format!("region: geodesic ball of radius {radius}")),
-        Region::Box { .. } => progress.say(format!("region: {}", design.region.describe())),
+    progress.say(format!("region: {}", design.region.describe()));
+    for (name, range) in design.chain.joint_names().iter().zip(&design.joint_ranges) {
+        if let JointRange::Limited { lower, upper } = range {
+            progress.say(format!("  joint {name}: <limit> [{lower}, {upper}] rad"));
+        }
     }
     match &validated.catalog {
         Some(c) => {
@@ -84,12 +88,73 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
         design.geodesics.check_count(design.dof()),
         report.largest_radius
     ));
+    for line in limited_by(&report) {
+        progress.say(line);
+    }
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));
     for line in suggestions(&design, &report) {
         progress.say(line);
     }
+    for line in gravity(&design)? {
+        progress.say(line);
+    }
     Ok(())
+}
+
+/// What limits the region, nearest first, and the radius to choose: a margin inside the nearest.
+fn limited_by(report: &RegionReport) -> Vec<String> {
+    let mut out: Vec<String> = report
+        .limited_by
+        .iter()
+        .map(|f| format!("  limited by the {} at radius {:.4}: {}", f.kind(), f.radius(), f.describe()))
+        .collect();
+    match report.suggested_radius() {
+        Some((radius, f)) => out.push(format!(
+            "suggested region.radius: {radius:.4} ({:.0} % of the {} at {:.4}: a joint limit is kept at 80 %, a conjugate point or crossing at 40 %, where fits stay accurate)",
+            100.0 * f.suggested_share(),
+            f.kind(),
+            f.radius()
+        )),
+        None => out.push(format!(
+            "  nothing limits the region up to the probe radius {:.4} (geodesics.probe_factor times its extent)",
+            report.probe_radius
+        )),
+    }
+    out
+}
+
+/// Gravity against the stiffness ω²M at the equilibrium, and the ω that carries it.
+fn gravity(design: &Design) -> Result<Vec<String>> {
+    if !design.chain.has_gravity() {
+        return Ok(Vec::new());
+    }
+    let s = stiffness(design)?;
+    let mut out = vec![format!(
+        "gravity at the equilibrium: its stiffness is {:.3}×ω²M at most (ω = {} rad/s); the softest direction {} has a net stiffness ω²λ_min = {:.4} N·m/rad and carries {:.4} N·m of gravity, so springs {:.0} % off their rates move the rest position by up to {:.2}°",
+        s.gravity_ratio,
+        s.omega,
+        fmt_vec(&s.soft_direction),
+        s.soft_stiffness,
+        s.soft_load,
+        100.0 * RATE_ERROR,
+        s.shift.to_degrees()
+    )];
+    if s.needed_omega > s.omega {
+        out.push(format!(
+            "suggested fit.frequency: at least {:.3} rad/s (keeps that shift within {:.0}° and gravity's stiffness below ω²M; a stiffer target also needs lighter springs per unit of gravity carried)",
+            s.needed_omega,
+            SHIFT_BUDGET_RAD.to_degrees()
+        ));
+    } else {
+        out.push(format!(
+            "fit.frequency ω = {} rad/s carries gravity: the shift stays within {:.0}° (ω ≥ {:.3} rad/s would do)",
+            s.omega,
+            SHIFT_BUDGET_RAD.to_degrees(),
+            s.needed_omega
+        ));
+    }
+    Ok(out)
 }
 
 /// What to choose for a new arm, from the exact potential U* = ½ω²r² the springs approach: every
@@ -100,7 +165,7 @@ fn suggestions(design: &Design, report: &RegionReport) -> Vec<String> {
     let omega = design.fit.frequency;
     let radius = match design.region {
         Region::Ball { radius } => radius,
-        Region::Box { .. } => design.valid_region().map(|r| r.extent).unwrap_or(largest),
+        Region::Box { .. } | Region::Clipped { .. } => design.valid_region().map(|r| r.extent).unwrap_or(largest),
     };
     let bound = if lower_bound { "at least " } else { "" };
     let mut out = vec![format!(
@@ -146,7 +211,9 @@ fn run_json(design: &Design) -> Result<()> {
         "q_eq": q,
         "mass_matrix": rows,
         "gravity_torque": design.chain.gravity_gradient(q).as_slice(),
+        "joint_ranges": design.joint_ranges,
         "region": report,
+        "stiffness": stiffness(design)?,
     });
     // A closed stdout (`| head`) is not an error worth a panic: the reader has what it wanted.
     {

@@ -7,6 +7,7 @@ mod export;
 mod fit;
 mod geodesics;
 mod identify;
+mod init;
 mod parts;
 mod progress;
 mod simulate;
@@ -265,6 +266,38 @@ gravity_torque (∂U_g/∂q at q_eq, N·m) and region (the region check), for co
         #[arg(long)]
         json: bool,
     },
+    /// Write a design to start from: an arm (a URDF and its moving joints, or planar links), an
+    /// equilibrium within its limits, a region inside what limits it, ω from gravity, a catalogue.
+    #[command(
+        after_help = "Examples:\n  springfit init my_arm.toml --urdf robots/panda/panda.urdf --joints panda_joint2,panda_joint4,panda_joint6\n  springfit init three.toml --links \"1.5,1,0.5,0.125;1,0.8,0.4,0.0533;0.5,0.6,0.3,0.015\"\n\n\
+Writes the design and <stem>_catalog.toml beside it (never replacing a file) and prints why each\n\
+value was chosen; then run `springfit check` and `springfit fit` on it."
+    )]
+    Init {
+        /// The design file to write.
+        out: PathBuf,
+        /// The robot's URDF file.
+        #[arg(long, value_name = "FILE")]
+        urdf: Option<PathBuf>,
+        /// The URDF joints that move, from the base outwards (comma-separated).
+        #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+        joints: Vec<String>,
+        /// A joint held still at a value: name=rad (repeat for more).
+        #[arg(long, value_name = "NAME=RAD")]
+        lock: Vec<String>,
+        /// A planar arm's links, `mass,length,com,inertia;…` (kg, m, m, kg·m²), or a file of one
+        /// link a line.
+        #[arg(long, value_name = "LINKS")]
+        links: Option<String>,
+        /// Gravity (m/s²): 3 numbers in the URDF's base frame (default 0,0,-9.81) or 2 in a
+        /// planar arm's plane (default 0,-9.81).
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "X,Y[,Z]")]
+        gravity: Option<Vec<f64>>,
+        /// The equilibrium (rad, comma-separated); default: the URDF's zero inside the limits,
+        /// else their middle (0 for planar links).
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "Q1,Q2,…")]
+        q: Option<Vec<f64>>,
+    },
     /// Trace the fan of geodesics from the equilibrium, check the region and plot them.
     #[command(after_help = "Example:\n  springfit geodesics designs/double_pendulum.toml --out out/geodesics\n\n\
 Writes geodesics.csv (direction, s, q…, q̇…), region.json (valid, largest_radius, reason) and\n\
@@ -316,6 +349,9 @@ pub fn run() -> Result<()> {
     let session = Session { progress: progress::Progress::new(cli.quiet, cli.progress), edits };
     match cli.command {
         Command::Check { design, json } => check::run(&design, json, &session.progress),
+        Command::Init { out, urdf, joints, lock, links, gravity, q } => {
+            init::run(init::InitArgs { out, urdf, joints, lock, links, gravity, q }, &session.progress)
+        }
         Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &session),
         Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &session),
         Command::Sweep { design, out, shard, merge, builds, seed } => {

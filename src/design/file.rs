@@ -120,4 +120,8 @@ pub struct RegionSpec {
     pub lower: Option<Vec<Angle>>,
     /// Upper corner of the box (kind = "box"), rad.
     pub upper: Option<Vec<Angle>>,
+    /// Whether the region stops at the URDF's joint limits (a ball ∩ the limits, a box clipped
+    /// to them) instead of being refused when it leaves them.
+    #[serde(default)]
+    pub within_joint_limits: bool,
 }

@@ -55,13 +55,14 @@ use crate::design::scenario::ScenarioSpec;
 use crate::design::simulate::SimSettings;
 use crate::design::sweep::SweepSettings;
 use crate::error::{Error, Result};
-use crate::geodesic::region::check_region;
+use crate::geodesic::region::{JointLimits, check_region_within};
 use crate::geodesic::{GeodesicSettings, Region, RegionReport};
 /// For callers that edit a design's text before [`Design::parse`] (the Python package's keyword
 /// overrides), with the errors the design loader gives.
 ///
 pub use crate::input::{parse_toml, read_text};
 use crate::limits::{MAX_GRAVITY, MAX_INERTIA_KGM2, MAX_LENGTH_M, MAX_LINKS, MAX_MASS_KG, within};
+use crate::model::urdf::JointRange;
 use crate::model::{Chain, Link, PlanarChain, SpatialChain};
 use crate::units::Angle;
 
@@ -90,6 +91,8 @@ pub struct Design {
     pub chain: Chain,
     /// The equilibrium.
     pub q_eq: DVector<f64>,
+    /// What each moving joint's `<limit>` allows (a planar arm's joints turn freely).
+    pub joint_ranges: Vec<JointRange>,
     /// The region.
     pub region: Region,
     /// Geodesic settings.
@@ -148,23 +151,32 @@ impl Design {
 
     /// Validates a parsed design file. `path` is used for messages and to resolve the catalogue.
     pub fn from_file(path: &Path, file: DesignFile) -> Result<Design> {
-        let (chain, q_eq) = if file.robot.urdf.is_some() {
-            let (chain, q_eq) = urdf_robot(path, &file)?;
-            (Chain::Spatial(chain), q_eq)
+        let (chain, q_eq, ranges) = if file.robot.urdf.is_some() {
+            let (chain, q_eq, ranges) = urdf_robot(path, &file)?;
+            (Chain::Spatial(chain), q_eq, ranges)
         } else {
             let (chain, q_eq) = planar_robot(path, &file)?;
-            (Chain::Planar(chain), q_eq)
+            let n = chain.dof();
+            (Chain::Planar(chain), q_eq, vec![JointRange::Unlimited; n])
         };
-        Design::with_robot(path, file, chain, q_eq)
+        Design::with_robot(path, file, chain, q_eq, ranges)
     }
 
     /// The rest of the validation, the same for every kind of robot: region and settings.
-    fn with_robot(path: &Path, file: DesignFile, chain: Chain, q_eq: DVector<f64>) -> Result<Design> {
+    fn with_robot(
+        path: &Path,
+        file: DesignFile,
+        chain: Chain,
+        q_eq: DVector<f64>,
+        joint_ranges: Vec<JointRange>,
+    ) -> Result<Design> {
         let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
+        let names = chain.joint_names();
+        check_equilibrium_within(path, &q_eq, &joint_ranges, &names)?;
         let region = region(path, file.region.as_ref(), chain.dof(), &q_eq)?;
+        let region = within_limits(path, file.region.as_ref(), region, &joint_ranges, &names)?;
         file.geodesics.validate().map_err(|(field, reason)| invalid(&field, reason))?;
-        if let Region::Ball { radius } = &region {
-            let radius = *radius;
+        if let Some(radius) = region.radius() {
             // Geodesics are traced no further than max_arc: a larger ball cannot be checked or
             // fitted, and tracing towards it would run for minutes before failing.
             if radius > file.geodesics.max_arc {
@@ -201,6 +213,7 @@ impl Design {
             catalog,
             chain,
             q_eq,
+            joint_ranges,
             region,
             geodesics: file.geodesics,
             fit: file.fit,
@@ -246,13 +259,15 @@ impl Design {
         }
         // A numerical failure deep in the check (Jacobi fields, the integrator) names the design
         // and the step, so the message says what it concerns.
-        let report = check_region(&self.chain, &self.q_eq, &self.region, &self.geodesics).map_err(|e| match e {
-            Error::Numerical { context, reason } => Error::Numerical {
-                context: format!("{}: region check ({})", self.path.display(), self.region.describe()),
-                reason: format!("{context}: {reason}"),
-            },
-            other => other,
-        })?;
+        let limits = self.joint_limits();
+        let report = check_region_within(&self.chain, &self.q_eq, &self.region, &self.geodesics, limits.as_ref())
+            .map_err(|e| match e {
+                Error::Numerical { context, reason } => Error::Numerical {
+                    context: format!("{}: region check ({})", self.path.display(), self.region.describe()),
+                    reason: format!("{context}: {reason}"),
+                },
+                other => other,
+            })?;
         let _ = self.region_memo.set(RegionMemo {
             q_eq: self.q_eq.clone(),
             region: self.region.clone(),
@@ -260,6 +275,19 @@ impl Design {
             report: report.clone(),
         });
         Ok(report)
+    }
+
+    /// The moving joints' limits, when any joint has one (None for an arm that turns freely).
+    pub fn joint_limits(&self) -> Option<JointLimits> {
+        if !self.joint_ranges.iter().any(|r| matches!(r, JointRange::Limited { .. })) {
+            return None;
+        }
+        let (lower, upper): (Vec<f64>, Vec<f64>) = self.joint_ranges.iter().map(JointRange::bounds).unzip();
+        Some(JointLimits {
+            lower: DVector::from_vec(lower),
+            upper: DVector::from_vec(upper),
+            names: self.chain.joint_names(),
+        })
     }
 
     /// The region report, or an error naming the region field when the region is not valid.
@@ -275,7 +303,7 @@ impl Design {
             return Ok(());
         }
         let field = match self.region {
-            Region::Ball { .. } => "region.radius",
+            Region::Ball { .. } | Region::Clipped { .. } => "region.radius",
             Region::Box { .. } => "region",
         };
         Err(Error::invalid(&self.path, field, format!("the region is not valid: {}", report.reason)))
@@ -515,7 +543,7 @@ fn check_sections(path: &Path, file: &DesignFile, chain: &Chain, q_eq: &DVector<
 
 /// `[robot] urdf = …`: reads the URDF (relative to the design file) and checks the equilibrium.
 /// Kept apart from the planar links' validation: the two kinds of robot share only what follows.
-fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f64>)> {
+fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f64>, Vec<JointRange>)> {
     let invalid = |field: &str, reason: String| Error::invalid(path, field, reason);
     let robot = &file.robot;
     if !robot.links.is_empty() {
@@ -548,7 +576,7 @@ fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f
     }
     let urdf_path = path.parent().unwrap_or(Path::new(".")).join(robot.urdf.as_deref().unwrap_or_default());
     let locked: Vec<(String, f64)> = robot.locked.iter().map(|(k, v)| (k.clone(), v.0)).collect();
-    let chain = crate::model::urdf::load(&urdf_path, &robot.joints, &locked, gravity)?;
+    let (chain, ranges) = crate::model::urdf::load_with_ranges(&urdf_path, &robot.joints, &locked, gravity)?;
     if !(16.0 * chain.gravity_bound()).is_finite() {
         return Err(invalid(
             "robot.gravity",
@@ -573,7 +601,84 @@ fn urdf_robot(path: &Path, file: &DesignFile) -> Result<(SpatialChain, DVector<f
             ));
         }
     }
-    Ok((chain, q_eq))
+    Ok((chain, q_eq, ranges))
+}
+
+/// The equilibrium strictly within every moving joint's `<limit>`: springs cannot hold an arm at
+/// a pose it cannot take, and modes swing both ways from it (so a clipped region has room on
+/// every side).
+fn check_equilibrium_within(path: &Path, q_eq: &DVector<f64>, ranges: &[JointRange], names: &[String]) -> Result<()> {
+    for (i, range) in ranges.iter().enumerate() {
+        if let JointRange::Limited { lower, upper } = *range
+            && !(lower < q_eq[i] && q_eq[i] < upper)
+        {
+            return Err(Error::invalid(
+                path,
+                format!("equilibrium.q[{i}]"),
+                format!(
+                    "{} rad is not inside joint `{}`'s <limit> [{lower}, {upper}] rad (at or beyond a stop): put the equilibrium within the joint's limits (the middle, {:.4}, leaves the most room)",
+                    q_eq[i],
+                    names.get(i).map_or("?", String::as_str),
+                    0.5 * (lower + upper)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The region against the joint limits: `within_joint_limits = true` turns a ball into the ball
+/// ∩ the limits and clips a box to them; otherwise a box corner beyond a limit is refused here
+/// (a ball is judged by the region check, which knows how far its geodesics reach).
+fn within_limits(
+    path: &Path,
+    spec: Option<&RegionSpec>,
+    region: Region,
+    ranges: &[JointRange],
+    names: &[String],
+) -> Result<Region> {
+    let clip = spec.is_some_and(|s| s.within_joint_limits);
+    let limited = ranges.iter().any(|r| matches!(r, JointRange::Limited { .. }));
+    if clip && !limited {
+        return Err(Error::invalid(
+            path,
+            "region.within_joint_limits",
+            "no moving joint has a <limit> range (a planar arm, or continuous joints): there is nothing to stay within; leave it out",
+        ));
+    }
+    let (lo, hi): (Vec<f64>, Vec<f64>) = ranges.iter().map(JointRange::bounds).unzip();
+    match region {
+        Region::Ball { radius } if clip => {
+            Ok(Region::Clipped { radius, lower: DVector::from_vec(lo), upper: DVector::from_vec(hi) })
+        }
+        Region::Box { mut lower, mut upper } => {
+            for i in 0..lower.len() {
+                for (corner, bound, side, field) in
+                    [(&mut lower[i], lo[i], "lower", "lower"), (&mut upper[i], hi[i], "upper", "upper")]
+                {
+                    let beyond = if side == "lower" { *corner < bound } else { *corner > bound };
+                    if !beyond {
+                        continue;
+                    }
+                    if clip {
+                        *corner = bound;
+                    } else {
+                        return Err(Error::invalid(
+                            path,
+                            format!("region.{field}[{i}]"),
+                            format!(
+                                "{} rad is beyond joint `{}`'s {side} limit {bound} rad (the URDF's <limit>): keep the box within the limits, or set region.within_joint_limits = true to clip it there",
+                                corner,
+                                names.get(i).map_or("?", String::as_str)
+                            ),
+                        ));
+                    }
+                }
+            }
+            Ok(Region::Box { lower, upper })
+        }
+        other => Ok(other),
+    }
 }
 
 #[cfg(test)]
@@ -625,7 +730,7 @@ radius = 2.0
         wide.region = Region::Ball { radius: 9.0 };
         let report = wide.region_report().unwrap();
         assert!(!report.valid, "{}", report.reason);
-        assert_eq!(report, check_region(&wide.chain, &wide.q_eq, &wide.region, &wide.geodesics).unwrap());
+        assert_eq!(report, check_region_within(&wide.chain, &wide.q_eq, &wide.region, &wide.geodesics, None).unwrap());
         assert_eq!(d.region_report().unwrap(), first);
     }
 

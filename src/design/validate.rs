@@ -239,6 +239,18 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
         out.push(Warning { path: design.path.clone(), field, message });
     };
     let turns = |a: f64| a.abs() / std::f64::consts::TAU;
+    let names = design.chain.joint_names();
+    for (i, range) in design.joint_ranges.iter().enumerate() {
+        if *range == crate::model::urdf::JointRange::Unstated {
+            warn(
+                format!("robot.joints[{i}]"),
+                format!(
+                    "joint `{}` is revolute but its <limit> gives no range (lower = upper): springfit assumes it turns without a stop; add lower and upper to the URDF's <limit> if it has one, so the region is checked against them",
+                    names.get(i).map_or("?", String::as_str)
+                ),
+            );
+        }
+    }
     for (i, q) in design.q_eq.iter().enumerate() {
         if q.abs() > MANY_TURNS_RAD {
             warn(
@@ -263,7 +275,7 @@ fn suspicious(design: &Design, out: &mut Vec<Warning>) {
                 }
             }
         }
-        Region::Ball { radius } => {
+        Region::Ball { radius } | Region::Clipped { radius, .. } => {
             // The smallest inertia direction moves furthest in joint angle per unit of arc length.
             let m = design.chain.mass_matrix(&design.q_eq);
             let lambda_min = m.symmetric_eigen().eigenvalues.min();

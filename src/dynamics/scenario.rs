@@ -441,10 +441,7 @@ pub fn start_on_mode(
         return Err(format!("must be a positive energy (J), got {energy}"));
     }
     let mut shooter = Shooter::new(&design.chain, &design.q_eq, design.geodesics.ode);
-    let extent = match &design.region {
-        crate::geodesic::Region::Ball { radius } => *radius,
-        crate::geodesic::Region::Box { .. } => design.geodesics.max_arc,
-    };
+    let extent = design.region.radius().unwrap_or(design.geodesics.max_arc);
     let stop = Stop::Region { region: &design.region, max_arc: extent };
     let geo = shooter.trace(u, stop, extent / 400.0).map_err(|e| e.to_string())?;
     let mut prev = (0.0, 0.0);

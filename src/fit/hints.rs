@@ -108,8 +108,15 @@ pub fn poor_fit_advice(region: &RegionReport) -> String {
 /// The share of its largest valid radius that `region` reaches, when that is at least
 /// [`NEAR_LIMIT`] and a conjugate point or a crossing (not the check's probe) sets the radius.
 pub fn near_limit(region: &RegionReport) -> Option<f64> {
-    let share = region.extent / region.largest_radius;
-    (region.limit.is_some() && !region.largest_radius_is_lower_bound && share >= NEAR_LIMIT).then_some(share)
+    // A joint limit is a stop of the arm, not a place where the modes themselves degrade: only a
+    // conjugate point or crossing geodesics make the fit's error grow towards them.
+    let failure = region
+        .limited_by
+        .iter()
+        .chain(region.limit.iter())
+        .find(|f| !matches!(f, crate::geodesic::region::RegionFailure::JointLimit { .. }))?;
+    let share = region.extent / failure.radius();
+    (share >= NEAR_LIMIT).then_some(share)
 }
 
 /// [`equality_warning`] for a fit of `design` that `metrics` judged, against the target
@@ -243,6 +250,7 @@ mod tests {
                 direction: 514,
             }),
             failure: None,
+            limited_by: Vec::new(),
             reason: String::new(),
         };
         let near = poor_fit_advice(&report(0.52, 0.5257, false));

@@ -38,6 +38,18 @@ pub enum Region {
         /// The upper bound of each joint angle, rad (`[region] upper`).
         upper: DVector<f64>,
     },
+    /// The geodesic ball r(q) ≤ radius cut by the joints' limits lower ≤ q ≤ upper (infinite
+    /// bounds for joints without a stop): each geodesic stops at the radius or at the first limit
+    /// it meets, whichever comes first. A real arm's ball where one light joint would swing past
+    /// its stop long before the others reach the radius.
+    Clipped {
+        /// The ball's radius in metric arc length from q_eq, √(kg·m²)·rad (`[region] radius`).
+        radius: f64,
+        /// Each joint's lower limit, rad (−∞ for a joint without a stop).
+        lower: DVector<f64>,
+        /// Each joint's upper limit, rad (+∞ for a joint without a stop).
+        upper: DVector<f64>,
+    },
 }
 
 impl Region {
@@ -46,7 +58,7 @@ impl Region {
     pub fn outside(&self, q: &[f64]) -> bool {
         match self {
             Region::Ball { .. } => false,
-            Region::Box { lower, upper } => {
+            Region::Box { lower, upper } | Region::Clipped { lower, upper, .. } => {
                 q.iter().zip(lower.iter().zip(upper.iter())).any(|(x, (lo, hi))| x < lo || x > hi)
             }
         }
@@ -55,7 +67,7 @@ impl Region {
     /// The earliest time within the integrator's last step at which the trace crosses a face of
     /// the box (event location on the dense output). Call only after a step ended outside.
     fn exit_time(&self, ode: &Dopri5, n: usize) -> f64 {
-        let Region::Box { lower, upper } = self else {
+        let (Region::Box { lower, upper } | Region::Clipped { lower, upper, .. }) = self else {
             return ode.t();
         };
         let (t0, t1) = (ode.t_old(), ode.t());
@@ -81,18 +93,32 @@ impl Region {
     pub fn describe(&self) -> String {
         match self {
             Region::Ball { radius } => format!("geodesic ball of radius {radius}"),
-            Region::Box { lower, upper } => format!(
-                "box {}",
-                lower
-                    .iter()
-                    .zip(upper.iter())
-                    .enumerate()
-                    .map(|(i, (lo, hi))| format!("q{} ∈ [{lo}, {hi}]", i + 1))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
+            Region::Box { lower, upper } => format!("box {}", describe_bounds(lower, upper)),
+            Region::Clipped { radius, lower, upper } => {
+                format!("geodesic ball of radius {radius} within the joint limits {}", describe_bounds(lower, upper))
+            }
         }
     }
+
+    /// The radius of a ball, clipped or not (None for a box).
+    pub fn radius(&self) -> Option<f64> {
+        match self {
+            Region::Ball { radius } | Region::Clipped { radius, .. } => Some(*radius),
+            Region::Box { .. } => None,
+        }
+    }
+}
+
+/// `q1 ∈ [lo, hi], …`, leaving out joints without bounds.
+fn describe_bounds(lower: &DVector<f64>, upper: &DVector<f64>) -> String {
+    lower
+        .iter()
+        .zip(upper.iter())
+        .enumerate()
+        .filter(|(_, (lo, hi))| lo.is_finite() || hi.is_finite())
+        .map(|(i, (lo, hi))| format!("q{} ∈ [{lo}, {hi}]", i + 1))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// How a traced geodesic ended.

@@ -45,14 +45,47 @@ pub enum RegionFailure {
         /// Indices of the two geodesics in the region check's fan, 0-based.
         directions: [usize; 2],
     },
+    /// The geodesic in direction `direction` reaches joint `joint`'s (index `index`) limit
+    /// `bound` at arc length `s`, at `q`: a ball beyond `s` asks the arm for a pose it cannot take.
+    JointLimit {
+        /// Arc length from q_eq where the limit is reached, √(kg·m²)·rad.
+        s: f64,
+        /// The configuration there, rad.
+        q: Vec<f64>,
+        /// Index of the geodesic in the region check's fan, 0-based.
+        direction: usize,
+        /// The joint's name.
+        joint: String,
+        /// The joint's index, 0-based from the base.
+        index: usize,
+        /// The limit reached, rad.
+        bound: f64,
+    },
 }
 
 impl RegionFailure {
     /// The geodesic-ball radius at which this failure enters.
     pub fn radius(&self) -> f64 {
         match self {
-            RegionFailure::Conjugate { s, .. } => *s,
+            RegionFailure::Conjugate { s, .. } | RegionFailure::JointLimit { s, .. } => *s,
             RegionFailure::Crossing { s, .. } => s[0].max(s[1]),
+        }
+    }
+
+    /// The share of this failure's radius a suggested region uses.
+    pub fn suggested_share(&self) -> f64 {
+        match self {
+            RegionFailure::JointLimit { .. } => JOINT_LIMIT_SHARE,
+            RegionFailure::Conjugate { .. } | RegionFailure::Crossing { .. } => MODE_LIMIT_SHARE,
+        }
+    }
+
+    /// What kind of limit this is, in a few words (for `check`'s list of what limits the region).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            RegionFailure::Conjugate { .. } => "conjugate point",
+            RegionFailure::Crossing { .. } => "crossing geodesics (exp not one-to-one)",
+            RegionFailure::JointLimit { .. } => "joint limit",
         }
     }
 
@@ -69,7 +102,54 @@ impl RegionFailure {
                 s[0],
                 s[1]
             ),
+            RegionFailure::JointLimit { s, q, joint, bound, .. } => format!(
+                "joint `{joint}` reaches its limit {bound:.4} rad (the URDF's <limit>) at arc length {s:.3}, q = ({})",
+                fmt_q(q)
+            ),
         }
+    }
+}
+
+/// The moving joints' limits a region must keep within (from the URDF's `<limit>`; infinite
+/// bounds for joints that turn freely), with the joints' names for messages.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointLimits {
+    /// Lower limits, rad.
+    pub lower: DVector<f64>,
+    /// Upper limits, rad.
+    pub upper: DVector<f64>,
+    /// The joints' names, in chain order.
+    pub names: Vec<String>,
+}
+
+impl JointLimits {
+    /// The first point where a traced geodesic leaves the limits, interpolated between its
+    /// samples on the joint that leaves first: (arc length, q, joint index, bound).
+    fn first_exit(&self, g: &crate::geodesic::Geodesic) -> Option<(f64, Vec<f64>, usize, f64)> {
+        let outside = |q: &[f64]| (0..q.len()).find(|&j| q[j] < self.lower[j] || q[j] > self.upper[j]);
+        let k = (0..g.len()).find(|&k| outside(g.q(k)).is_some())?;
+        if k == 0 {
+            let j = outside(g.q(0))?;
+            let bound = if g.q(0)[j] < self.lower[j] { self.lower[j] } else { self.upper[j] };
+            return Some((g.s(0), g.q(0).to_vec(), j, bound));
+        }
+        let (a, b) = (g.q(k - 1), g.q(k));
+        // The joint whose limit is crossed earliest between the two samples.
+        let mut best: Option<(f64, usize, f64)> = None;
+        for j in 0..a.len() {
+            for bound in [self.lower[j], self.upper[j]] {
+                let crosses = (a[j] - bound) * (b[j] - bound) <= 0.0 && bound.is_finite() && a[j] != b[j];
+                if crosses {
+                    let t = ((bound - a[j]) / (b[j] - a[j])).clamp(0.0, 1.0);
+                    if best.is_none_or(|(tb, _, _)| t < tb) {
+                        best = Some((t, j, bound));
+                    }
+                }
+            }
+        }
+        let (t, j, bound) = best?;
+        let q: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + t * (y - x)).collect();
+        Some((g.s(k - 1) + t * (g.s(k) - g.s(k - 1)), q, j, bound))
     }
 }
 
@@ -92,6 +172,9 @@ pub struct RegionReport {
     pub limit: Option<RegionFailure>,
     /// What makes the region invalid (None when valid).
     pub failure: Option<RegionFailure>,
+    /// The nearest failure of each kind found (conjugate point, crossing, joint limit), nearest
+    /// first: what limits the region, and what would next.
+    pub limited_by: Vec<RegionFailure>,
     /// Why, in one sentence.
     pub reason: String,
 }
@@ -103,12 +186,25 @@ pub fn check_region(
     region: &Region,
     settings: &GeodesicSettings,
 ) -> Result<RegionReport> {
+    check_region_within(chain, q_eq, region, settings, None)
+}
+
+/// [`check_region`] on an arm whose joints stop at `limits`: a ball that reaches a limit is
+/// invalid, and the joint limit is one more thing that bounds the largest valid radius (a
+/// clipped ball and a box honour the limits by their shape and are not judged by them).
+pub fn check_region_within(
+    chain: &Chain,
+    q_eq: &DVector<f64>,
+    region: &Region,
+    settings: &GeodesicSettings,
+    limits: Option<&JointLimits>,
+) -> Result<RegionReport> {
     let n = chain.dof();
     let count = settings.check_count(n);
     // Extent and per-direction exit arc lengths.
     let exits: Vec<f64> = match region {
         Region::Ball { radius } => vec![*radius; if n == 1 { 2 } else { count }],
-        Region::Box { .. } => {
+        Region::Box { .. } | Region::Clipped { .. } => {
             let spec = FanSpec {
                 count,
                 phase: 0.0,
@@ -153,10 +249,32 @@ pub fn check_region(
             RegionFailure::Crossing { s, directions, .. } => {
                 s[0] <= exits[directions[0]] && s[1] <= exits[directions[1]]
             }
-            RegionFailure::Conjugate { .. } => unreachable!(),
+            RegionFailure::Conjugate { .. } | RegionFailure::JointLimit { .. } => false,
         };
         failures.push((c, inside));
     }
+    // The joint limits, for a plain ball: the earliest exit over all directions.
+    if let (Some(limits), Region::Ball { .. }) = (limits, region) {
+        let first = traces
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| limits.first_exit(&t.geodesic).map(|e| (i, e)))
+            .min_by(|a, b| a.1.0.total_cmp(&b.1.0));
+        if let Some((direction, (s, q, index, bound))) = first {
+            let joint = limits.names.get(index).cloned().unwrap_or_else(|| format!("q{}", index + 1));
+            failures.push((RegionFailure::JointLimit { s, q, direction, joint, index, bound }, s <= exits[direction]));
+        }
+    }
+    // The first failure of each kind, nearest first: what limits the region.
+    let mut limited_by: Vec<RegionFailure> = Vec::new();
+    for (f, _) in &failures {
+        match limited_by.iter_mut().find(|g| g.kind() == f.kind()) {
+            Some(g) if f.radius() < g.radius() => *g = f.clone(),
+            Some(_) => {}
+            None => limited_by.push(f.clone()),
+        }
+    }
+    limited_by.sort_by(|a, b| a.radius().total_cmp(&b.radius()));
     let limit = failures.iter().map(|(f, _)| f).min_by(|a, b| a.radius().total_cmp(&b.radius())).cloned();
     let failure = failures
         .iter()
@@ -176,6 +294,13 @@ pub fn check_region(
     };
     let reason = match &failure {
         None => format!("exp is one-to-one on the {}; {radius_text}", region.describe()),
+        Some(f @ RegionFailure::JointLimit { s, .. }) => format!(
+            "{} inside the {}: a ball within the joint limits has radius below {s:.4} (region.radius = {:.4} keeps a {:.0} % margin), or set region.within_joint_limits = true to stop the region at the limits; {radius_text}",
+            f.describe(),
+            region.describe(),
+            JOINT_LIMIT_SHARE * s,
+            100.0 * (1.0 - JOINT_LIMIT_SHARE)
+        ),
         Some(f) => format!("{} inside the {}; {radius_text}", f.describe(), region.describe()),
     };
     Ok(RegionReport {
@@ -187,8 +312,29 @@ pub fn check_region(
         probe_radius: probe,
         limit,
         failure,
+        limited_by,
         reason,
     })
+}
+
+/// The share of a joint limit's radius a suggested region uses: a hard stop that a built arm's
+/// equilibrium shift and its swing past the region's edge must not reach.
+pub const JOINT_LIMIT_SHARE: f64 = 0.8;
+
+/// The share of a conjugate point's or a crossing's radius a suggested region uses: the error of
+/// every finite set of springs grows fast towards them (the five-link pendulum's catalogue gives
+/// p99 0.51° at 57 % of its largest valid radius, 1.76° at 76 % and 6.7° at 99 %,
+/// `scripts/radius_limit.py`; a planar three-link arm in gravity with `catalogs/chain.toml`
+/// 3.5° at 55 % and 1.0° at 36 %), so a starting region stays well inside half of it.
+pub const MODE_LIMIT_SHARE: f64 = 0.4;
+
+impl RegionReport {
+    /// The radius to suggest: the smallest over what limits the region of its radius times its
+    /// share (JOINT_LIMIT_SHARE, MODE_LIMIT_SHARE), with the failure that sets it; None when
+    /// nothing limits the region up to the probe.
+    pub fn suggested_radius(&self) -> Option<(f64, &RegionFailure)> {
+        self.limited_by.iter().map(|f| (f.suggested_share() * f.radius(), f)).min_by(|a, b| a.0.total_cmp(&b.0))
+    }
 }
 
 /// Segment intersections between the traced polylines of a planar fan. Segments starting within

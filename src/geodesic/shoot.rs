@@ -14,7 +14,8 @@ pub enum Stop<'r> {
     /// To arc length `s`.
     Arc(f64),
     /// Until the region's boundary (event location), or `max_arc` for a box a geodesic never
-    /// leaves (an error: the box is not bounded in the metric).
+    /// leaves (an error: the box is not bounded in the metric). A clipped ball stops at its
+    /// radius or at the first joint limit.
     Region {
         /// The region whose boundary ends the trace.
         region: &'r Region,
@@ -94,6 +95,7 @@ impl<'a> Shooter<'a> {
             Stop::Region { region, max_arc } => match region {
                 Region::Ball { radius } => (*radius, None, *radius),
                 Region::Box { .. } => (max_arc, Some(region), max_arc),
+                Region::Clipped { radius, .. } => (*radius, Some(region), *radius),
             },
         };
         let mut geo = Geodesic::new(n, u.clone());
@@ -128,7 +130,7 @@ impl<'a> Shooter<'a> {
                 break;
             }
         }
-        if region.is_some() && end == GeodesicEnd::Arc {
+        if matches!(region, Some(Region::Box { .. })) && end == GeodesicEnd::Arc {
             return Err(Error::numerical(
                 "geodesic",
                 format!(

@@ -145,10 +145,7 @@ type ReleasePoint = (Vec<f64>, Vec<f64>, f64);
 fn release_points(design: &Design) -> Result<Vec<ReleasePoint>> {
     let settings = &design.identify;
     let n = design.dof();
-    let extent = match &design.region {
-        Region::Ball { radius } => *radius,
-        _ => design.geodesics.max_arc,
-    };
+    let extent = design.region.radius().unwrap_or(design.geodesics.max_arc);
     let stop = match &design.region {
         Region::Ball { radius } => Stop::Arc(*radius),
         region => Stop::Region { region, max_arc: design.geodesics.max_arc },

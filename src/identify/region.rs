@@ -39,7 +39,7 @@ pub struct RegionTest<'a> {
 impl<'a> RegionTest<'a> {
     /// The test of `design`'s region enlarged by `margin` (a fraction of its extent).
     pub fn new(design: &'a Design, margin: f64) -> RegionTest<'a> {
-        let log = matches!(design.region, Region::Ball { .. })
+        let log = matches!(design.region, Region::Ball { .. } | Region::Clipped { .. })
             .then(|| LogMap::new(&design.chain, &design.q_eq, design.geodesics.ode, LogSettings::default()));
         RegionTest { design, margin, log }
     }
@@ -75,7 +75,8 @@ impl<'a> RegionTest<'a> {
                 }
                 Ok(None)
             }
-            Region::Ball { radius } => {
+            // A clipped ball is judged by its radius: a logged pose beyond a joint's stop cannot happen.
+            Region::Ball { radius } | Region::Clipped { radius, .. } => {
                 let Some(log) = &self.log else { return Ok(None) };
                 let limit = radius * (1.0 + self.margin);
                 let chain = &self.design.chain;

@@ -21,6 +21,7 @@
 //! | [`tune`] | `tune` | the measured bill, offsets and trims (`asbuilt::tune`) |
 //! | [`identify`] | `identify` | the logs, the identified rates (`identify`), or the plan of releases (`identify::plan`) |
 //! | [`geodesics`] | `geodesics` | the region check and the fan |
+//! | [`init`] | `init` | the arm read, its region checked against what limits it, ω from gravity, the design written |
 //!
 //! `springfit check` is no job: it reports the design itself ([`crate::design::Design`]).
 //!
@@ -35,6 +36,7 @@ pub mod export;
 pub mod fit;
 pub mod geodesics;
 pub mod identify;
+pub mod init;
 pub mod parts;
 pub mod simulate;
 pub mod sweep;

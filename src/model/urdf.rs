@@ -49,14 +49,47 @@ impl Pose {
     }
 }
 
+/// What a moving joint's `<limit>` allows: the region of a real arm must stay within it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum JointRange {
+    /// A revolute joint with `lower < upper` (rad).
+    Limited { lower: f64, upper: f64 },
+    /// A continuous joint, or a planar arm's joint: it turns without end.
+    Unlimited,
+    /// A revolute joint whose `<limit>` gives no range (missing, or lower = upper): springfit
+    /// assumes it turns freely and says so, since a real joint almost always stops somewhere.
+    Unstated,
+}
+
+impl JointRange {
+    /// The range as (lower, upper), infinite where the joint has no stated stop.
+    pub fn bounds(&self) -> (f64, f64) {
+        match *self {
+            JointRange::Limited { lower, upper } => (lower, upper),
+            JointRange::Unlimited | JointRange::Unstated => (f64::NEG_INFINITY, f64::INFINITY),
+        }
+    }
+}
+
 /// Reads `urdf` and builds the chain of `joints` (base first) with the other joints held at
 /// `locked` (name, value in rad or m for a prismatic joint) and gravity in the base frame.
 pub fn load(urdf: &Path, joints: &[String], locked: &[(String, f64)], gravity: [f64; 3]) -> Result<SpatialChain> {
+    load_with_ranges(urdf, joints, locked, gravity).map(|(chain, _)| chain)
+}
+
+/// [`load`], and the `<limit>` of each moving joint in the order of `joints`.
+pub fn load_with_ranges(
+    urdf: &Path,
+    joints: &[String],
+    locked: &[(String, f64)],
+    gravity: [f64; 3],
+) -> Result<(SpatialChain, Vec<JointRange>)> {
     if urdf.is_dir() {
         return Err(Error::io(urdf, std::io::Error::other("is a folder: robot.urdf names the robot's .urdf file")));
     }
     let text = std::fs::read_to_string(urdf).map_err(|e| Error::io(urdf, e))?;
-    parse(urdf, &text, joints, locked, gravity)
+    parse_with_ranges(urdf, &text, joints, locked, gravity)
 }
 
 /// [`load`] on the text of a URDF; `urdf` names it in errors.
@@ -71,6 +104,17 @@ pub fn parse(
     locked: &[(String, f64)],
     gravity: [f64; 3],
 ) -> Result<SpatialChain> {
+    parse_with_ranges(urdf, text, joints, locked, gravity).map(|(chain, _)| chain)
+}
+
+/// [`parse`], and the `<limit>` of each moving joint in the order of `joints`.
+pub fn parse_with_ranges(
+    urdf: &Path,
+    text: &str,
+    joints: &[String],
+    locked: &[(String, f64)],
+    gravity: [f64; 3],
+) -> Result<(SpatialChain, Vec<JointRange>)> {
     let robot = urdf_rs::read_from_string(text).map_err(|e| Error::Parse {
         path: urdf.to_path_buf(),
         line: 0,
@@ -94,7 +138,25 @@ pub fn parse(
             format!("cannot be reached from the base link `{}`: its links form a loop", robot.links[tree.root].name),
         ));
     };
-    Ok(merged.chain(&placements, joints, gravity))
+    // `chosen` found every name in the file.
+    let ranges = joints
+        .iter()
+        .map(|name| tree.joint_index.get(name.as_str()).map_or(JointRange::Unlimited, |&j| range(&robot.joints[j])))
+        .collect();
+    Ok((merged.chain(&placements, joints, gravity), ranges))
+}
+
+/// A moving joint's range: continuous joints turn freely; a revolute joint's `<limit>` reads
+/// lower = upper = 0 when it is missing (urdf-rs's default), which is no range at all.
+fn range(joint: &urdf_rs::Joint) -> JointRange {
+    let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+    match joint.joint_type {
+        JointType::Revolute if lower < upper && lower.is_finite() && upper.is_finite() => {
+            JointRange::Limited { lower, upper }
+        }
+        JointType::Revolute => JointRange::Unstated,
+        _ => JointRange::Unlimited,
+    }
 }
 
 /// Errors on the URDF file, naming the element (`<joint name="…">`, `<link name="…">`,
