@@ -266,3 +266,128 @@ fn a_trims_measured_rate_is_where_tuning_starts() {
         assert!((sa.set - sb.set).abs() <= 1e-6 * (1.0 + sa.set.abs()), "{}: {} vs {}", sa.id, sa.set, sb.set);
     }
 }
+
+/// A three-joint arm springfit does not ship (`random_arm.py --seed 1 --joints 3`, the chain
+/// catalogue) with trims at 2 N·m/rad each: stiffer than the whole wrist (ω² M₃₃ ≈ 0.45 N·m/rad),
+/// so the springs without the trims are unstable on their own and their point of balance, where
+/// a build's trims are relaxed, was never found (Newton's steps took the trims' stiffness into a
+/// Hessian whose gradient did not include them): every trimmed figure was NaN and every build
+/// counted "at the end of its range". Now, with a trim on each joint (the residual rule), every
+/// build has trimmed figures; with six trims (each joint, 1+2, 2+3, 1+2+3: as many as a 3 × 3
+/// Hessian has entries) and ranges that do not bind, the trims restore ∇²U = w² M at the point
+/// of every build that has one, and the trimmed arm rests there.
+#[test]
+fn trims_work_on_three_joints() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = "name = \"random_arm_1_3\"\ncatalog = \"../catalogs/chain.toml\"\n[robot]\ngravity = [0.0, -9.81]\n\
+        [[robot.links]]\nmass = 0.6628\nlength = 0.7085\ncom = 0.4290\ninertia = 0.020932\n\
+        [[robot.links]]\nmass = 1.6377\nlength = 0.4697\ncom = 0.2633\ninertia = 0.038800\n\
+        [[robot.links]]\nmass = 0.5534\nlength = 0.2170\ncom = 0.1376\ninertia = 0.002026\n\
+        [equilibrium]\nq = [0.6295, -1.1949, -0.1311]\n[region]\nkind = \"ball\"\nradius = 0.3068\n\
+        [fit]\nfrequency = 6.0\ntolerance = 0.05\n";
+    let nominal = Design::parse(&repo.join("designs/random_arm.toml"), text).unwrap();
+    let mut design = nominal.clone();
+    let m33 = design.chain.mass_matrix(&design.q_eq)[(2, 2)];
+    assert!(36.0 * m33 < 0.5, "ω² M₃₃ = {} N·m/rad", 36.0 * m33);
+    let chain = std::fs::read_to_string(repo.join("catalogs/chain.toml")).unwrap();
+    let fitted_with = |couplings: &str| {
+        let text = format!(
+            "{chain}\n[[family]]\nname = \"trim spring\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\n\
+             couplings = {couplings}\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, 4.0]\n"
+        );
+        let catalog = Catalog::parse(&repo.join("catalogs/chain_trim.toml"), &text, 3).unwrap();
+        eprintln!("fitting with trims on {couplings}");
+        fit(&nominal, &catalog, &nominal.fit, springfit::progress::Progress::none()).unwrap()
+    };
+
+    // One trim per joint, the residual rule: every build has trimmed figures, numbers.
+    let o = fitted_with("\"joints\"");
+    let s = build_settings(&o, 20);
+    design.fit.trim_rule = TrimRule::Residual;
+    let builds = asbuilt::run_builds(&design, &o.bom, &o.springs, &s).unwrap();
+    let ab = asbuilt::summarise(&s, &builds, TrimRule::Residual);
+    let t = ab.trimmed.unwrap();
+    eprintln!(
+        "three joints, 20 builds at ±5 %: untrimmed p99 {} / {}, trimmed {} / {}, {} with a trim at an end",
+        ab.p99_deg.text(ab.p99_deg.p50, 3, "°"),
+        ab.p99_deg.text(ab.p99_deg.p95, 3, "°"),
+        t.p99_deg.text(t.p99_deg.p50, 3, "°"),
+        t.p99_deg.text(t.p99_deg.p95, 3, "°"),
+        t.builds_not_restored
+    );
+    assert_eq!(t.p99_deg.without, 0, "{t:?}");
+    assert!(t.p99_deg.p95.is_finite() && t.trim_change_nm_per_rad.p95.is_finite(), "{t:?}");
+
+    // Six trims, the Hessian rule, ranges that do not bind.
+    let o = fitted_with("[[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [0, 1, 1], [1, 1, 1]]");
+    let mut bom = o.bom.clone();
+    for row in &mut bom {
+        if let Some(range) = row.adjust.trim_range.as_mut() {
+            *range = [-50.0, 50.0];
+        }
+    }
+    assert_eq!(bom.iter().filter(|r| r.adjust.trim_range.is_some()).count(), 6);
+    design.fit.trim_rule = TrimRule::Hessian;
+    let mut found = 0;
+    for index in 0..s.builds {
+        let built = o.springs.scaled(&asbuilt::draw(&bom, &s, index));
+        let Some((trimmed, q, sol)) = asbuilt::trim_build(&design, &bom, &built) else { continue };
+        found += 1;
+        assert!(sol.restored(), "build {index}: mismatch {:e}, rates {:?}", sol.mismatch, sol.rates);
+        let h = trimmed.hessian(q.as_slice()).unwrap() + design.chain.gravity_hessian(q.as_slice());
+        let m = design.chain.mass_matrix(&q);
+        assert!((&h - &m * sol.w2).norm() / m.norm() < 1e-9, "build {index}");
+        assert!(h.cholesky().is_some(), "build {index}: the trimmed arm is not stable at its point");
+        let g = trimmed.gradient(q.as_slice()).unwrap() + design.chain.gravity_gradient(q.as_slice());
+        assert!(g.amax() < 1e-9, "build {index}: |∇U(q′)| {}", g.amax());
+    }
+    eprintln!("six trims: {found} of {} builds have a point where the springs without the trims balance", s.builds);
+    assert!(found >= s.builds / 2, "{found} of {}", s.builds);
+}
+
+/// Builds without an equilibrium are counted, and a percentile among them reads "beyond X" (X
+/// the worst build with a figure), never NaN or ∞, in text and JSON.
+#[test]
+fn builds_without_a_figure_print_a_bound() {
+    let values = [1.0, 2.0, f64::NAN, 3.0, f64::NAN, f64::INFINITY, 0.5, 1.5, 2.5, f64::NAN];
+    let sp = asbuilt::Spread::of(values.into_iter());
+    assert_eq!(sp.without, 4);
+    assert_eq!(sp.beyond, Some(3.0));
+    assert_eq!(sp.text(sp.p95, 2, "°"), "beyond 3.00°");
+    assert_eq!(sp.text(sp.p50, 2, "°"), format!("{:.2}°", sp.p50));
+    for text in [sp.text(sp.p95, 3, ""), sp.p95_interval(3), sp.text(sp.p50, 3, "")] {
+        assert!(!text.contains("NaN") && !text.contains('∞') && !text.contains("inf"), "{text}");
+    }
+    let json = serde_json::to_string(&sp).unwrap();
+    assert!(json.contains("\"without\":4") && json.contains("\"beyond\":3.0"), "{json}");
+    assert!(!json.contains("NaN") && !json.contains("inf"), "{json}");
+    let none = asbuilt::Spread::of([f64::NAN; 3].into_iter());
+    assert_eq!(none.text(none.p95, 2, "°"), "none");
+    let all = asbuilt::Spread::of([1.0, 2.0].into_iter());
+    assert_eq!((all.without, all.beyond), (0, None));
+    assert!(!serde_json::to_string(&all).unwrap().contains("without"));
+}
+
+/// The first-order shift model against Monte Carlo builds: at ±1 % (where first order holds) the
+/// RMS |q′ − q_eq|₂ of 400 builds' own equilibria is the model's to within the Monte Carlo
+/// error (about 4 % for 400 builds) and the curvature's share; at ±5 % still within 15 %.
+#[test]
+fn the_shift_model_predicts_the_builds_shift() {
+    let (design, o) = fitted();
+    for (tolerance, within) in [(0.01, 0.08), (0.05, 0.15)] {
+        let s = BuildSettings { tolerance: ToleranceSpec::Fraction(tolerance), ..build_settings(&o, 400) };
+        let model = asbuilt::shift_model(&design, &o.bom, &o.springs, &s).unwrap().expect("a stable nominal arm");
+        let mut sum = 0.0;
+        for index in 0..s.builds {
+            let built = o.springs.scaled(&asbuilt::draw(&o.bom, &s, index));
+            let q = asbuilt::equilibrium(&design, &built).expect("a build near the design rests");
+            sum += (&q - &design.q_eq).norm_squared();
+        }
+        let rms = (sum / s.builds as f64).sqrt();
+        eprintln!("±{tolerance}: shift RMS {rms:.5} rad in 400 builds, model {:.5} rad; {model:?}", model.rms_rad);
+        assert!((model.rms_rad - rms).abs() < within * rms, "model {} against builds {rms}", model.rms_rad);
+        assert!(model.soft_rms_rad <= model.rms_rad * (1.0 + 1e-9));
+        assert!(model.soft_stiffness_nm_per_rad > 0.0 && model.soft_preload_spread_nm > 0.0);
+        assert!(model.warning().is_none(), "the shipped trim design needs no warning");
+    }
+}

@@ -67,6 +67,11 @@ pub fn equilibrium(design: &Design, springs: &SpringSet) -> Option<DVector<f64>>
 /// A point where ∇U of `springs` (plus gravity) vanishes, by Newton's method from q_eq, that is a
 /// minimum once `stiffening` (a constant Hessian added by elements relaxed at the point itself,
 /// such as trims: no torque there) is added; None if Newton fails or strays beyond 0.5 rad.
+///
+/// The steps use the Hessian of `springs` alone, whose zero-gradient point is sought: the rest of
+/// a trimmed arm may be unstable on its own (trims of 2 N·m/rad on a wrist whose whole stiffness
+/// is ω² M ≈ 0.5 N·m/rad), and steps with the stiffening added then shrink the gradient by too
+/// little per step, or grow it, so that no build of such an arm found its point.
 pub fn stationary_point(
     design: &Design,
     springs: &SpringSet,
@@ -78,12 +83,13 @@ pub fn stationary_point(
     let grouped = springs.grouped();
     for _ in 0..50 {
         let g = grouped.gradient(q.as_slice()).ok()? + chain.gravity_gradient(q.as_slice());
-        let mut h = grouped.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
-        if let Some(s) = stiffening {
-            h += s;
-        }
+        let h = grouped.hessian(q.as_slice()).ok()? + chain.gravity_hessian(q.as_slice());
         if g.amax() < 1e-12 * scale {
-            return h.cholesky().is_some().then_some(q);
+            let stiffened = match stiffening {
+                Some(s) => h + s,
+                None => h,
+            };
+            return stiffened.cholesky().is_some().then_some(q);
         }
         let step = h.lu().solve(&g)?;
         q -= step;
@@ -154,6 +160,11 @@ pub struct Build {
 /// p50 and p95 over builds, each with its 95 % confidence interval: how far the percentile of
 /// these builds may be from that of all builds the tolerance allows (Monte Carlo noise: the
 /// default design's p95 moved by about ±0.3° from one draw of 200 builds to the next).
+///
+/// A build without a figure (no stable equilibrium near q_eq, or a trimmed arm that is not
+/// stable) counts as the worst: a percentile that falls among those builds has no number, only a
+/// bound — it lies beyond the worst build that has one (`beyond`). Such a percentile is null in
+/// JSON and written "beyond X" in text ([`Spread::text`]), never NaN or ∞.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Spread {
     /// The median over the builds, in the unit of the figure summarised.
@@ -166,27 +177,62 @@ pub struct Spread {
     /// 95 % confidence interval of the p95 (with fewer than about 60 builds it has no upper end:
     /// null in JSON).
     pub p95_ci: [f64; 2],
+    /// Builds without a figure, counted as the worst (absent from JSON when none).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub without: usize,
+    /// The largest figure of the builds that have one: what a percentile among the builds
+    /// without one lies beyond (absent from JSON when every build has a figure, or none has).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub beyond: Option<f64>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// Confidence of the intervals of [`Spread`].
 pub const CONFIDENCE: f64 = 0.95;
 
 impl Spread {
-    /// Percentiles of `values`; NaN (a build without an equilibrium) counts as the worst.
+    /// Percentiles of `values`; NaN or ±∞ (a build without a figure) counts as the worst.
     pub fn of(values: impl Iterator<Item = f64>) -> Spread {
-        let mut v: Vec<f64> = values.map(|x| if x.is_nan() { f64::INFINITY } else { x }).collect();
+        let mut v: Vec<f64> = values.map(|x| if x.is_finite() { x } else { f64::INFINITY }).collect();
         v.sort_by(f64::total_cmp);
+        let without = v.iter().filter(|x| x.is_infinite()).count();
+        let largest = v.iter().copied().filter(|x| x.is_finite()).reduce(f64::max);
         Spread {
             p50: percentile(&v, 50.0),
             p95: percentile(&v, 95.0),
             p50_ci: percentile_interval(&v, 50.0, CONFIDENCE),
             p95_ci: percentile_interval(&v, 95.0, CONFIDENCE),
+            without,
+            beyond: if without > 0 { largest } else { None },
         }
     }
 
-    /// The p95's interval as text: `2.21–2.52`, digits after the point as given.
+    /// A percentile of this spread as text with `digits` after the point and `unit`: the number,
+    /// or "beyond X" (X the worst build with a figure) when it falls among the builds without
+    /// one, or "none" when no build has one.
+    pub fn text(&self, x: f64, digits: usize, unit: &str) -> String {
+        match self.beyond {
+            _ if x.is_finite() => format!("{x:.digits$}{unit}"),
+            Some(b) => format!("beyond {b:.digits$}{unit}"),
+            None => "none".into(),
+        }
+    }
+
+    /// The p95's interval as text: `2.21–2.52`, digits after the point as given; an end among the
+    /// builds without a figure, or beyond the last build, as "beyond X" or "open".
     pub fn p95_interval(&self, digits: usize) -> String {
-        let end = |x: f64| if x.is_finite() { format!("{x:.digits$}") } else { "∞".into() };
+        let end = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.digits$}")
+            } else if x < 0.0 || self.without == 0 {
+                "open".into()
+            } else {
+                self.text(x, digits, "")
+            }
+        };
         format!("{}–{}", end(self.p95_ci[0]), end(self.p95_ci[1]))
     }
 }
@@ -241,6 +287,9 @@ pub struct AsBuilt {
     pub trimmed: Option<Trimmed>,
     /// After each cam's preload is re-set (and the trims, if any): designs with cams only.
     pub preload_trimmed: Option<PreloadTrimmed>,
+    /// The first-order model of the equilibrium's shift (absent from JSON when not computed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shift_model: Option<ShiftModel>,
 }
 
 /// The tolerance the as-built figures are drawn at: the fit's, or — when the fit is for the
@@ -500,7 +549,116 @@ pub fn summarise(s: &BuildSettings, builds: &[Build], rule: TrimRule) -> AsBuilt
         shift_metric: Spread::of(builds.iter().map(|b| b.shift_metric)),
         trimmed,
         preload_trimmed: None,
+        shift_model: None,
     }
+}
+
+/// The first-order model of how far a build's equilibrium moves (see `fit::robust`): a build
+/// scales spring i by 1 + δᵢ, its gradient at q_eq changes by Σᵢ δᵢ kᵢ gᵢ (gᵢ = ∇uᵢ(q_eq) at
+/// unit rate: the preload spring i carries there) and, H = ∇²U(q_eq) being its stiffness, its
+/// equilibrium by
+///
+/// Δq = −H⁻¹ Σᵢ δᵢ kᵢ gᵢ,
+///
+/// with covariance C = H⁻¹ (Σ_parts σ² p pᵀ) H⁻¹ (p the preload of one part: a cam's columns
+/// share one δ). The shift is large where little net stiffness holds much preload: the softest
+/// direction v (H's smallest eigenvalue, unit v) carries vᵀ H v of stiffness against the
+/// preload's spread √(Σ σ² (vᵀp)²) and the gravity torque |vᵀ∇U_g| the springs hold there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ShiftModel {
+    /// √E‖Δq‖², rad (the Monte Carlo builds' RMS |q′ − q_eq|₂, to first order).
+    pub rms_rad: f64,
+    /// The joint (1-based) that moves most along the softest direction.
+    pub soft_joint: usize,
+    /// Net stiffness along it, vᵀ H v, N·m/rad.
+    pub soft_stiffness_nm_per_rad: f64,
+    /// The preload error's spread along it, √(Σ σ² (vᵀp)²), N·m.
+    pub soft_preload_spread_nm: f64,
+    /// The gravity torque along it that the springs carry at q_eq, |vᵀ ∇U_g(q_eq)|, N·m.
+    pub soft_gravity_nm: f64,
+    /// The RMS shift along the softest direction alone, rad: spread / stiffness.
+    pub soft_rms_rad: f64,
+}
+
+/// RMS equilibrium shift (rad) above which the shift model warns: twice it (about a p95) is
+/// 0.2 rad, where builds begin to lose the equilibrium within 0.5 rad of q_eq that
+/// [`equilibrium`] looks for (the default design's RMS is about 0.05 rad; the three-joint arm of
+/// issue 46, whose 7 in 1,000 builds lost it, above 0.1).
+pub const SHIFT_WARNING_RAD: f64 = 0.1;
+
+impl ShiftModel {
+    /// The warning when the modelled shift exceeds [`SHIFT_WARNING_RAD`]: the softest
+    /// direction's net stiffness against the preload spread and the gravity it carries.
+    pub fn warning(&self) -> Option<String> {
+        (self.rms_rad > SHIFT_WARNING_RAD).then(|| {
+            format!(
+                "a build's equilibrium moves by {:.3} rad RMS (first order, at the build tolerance; above {SHIFT_WARNING_RAD} rad builds begin to lose their equilibrium): the softest direction (mostly joint {}) has {:.3} N·m/rad of net stiffness against a preload error of {:.3} N·m RMS, the springs carrying {:.3} N·m of gravity along it ({:.3} rad RMS from it alone); raise fit.frequency, tighten the tolerance or move q_eq where gravity loads that direction less",
+                self.rms_rad,
+                self.soft_joint,
+                self.soft_stiffness_nm_per_rad,
+                self.soft_preload_spread_nm,
+                self.soft_gravity_nm,
+                self.soft_rms_rad
+            )
+        })
+    }
+}
+
+/// [`ShiftModel`] of `springs` (the bill's, rows `bom`) at the build settings' tolerance; None if
+/// the springs' Hessian at q_eq is not positive definite (no nominal equilibrium to move).
+pub fn shift_model(
+    design: &Design,
+    bom: &[BomRow],
+    springs: &SpringSet,
+    s: &BuildSettings,
+) -> Result<Option<ShiftModel>> {
+    let q = design.q_eq.as_slice();
+    let n = design.dof();
+    let h = springs.hessian(q)? + design.chain.gravity_hessian(q);
+    let Some(chol) = h.clone().cholesky() else { return Ok(None) };
+    // One preload per part: a cam's rows share one δ (see `factors`).
+    let groups = bom_groups(bom);
+    let mut parts: Vec<(f64, DVector<f64>)> = Vec::new();
+    let mut part_of: Vec<Option<usize>> = Vec::new();
+    for (j, (row, g)) in bom.iter().zip(&groups).enumerate() {
+        let p = springs.elements[j].gradient(q) * springs.stiffness[j];
+        let sigma2 = s.distribution.variance(s.tolerance.for_element(row.tolerance));
+        match *g {
+            Some(g) => {
+                if part_of.len() <= g {
+                    part_of.resize(g + 1, None);
+                }
+                match part_of[g] {
+                    Some(at) => parts[at].1 += p,
+                    None => {
+                        part_of[g] = Some(parts.len());
+                        parts.push((sigma2, p));
+                    }
+                }
+            }
+            None => parts.push((sigma2, p)),
+        }
+    }
+    let mut cov_g = DMatrix::zeros(n, n);
+    for (sigma2, p) in &parts {
+        cov_g += p * p.transpose() * *sigma2;
+    }
+    let h_inv = chol.inverse();
+    let cov = &h_inv * &cov_g * &h_inv;
+    let eig = h.clone().symmetric_eigen();
+    let soft = (0..n).min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b])).unwrap_or(0);
+    let v = eig.eigenvectors.column(soft).into_owned();
+    let stiffness = v.dot(&(&h * &v));
+    let spread = v.dot(&(&cov_g * &v)).max(0.0).sqrt();
+    let gravity = v.dot(&design.chain.gravity_gradient(q)).abs();
+    Ok(Some(ShiftModel {
+        rms_rad: cov.trace().max(0.0).sqrt(),
+        soft_joint: 1 + v.iamax(),
+        soft_stiffness_nm_per_rad: stiffness,
+        soft_preload_spread_nm: spread,
+        soft_gravity_nm: gravity,
+        soft_rms_rad: spread / stiffness,
+    }))
 }
 
 /// The p99 figures compare and pareto list: (untrimmed p50, p95), and trimmed (p50, p95) if any.
@@ -528,7 +686,16 @@ impl Brief {
                 };
                 [at(0, f64::NEG_INFINITY), at(1, f64::INFINITY)]
             };
-            Some(Spread { p50: num("p50")?, p95: num("p95")?, p50_ci: ci("p50_ci"), p95_ci: ci("p95_ci") })
+            let without = v.get("without").and_then(|x| x.as_u64()).map_or(0, |x| x as usize);
+            let beyond = v.get("beyond").and_then(|x| x.as_f64());
+            Some(Spread {
+                p50: num("p50")?,
+                p95: num("p95")?,
+                p50_ci: ci("p50_ci"),
+                p95_ci: ci("p95_ci"),
+                without,
+                beyond,
+            })
         };
         let ab = v.get("as_built").filter(|x| !x.is_null())?;
         Some(Brief {
@@ -558,6 +725,7 @@ pub fn of_fit(design: &Design, fit: &crate::fit::FitOutcome) -> Result<Option<As
     };
     let builds = run_builds(design, &fit.bom, &fit.springs, &s)?;
     let mut ab = summarise(&s, &builds, design.fit.trim_rule);
+    ab.shift_model = shift_model(design, &fit.bom, &fit.springs, &s)?;
     if !fit.cams.is_empty() {
         let terms: Vec<preload::PreloadTerm> = fit.cams.iter().map(preload::term).collect();
         let out: Vec<Result<(f64, f64)>> = (0..s.builds)

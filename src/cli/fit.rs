@@ -136,60 +136,68 @@ fn say_cam<'a>(cam: &FittedCam, warnings: impl Iterator<Item = &'a str>, progres
     }
 }
 
-/// The as-built figures: untrimmed, trimmed, with the cams' preloads re-set.
+/// The as-built figures: untrimmed, trimmed, with the cams' preloads re-set. A percentile among
+/// the builds without a figure reads "beyond X" (see [`springfit::asbuilt::Spread::text`]).
 fn say_as_built(ab: &AsBuilt, secs: f64, progress: &Progress) {
+    let pair = |sp: &springfit::asbuilt::Spread, digits: usize, unit: &str| {
+        format!("{} / {}", sp.text(sp.p50, digits, unit), sp.text(sp.p95, digits, unit))
+    };
     progress.say(format!(
-                "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {:.3}° / {:.3}° (p95 within {}° at 95 % confidence), max {:.3}° / {:.3}°, shift {:.4} / {:.4} rad (Euclidean), {:.4} / {:.4} (metric); {:.2} s",
-                plural(ab.builds, "build"),
-                ab.tolerance.label(),
-                ab.distribution.name(),
-                ab.p99_deg.p50,
-                ab.p99_deg.p95,
-                ab.p99_deg.p95_interval(3),
-                ab.max_deg.p50,
-                ab.max_deg.p95,
-                ab.shift_rad.p50,
-                ab.shift_rad.p95,
-                ab.shift_metric.p50,
-                ab.shift_metric.p95,
-                secs
-            ));
+        "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {} (p95 within {}° at 95 % confidence), max {}, shift {} rad (Euclidean), {} (metric); {:.2} s",
+        plural(ab.builds, "build"),
+        ab.tolerance.label(),
+        ab.distribution.name(),
+        pair(&ab.p99_deg, 3, "°"),
+        ab.p99_deg.p95_interval(3),
+        pair(&ab.max_deg, 3, "°"),
+        pair(&ab.shift_rad, 4, ""),
+        pair(&ab.shift_metric, 4, ""),
+        secs
+    ));
     if let Some(t) = &ab.trimmed {
         progress.say(format!(
-                    "as built and trimmed: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°; largest trim change {:.3} / {:.3} N·m/rad; {} {}",
-                    t.p99_deg.p50,
-                    t.p99_deg.p95,
-                    t.p99_deg.p95_interval(3),
-                    t.max_deg.p50,
-                    t.max_deg.p95,
-                    t.trim_change_nm_per_rad.p50,
-                    t.trim_change_nm_per_rad.p95,
-                    plural(t.builds_not_restored, "build"),
-                    match t.rule {
-                        TrimRule::Hessian => "not fully restored",
-                        TrimRule::Residual => "with a trim at the end of its range",
-                    }
-                ));
+            "as built and trimmed: p99 {} (p95 within {}°), max {}; largest trim change {} N·m/rad; {} {}",
+            pair(&t.p99_deg, 3, "°"),
+            t.p99_deg.p95_interval(3),
+            pair(&t.max_deg, 3, "°"),
+            pair(&t.trim_change_nm_per_rad, 3, ""),
+            plural(t.builds_not_restored, "build"),
+            match t.rule {
+                TrimRule::Hessian => "not fully restored",
+                TrimRule::Residual => "with a trim at the end of its range",
+            }
+        ));
+        if t.p99_deg.without > 0 {
+            progress.say(format!(
+                "{} of {} builds ({:.1} %) have no stable equilibrium once trimmed (counted as the worst)",
+                t.p99_deg.without,
+                ab.builds,
+                100.0 * t.p99_deg.without as f64 / ab.builds.max(1) as f64,
+            ));
+        }
     }
     if let Some(t) = &ab.preload_trimmed {
         progress.say(format!(
-                    "as built, each cam's follower preload re-set to the drawing's force{}: p99 {:.3}° / {:.3}° (p95 within {}°), max {:.3}° / {:.3}°",
-                    if ab.trimmed.is_some() { " and the trims re-set" } else { "" },
-                    t.p99_deg.p50,
-                    t.p99_deg.p95,
-                    t.p99_deg.p95_interval(3),
-                    t.max_deg.p50,
-                    t.max_deg.p95,
-                ));
+            "as built, each cam's follower preload re-set to the drawing's force{}: p99 {} (p95 within {}°), max {}",
+            if ab.trimmed.is_some() { " and the trims re-set" } else { "" },
+            pair(&t.p99_deg, 3, "°"),
+            t.p99_deg.p95_interval(3),
+            pair(&t.max_deg, 3, "°"),
+        ));
+    }
+    if let Some(w) = ab.shift_model.and_then(|m| m.warning()) {
+        progress.warn(w);
     }
     if ab.builds_without_equilibrium > 0 {
         progress.say(format!(
-            "{} no stable equilibrium within 0.5 rad of q_eq (counted as the worst)",
+            "{} no stable equilibrium within 0.5 rad of q_eq ({:.1} % of {}, counted as the worst)",
             if ab.builds_without_equilibrium == 1 {
                 "1 build has".to_string()
             } else {
                 format!("{} builds have", ab.builds_without_equilibrium)
-            }
+            },
+            100.0 * ab.builds_without_equilibrium as f64 / ab.builds.max(1) as f64,
+            ab.builds
         ));
     }
 }

@@ -301,12 +301,12 @@ pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed
         style: Style::fill(palette(3), 0.25),
         label: Some("as built: p99 |angle|, p50–p95 over builds".into()),
     });
+    let pair = |sp: &crate::asbuilt::Spread| format!("{} / {}", sp.text(sp.p50, 3, "°"), sp.text(sp.p95, 3, "°"));
     panel.notes.push(format!(
-        "as built ({}, {} builds): p99 {:.3}° / {:.3}° (p50 / p95)",
+        "as built ({}, {} builds): p99 {} (p50 / p95)",
         ab.tolerance.label(),
         ab.builds,
-        ab.p99_deg.p50,
-        ab.p99_deg.p95
+        pair(&ab.p99_deg)
     ));
     if let Some(t) = &ab.trimmed {
         panel.layers.push(Layer::Spans {
@@ -314,7 +314,7 @@ pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed
             style: Style::fill(palette(2), 0.25),
             label: Some("trimmed: p99 |angle|, p50–p95 over builds".into()),
         });
-        panel.notes.push(format!("trimmed: p99 {:.3}° / {:.3}°", t.p99_deg.p50, t.p99_deg.p95));
+        panel.notes.push(format!("trimmed: p99 {}", pair(&t.p99_deg)));
     }
     panel.legend = true;
 }

@@ -307,11 +307,9 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
     );
     let row = |name: &str, sp: &crate::asbuilt::Spread, unit: &str, digits: usize| {
         format!(
-            "| {name} | {:.*}{unit} | {:.*}{unit} | {}{unit} |\n",
-            digits,
-            sp.p50,
-            digits,
-            sp.p95,
+            "| {name} | {} | {} | {}{unit} |\n",
+            sp.text(sp.p50, digits, unit),
+            sp.text(sp.p95, digits, unit),
             sp.p95_interval(digits)
         )
     };
@@ -343,8 +341,19 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
     }
     if ab.builds_without_equilibrium > 0 {
         r.push_str(&format!(
-            "\n{} builds have no stable equilibrium within 0.5 rad of q_eq (counted as the worst).\n",
-            ab.builds_without_equilibrium
+            "\n{} builds ({:.1} %) have no stable equilibrium within 0.5 rad of q_eq (counted as the worst: a percentile among them lies beyond the worst build that has one).\n",
+            ab.builds_without_equilibrium,
+            100.0 * ab.builds_without_equilibrium as f64 / ab.builds.max(1) as f64
+        ));
+    }
+    if let Some(w) = ab.shift_model.and_then(|m| m.warning()) {
+        r.push_str(&format!("\nWarning: {w}.\n"));
+    }
+    if let Some(t) = ab.trimmed.filter(|t| t.p99_deg.without > 0) {
+        r.push_str(&format!(
+            "\n{} builds ({:.1} %) have no stable equilibrium once trimmed (counted as the worst).\n",
+            t.p99_deg.without,
+            100.0 * t.p99_deg.without as f64 / ab.builds.max(1) as f64
         ));
     }
     r.push('\n');
