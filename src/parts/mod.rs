@@ -333,11 +333,7 @@ pub fn choose(
             let duty = duty(&spans, &r.element);
             let k = r.stiffness;
             // The fitted elements' mechanisms, as functions of the stiffness (for the bound below).
-            let design_at = |k: f64| match r.element.profile {
-                Profile::Linear => mechanism::linear(k, &duty, &req),
-                Profile::Compression(side) => mechanism::stop(k, side == Side::Plus, &duty, &req),
-                _ => mechanism::crank(k, &duty, &req),
-            };
+            let design_at = |k: f64| fitted_part(r.element.profile, k, &duty, &req);
             let part = match (r.element.profile, r.adjust.trim_range) {
                 (Profile::Linear, Some(range)) => mechanism::leaf(range, k, &duty, &req),
                 (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
@@ -385,6 +381,36 @@ pub fn choose(
         None => stats(&fan_angles(&design.chain, evaluation, &spring_set(bom).grouped())?),
     };
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
+}
+
+/// The lightest part of a fitted element of `profile` at stiffness `k` (the profile's unit:
+/// N·m/rad, N·m for a crank) over the deflections `duty`, within `req`: the mechanism `choose`
+/// gives it (two torsion springs for a linear element, one on a leg stop for a one-sided
+/// compression, an extension spring on a crank's cable otherwise), or the limit no spring meets.
+/// A trim's leaf, a cubic's cam and a fitted cam's follower are not fit candidates of this kind
+/// and are chosen by `choose` alone.
+pub fn fitted_part(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
+    match profile {
+        Profile::Linear => mechanism::linear(k, duty, req),
+        Profile::Compression(side) => mechanism::stop(k, side == Side::Plus, duty, req),
+        _ => mechanism::crank(k, duty, req),
+    }
+}
+
+/// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working
+/// range `duty` within `req` ([`fitted_part`]'s part, all its springs), None when no spring meets
+/// it. The interface the fit's mass model (issue 44) reads: its signature stays as it is; what
+/// the part must pass (the standards' checks) may change behind it. `duty` comes from
+/// [`element_duty`] and `req` from [`requirements`].
+pub fn lightest_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
+    fitted_part(profile, k, duty, req).ok().map(|p| p.mass)
+}
+
+/// The deflections x − x₀ an element on `coupling` with offset `offset` sees on `fan` (its
+/// samples), at `q_eq`, and within the arc length `swing` of the fan's origin (the fatigue swing,
+/// see [`scenario_energy`]): what `choose` designs each part for.
+pub fn element_duty(coupling: &[f64], offset: f64, q_eq: &[f64], fan: &Fan, swing: f64) -> Duty {
+    Span::new(coupling, q_eq, fan, swing).duty(offset)
 }
 
 /// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
