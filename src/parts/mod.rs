@@ -21,6 +21,7 @@ use crate::potential::{GroupedSet, Potential, SpringSet};
 use crate::realise::cam::FittedCam;
 use crate::realise::material::by_key;
 use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
+use crate::realise::spring::Surface;
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
@@ -164,14 +165,20 @@ impl Parts {
     }
 }
 
+/// The springs' surface `[parts] shot_peened` asks for.
+pub fn surface(s: &PartsSettings) -> Surface {
+    if s.shot_peened { Surface::Peened } else { Surface::AsWound }
+}
+
 /// The requirements of element `id` from `[parts]` (its `[[parts.element]]` overrides).
 pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
     let over = s.element.iter().find(|e| e.id == id);
     Requirements {
-        material: by_key(&s.material).expect("validated: a material of the table"),
+        material: by_key(s.material_key()).expect("validated: a material of the table"),
         grade: s.grade,
         cycles: s.cycles,
         safety: s.safety_factor,
+        surface: surface(s),
         max_outer_diameter: over.and_then(|e| e.max_outer_diameter_mm).unwrap_or(s.max_outer_diameter_mm),
         max_length: over.and_then(|e| e.max_length_mm).unwrap_or(s.max_length_mm),
         max_lever: over.and_then(|e| e.max_lever_mm).unwrap_or(s.max_lever_mm),
@@ -674,10 +681,11 @@ mod tests {
     #[test]
     fn a_cubic_element_is_a_cam_that_stores_its_potential() {
         let req = Requirements {
-            material: by_key("EN10270-1-SM").unwrap(),
+            material: by_key("EN10270-1-DM").unwrap(),
             grade: 2,
             cycles: 1e6,
             safety: 1.1,
+            surface: crate::realise::spring::Surface::AsWound,
             max_outer_diameter: 120.0,
             max_length: 400.0,
             max_lever: 100.0,

@@ -16,7 +16,10 @@
 use std::f64::consts::PI;
 
 use super::material::{Material, strip};
-use super::spring::{HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, TorsionSpring, rate_tolerance};
+use super::spring::{
+    HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, Surface, TorsionSpring, hook_bending_stress, hook_torsion_stress,
+    rate_tolerance,
+};
 
 /// Spring indices w = D/d tried, from [`INDEX_RANGE`]'s lower end up to 16.
 fn indices() -> impl Iterator<Item = f64> {
@@ -43,6 +46,8 @@ pub struct Requirements {
     pub cycles: f64,
     /// Factor on every stress limit (static and fatigue).
     pub safety: f64,
+    /// The springs' surface (shot-peened springs have a higher endurance).
+    pub surface: Surface,
     /// Largest outer diameter, mm.
     pub max_outer_diameter: f64,
     /// Largest length (spring body, or spring and cable run beyond a crank's anchor), mm.
@@ -391,8 +396,8 @@ fn torsion_checks(s: &TorsionSpring, wind: [f64; 2], swing: [f64; 2], req: &Requ
     let rm = s.rm();
     let stress = s.stress(k * wind[1]) * req.safety;
     let (lo, hi) = (s.stress(k * swing[0]), s.stress(k * swing[1]));
-    let fatigue = Loading::Bending.goodman(rm, lo, hi, req.cycles) * req.safety;
-    let life = Loading::Bending.life(rm, lo, hi, 1.0 / req.safety);
+    let fatigue = Loading::Bending.goodman(rm, lo, hi, req.cycles, req.surface) * req.safety;
+    let life = Loading::Bending.life(rm, lo, hi, 1.0 / req.safety, req.surface);
     let checks = vec![
         lower("active coils", s.n, MIN_COILS, "coils"),
         upper("static stress", stress, s.allowed(), "MPa"),
@@ -418,7 +423,8 @@ fn torsion(
     for d in req.material.sizes() {
         for w in indices() {
             let dm = w * d;
-            let n = req.material.e * d.powi(4) / (64.0 * dm * rate);
+            // Legs as long as the coil's mean diameter, their bending in the rate (EN 13906-3).
+            let n = TorsionSpring::coils_for(req.material, d, dm, dm, rate);
             if !(0.5..=400.0).contains(&n) {
                 continue;
             }
@@ -548,18 +554,66 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
                             let extension = lmax - f0 / ks;
                             let rm = s.rm();
                             let fmax = ks * lmax;
-                            let life =
-                                Loading::Shear.life(rm, s.stress(ks * smin), s.stress(ks * smax), 1.0 / req.safety);
+                            let (fa, fb) = (ks * smin, ks * smax);
+                            let surface = req.surface;
+                            // Body and hook (torsion at B, bending at A): the life is the
+                            // shortest, the fatigue check the worst of the three.
+                            let lives = [
+                                Loading::Shear.life(rm, s.stress(fa), s.stress(fb), 1.0 / req.safety, surface),
+                                Loading::Shear.life(
+                                    rm,
+                                    hook_torsion_stress(d, dm, fa),
+                                    hook_torsion_stress(d, dm, fb),
+                                    1.0 / req.safety,
+                                    surface,
+                                ),
+                                Loading::HookBending.life(
+                                    rm,
+                                    hook_bending_stress(d, dm, fa),
+                                    hook_bending_stress(d, dm, fb),
+                                    1.0 / req.safety,
+                                    surface,
+                                ),
+                            ];
+                            let life = lives.into_iter().fold(f64::INFINITY, f64::min);
+                            let cycles = req.cycles;
+                            // A loop's fatigue check: its stress at the swing's two ends on its Goodman line.
+                            let hook_fatigue = |name, loading: Loading, stress: fn(f64, f64, f64) -> f64| {
+                                let u = loading.goodman(rm, stress(d, dm, fa), stress(d, dm, fb), cycles, surface);
+                                upper(name, u * req.safety, 1.0, "utilisation")
+                            };
                             let checks = vec![
                                 lower("active coils", n, MIN_COILS + 1.0, "coils"),
                                 upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
                                 upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
                                 upper(
-                                    "fatigue (Goodman)",
-                                    Loading::Shear.goodman(rm, s.stress(ks * smin), s.stress(ks * smax), req.cycles)
+                                    "fatigue (Zimmerli-Goodman)",
+                                    Loading::Shear.goodman(rm, s.stress(fa), s.stress(fb), cycles, surface)
                                         * req.safety,
                                     1.0,
                                     "utilisation",
+                                ),
+                                upper(
+                                    "hook torsion at B (Shigley Eq. 10-36)",
+                                    hook_torsion_stress(d, dm, fmax) * req.safety,
+                                    0.40 * rm,
+                                    "MPa",
+                                ),
+                                upper(
+                                    "hook bending at A (Shigley Eq. 10-34)",
+                                    hook_bending_stress(d, dm, fmax) * req.safety,
+                                    0.75 * rm,
+                                    "MPa",
+                                ),
+                                hook_fatigue(
+                                    "hook fatigue, torsion at B (Zimmerli-Goodman)",
+                                    Loading::Shear,
+                                    hook_torsion_stress,
+                                ),
+                                hook_fatigue(
+                                    "hook fatigue, bending at A (Zimmerli-Goodman)",
+                                    Loading::HookBending,
+                                    hook_bending_stress,
                                 ),
                                 upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
                                 upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
@@ -663,7 +717,8 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
                         upper("static stress", sigma(shortest, tip) * req.safety, 0.7 * rm, "MPa"),
                         upper(
                             "fatigue (Goodman)",
-                            Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles) * req.safety,
+                            Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles, req.surface)
+                                * req.safety,
                             1.0,
                             "utilisation",
                         ),
@@ -673,7 +728,7 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
                     if range[0] > 0.0 {
                         checks.push(upper("clamp travel to the lowest rate", longest, req.max_length, "mm"));
                     }
-                    let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety);
+                    let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety, req.surface);
                     let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
                         .into_iter()
                         .map(|(at, d)| {
@@ -740,7 +795,8 @@ pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Res
                             upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
                             upper(
                                 "fatigue (Goodman)",
-                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles) * req.safety,
+                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface)
+                                    * req.safety,
                                 1.0,
                                 "utilisation",
                             ),
@@ -748,7 +804,7 @@ pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Res
                             upper("free length", l0, req.max_length, "mm"),
                             lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
                         ];
-                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety);
+                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
                         let points = vec![
                             WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
                             WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
@@ -780,10 +836,11 @@ mod tests {
 
     fn req() -> Requirements {
         Requirements {
-            material: by_key("EN10270-1-SM").unwrap(),
+            material: by_key("EN10270-1-DM").unwrap(),
             grade: 2,
             cycles: 1e6,
             safety: 1.1,
+            surface: Surface::AsWound,
             max_outer_diameter: 120.0,
             max_length: 400.0,
             max_lever: 100.0,
