@@ -51,8 +51,13 @@ pub struct PartsSettings {
     pub shaft_diameter_mm: f64,
     /// Radius of the rollers a crank's cable runs over, mm (0: an ideal eyelet).
     pub pulley_radius_mm: f64,
-    /// A stock list (CSV, relative to the design file) to order parts from before winding any.
+    /// A stock list (CSV, relative to the design file) to order parts from before winding any;
+    /// unset, the list springfit ships (`files::stock::SHIPPED`) when `prefer_stock` is on.
     pub stock: Option<String>,
+    /// Order a listed spring whenever one passes every check (a crank is then built round it);
+    /// false: wind every crank spring (a named list's torsion and compression springs are still
+    /// ordered where their rate matches the wound one's) and read no list unless `stock` names one.
+    pub prefer_stock: bool,
     /// Per-element envelopes.
     pub element: Vec<ElementEnvelope>,
 }
@@ -71,6 +76,7 @@ impl Default for PartsSettings {
             shaft_diameter_mm: 12.0,
             pulley_radius_mm: 5.0,
             stock: None,
+            prefer_stock: true,
             element: Vec::new(),
         }
     }

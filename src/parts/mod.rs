@@ -51,6 +51,26 @@ pub struct StockPart {
     pub max_load: f64,
     /// Where the row comes from (URL, catalogue page).
     pub source: String,
+    /// An extension spring's initial tension F₀, N (the optional column `initial_tension_N`).
+    pub initial_tension: Option<f64>,
+}
+
+impl StockPart {
+    /// The material table's wire the vendor's material words name (`music wire`, `302`
+    /// stainless, EN 10270-1), for the stock spring's R_m and moduli; None when unknown.
+    pub fn wire(&self) -> Option<&'static crate::realise::material::Material> {
+        let m = self.material.to_lowercase();
+        let key = if m.contains("music") || m.contains("a228") {
+            "ASTM-A228"
+        } else if m.contains("302") || m.contains("a313") {
+            "ASTM-A313-302"
+        } else if m.contains("10270-1") {
+            "EN10270-1-DM"
+        } else {
+            return None;
+        };
+        by_key(key)
+    }
 }
 
 /// What became of one element of the bill.
@@ -341,6 +361,23 @@ pub fn choose(
             let k = r.stiffness;
             // The fitted elements' mechanisms, as functions of the stiffness (for the bound below).
             let design_at = |k: f64| fitted_part(r.element.profile, k, &duty, &req);
+            // A crank is built round a listed extension spring when one passes every check
+            // (`[parts] prefer_stock`): its anchor distance set for the element's rate.
+            let listed = (r.element.profile == Profile::Crank && s.prefer_stock)
+                .then(|| stock_crank(k, &duty, &req, stock))
+                .flatten();
+            if let Some((part, row)) = listed {
+                return ElementPart {
+                    id: r.id.clone(),
+                    family: r.family.clone(),
+                    element: r.element.clone(),
+                    stiffness: k,
+                    duty,
+                    part: Ok(part),
+                    stock: Some(row.clone()),
+                    follower: None,
+                };
+            }
             let part = match (r.element.profile, r.adjust.trim_range) {
                 (Profile::Linear, Some(range)) => mechanism::leaf(range, k, &duty, &req),
                 (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
@@ -493,6 +530,24 @@ fn torque_bound(
     Some(k * lo * peak)
 }
 
+/// The lightest crank of stiffness `k` built round a listed extension spring (with its initial
+/// tension) that passes every check a wound one must, and the row; None when none does. The
+/// spring's rate is its geometry's (the wire its material names), the anchor distance is set
+/// for the element's rate, so the realised rate is the element's; the listed rate must agree
+/// with the geometry's within the part's grade tolerance (a check of its own).
+fn stock_crank<'a>(k: f64, duty: &Duty, req: &Requirements, stock: &'a [StockPart]) -> Option<(Part, &'a StockPart)> {
+    let mut best: Option<(Part, &StockPart)> = None;
+    for row in stock.iter().filter(|s| s.kind == "extension") {
+        let (Some(wire), Some(f0)) = (row.wire(), row.initial_tension) else { continue };
+        let spring = crate::realise::spring::HelicalSpring { material: wire, d: row.d, dm: row.dm, n: row.n };
+        let Some(part) = mechanism::crank_round(k, duty, req, spring, f0, row.rate) else { continue };
+        if part.worst() <= 1.0 && best.as_ref().is_none_or(|b| part.mass < b.0.mass) {
+            best = Some((part, row));
+        }
+    }
+    best
+}
+
 /// A stock part instead of the wound one when the list has a spring of the same kind whose rate
 /// is within the part's grade tolerance of the one the element needs and whose largest
 /// deflection and load cover the part's working points. The realised rate becomes the stock
@@ -502,6 +557,10 @@ fn snap(
     stock: &[StockPart],
 ) -> (std::result::Result<Part, Limit>, Option<StockPart>) {
     let Ok(mut p) = part else { return (part, None) };
+    // Extension springs are matched by `stock_crank`, round their own geometry.
+    if matches!(p.spring, Spring::Extension(..)) {
+        return (Ok(p), None);
+    }
     let (need, _) = p.spring.maker_rate();
     // The deflection of each working point: a torsion spring's wind angle (°), a helical
     // spring's length change from free (mm).
