@@ -5,7 +5,11 @@ use serde::{Deserialize, Serialize};
 
 /// The wire materials `material` may name: the keys of the material table in
 /// `realise::material` (a test there keeps the two lists equal).
-pub const MATERIALS: &[&str] = &["EN10270-1-SM", "ASTM-A228", "ASTM-A313-302"];
+pub const MATERIALS: &[&str] = &["EN10270-1-SM", "EN10270-1-DM", "ASTM-A228", "ASTM-A313-302"];
+
+/// Fewest swings for which the default wire is a dynamic grade: below it (a spring loaded a few
+/// thousand times) EN 10270-1's static grade SM is enough.
+pub const DYNAMIC_FROM_CYCLES: f64 = 1e4;
 
 /// `[[parts.element]]`: the room one element has, overriding the defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -25,8 +29,11 @@ pub struct ElementEnvelope {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PartsSettings {
-    /// Wire material, a key of the material table (`EN10270-1-SM`, `ASTM-A228`, `ASTM-A313-302`).
-    pub material: String,
+    /// Wire material, a key of the material table (`EN10270-1-SM`, `EN10270-1-DM`, `ASTM-A228`,
+    /// `ASTM-A313-302`); unset, it follows `cycles` ([`PartsSettings::material_key`]).
+    pub material: Option<String>,
+    /// Shot-peened springs (a higher endurance: Zimmerli's peened point, Table 10-10's peened row).
+    pub shot_peened: bool,
     /// EN 15800 quality grade 1, 2 or 3 (1 the tightest): each spring's rate tolerance.
     pub grade: u8,
     /// Swings every spring must survive (Goodman, at the amplitude of the design's scenarios).
@@ -44,8 +51,13 @@ pub struct PartsSettings {
     pub shaft_diameter_mm: f64,
     /// Radius of the rollers a crank's cable runs over, mm (0: an ideal eyelet).
     pub pulley_radius_mm: f64,
-    /// A stock list (CSV, relative to the design file) to order parts from before winding any.
+    /// A stock list (CSV, relative to the design file) to order parts from before winding any;
+    /// unset, the list springfit ships (`files::stock::SHIPPED`) when `prefer_stock` is on.
     pub stock: Option<String>,
+    /// Order a listed spring whenever one passes every check (a crank is then built round it);
+    /// false: wind every crank spring (a named list's torsion and compression springs are still
+    /// ordered where their rate matches the wound one's) and read no list unless `stock` names one.
+    pub prefer_stock: bool,
     /// Per-element envelopes.
     pub element: Vec<ElementEnvelope>,
 }
@@ -53,7 +65,8 @@ pub struct PartsSettings {
 impl Default for PartsSettings {
     fn default() -> Self {
         PartsSettings {
-            material: "EN10270-1-SM".into(),
+            material: None,
+            shot_peened: false,
             grade: 2,
             cycles: 1e6,
             safety_factor: 1.1,
@@ -63,19 +76,45 @@ impl Default for PartsSettings {
             shaft_diameter_mm: 12.0,
             pulley_radius_mm: 5.0,
             stock: None,
+            prefer_stock: true,
             element: Vec::new(),
         }
     }
 }
 
 impl PartsSettings {
+    /// The wire every spring is wound from: `material` when set, else EN 10270-1's dynamic grade
+    /// DM for [`DYNAMIC_FROM_CYCLES`] swings or more and the static grade SM below.
+    pub fn material_key(&self) -> &str {
+        match &self.material {
+            Some(m) => m,
+            None if self.cycles >= DYNAMIC_FROM_CYCLES => "EN10270-1-DM",
+            None => "EN10270-1-SM",
+        }
+    }
+
+    /// Why the wire is what it is, in words (printed with the parts).
+    pub fn material_choice(&self) -> String {
+        match &self.material {
+            Some(_) if self.cycles >= DYNAMIC_FROM_CYCLES && self.material_key() == "EN10270-1-SM" => format!(
+                "set in [parts] material; a static grade for {} swings: EN 10270-1 DM is the dynamic grade",
+                self.cycles
+            ),
+            Some(_) => "set in [parts] material".into(),
+            None if self.cycles >= DYNAMIC_FROM_CYCLES => {
+                format!("the default for {} swings: a dynamic grade from {DYNAMIC_FROM_CYCLES} swings", self.cycles)
+            }
+            None => format!("the default for {} swings: the static grade below {DYNAMIC_FROM_CYCLES}", self.cycles),
+        }
+    }
+
     /// Checks the settings, naming the bad field.
     pub fn validate(&self) -> Result<(), (String, String)> {
         let err = |f: &str, r: String| Err((format!("parts.{f}"), r));
-        if !MATERIALS.contains(&self.material.as_str()) {
+        if !MATERIALS.contains(&self.material_key()) {
             return err(
                 "material",
-                format!("unknown material `{}`: expected one of {}", self.material, MATERIALS.join(", ")),
+                format!("unknown material `{}`: expected one of {}", self.material_key(), MATERIALS.join(", ")),
             );
         }
         if !(1..=3).contains(&self.grade) {
@@ -130,7 +169,11 @@ mod tests {
             assert_eq!(f, field);
             assert!(r.contains(words), "{r}");
         };
-        bad(PartsSettings { material: "unobtainium".into(), ..Default::default() }, "parts.material", "EN10270-1-SM");
+        bad(
+            PartsSettings { material: Some("unobtainium".into()), ..Default::default() },
+            "parts.material",
+            "EN10270-1-SM",
+        );
         bad(PartsSettings { grade: 4, ..Default::default() }, "parts.grade", "1, 2 or 3");
         bad(PartsSettings { safety_factor: 0.5, ..Default::default() }, "parts.safety_factor", "from 1");
         let e = ElementEnvelope {

@@ -112,7 +112,8 @@ pub fn csv(parts: &Parts, grade: u8, safety: f64) -> String {
                     num(stress.map(|c| c.value / safety)),
                     num(stress.map(|c| c.limit)),
                     num(stress.map(|c| c.ratio())),
-                    num(check(p, "fatigue (Goodman)").map(|c| c.ratio())),
+                    // The worst fatigue check: the body's, or an extension spring's hook's.
+                    num(p.checks.iter().filter(|c| c.name.contains("fatigue")).map(|c| c.ratio()).reduce(f64::max)),
                     format!("{}", p.life),
                     format!("{}", p.mass),
                     e.stock.as_ref().map(|s| s.vendor.clone()).unwrap_or_default(),
@@ -139,8 +140,15 @@ pub fn markdown(design: &str, parts: &Parts, settings: &crate::design::parts::Pa
     let mut m = format!("# Parts: {design}\n\n");
     let _ = writeln!(
         m,
-        "Request for quotation. Wire {} (EN 15800 grade {}), {} swings at the scenarios' amplitude (largest scenario energy {:.1} J, arc length {:.3} from q_eq), every stress limit divided by the safety factor {}.\n",
-        settings.material, settings.grade, settings.cycles, parts.swing.0, parts.swing.1, settings.safety_factor
+        "Request for quotation. Wire {} (EN 15800 grade {}; {}), surface {}, {} swings at the scenarios' amplitude (largest scenario energy {:.1} J, arc length {:.3} from q_eq), every stress limit divided by the safety factor {}.\n",
+        settings.material_key(),
+        settings.grade,
+        settings.material_choice(),
+        crate::parts::surface(settings).name(),
+        settings.cycles,
+        parts.swing.0,
+        parts.swing.1,
+        settings.safety_factor
     );
     let _ = writeln!(
         m,

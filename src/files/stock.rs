@@ -24,7 +24,9 @@ pub const HEADER: &str = "vendor,part_number,type,material,d_mm,D_mm,n,length_mm
 /// The stock list the design's `[parts] stock` names (relative to the design file; none: empty),
 /// read before any work so that a missing file is refused first.
 pub fn of_design(design: &crate::design::Design) -> Result<Vec<StockPart>> {
-    let Some(name) = &design.parts.stock else { return Ok(Vec::new()) };
+    let Some(name) = &design.parts.stock else {
+        return if design.parts.prefer_stock { shipped() } else { Ok(Vec::new()) };
+    };
     let path = design.path.parent().unwrap_or(Path::new(".")).join(name);
     if !path.is_file() {
         return Err(Error::invalid(
@@ -37,6 +39,15 @@ pub fn of_design(design: &crate::design::Design) -> Result<Vec<StockPart>> {
         ));
     }
     read(&path)
+}
+
+/// The stock list springfit ships, compiled in: the military-standard springs of
+/// `catalogs/stock/ms24585_ms24586.csv` (MS24585, MS24586 as the ODOP project lists them).
+pub const SHIPPED: &str = include_str!("../../catalogs/stock/ms24585_ms24586.csv");
+
+/// The list read when `[parts] stock` names none and `prefer_stock` is on: [`SHIPPED`].
+pub fn shipped() -> Result<Vec<StockPart>> {
+    parse(Path::new("catalogs/stock/ms24585_ms24586.csv"), SHIPPED)
 }
 
 /// Reads a stock list.
@@ -102,6 +113,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<StockPart>> {
             max_deflection: num("max_deflection")?,
             max_load: num("max_load")?,
             source: text("source"),
+            initial_tension: match names.iter().position(|n| n.trim() == "initial_tension_N") {
+                Some(i) if !f[i].trim().is_empty() => match f[i].trim().parse::<f64>() {
+                    Ok(x) if x.is_finite() && x >= 0.0 => Some(x),
+                    _ => {
+                        return Err(bad(ln, "initial_tension_N", format!("`{}` is not a force in N", f[i].trim())));
+                    }
+                },
+                _ => None,
+            },
         });
     }
     Ok(out)

@@ -21,6 +21,7 @@ use crate::potential::{GroupedSet, Potential, SpringSet};
 use crate::realise::cam::FittedCam;
 use crate::realise::material::by_key;
 use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
+use crate::realise::spring::Surface;
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
@@ -50,6 +51,26 @@ pub struct StockPart {
     pub max_load: f64,
     /// Where the row comes from (URL, catalogue page).
     pub source: String,
+    /// An extension spring's initial tension F₀, N (the optional column `initial_tension_N`).
+    pub initial_tension: Option<f64>,
+}
+
+impl StockPart {
+    /// The material table's wire the vendor's material words name (`music wire`, `302`
+    /// stainless, EN 10270-1), for the stock spring's R_m and moduli; None when unknown.
+    pub fn wire(&self) -> Option<&'static crate::realise::material::Material> {
+        let m = self.material.to_lowercase();
+        let key = if m.contains("music") || m.contains("a228") {
+            "ASTM-A228"
+        } else if m.contains("302") || m.contains("a313") {
+            "ASTM-A313-302"
+        } else if m.contains("10270-1") {
+            "EN10270-1-DM"
+        } else {
+            return None;
+        };
+        by_key(key)
+    }
 }
 
 /// What became of one element of the bill.
@@ -164,14 +185,20 @@ impl Parts {
     }
 }
 
+/// The springs' surface `[parts] shot_peened` asks for.
+pub fn surface(s: &PartsSettings) -> Surface {
+    if s.shot_peened { Surface::Peened } else { Surface::AsWound }
+}
+
 /// The requirements of element `id` from `[parts]` (its `[[parts.element]]` overrides).
 pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
     let over = s.element.iter().find(|e| e.id == id);
     Requirements {
-        material: by_key(&s.material).expect("validated: a material of the table"),
+        material: by_key(s.material_key()).expect("validated: a material of the table"),
         grade: s.grade,
         cycles: s.cycles,
         safety: s.safety_factor,
+        surface: surface(s),
         max_outer_diameter: over.and_then(|e| e.max_outer_diameter_mm).unwrap_or(s.max_outer_diameter_mm),
         max_length: over.and_then(|e| e.max_length_mm).unwrap_or(s.max_length_mm),
         max_lever: over.and_then(|e| e.max_lever_mm).unwrap_or(s.max_lever_mm),
@@ -333,11 +360,24 @@ pub fn choose(
             let duty = duty(&spans, &r.element);
             let k = r.stiffness;
             // The fitted elements' mechanisms, as functions of the stiffness (for the bound below).
-            let design_at = |k: f64| match r.element.profile {
-                Profile::Linear => mechanism::linear(k, &duty, &req),
-                Profile::Compression(side) => mechanism::stop(k, side == Side::Plus, &duty, &req),
-                _ => mechanism::crank(k, &duty, &req),
-            };
+            let design_at = |k: f64| fitted_part(r.element.profile, k, &duty, &req);
+            // A crank is built round a listed extension spring when one passes every check
+            // (`[parts] prefer_stock`): its anchor distance set for the element's rate.
+            let listed = (r.element.profile == Profile::Crank && s.prefer_stock)
+                .then(|| stock_crank(k, &duty, &req, stock))
+                .flatten();
+            if let Some((part, row)) = listed {
+                return ElementPart {
+                    id: r.id.clone(),
+                    family: r.family.clone(),
+                    element: r.element.clone(),
+                    stiffness: k,
+                    duty,
+                    part: Ok(part),
+                    stock: Some(row.clone()),
+                    follower: None,
+                };
+            }
             let part = match (r.element.profile, r.adjust.trim_range) {
                 (Profile::Linear, Some(range)) => mechanism::leaf(range, k, &duty, &req),
                 (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
@@ -385,6 +425,36 @@ pub fn choose(
         None => stats(&fan_angles(&design.chain, evaluation, &spring_set(bom).grouped())?),
     };
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
+}
+
+/// The lightest part of a fitted element of `profile` at stiffness `k` (the profile's unit:
+/// N·m/rad, N·m for a crank) over the deflections `duty`, within `req`: the mechanism `choose`
+/// gives it (two torsion springs for a linear element, one on a leg stop for a one-sided
+/// compression, an extension spring on a crank's cable otherwise), or the limit no spring meets.
+/// A trim's leaf, a cubic's cam and a fitted cam's follower are not fit candidates of this kind
+/// and are chosen by `choose` alone.
+pub fn fitted_part(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
+    match profile {
+        Profile::Linear => mechanism::linear(k, duty, req),
+        Profile::Compression(side) => mechanism::stop(k, side == Side::Plus, duty, req),
+        _ => mechanism::crank(k, duty, req),
+    }
+}
+
+/// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working
+/// range `duty` within `req` ([`fitted_part`]'s part, all its springs), None when no spring meets
+/// it. The interface the fit's mass model (issue 44) reads: its signature stays as it is; what
+/// the part must pass (the standards' checks) may change behind it. `duty` comes from
+/// [`element_duty`] and `req` from [`requirements`].
+pub fn lightest_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
+    fitted_part(profile, k, duty, req).ok().map(|p| p.mass)
+}
+
+/// The deflections x − x₀ an element on `coupling` with offset `offset` sees on `fan` (its
+/// samples), at `q_eq`, and within the arc length `swing` of the fan's origin (the fatigue swing,
+/// see [`scenario_energy`]): what `choose` designs each part for.
+pub fn element_duty(coupling: &[f64], offset: f64, q_eq: &[f64], fan: &Fan, swing: f64) -> Duty {
+    Span::new(coupling, q_eq, fan, swing).duty(offset)
 }
 
 /// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
@@ -460,6 +530,24 @@ fn torque_bound(
     Some(k * lo * peak)
 }
 
+/// The lightest crank of stiffness `k` built round a listed extension spring (with its initial
+/// tension) that passes every check a wound one must, and the row; None when none does. The
+/// spring's rate is its geometry's (the wire its material names), the anchor distance is set
+/// for the element's rate, so the realised rate is the element's; the listed rate must agree
+/// with the geometry's within the part's grade tolerance (a check of its own).
+fn stock_crank<'a>(k: f64, duty: &Duty, req: &Requirements, stock: &'a [StockPart]) -> Option<(Part, &'a StockPart)> {
+    let mut best: Option<(Part, &StockPart)> = None;
+    for row in stock.iter().filter(|s| s.kind == "extension") {
+        let (Some(wire), Some(f0)) = (row.wire(), row.initial_tension) else { continue };
+        let spring = crate::realise::spring::HelicalSpring { material: wire, d: row.d, dm: row.dm, n: row.n };
+        let Some(part) = mechanism::crank_round(k, duty, req, spring, f0, row.rate) else { continue };
+        if part.worst() <= 1.0 && best.as_ref().is_none_or(|b| part.mass < b.0.mass) {
+            best = Some((part, row));
+        }
+    }
+    best
+}
+
 /// A stock part instead of the wound one when the list has a spring of the same kind whose rate
 /// is within the part's grade tolerance of the one the element needs and whose largest
 /// deflection and load cover the part's working points. The realised rate becomes the stock
@@ -469,6 +557,10 @@ fn snap(
     stock: &[StockPart],
 ) -> (std::result::Result<Part, Limit>, Option<StockPart>) {
     let Ok(mut p) = part else { return (part, None) };
+    // Extension springs are matched by `stock_crank`, round their own geometry.
+    if matches!(p.spring, Spring::Extension(..)) {
+        return (Ok(p), None);
+    }
     let (need, _) = p.spring.maker_rate();
     // The deflection of each working point: a torsion spring's wind angle (°), a helical
     // spring's length change from free (mm).
@@ -648,10 +740,11 @@ mod tests {
     #[test]
     fn a_cubic_element_is_a_cam_that_stores_its_potential() {
         let req = Requirements {
-            material: by_key("EN10270-1-SM").unwrap(),
+            material: by_key("EN10270-1-DM").unwrap(),
             grade: 2,
             cycles: 1e6,
             safety: 1.1,
+            surface: crate::realise::spring::Surface::AsWound,
             max_outer_diameter: 120.0,
             max_length: 400.0,
             max_lever: 100.0,

@@ -169,7 +169,7 @@ const STRIP_SIZES: &[f64] = &[0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0, 2.5];
 pub const MATERIALS: &[Material] = &[
     Material {
         key: "EN10270-1-SM",
-        name: "patented cold-drawn unalloyed spring steel wire EN 10270-1 grade SM/DM",
+        name: "patented cold-drawn unalloyed spring steel wire EN 10270-1 grade SM (static)",
         e: 206_000.0,
         g: 81_500.0,
         density: 7850.0,
@@ -179,6 +179,19 @@ pub const MATERIALS: &[Material] = &[
                  acciaio-uni-en-10270-1-scarbon-steel-uni-en-10270-1-sm-sh-dhm-sh-dh/ (lower bounds used); DM has the \
                  same R_m (EN 10270-1 table as published by Hengming, https://hengmingsteelwire.com/\
                  patented-cold-drawn-unalloyed-spring-steel-wire.html)",
+    },
+    Material {
+        key: "EN10270-1-DM",
+        name: "patented cold-drawn unalloyed spring steel wire EN 10270-1 grade DM (dynamic, medium)",
+        e: 206_000.0,
+        g: 81_500.0,
+        density: 7850.0,
+        strength: Strength::Table(EN10270_1_SM),
+        source: "EN 10270-1 grade DM: the standard gives DM the R_m ranges of SM at every diameter, as published by \
+                 Hengming, https://hengmingsteelwire.com/patented-cold-drawn-unalloyed-spring-steel-wire.html, and by \
+                 Durofer, https://durofer.ch/en/products/wire/spring-wire (lower bounds used; the table is SM's, \
+                 from Mollificio Modenese); E, G and density as for SM. DM is the dynamic grade (cleaner steel, \
+                 Cu ≤ 0.12 %): its fatigue is judged by Zimmerli's data, which do not depend on R_m",
     },
     Material {
         key: "ASTM-A228",

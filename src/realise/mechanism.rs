@@ -16,7 +16,10 @@
 use std::f64::consts::PI;
 
 use super::material::{Material, strip};
-use super::spring::{HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, TorsionSpring, rate_tolerance};
+use super::spring::{
+    HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, Surface, TorsionSpring, hook_bending_stress, hook_torsion_stress,
+    rate_tolerance,
+};
 
 /// Spring indices w = D/d tried, from [`INDEX_RANGE`]'s lower end up to 16.
 fn indices() -> impl Iterator<Item = f64> {
@@ -43,6 +46,8 @@ pub struct Requirements {
     pub cycles: f64,
     /// Factor on every stress limit (static and fatigue).
     pub safety: f64,
+    /// The springs' surface (shot-peened springs have a higher endurance).
+    pub surface: Surface,
     /// Largest outer diameter, mm.
     pub max_outer_diameter: f64,
     /// Largest length (spring body, or spring and cable run beyond a crank's anchor), mm.
@@ -434,8 +439,8 @@ fn torsion_checks(s: &TorsionSpring, wind: [f64; 2], swing: [f64; 2], req: &Requ
     let rm = s.rm();
     let stress = s.stress(k * wind[1]) * req.safety;
     let (lo, hi) = (s.stress(k * swing[0]), s.stress(k * swing[1]));
-    let fatigue = Loading::Bending.goodman(rm, lo, hi, req.cycles) * req.safety;
-    let life = Loading::Bending.life(rm, lo, hi, 1.0 / req.safety);
+    let fatigue = Loading::Bending.goodman(rm, lo, hi, req.cycles, req.surface) * req.safety;
+    let life = Loading::Bending.life(rm, lo, hi, 1.0 / req.safety, req.surface);
     let checks = vec![
         lower("active coils", s.n, MIN_COILS, "coils"),
         upper("static stress", stress, s.allowed(), "MPa"),
@@ -461,7 +466,8 @@ fn torsion(
     for d in req.material.sizes() {
         for w in indices() {
             let dm = w * d;
-            let n = req.material.e * d.powi(4) / (64.0 * dm * rate);
+            // Legs as long as the coil's mean diameter, their bending in the rate (EN 13906-3).
+            let n = TorsionSpring::coils_for(req.material, d, dm, dm, rate);
             if !(0.5..=400.0).contains(&n) {
                 continue;
             }
@@ -586,48 +592,9 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
                     search.consider(
                         s.mass(),
                         || {
-                            let f0 = s.initial_tension();
-                            // Extension beyond the free length: the cable path less F₀/k_s.
-                            let extension = lmax - f0 / ks;
-                            let rm = s.rm();
-                            let fmax = ks * lmax;
-                            let life =
-                                Loading::Shear.life(rm, s.stress(ks * smin), s.stress(ks * smax), 1.0 / req.safety);
-                            let checks = vec![
-                                lower("active coils", n, MIN_COILS + 1.0, "coils"),
-                                upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
-                                upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
-                                upper(
-                                    "fatigue (Goodman)",
-                                    Loading::Shear.goodman(rm, s.stress(ks * smin), s.stress(ks * smax), req.cycles)
-                                        * req.safety,
-                                    1.0,
-                                    "utilisation",
-                                ),
-                                upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
-                                upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
-                                upper("crank radius", r, req.max_lever, "mm"),
-                            ];
-                            let points =
-                                [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
-                                    .into_iter()
-                                    .map(|(at, d)| WorkingPoint {
-                                        at,
-                                        position: s.extension_free_length() + path(d) - f0 / ks,
-                                        load: ks * path(d),
-                                    })
-                                    .collect();
-                            Part {
-                                mechanism: Mechanism::Crank { r, big_r, pulley, phase },
-                                spring: Spring::Extension(s, f0),
-                                quantity: 1,
-                                realised_rate: s.rate() * r * big_r / 1000.0,
-                                points,
-                                checks,
-                                tolerance: rate_tolerance(d, dm, n, fmax, req.grade),
-                                mass: s.mass(),
-                                life,
-                            }
+                            let geometry =
+                                CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
+                            crank_part(&geometry, duty, req, s, s.initial_tension(), &path)
                         },
                         || format!("r = {r} mm, R = {big_r} mm, d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
                     );
@@ -636,6 +603,136 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
         }
     }
     search.finish()
+}
+
+/// Where a crank's spring works: crank radius, anchor distance, rollers, the pin's phase, the
+/// spring rate k_s it must have and the cable path's extremes over the region and the swing.
+#[derive(Clone, Copy)]
+struct CrankGeometry {
+    r: f64,
+    big_r: f64,
+    pulley: f64,
+    phase: f64,
+    ks: f64,
+    /// Shortest and longest cable path over the region, then over the swing, mm.
+    paths: [f64; 4],
+}
+
+/// The crank part of spring `s` (initial tension `f0`, N) at `g`, with every check: the body's
+/// and the loops' stresses, static and in fatigue, the envelope. `path` is the cable path at a
+/// deflection.
+fn crank_part(
+    g: &CrankGeometry,
+    duty: &Duty,
+    req: &Requirements,
+    s: HelicalSpring,
+    f0: f64,
+    path: &dyn Fn(f64) -> f64,
+) -> Part {
+    let CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] } = *g;
+    let (d, dm, n) = (s.d, s.dm, s.n);
+    // Extension beyond the free length: the cable path less F₀/k_s.
+    let extension = lmax - f0 / ks;
+    let rm = s.rm();
+    let fmax = ks * lmax;
+    let (fa, fb) = (ks * smin, ks * smax);
+    let surface = req.surface;
+    // Body and hook (torsion at B, bending at A): the life is the
+    // shortest, the fatigue check the worst of the three.
+    let lives = [
+        Loading::Shear.life(rm, s.stress(fa), s.stress(fb), 1.0 / req.safety, surface),
+        Loading::Shear.life(
+            rm,
+            hook_torsion_stress(d, dm, fa),
+            hook_torsion_stress(d, dm, fb),
+            1.0 / req.safety,
+            surface,
+        ),
+        Loading::HookBending.life(
+            rm,
+            hook_bending_stress(d, dm, fa),
+            hook_bending_stress(d, dm, fb),
+            1.0 / req.safety,
+            surface,
+        ),
+    ];
+    let life = lives.into_iter().fold(f64::INFINITY, f64::min);
+    let cycles = req.cycles;
+    // A loop's fatigue check: its stress at the swing's two ends on its Goodman line.
+    let hook_fatigue = |name, loading: Loading, stress: fn(f64, f64, f64) -> f64| {
+        let u = loading.goodman(rm, stress(d, dm, fa), stress(d, dm, fb), cycles, surface);
+        upper(name, u * req.safety, 1.0, "utilisation")
+    };
+    let checks = vec![
+        lower("active coils", n, MIN_COILS + 1.0, "coils"),
+        upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
+        upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
+        upper(
+            "fatigue (Zimmerli-Goodman)",
+            Loading::Shear.goodman(rm, s.stress(fa), s.stress(fb), cycles, surface) * req.safety,
+            1.0,
+            "utilisation",
+        ),
+        upper("hook torsion at B (Shigley Eq. 10-36)", hook_torsion_stress(d, dm, fmax) * req.safety, 0.40 * rm, "MPa"),
+        upper("hook bending at A (Shigley Eq. 10-34)", hook_bending_stress(d, dm, fmax) * req.safety, 0.75 * rm, "MPa"),
+        hook_fatigue("hook fatigue, torsion at B (Zimmerli-Goodman)", Loading::Shear, hook_torsion_stress),
+        hook_fatigue("hook fatigue, bending at A (Zimmerli-Goodman)", Loading::HookBending, hook_bending_stress),
+        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+        upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
+        upper("crank radius", r, req.max_lever, "mm"),
+    ];
+    let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+        .into_iter()
+        .map(|(at, d)| WorkingPoint { at, position: s.extension_free_length() + path(d) - f0 / ks, load: ks * path(d) })
+        .collect();
+    Part {
+        mechanism: Mechanism::Crank { r, big_r, pulley, phase },
+        spring: Spring::Extension(s, f0),
+        quantity: 1,
+        realised_rate: s.rate() * r * big_r / 1000.0,
+        points,
+        checks,
+        tolerance: rate_tolerance(d, dm, n, fmax, req.grade),
+        mass: s.mass(),
+        life,
+    }
+}
+
+/// A crank of stiffness `k` built round a given extension spring `s` of initial tension `f0`
+/// (N), a stock part whose vendor lists the rate `listed` (N/mm): at each crank radius the
+/// anchor distance R is set so that the spring's own rate gives the element's, k_s r R = k (with
+/// the rollers' compensation, iterated), within the anchor ratios 1.5–4 R/r of the wound
+/// search. The candidate that passes with the most margin, else the one closest to passing;
+/// None when no radius takes the rate. A listed rate that differs from the geometry's by more
+/// than the part's grade tolerance fails a check of its own.
+pub fn crank_round(k: f64, duty: &Duty, req: &Requirements, s: HelicalSpring, f0: f64, listed: f64) -> Option<Part> {
+    let pulley = req.pulley_radius;
+    let rate = s.rate();
+    let mut best: Option<Part> = None;
+    for &r in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
+        let mut big_r = k * 1000.0 / (r * rate);
+        let (lo, hi) = (ANCHOR_RATIOS[0] * r, ANCHOR_RATIOS[ANCHOR_RATIOS.len() - 1] * r);
+        if !(lo..=hi).contains(&big_r) || big_r - r < 2.0 * pulley + 2.0 {
+            continue;
+        }
+        let mut comp = compensate(k, r, big_r, pulley, duty.at_eq);
+        for _ in 0..4 {
+            big_r = comp.1 * k * 1000.0 / (r * rate);
+            comp = compensate(k, r, big_r, pulley, duty.at_eq);
+        }
+        let (phase, scale) = comp;
+        let ks = k_s(scale * k, r, big_r);
+        let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
+        let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
+        let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+        let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
+        let mut part = crank_part(&geometry, duty, req, s, f0, &path);
+        part.checks.push(upper("listed rate against the geometry's", (listed / rate - 1.0).abs(), part.tolerance, ""));
+        if best.as_ref().is_none_or(|b| part.worst() < b.worst()) {
+            best = Some(part);
+        }
+    }
+    best
 }
 
 /// The pin's phase δ and the rate factor s that make the crank's cable geometry give the fitted
@@ -706,7 +803,8 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
                         upper("static stress", sigma(shortest, tip) * req.safety, 0.7 * rm, "MPa"),
                         upper(
                             "fatigue (Goodman)",
-                            Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles) * req.safety,
+                            Loading::Bending.goodman(rm, -swing_stress, swing_stress, req.cycles, req.surface)
+                                * req.safety,
                             1.0,
                             "utilisation",
                         ),
@@ -716,7 +814,7 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
                     if range[0] > 0.0 {
                         checks.push(upper("clamp travel to the lowest rate", longest, req.max_length, "mm"));
                     }
-                    let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety);
+                    let life = Loading::Bending.life(rm, -swing_stress, swing_stress, 1.0 / req.safety, req.surface);
                     let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
                         .into_iter()
                         .map(|(at, d)| {
@@ -783,7 +881,8 @@ pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Res
                             upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
                             upper(
                                 "fatigue (Goodman)",
-                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles) * req.safety,
+                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface)
+                                    * req.safety,
                                 1.0,
                                 "utilisation",
                             ),
@@ -791,7 +890,7 @@ pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Res
                             upper("free length", l0, req.max_length, "mm"),
                             lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
                         ];
-                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety);
+                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
                         let points = vec![
                             WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
                             WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
@@ -823,10 +922,11 @@ mod tests {
 
     fn req() -> Requirements {
         Requirements {
-            material: by_key("EN10270-1-SM").unwrap(),
+            material: by_key("EN10270-1-DM").unwrap(),
             grade: 2,
             cycles: 1e6,
             safety: 1.1,
+            surface: Surface::AsWound,
             max_outer_diameter: 120.0,
             max_length: 400.0,
             max_lever: 100.0,
