@@ -160,9 +160,12 @@ impl PyFit {
     #[getter]
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let run = &self.run;
-        let mut s = springfit::report::fit::Summary::new(&run.outcome, &self.design);
-        s.as_built = run.as_built;
-        s.realised = run.parts.as_ref().map(springfit::report::parts::RealisedSummary::new);
+        let s = springfit::report::fit::Summary::with_parts(
+            &run.outcome,
+            &self.design,
+            run.as_built.as_ref(),
+            run.parts.as_ref(),
+        );
         json(py, &s)
     }
 

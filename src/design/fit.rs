@@ -123,6 +123,14 @@ pub struct FitSettings {
     /// none): its stiffness is capped at this torque over its largest |u′|. The bound that keeps
     /// a part possible when `springfit parts` finds no spring for an element.
     pub max_element_torque: f64,
+    /// Weight of the springs' mass in the objective (0: none): a bill of the floor's mass (the
+    /// least steel that stores U* = ½ω²r², docs/parts.md) costs this many times the residual of
+    /// no springs, so one weight means the same on every arm (`fit::mass`).
+    pub mass_weight: f64,
+    /// Upper bound on the springs' mass cᵀk in kg by the part chooser's mass per unit stiffness
+    /// (0: none). Exact with `qp`; with `nnls` met by raising the mass weight. Below the floor it
+    /// is refused before any work.
+    pub max_spring_mass: f64,
 }
 
 impl Default for FitSettings {
@@ -155,6 +163,8 @@ impl Default for FitSettings {
             shift_weight: 0.0,
             max_preload: 0.0,
             max_element_torque: 0.0,
+            mass_weight: 0.0,
+            max_spring_mass: 0.0,
         }
     }
 }
@@ -253,6 +263,12 @@ impl FitSettings {
         }
         if !(self.max_element_torque.is_finite() && self.max_element_torque >= 0.0) {
             return err("max_element_torque", "must be ≥ 0 N·m (0: no bound)");
+        }
+        if !(self.mass_weight.is_finite() && self.mass_weight >= 0.0) {
+            return err("mass_weight", "must be ≥ 0 (0: the mass is not weighed)");
+        }
+        if !(self.max_spring_mass.is_finite() && self.max_spring_mass >= 0.0) {
+            return err("max_spring_mass", "must be ≥ 0 kg (0: no bound)");
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");

@@ -7,6 +7,7 @@
 pub mod bill;
 pub mod evaluate;
 pub mod hints;
+pub mod mass;
 pub mod outcome;
 pub mod prepare;
 pub mod problem;

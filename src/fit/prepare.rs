@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use nalgebra::DMatrix;
 
+use super::mass::{Floor, MassModel};
 use super::problem::{
     FitProblem, Requirements, RowsOut, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
 };
@@ -49,6 +50,9 @@ pub struct Prepared<'a> {
     appended: Option<(DMatrix<f64>, nalgebra::DVector<f64>)>,
     /// The rows, assembled again on first use where `problem` did not keep them.
     rows_again: OnceLock<DMatrix<f64>>,
+    /// The candidates' mass per unit stiffness, searched on first use by a fit that weighs the
+    /// mass or bounds it (`fit::mass`).
+    mass: OnceLock<MassModel>,
     /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
     pub(super) trims: SpringSet,
     /// Normal equations of `problem.rows` (built once: every solve and the smoothing choice
@@ -70,6 +74,11 @@ impl<'a> Prepared<'a> {
         progress: Progress<'_>,
     ) -> Result<Prepared<'a>> {
         settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
+        // A mass budget below the floor is refused before any work (a box's floor is known only
+        // once its geodesics are traced: `Prepared::solve` checks it there).
+        if let Some(floor) = Floor::before_work(design, settings.frequency) {
+            floor.check(design, settings)?;
+        }
         let t0 = Instant::now();
         progress.stage("checking the region");
         let (region, training, evaluation) = fans(design, settings)?;
@@ -131,6 +140,7 @@ impl<'a> Prepared<'a> {
             req,
             appended,
             rows_again: OnceLock::new(),
+            mass: OnceLock::new(),
             trims,
             gram,
             t_geo,
@@ -221,6 +231,13 @@ impl Prepared<'_> {
     /// The assembled problem (rows, right-hand side, constraint groups).
     pub fn problem(&self) -> &FitProblem {
         &self.problem
+    }
+
+    /// The candidates' spring mass per unit stiffness and the floor (`fit::mass`), searched with
+    /// the part chooser on first use, over the held-out fan at `frequency` (which every solve of
+    /// one preparation shares).
+    pub fn mass_model(&self, frequency: f64) -> &MassModel {
+        self.mass.get_or_init(|| MassModel::new(self.design, &self.candidates, &self.evaluation, frequency))
     }
 
     /// The problem's tangentiality rows: kept by the problem, or where a large fit did not keep

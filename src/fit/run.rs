@@ -17,6 +17,7 @@ use std::time::Instant;
 use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
+use super::mass::{Floor, MassTerm};
 use super::outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
 use super::prepare::{Prepared, fans};
 use super::solve::solve;
@@ -44,6 +45,9 @@ impl Prepared<'_> {
     /// weights may differ: one preparation serves every budget of a Pareto sweep).
     pub fn solve(&self, settings: &FitSettings, progress: Progress<'_>) -> Result<FitOutcome> {
         settings.validate().map_err(|(f, r)| Error::invalid(&self.design.path, f, r))?;
+        if settings.max_spring_mass > 0.0 {
+            Floor::on(self.design, settings.frequency, &self.evaluation).check(self.design, settings)?;
+        }
         let (design, catalog) = (self.design, self.catalog);
         let q_eq = design.q_eq.as_slice();
         progress.stage("solving");
@@ -144,16 +148,26 @@ impl Prepared<'_> {
     fn solve_for_the_build(&self, settings: &FitSettings, progress: Progress<'_>) -> Result<(Vec<f64>, SolveReport)> {
         let q_eq = self.design.q_eq.as_slice();
         let columns = (&self.candidates[..], &self.grouping);
+        // The springs' mass, only where the fit weighs or bounds it: otherwise the solves are
+        // today's, bit for bit, and no part is searched.
+        let weighs_mass = settings.mass_weight > 0.0 || settings.max_spring_mass > 0.0;
+        let model = weighs_mass.then(|| self.mass_model(settings.frequency));
+        let term = model.map(|m| MassTerm {
+            per_stiffness: &m.per_stiffness,
+            weight: MassTerm::weight(settings, self.gram.bb, &m.floor),
+            budget: settings.max_spring_mass,
+        });
+        let mass = term.as_ref();
         if settings.tolerance.is_none() {
-            return solve(&self.problem, &self.gram, columns, q_eq, settings, None);
+            return solve(&self.problem, &self.gram, columns, q_eq, settings, None, mass);
         }
         // The nominal pass only fixes J and H for the second: the single exchange search is
         // enough there.
         let first = FitSettings { restarts: 0, pair_swaps: false, ..*settings };
-        let (k, nominal) = solve(&self.problem, &self.gram, columns, q_eq, &first, None)?;
+        let (k, nominal) = solve(&self.problem, &self.gram, columns, q_eq, &first, None, mass)?;
         progress.stage("fitting for the build tolerance");
         let penalty = self.build_penalty(&k, settings)?;
-        let (k, mut report) = solve(&self.problem, &self.gram, columns, q_eq, settings, Some(&penalty))?;
+        let (k, mut report) = solve(&self.problem, &self.gram, columns, q_eq, settings, Some(&penalty), mass)?;
         report.selection_evaluations += nominal.selection_evaluations;
         report.selection_swaps += nominal.selection_swaps;
         report.cut_rounds += nominal.cut_rounds;

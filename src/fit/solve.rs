@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::mass::MassTerm;
 use super::outcome::{SolveReport, SolveStatus};
 use super::problem::FitProblem;
 use super::problem::unit_preloads;
@@ -44,7 +45,10 @@ const SCREEN_FROM: usize = 600;
 ///
 /// `extra` is added to the normal equations (the tolerance-aware fit's expected spread of the
 /// builds: a diagonal for the springs, a block per group): every solver and the selection
-/// minimise the same objective.
+/// minimise the same objective. `mass` adds the springs' mass (`fit::mass`): its weight λ·cᵀk
+/// moves the right-hand side, for every solver and the selection alike; its budget cᵀk ≤ M is
+/// an inequality of the QP, and NNLS meets it by raising λ (bisection on the multiplier, the
+/// least λ whose solution is within the budget). Without `mass` nothing changes, bit for bit.
 pub fn solve(
     problem: &FitProblem,
     gram: &Gram,
@@ -52,13 +56,68 @@ pub fn solve(
     q_eq: &[f64],
     settings: &FitSettings,
     extra: Option<&BuildPenalty>,
+    mass: Option<&MassTerm<'_>>,
 ) -> Result<(Vec<f64>, SolveReport)> {
     let mut gram = gram.clone();
     if let Some(d) = extra {
         d.add_to(&mut gram.g);
     }
-    solve_gram(problem, gram, columns, q_eq, settings, settings.solver == SolverKind::Qp)
+    let signed = settings.solver == SolverKind::Qp;
+    let Some(m) = mass else {
+        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, None);
+    };
+    let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp).then_some(m);
+    let at = |weight: f64| {
+        let mut shifted = gram.clone();
+        if weight > 0.0 {
+            shifted.c -= m.shift(weight);
+        }
+        solve_gram_with(problem, shifted, columns, q_eq, settings, signed, qp_budget)
+    };
+    let first = at(m.weight)?;
+    let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
+    if m.budget <= 0.0 || settings.solver == SolverKind::Qp || within(&first.0) {
+        return Ok(first);
+    }
+    // NNLS over the budget: the least λ′ ≥ λ whose solution is within it. Bracketed from λ per
+    // kg of the order of the residual of no springs over the budget, then bisected.
+    let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * gram.bb / m.budget));
+    let mut best = None;
+    for _ in 0..BUDGET_STEPS {
+        let here = at(hi)?;
+        if within(&here.0) {
+            best = Some(here);
+            break;
+        }
+        (lo, hi) = (hi, 4.0 * hi);
+    }
+    let Some(mut best) = best else {
+        return Err(Error::Infeasible {
+            constraint: format!("max_spring_mass ({} kg)", m.budget),
+            reason: format!(
+                "NNLS cannot bring the springs within it at any mass weight (the least it reached is {:.3} kg): the equalities need more steel than the budget; raise max_spring_mass",
+                m.mass(&at(hi)?.0)
+            ),
+        });
+    };
+    for _ in 0..BUDGET_STEPS {
+        if hi - lo <= 1e-6 * hi {
+            break;
+        }
+        let mid = 0.5 * (lo + hi);
+        let here = at(mid)?;
+        if within(&here.0) {
+            (hi, best) = (mid, here);
+        } else {
+            lo = mid;
+        }
+    }
+    Ok(best)
 }
+
+/// Steps of NNLS's search for the mass weight that meets `max_spring_mass`: growth by 4× to
+/// bracket it, then bisection to 1e-6 relative.
+const BUDGET_STEPS: usize = 40;
 
 /// `gram` (of `rows` rows) with the equalities folded in at weight W per row: a violation δ of
 /// an equation costs as much as δ / equality_weight of residual on every tangentiality row.
@@ -89,10 +148,23 @@ pub fn nnls_support(
 pub fn solve_gram(
     problem: &FitProblem,
     gram: Gram,
+    columns: Columns<'_>,
+    q_eq: &[f64],
+    settings: &FitSettings,
+    signed: bool,
+) -> Result<(Vec<f64>, SolveReport)> {
+    solve_gram_with(problem, gram, columns, q_eq, settings, signed, None)
+}
+
+/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M.
+fn solve_gram_with(
+    problem: &FitProblem,
+    gram: Gram,
     (candidates, grouping): Columns<'_>,
     q_eq: &[f64],
     settings: &FitSettings,
     signed: bool,
+    budget: Option<&MassTerm<'_>>,
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
     let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
@@ -121,7 +193,7 @@ pub fn solve_gram(
     let unit = unit_preloads(candidates, q_eq);
     let k_sub = match settings.solver {
         SolverKind::Nnls => solve_nnls(problem, &weighted, &unknowns, &upper, &unit, settings)?,
-        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, &upper, &unit, settings, &mut report)?,
+        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), settings, &mut report)?,
     };
     Ok((unknowns.stiffnesses(grouping, p, &k_sub), report))
 }
@@ -208,8 +280,7 @@ fn solve_qp(
     problem: &FitProblem,
     gram: &Gram,
     unknowns: &Unknowns,
-    upper: &[Option<f64>],
-    unit: &[f64],
+    (upper, unit, budget): (&[Option<f64>], &[f64], Option<&MassTerm<'_>>),
     settings: &FitSettings,
     report: &mut SolveReport,
 ) -> Result<DVector<f64>> {
@@ -240,6 +311,17 @@ fn solve_qp(
             name: "preload bound".into(),
             description: format!("Σ|τᵢ(q_eq)| ≤ {p_max} N·m (max_preload)"),
             matrix: DMatrix::from_fn(1, p, |_, j| -unit[j].abs() / p_max),
+            rhs: DVector::from_element(1, -1.0),
+        });
+    }
+    if let Some(m) = budget {
+        // cᵀk ≤ M, scaled by 1/M like the preload bound. A cam's coefficients weigh nothing
+        // (fit::mass), so the row is linear in signed unknowns too.
+        let m_max = m.budget;
+        inequalities.push(LinearGroup {
+            name: "spring mass budget".into(),
+            description: format!("Σ cᵢ kᵢ ≤ {m_max} kg (max_spring_mass)"),
+            matrix: DMatrix::from_fn(1, p, |_, j| -m.per_stiffness[j] / m_max),
             rhs: DVector::from_element(1, -1.0),
         });
     }
@@ -434,7 +516,8 @@ mod tests {
         for solver in [SolverKind::Nnls, SolverKind::Qp] {
             let settings = FitSettings { solver, max_elements: 0, ..FitSettings::default() };
             let grouping = Grouping::new(candidates.iter().map(|c| (c.family, &c.element)));
-            let (k, _) = solve(&problem, &gram, (&candidates, &grouping), q_eq.as_slice(), &settings, None).unwrap();
+            let (k, _) =
+                solve(&problem, &gram, (&candidates, &grouping), q_eq.as_slice(), &settings, None, None).unwrap();
             // The QP holds the equalities exactly; NNLS weighs them (weight 30·√m), which costs
             // accuracy in the normal equations.
             let tol = if solver == SolverKind::Qp { 1e-6 } else { 1e-3 };

@@ -12,16 +12,16 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use crate::design::Design;
-use crate::design::parts::PartsSettings;
-use crate::elements::{Element, Profile, Side};
+use crate::elements::{Element, Profile};
 use crate::error::{Error, Result};
 use crate::fit::bill::{BomRow, spring_set};
 use crate::geodesic::Fan;
 use crate::potential::{GroupedSet, Potential, SpringSet};
 use crate::realise::cam::FittedCam;
-use crate::realise::material::by_key;
+use crate::realise::duty::{duty, spans, swing};
+pub use crate::realise::duty::{requirements, scenario_energy, surface};
 use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
-use crate::realise::spring::Surface;
+use crate::realise::material::by_key;
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
@@ -185,99 +185,6 @@ impl Parts {
     }
 }
 
-/// The springs' surface `[parts] shot_peened` asks for.
-pub fn surface(s: &PartsSettings) -> Surface {
-    if s.shot_peened { Surface::Peened } else { Surface::AsWound }
-}
-
-/// The requirements of element `id` from `[parts]` (its `[[parts.element]]` overrides).
-pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
-    let over = s.element.iter().find(|e| e.id == id);
-    Requirements {
-        material: by_key(s.material_key()).expect("validated: a material of the table"),
-        grade: s.grade,
-        cycles: s.cycles,
-        safety: s.safety_factor,
-        surface: surface(s),
-        max_outer_diameter: over.and_then(|e| e.max_outer_diameter_mm).unwrap_or(s.max_outer_diameter_mm),
-        max_length: over.and_then(|e| e.max_length_mm).unwrap_or(s.max_length_mm),
-        max_lever: over.and_then(|e| e.max_lever_mm).unwrap_or(s.max_lever_mm),
-        shaft_diameter: s.shaft_diameter_mm,
-        pulley_radius: s.pulley_radius_mm,
-    }
-}
-
-/// The largest energy any scenario of the design starts from or aims at, J (None without
-/// scenarios): the swing fatigue is judged at.
-pub fn scenario_energy(design: &Design) -> Option<f64> {
-    use crate::design::scenario::EnergySpec;
-    let mut e: Option<f64> = None;
-    let mut see = |v: f64| e = Some(e.map_or(v, |m: f64| m.max(v)));
-    for s in &design.scenarios {
-        s.releases.iter().for_each(|r| see(r.energy));
-        s.energy.into_iter().chain(s.e0).for_each(&mut see);
-        match &s.ed {
-            Some(EnergySpec::Value(v)) => see(*v),
-            Some(EnergySpec::Steps(steps)) => steps.iter().for_each(|st| see(st[1])),
-            None => {}
-        }
-    }
-    e
-}
-
-/// a·q of one coupling a: at q_eq, its extremes over the fan, and over the samples within the
-/// swing's arc length. The elements on a coupling (a crank's phases, a grid of offsets) share
-/// them: every deflection a·q − x₀ is read off by subtracting the element's x₀.
-struct Span {
-    coupling: Vec<f64>,
-    at_eq: f64,
-    range: [f64; 2],
-    swing: [f64; 2],
-}
-
-impl Span {
-    fn new(coupling: &[f64], q_eq: &[f64], fan: &Fan, swing: f64) -> Span {
-        // a·q term for term, as `Element::deflection` sums it.
-        let at = |q: &[f64]| coupling.iter().zip(q).map(|(a, q)| a * q).sum::<f64>();
-        let (mut range, mut sw) = ([f64::INFINITY, f64::NEG_INFINITY], [f64::INFINITY, f64::NEG_INFINITY]);
-        for g in &fan.geodesics {
-            for i in 0..g.len() {
-                let x = at(g.q(i));
-                range = [range[0].min(x), range[1].max(x)];
-                if g.s(i) <= swing {
-                    sw = [sw[0].min(x), sw[1].max(x)];
-                }
-            }
-        }
-        Span { coupling: coupling.to_vec(), at_eq: at(q_eq), range, swing: sw }
-    }
-
-    /// The deflections of an element on this coupling with offset `x0`. Subtracting x₀ rounds
-    /// monotonically, so the extremes are the bits the samples' own deflections would give.
-    fn duty(&self, x0: f64) -> Duty {
-        let at_eq = self.at_eq - x0;
-        let span = |[lo, hi]: [f64; 2]| [at_eq.min(lo - x0), at_eq.max(hi - x0)];
-        Duty { at_eq, range: span(self.range), swing: span(self.swing) }
-    }
-}
-
-/// The spans of every distinct coupling in `couplings`, in parallel (their order of first
-/// appearance).
-fn spans<'a>(couplings: impl Iterator<Item = &'a [f64]>, q_eq: &[f64], fan: &Fan, swing: f64) -> Vec<Span> {
-    let mut distinct: Vec<&[f64]> = Vec::new();
-    for a in couplings {
-        if !distinct.contains(&a) {
-            distinct.push(a);
-        }
-    }
-    distinct.par_iter().map(|a| Span::new(a, q_eq, fan, swing)).collect()
-}
-
-/// The duty of `e` from the spans of its coupling.
-fn duty(spans: &[Span], e: &Element) -> Duty {
-    spans.iter().find(|s| s.coupling == e.coupling).expect("a span for every coupling").duty(e.offset)
-}
-
 /// The parts of a fit's bill, over its evaluation fan, judged against its residual angles:
 /// what `springfit fit` and the Python package's `fit()` both write.
 pub fn of_fit(design: &Design, outcome: &crate::fit::FitOutcome, frequency: f64, stock: &[StockPart]) -> Result<Parts> {
@@ -346,9 +253,7 @@ pub fn choose(
     let s = &design.parts;
     s.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
     let q_eq = design.q_eq.as_slice();
-    let energy = scenario_energy(design);
-    let extent = evaluation.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max);
-    let radius = energy.map_or(extent, |e| ((2.0 * e).sqrt() / frequency).min(extent));
+    let (energy, radius) = swing(design, evaluation, frequency);
     let couplings = bom.iter().map(|r| &r.element.coupling[..]).chain(cams.iter().map(|c| &c.coupling[..]));
     let spans = spans(couplings, q_eq, evaluation, radius);
     // Each element's part is searched on its own: in parallel, in the bill's order.
@@ -434,11 +339,7 @@ pub fn choose(
 /// A trim's leaf, a cubic's cam and a fitted cam's follower are not fit candidates of this kind
 /// and are chosen by `choose` alone.
 pub fn fitted_part(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
-    match profile {
-        Profile::Linear => mechanism::linear(k, duty, req),
-        Profile::Compression(side) => mechanism::stop(k, side == Side::Plus, duty, req),
-        _ => mechanism::crank(k, duty, req),
-    }
+    mechanism::spring_element(profile, k, duty, req)
 }
 
 /// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working
@@ -454,7 +355,7 @@ pub fn lightest_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) 
 /// samples), at `q_eq`, and within the arc length `swing` of the fan's origin (the fatigue swing,
 /// see [`scenario_energy`]): what `choose` designs each part for.
 pub fn element_duty(coupling: &[f64], offset: f64, q_eq: &[f64], fan: &Fan, swing: f64) -> Duty {
-    Span::new(coupling, q_eq, fan, swing).duty(offset)
+    crate::realise::duty::Span::new(coupling, q_eq, fan, swing).duty(offset)
 }
 
 /// The disc cam that stores a hardening element's k (x − x₀)⁴ / 4 over the deflections `duty`
@@ -699,39 +600,7 @@ pub fn limit_message(e: &ElementPart, l: &Limit) -> String {
 mod tests {
     use super::*;
     use crate::realise::cam::realise_profile;
-
-    /// The duty read off a coupling's span is, bit for bit, the extremes of the deflections of
-    /// the element's own samples, for several offsets on one coupling and a swing that cuts the
-    /// geodesics part-way.
-    #[test]
-    fn a_span_gives_each_element_its_deflections() {
-        use crate::geodesic::{FanSpec, Stop};
-        use crate::model::Chain;
-        use crate::numerics::ode::OdeSettings;
-        let chain = Chain::paper_double_pendulum();
-        let q_eq = DVector::from_vec(vec![0.0, std::f64::consts::FRAC_PI_2]);
-        let spec = FanSpec { count: 12, phase: 0.1, stop: Stop::Arc(1.5), spacing: 0.1 };
-        let fan = Fan::trace(&chain, &q_eq, spec, OdeSettings::default()).unwrap();
-        let coupling = vec![1.0, -2.0];
-        let spans = spans([&coupling[..]].into_iter(), q_eq.as_slice(), &fan, 0.7);
-        assert_eq!(spans.len(), 1);
-        for offset in [-0.3, 0.0, 0.37, 1.9] {
-            let e = Element { profile: Profile::Linear, coupling: coupling.clone(), offset };
-            let at_eq = e.deflection(q_eq.as_slice());
-            let (mut range, mut swing) = ([at_eq, at_eq], [at_eq, at_eq]);
-            for g in &fan.geodesics {
-                for i in 0..g.len() {
-                    let d = e.deflection(g.q(i));
-                    range = [range[0].min(d), range[1].max(d)];
-                    if g.s(i) <= 0.7 {
-                        swing = [swing[0].min(d), swing[1].max(d)];
-                    }
-                }
-            }
-            assert!(swing[1] - swing[0] < range[1] - range[0], "the swing cuts the fan");
-            assert_eq!(duty(&spans, &e), Duty { at_eq, range, swing });
-        }
-    }
+    use crate::realise::material::by_key;
 
     /// A hardening element built as a disc cam: the follower spring stores exactly the cubic's
     /// potential over the region's deflections (the cam's pitch curve is solved for it), the

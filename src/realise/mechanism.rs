@@ -20,6 +20,7 @@ use super::spring::{
     HelicalSpring, INDEX_RANGE, Loading, MIN_COILS, Surface, TorsionSpring, hook_bending_stress, hook_torsion_stress,
     rate_tolerance,
 };
+use crate::elements::{Profile, Side};
 
 /// Spring indices w = D/d tried, from [`INDEX_RANGE`]'s lower end up to 16.
 fn indices() -> impl Iterator<Item = f64> {
@@ -488,6 +489,20 @@ fn torsion(
 fn tolerance_of_torsion(s: &TorsionSpring, torque: f64, grade: u8) -> f64 {
     // EN 15800 is written for compression springs: applied at the force on the leg's mean radius.
     rate_tolerance(s.d, s.dm, s.n, torque / (0.5 * s.dm), grade)
+}
+
+/// The part of a spring element of profile `profile` and stiffness `k` (the fit's unit): the one
+/// dispatch from an element to its mechanism, shared by `springfit parts` (`parts::choose`) and
+/// the fit's mass model (`fit::mass`), so that the mass the fit weighs is the mass of the part
+/// the bill will get. Linear: [`linear`]; one-sided compression: [`stop`]; anything else:
+/// [`crank`]. A cubic's disc cam and a cam's follower are chosen by their own functions (they
+/// need the cam's profile), and a trim by [`leaf`] (it needs its rate range).
+pub fn spring_element(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    match profile {
+        Profile::Linear => linear(k, duty, req),
+        Profile::Compression(side) => stop(k, side == Side::Plus, duty, req),
+        _ => crank(k, duty, req),
+    }
 }
 
 /// A linear element of rate `k` (N·m/rad): two torsion springs of k/2 against each other.

@@ -2,6 +2,7 @@
 //! profile), with its geometry and the limits a maker checks.
 
 pub mod cam;
+pub mod duty;
 pub mod material;
 pub mod mechanism;
 pub mod sketch;

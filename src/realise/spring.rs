@@ -193,6 +193,27 @@ pub fn hook_torsion_stress(d: f64, dm: f64, f: f64) -> f64 {
     kb * 8.0 * f.abs() * dm / (PI * d.powi(3))
 }
 
+/// The most elastic energy a unit volume of `material`'s wire can store in a helical extension
+/// or compression spring under the checks this module applies, J/m³: round wire in torsion holds
+/// u = τ²/(4G) at a uniform shear stress τ, and τ is at most the endurance for repeated stress at
+/// `cycles` (and the static limit 0.45 R_m, whichever is lower) over `safety`, on the strongest
+/// (thinnest) wire of the material, with the springs' `surface` (shot peening raises it). No part does better (the stress correction factor and the
+/// cycle's mean stress only lower it), so U*/u·ρ is a lower bound on the mass of any springs that
+/// store the energy U*: the floor `[fit] max_spring_mass` is checked against and that `fit`
+/// reports its mass over (docs/parts.md, "The floor").
+pub fn usable_energy_density(material: &Material, cycles: f64, safety: f64, surface: Surface) -> f64 {
+    let fraction = Loading::Shear.repeated_fraction(cycles, surface).min(0.45);
+    material
+        .sizes()
+        .iter()
+        .filter_map(|&d| material.tensile_strength(d))
+        .map(|rm| {
+            let tau = fraction * rm / safety.max(1.0);
+            tau * tau / (4.0 * material.g) * 1e6
+        })
+        .fold(0.0, f64::max)
+}
+
 /// The EN 15800 rate tolerance (± fraction) of a helical spring of wire `d`, mean diameter `dm`
 /// and `n` active coils at the working load `force` (N), for quality grade 1, 2 or 3.
 pub fn rate_tolerance(d: f64, dm: f64, n: f64, force: f64, grade: u8) -> f64 {
@@ -378,6 +399,18 @@ impl HelicalSpring {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The floor's energy density for the default material and duty: the design notes' figure
+    /// (about 0.9 MJ/m³ for extension springs at 10⁶ cycles over a safety factor of 1.1) within a
+    /// factor of two, and lower for more cycles and a larger safety factor.
+    #[test]
+    fn usable_energy_density_is_the_order_of_a_megajoule_per_cubic_metre() {
+        let m = crate::realise::material::by_key("EN10270-1-SM").unwrap();
+        let u = usable_energy_density(m, 1e6, 1.1, Surface::AsWound);
+        assert!((0.45e6..1.8e6).contains(&u), "{u}");
+        assert!(usable_energy_density(m, 1e7, 1.1, Surface::AsWound) < u);
+        assert!(usable_energy_density(m, 1e6, 1.5, Surface::AsWound) < u);
+    }
     use crate::realise::material::by_key;
 
     /// The correction factors are the standards' closed forms (EN 13906-3's q and the

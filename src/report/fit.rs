@@ -106,6 +106,22 @@ pub struct Sampling {
 }
 
 impl Summary {
+    /// The summary with the as-built figures and the realised design (its mass against the
+    /// floor on the fit's held-out fan): what `summary.json` and the Python package's `summary`
+    /// both say.
+    pub fn with_parts(
+        o: &FitOutcome,
+        design: &Design,
+        as_built: Option<&crate::asbuilt::AsBuilt>,
+        parts: Option<&crate::parts::Parts>,
+    ) -> Summary {
+        let mut summary = Summary::new(o, design);
+        summary.as_built = as_built.cloned();
+        let floor = crate::fit::mass::Floor::on(design, o.settings.frequency, &o.evaluation);
+        summary.realised = parts.map(|p| super::parts::RealisedSummary::new(p, &floor));
+        summary
+    }
+
     /// The summary of a fit of `design`.
     pub fn new(o: &FitOutcome, design: &Design) -> Summary {
         let design_file = &design.path;
@@ -257,9 +273,7 @@ pub fn write_all(
             out.write(&format!("cams/{}.svg", cam.id), crate::realise::cam::svg(&cam.realisation, &title))?;
         }
     }
-    let mut summary = Summary::new(o, design);
-    summary.as_built = as_built.cloned();
-    summary.realised = parts.map(super::parts::RealisedSummary::new);
+    let summary = Summary::with_parts(o, design, as_built, parts);
     let json = serde_json::to_string_pretty(&summary).expect("the summary serialises");
     out.write("summary.json", json + "\n")?;
     out.write("residuals.csv", residuals_csv(o.dof, &o.metrics.residuals))?;
@@ -429,9 +443,12 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     }
     if let Some(p) = &s.realised {
         r.push_str(&format!(
-            "## Parts\n\n{} elements have a part ([parts.md](parts.md), [parts.csv](parts.csv)){}. With each mechanism's own potential in place of the ideal element the residual angle is p99 {:.4}° ({:+.4}°), max {:.4}° ({:+.4}°).\n\n",
+            "## Parts\n\n{} elements have a part ([parts.md](parts.md), [parts.csv](parts.csv)){}. Their springs weigh {:.3} kg, {:.1}× the floor of {:.3} kg (the least steel that stores U* = ½ω²r²; see docs/parts.md). With each mechanism's own potential in place of the ideal element the residual angle is p99 {:.4}° ({:+.4}°), max {:.4}° ({:+.4}°).\n\n",
             p.parts,
             if p.missing.is_empty() { String::new() } else { format!("; no spring found for {}", p.missing.join(", ")) },
+            p.spring_mass_kg,
+            p.mass_over_floor,
+            p.floor_kg,
             p.residual_deg.p99_abs,
             p.p99_change_deg,
             p.residual_deg.max_abs,

@@ -6,6 +6,7 @@ use serde::Serialize;
 use super::output::OutputDir;
 use crate::design::Design;
 use crate::error::Result;
+use crate::fit::mass::Floor;
 use crate::parts::Parts;
 use crate::residual::AngleStats;
 
@@ -29,11 +30,16 @@ pub struct RealisedSummary {
     pub stock_parts: usize,
     /// Total mass of the springs, kg.
     pub spring_mass_kg: f64,
+    /// The floor ρ·U*/u: the least spring steel that can store the potential, kg (docs/parts.md).
+    pub floor_kg: f64,
+    /// `spring_mass_kg` over `floor_kg`.
+    pub mass_over_floor: f64,
 }
 
 impl RealisedSummary {
-    /// The summary of `parts`.
-    pub fn new(parts: &Parts) -> RealisedSummary {
+    /// The summary of `parts`, its mass against `floor`.
+    pub fn new(parts: &Parts, floor: &Floor) -> RealisedSummary {
+        let mass: f64 = parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum();
         RealisedSummary {
             residual_deg: parts.realised,
             p99_change_deg: parts.realised.p99_abs - parts.ideal.p99_abs,
@@ -41,7 +47,9 @@ impl RealisedSummary {
             parts: parts.elements.iter().filter(|e| e.part.is_ok()).count(),
             missing: parts.missing().map(|(e, _)| e.id.clone()).collect(),
             stock_parts: parts.elements.iter().filter(|e| e.stock.is_some()).count(),
-            spring_mass_kg: parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum(),
+            spring_mass_kg: mass,
+            floor_kg: floor.mass,
+            mass_over_floor: mass / floor.mass,
         }
     }
 }

@@ -12,6 +12,13 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A shipped design (`designs/<name>.toml`) and its catalogue, loaded through the library.
+pub fn shipped(name: &str) -> (springfit::design::Design, springfit::elements::catalog::Catalog) {
+    let design = springfit::design::Design::load(&repo().join(format!("designs/{name}.toml"))).unwrap();
+    let catalog = springfit::elements::catalog::Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    (design, catalog)
+}
+
 /// A fresh empty folder under the target directory, unique per test.
 pub fn temp_dir(name: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);

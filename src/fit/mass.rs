@@ -1,0 +1,199 @@
+//! The springs' mass in the fit: a mass per unit stiffness for every candidate, taken from the
+//! part chooser itself, the floor no layout can go below, and the term and budget the solvers
+//! see (`[fit] mass_weight`, `[fit] max_spring_mass`).
+//!
+//! **The model.** For a mechanism of fixed geometry a spring's volume goes with the energy it
+//! stores, and the energy goes with its stiffness, so the mass of candidate i's part is close to
+//! cᵢ·kᵢ. cᵢ is read off the part [`crate::realise::mechanism::spring_element`] chooses at a
+//! reference stiffness over the candidate's own duty (its deflections over the held-out fan,
+//! preload included, and the scenarios' swing for fatigue): cᵢ = mass(k_ref)/k_ref. k_ref gives
+//! the element a peak torque over the region of a quarter of the potential's boundary torque
+//! (2U*/r), the size of the elements real fits choose; where no part exists there, k_ref is
+//! halved until one does. The wire comes in discrete sizes and the geometry is searched, so the
+//! mass is not exactly linear: `tests/mass.rs` measures how close on the shipped designs (the
+//! module's tests state it for the paper's arm). A candidate no spring realises at any tried
+//! stiffness, and a cubic (whose part is a disc cam), falls back to the floor's density:
+//! cᵢ = ρ·eᵢ/u with eᵢ its largest energy per unit stiffness over the region. A cam's basis
+//! columns weigh nothing here: the follower's spring is sized by the cam's stroke, not by one
+//! coefficient.
+//!
+//! **The floor.** Any layout stores at least the potential's range, U* = ½ω²r² at the region's
+//! boundary, and spring steel stores at most u per unit volume
+//! ([`crate::realise::spring::usable_energy_density`]), so no bill weighs less than ρ·U*/u.
+//!
+//! **In the solvers.** λ·cᵀk is linear in k: in the Gram form ½kᵀGk − bᵀk every solver works on
+//! it moves b to b − λc (completing the square), so NNLS, the QP and the selection of at most K
+//! all minimise the same objective, which stays convex. λ = `mass_weight` · ½‖b‖² / floor: a
+//! bill of the floor's mass costs `mass_weight` times the residual of no springs at all, whatever
+//! the arm's size, so one weight means the same on every arm. The budget cᵀk ≤ M is one more
+//! linear inequality for the QP; NNLS, which takes no inequalities, meets it by raising λ (a
+//! bisection on the multiplier: the budget's KKT conditions).
+
+use nalgebra::DVector;
+use rayon::prelude::*;
+
+use crate::design::Design;
+use crate::design::fit::FitSettings;
+use crate::elements::Profile;
+use crate::elements::catalog::Candidate;
+use crate::error::{Error, Result};
+use crate::geodesic::{Fan, Region};
+use crate::realise::duty::{duty, requirements, spans, swing};
+use crate::realise::mechanism::{Duty, spring_element};
+use crate::realise::spring::usable_energy_density;
+
+/// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
+/// stiffness its mass per unit stiffness is read at.
+const REFERENCE_TORQUE: f64 = 0.25;
+
+/// Halvings of the reference stiffness tried before a candidate falls back to the floor density.
+const HALVINGS: usize = 8;
+
+/// The least spring mass that can store the potential.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Floor {
+    /// U* = ½ω²r² at the region's boundary, J.
+    pub energy: f64,
+    /// The material's usable energy density u, J/m³.
+    pub density: f64,
+    /// ρ·U*/u, kg.
+    pub mass: f64,
+}
+
+impl Floor {
+    /// The floor of `design` at `frequency` on a region whose farthest point is `radius` from
+    /// q_eq (metric arc length).
+    pub fn new(design: &Design, frequency: f64, radius: f64) -> Floor {
+        let req = requirements(&design.parts, "");
+        let energy = 0.5 * frequency * frequency * radius * radius;
+        let density = usable_energy_density(req.material, req.cycles, req.safety, req.surface);
+        Floor { energy, density, mass: req.material.density * energy / density }
+    }
+
+    /// The floor before any work: a ball's radius is in the design (a box's farthest point is
+    /// known only once its geodesics are traced: None).
+    pub fn before_work(design: &Design, frequency: f64) -> Option<Floor> {
+        match design.region {
+            Region::Ball { radius } => Some(Floor::new(design, frequency, radius)),
+            _ => None,
+        }
+    }
+
+    /// The floor on the region `fan` covers: its longest geodesic is the farthest point.
+    pub fn on(design: &Design, frequency: f64, fan: &Fan) -> Floor {
+        let radius = fan.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max);
+        Floor::new(design, frequency, radius)
+    }
+
+    /// Refuses a `max_spring_mass` below the floor, naming it.
+    pub fn check(&self, design: &Design, settings: &FitSettings) -> Result<()> {
+        let budget = settings.max_spring_mass;
+        if budget > 0.0 && budget < self.mass {
+            return Err(Error::invalid(
+                &design.path,
+                "fit.max_spring_mass",
+                format!(
+                    "{budget} kg is below the floor of {:.3} kg: any springs that hold the potential store at least U* = ½ω²r² = {:.2} J, and the wire stores at most {:.3} MJ/m³ (docs/parts.md, \"The floor\"); raise it above the floor",
+                    self.mass,
+                    self.energy,
+                    self.density / 1e6
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Every candidate's spring mass per unit stiffness, and the floor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MassModel {
+    /// cᵢ, kg per unit of the candidate's stiffness.
+    pub per_stiffness: Vec<f64>,
+    /// Whether cᵢ is the part chooser's (false: the floor density's fallback, or a cam's basis).
+    pub from_parts: Vec<bool>,
+    /// The floor.
+    pub floor: Floor,
+}
+
+impl MassModel {
+    /// The model of `candidates` over the held-out fan `evaluation` at `frequency`, in parallel
+    /// (each candidate's part searched on its own, the results in the candidates' order).
+    pub fn new(design: &Design, candidates: &[Candidate], evaluation: &Fan, frequency: f64) -> MassModel {
+        let floor = Floor::on(design, frequency, evaluation);
+        let (_, radius) = swing(design, evaluation, frequency);
+        let spans =
+            spans(candidates.iter().map(|c| &c.element.coupling[..]), design.q_eq.as_slice(), evaluation, radius);
+        let req = requirements(&design.parts, "");
+        let extent = evaluation.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max).max(1e-9);
+        let torque = REFERENCE_TORQUE * 2.0 * floor.energy / extent;
+        let (per_stiffness, from_parts) = candidates
+            .par_iter()
+            .map(|c| {
+                let duty = duty(&spans, &c.element);
+                let profile = c.element.profile;
+                let by_density = || req.material.density * largest_energy(profile, &duty) / floor.density;
+                match profile {
+                    Profile::Spline(_) => (0.0, false),
+                    Profile::Cubic => (by_density(), false),
+                    _ => {
+                        let mut k = torque / peak_slope(profile, &duty).max(1e-9);
+                        for _ in 0..=HALVINGS {
+                            if let Ok(part) = spring_element(profile, k, &duty, &req) {
+                                return (part.mass / k, true);
+                            }
+                            k *= 0.5;
+                        }
+                        (by_density(), false)
+                    }
+                }
+            })
+            .unzip();
+        MassModel { per_stiffness, from_parts, floor }
+    }
+}
+
+/// The largest |u′(d)| over the duty's range: the peak torque per unit stiffness.
+fn peak_slope(profile: Profile, duty: &Duty) -> f64 {
+    sample(duty).map(|d| profile.slope(d).abs()).fold(0.0, f64::max)
+}
+
+/// The largest u(d) over the duty's range: the energy per unit stiffness the element's potential
+/// holds (its spring's preload aside).
+fn largest_energy(profile: Profile, duty: &Duty) -> f64 {
+    sample(duty).map(|d| profile.eval(d).0.abs()).fold(0.0, f64::max)
+}
+
+/// 201 deflections across the duty's range, both ends included.
+fn sample(duty: &Duty) -> impl Iterator<Item = f64> + '_ {
+    (0..=200).map(move |i| duty.range[0] + (duty.range[1] - duty.range[0]) * f64::from(i) / 200.0)
+}
+
+/// What the solvers add for the mass: the linear term λ·cᵀk (λ in the objective's units per kg)
+/// and the budget cᵀk ≤ M.
+#[derive(Debug, Clone, Copy)]
+pub struct MassTerm<'a> {
+    /// cᵢ, kg per unit stiffness.
+    pub per_stiffness: &'a [f64],
+    /// λ, objective per kg (0: none).
+    pub weight: f64,
+    /// M, kg (0: none).
+    pub budget: f64,
+}
+
+impl MassTerm<'_> {
+    /// λ from `[fit] mass_weight` for normal equations whose right-hand side has ‖b‖² = `bb`:
+    /// `mass_weight` · ½‖b‖² per floor mass.
+    pub fn weight(settings: &FitSettings, bb: f64, floor: &Floor) -> f64 {
+        settings.mass_weight * 0.5 * bb / floor.mass.max(f64::MIN_POSITIVE)
+    }
+
+    /// λ·c, what the linear term takes off the right-hand side c = Aᵀb of the normal equations.
+    pub fn shift(&self, weight: f64) -> DVector<f64> {
+        DVector::from_iterator(self.per_stiffness.len(), self.per_stiffness.iter().map(|c| weight * c))
+    }
+
+    /// cᵀk, kg.
+    pub fn mass(&self, k: &[f64]) -> f64 {
+        self.per_stiffness.iter().zip(k).map(|(c, k)| c * k).sum()
+    }
+}
