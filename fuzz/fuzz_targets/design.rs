@@ -38,7 +38,7 @@ fuzz_target!(|data: &[u8]| {
                 }
             }
             assert!(!design.name.is_empty());
-            let _ = (&design.description, &design.catalog, &design.file.scenario);
+            let _ = (&design.description, &design.catalog, &design.scenarios);
             let _ = format!("{:?}", design.fit);
         }
         Err(e) => {

@@ -93,10 +93,24 @@ pub fn stiffness_of(m: &DMatrix<f64>, torque: &DVector<f64>, hessian: &DMatrix<f
 pub enum InitArm {
     /// A URDF (path as given, resolved from the current folder), the joints that move from the
     /// base outwards, the other joints held (name, value), gravity in the base frame.
-    Urdf { urdf: std::path::PathBuf, joints: Vec<String>, locked: Vec<(String, f64)>, gravity: [f64; 3] },
+    Urdf {
+        /// The URDF file, as given (resolved from the current folder).
+        urdf: std::path::PathBuf,
+        /// The URDF joints that move, from the base outwards.
+        joints: Vec<String>,
+        /// The other joints held, with their values (rad, or m for a prismatic joint).
+        locked: Vec<(String, f64)>,
+        /// Gravity in the URDF's base frame, m/s².
+        gravity: [f64; 3],
+    },
     /// A planar arm's links (mass kg, length m, centre of mass m from the joint, inertia kg·m²
     /// about it) in a plane with this gravity.
-    Planar { links: Vec<[f64; 4]>, gravity: [f64; 2] },
+    Planar {
+        /// Per link: mass kg, length m, centre of mass m from the joint, inertia kg·m² about it.
+        links: Vec<[f64; 4]>,
+        /// Gravity in the arm's plane, m/s².
+        gravity: [f64; 2],
+    },
 }
 
 /// What `springfit init` is asked for.

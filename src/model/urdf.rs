@@ -54,7 +54,12 @@ impl Pose {
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum JointRange {
     /// A revolute joint with `lower < upper` (rad).
-    Limited { lower: f64, upper: f64 },
+    Limited {
+        /// The lower limit, rad.
+        lower: f64,
+        /// The upper limit, rad.
+        upper: f64,
+    },
     /// A continuous joint, or a planar arm's joint: it turns without end.
     Unlimited,
     /// A revolute joint whose `<limit>` gives no range (missing, or lower = upper): springfit

@@ -20,8 +20,8 @@ use crate::potential::{GroupedSet, Potential, SpringSet};
 use crate::realise::cam::FittedCam;
 use crate::realise::duty::{duty, spans, swing};
 pub use crate::realise::duty::{requirements, scenario_energy, surface};
-use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
 use crate::realise::material::by_key;
+use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
