@@ -265,7 +265,7 @@ pub fn choose(
             let duty = duty(&spans, &r.element);
             let k = r.stiffness;
             // The fitted elements' mechanisms, as functions of the stiffness (for the bound below).
-            let design_at = |k: f64| fitted_part(r.element.profile, k, &duty, &req);
+            let design_at = |k: f64| mechanism::spring_element(r.element.profile, k, &duty, &req);
             // A crank is built round a listed extension spring when one passes every check
             // (`[parts] prefer_stock`): its anchor distance set for the element's rate.
             let listed = (r.element.profile == Profile::Crank && s.prefer_stock)
@@ -332,23 +332,13 @@ pub fn choose(
     Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius) })
 }
 
-/// The lightest part of a fitted element of `profile` at stiffness `k` (the profile's unit:
-/// N·m/rad, N·m for a crank) over the deflections `duty`, within `req`: the mechanism `choose`
-/// gives it (two torsion springs for a linear element, one on a leg stop for a one-sided
-/// compression, an extension spring on a crank's cable otherwise), or the limit no spring meets.
-/// A trim's leaf, a cubic's cam and a fitted cam's follower are not fit candidates of this kind
-/// and are chosen by `choose` alone.
-pub fn fitted_part(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> std::result::Result<Part, Limit> {
-    mechanism::spring_element(profile, k, duty, req)
-}
-
 /// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working
-/// range `duty` within `req` ([`fitted_part`]'s part, all its springs), None when no spring meets
+/// range `duty` within `req` ([`mechanism::spring_element`]'s part, all its springs), None when no spring meets
 /// it. The interface the fit's mass model (issue 44) reads: its signature stays as it is; what
 /// the part must pass (the standards' checks) may change behind it. `duty` comes from
 /// [`element_duty`] and `req` from [`requirements`].
 pub fn lightest_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
-    fitted_part(profile, k, duty, req).ok().map(|p| p.mass)
+    mechanism::spring_element(profile, k, duty, req).ok().map(|p| p.mass)
 }
 
 /// The deflections x − x₀ an element on `coupling` with offset `offset` sees on `fan` (its
