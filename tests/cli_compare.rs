@@ -44,6 +44,24 @@ fn compare_takes_solvers_catalogues_and_designs_together() {
     assert_eq!(fields[1][3], "qp");
     let exact_p99: f64 = fields[3][8].parse().unwrap();
     assert!(exact_p99 < 1e-3);
+    // Issue 44 item 4: the springs' mass beside the residuals, from a fit folder's summary.json
+    // and from a design fitted on the fly; none for the exact reference.
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let (mass, ratio) = (
+        header.iter().position(|h| *h == "spring_mass_kg").unwrap(),
+        header.iter().position(|h| *h == "mass_over_floor").unwrap(),
+    );
+    for r in &fields[..3] {
+        let (m, f): (f64, f64) = (r[mass].parse().unwrap(), r[ratio].parse().unwrap());
+        assert!(m > 0.0 && f > 1.0, "{r:?}");
+    }
+    assert_eq!((fields[3][mass].as_str(), fields[3][ratio].as_str()), ("", ""));
+    let qp_summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("qp/summary.json")).unwrap()).unwrap();
+    assert_eq!(fields[1][mass].parse::<f64>().ok(), qp_summary["mass"]["spring_mass_kg"].as_f64());
+    let md = std::fs::read_to_string(dir.join("cmp/compare.md")).unwrap();
+    assert!(md.contains("spring mass (× floor)") && md.contains(" kg ("), "{md}");
+    assert!(run.stdout().contains("× the floor)"), "{}", run.report());
 }
 
 #[test]

@@ -93,10 +93,28 @@ fn the_default_design_meets_its_accuracy_targets() {
     }
     // The shipped stock list is read by default: at least one crank is a military-standard part.
     assert!(rows.iter().any(|r| r[col("part_number")].starts_with("MS24586")), "{parts}");
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     let realised = &s["realised"];
     assert_eq!(realised["parts"].as_u64(), s["used"].as_u64(), "{realised}");
     assert!(realised["p99_change_deg"].as_f64().unwrap().abs() <= 0.1, "{realised}");
     assert!(run.stdout().contains("realised design: p99"), "{}", run.report());
+    // Issue 44 item 4: the springs' mass against the arm and the floor, the stored energy over U*
+    // and the total |preload| at q_eq, the same in summary.json, report.md and on stdout.
+    let m = &s["mass"];
+    let f = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("mass.{k} missing: {m}"));
+    assert_eq!(m["spring_mass_kg"], realised["spring_mass_kg"], "{m}");
+    assert!((f("arm_mass_kg") - 2.0).abs() < 1e-12, "{m}");
+    assert!((f("mass_over_arm") - f("spring_mass_kg") / f("arm_mass_kg")).abs() < 1e-12, "{m}");
+    assert!((f("mass_over_floor") - f("spring_mass_kg") / f("floor_kg")).abs() < 1e-9, "{m}");
+    assert!((f("stored_energy_over_potential") - f("stored_energy_j") / f("potential_energy_j")).abs() < 1e-12, "{m}");
+    assert!((f("floor_kg") - 7850.0 * f("potential_energy_j") / f("energy_density_j_m3")).abs() < 1e-3 * f("floor_kg"));
+    // Every element stores at least what the potential spends along one geodesic, and the
+    // preloads cancel joint by joint at q_eq (|∇U(q_eq)| ≈ 0) while their sum does not.
+    assert!(f("stored_energy_over_potential") >= 1.0 && f("preload_total_nm") > 0.0, "{m}");
+    assert!(report.contains("## Mass") && report.contains("| springs / floor |"), "{report}");
+    assert!(run.stdout().contains("× the arm's moving 2.000 kg"), "{}", run.report());
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("springs / floor"), "report.html lacks the mass table");
     // Its verdict against the design's threshold, and its sampling: two joints keep the counts of
     // before they grew with n (72 / 360 / 720 directions).
     assert!(run.stdout().contains("verdict: acceptable"), "{}", run.report());
@@ -107,7 +125,6 @@ fn the_default_design_meets_its_accuracy_targets() {
     assert_eq!(counts, [Some(72), Some(360), Some(720)], "{sampling}");
     // stdout and report.md count candidates the same way.
     let line = run.stdout().lines().next().unwrap().to_string();
-    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     let total = line.split(" candidates").next().unwrap().rsplit(' ').next().unwrap().to_string();
     assert!(report.contains(&format!("{total} candidates")), "{line}\n{report}");
 }
@@ -126,6 +143,7 @@ fn the_exact_reference_has_zero_residual() {
     assert_eq!(s["solver"], "exact");
     assert!(s["residual_deg"]["max_abs"].as_f64().unwrap() < 1e-3, "{}", s["residual_deg"]);
     assert!(!dir.join("exact/bom.csv").exists());
+    assert!(s["mass"].is_null(), "the exact reference has no springs to weigh: {}", s["mass"]);
 }
 
 #[test]

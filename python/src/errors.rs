@@ -62,6 +62,20 @@ create_exception!(
     "A numerical method failed (a log map that did not converge, a singular mass matrix)."
 );
 
+/// The command line's words in library messages and what a Python caller writes instead: the
+/// library's messages advise the command line's flags (the output folders' refusals above all),
+/// and a Python caller passes the folder and `overwrite_edits=True` to `write` instead.
+const PYTHON_WORDS: &[(&str, &str)] = &[
+    ("pass --overwrite-edits", "pass overwrite_edits=True"),
+    ("choose another --out", "write to another folder"),
+    ("pass --out with a folder", "write to a folder"),
+];
+
+/// A library message in a Python caller's words ([`PYTHON_WORDS`]).
+pub fn python_words(message: &str) -> String {
+    PYTHON_WORDS.iter().fold(message.to_string(), |m, (cli, py)| m.replace(cli, py))
+}
+
 /// The Python exception for a library error, with `file`, `field`, `line` and `column` set.
 pub fn to_py(e: Error) -> PyErr {
     let file = match &e {
@@ -70,7 +84,7 @@ pub fn to_py(e: Error) -> PyErr {
         }
         _ => None,
     };
-    build(&e, e.to_string(), file)
+    build(&e, python_words(&e.to_string()), file)
 }
 
 /// The error as the command line shows it for a design: errors that carry no file of their own
@@ -78,7 +92,7 @@ pub fn to_py(e: Error) -> PyErr {
 pub fn in_design(e: Error, path: &std::path::Path) -> PyErr {
     match e {
         Error::Infeasible { .. } | Error::Numerical { .. } => {
-            let message = format!("{}: {e}", path.display());
+            let message = python_words(&format!("{}: {e}", path.display()));
             build(&e, message, Some(path.display().to_string()))
         }
         other => to_py(other),

@@ -55,9 +55,12 @@ impl PyFit {
         Ok(PyFit { design, run })
     }
 
-    /// The fit as `compare` records it (with its as-built brief).
+    /// The fit as `compare` records it (with its as-built brief and its springs' mass).
     pub fn record(&self) -> springfit::studies::compare::FitRecord {
-        self.run.record(&self.design.path)
+        let mut r = self.run.record(&self.design.path);
+        let mass = springfit::report::mass::MassSummary::new(&self.design, &self.run.outcome, self.run.parts.as_ref());
+        springfit::jobs::compare::with_mass(&mut r, mass);
+        r
     }
 
     /// The fitted springs as a potential (an error for the exact reference).

@@ -1,6 +1,7 @@
 """Bad input raises springfit.Error subclasses with the command line's message, never a crash."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -103,3 +104,16 @@ def test_a_bill_that_does_not_hold_the_equilibrium_is_refused_as_by_the_commands
         springfit.Potential.from_bom(design, bad)
     assert e.value.field == "offset_rad" and "equilibrium.bill_tolerance" in str(e.value)
     assert str(e.value) == cli_error("export", DEFAULT, "--bom", bad, "--mujoco", "--out", tmp_path / "o", cwd=tmp_path)
+
+
+def test_a_refused_folder_names_the_python_argument_not_the_flag(fit, tmp_path):
+    # Issue 42 item 11: an edited file in the folder is refused in a Python caller's words.
+    folder = Path(fit.write(tmp_path / "out"))
+    (folder / "report.md").write_text("edited by hand\n")
+    with pytest.raises(springfit.FileError) as e:
+        fit.write(folder)
+    message = str(e.value)
+    assert "overwrite_edits=True" in message and "--overwrite-edits" not in message, message
+    assert "--out" not in message, message
+    fit.write(folder, overwrite_edits=True)
+    assert (folder / "report.md").read_text() != "edited by hand\n"

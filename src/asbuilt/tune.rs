@@ -57,9 +57,15 @@ const SMALLEST_STEP: f64 = 1e-6;
 /// outward in step 1: round-off only, so an offset clamped to its bound is held.
 const AT_BOUND: f64 = 1e-15;
 
-/// How near a bound a variable counts as at it in step 3 and in the settings: such a variable
-/// is left out of the step (clamping would undo its move) and reported `at_limit`.
+/// How near a bound a variable counts as at it in step 3: such a variable is left out of the
+/// step (clamping would undo its move).
 const AT_LIMIT: f64 = 1e-12;
+
+/// How near a bound, as a fraction of its range, a setting is reported `at_limit` ("at the end
+/// of its range"): no screw or trim is set to a millionth of its travel, so an offset the
+/// iteration left 3.5e-9 rad short of its ±0.2 rad end is at the end for whoever sets it
+/// (issue 42 item 11), while step 3 still treats it as free ([`AT_LIMIT`]).
+const REPORTED_AT_LIMIT: f64 = 1e-6;
 
 /// The settings of step 3's Levenberg–Marquardt loop ([`LM`]).
 struct LevenbergMarquardt {
@@ -429,6 +435,13 @@ fn state(design: &Design, extent: f64, springs: &SpringSet) -> Result<State> {
     Ok(State { p99_deg: p99, max_deg: max, shift_rad: (&q - &design.q_eq).norm(), hessian_mismatch: mismatch })
 }
 
+/// Whether `value` is at an end of [lo, hi] as a setting is reported: within
+/// [`REPORTED_AT_LIMIT`] of the range's width (an empty range: always).
+fn at_end(value: f64, lo: f64, hi: f64) -> bool {
+    let slack = REPORTED_AT_LIMIT * (hi - lo);
+    value <= lo + slack || value >= hi - slack
+}
+
 /// Tunes a built arm. `bom` is the bill of materials as designed; `measured[j]` the measured
 /// rate of row j (None: as designed). A trim's measured rate is where tuning starts (the
 /// `before` figures use it); tune then sets the trim's rate.
@@ -508,10 +521,11 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// Whether variable v sits at an end of its range (within [`AT_LIMIT`]).
-    fn at_limit(&self, z: &[f64], v: usize) -> bool {
+    /// Whether variable v is reported at an end of its range: within [`REPORTED_AT_LIMIT`] of
+    /// its range's width (what the settings and the binding ranges say).
+    fn reported_at_limit(&self, z: &[f64], v: usize) -> bool {
         let [lo, hi] = self.bounds(v);
-        z[v] <= lo + AT_LIMIT || z[v] >= hi - AT_LIMIT
+        at_end(z[v], lo, hi)
     }
 
     /// The squared residual angles on the training fan: what step 3 lowers.
@@ -661,8 +675,10 @@ impl Problem<'_> {
     /// distance to q_eq).
     fn equilibrium_binding(&self, z: &[f64], gradient: f64, shift: f64) -> String {
         let na = self.adjustable.len();
-        let held: Vec<String> =
-            (0..na).filter(|&v| self.at_limit(z, v)).map(|v| self.bom[self.adjustable[v].0].id.clone()).collect();
+        let held: Vec<String> = (0..na)
+            .filter(|&v| self.reported_at_limit(z, v))
+            .map(|v| self.bom[self.adjustable[v].0].id.clone())
+            .collect();
         if na == 0 {
             format!(
                 "no adjustable element: |∇U(q_eq)| = {gradient:.3e} N·m stays (the arm rests {shift:.2e} rad from q_eq)"
@@ -718,7 +734,7 @@ impl Problem<'_> {
                         kind: "offset",
                         designed: bom[j].element.offset,
                         set: bom[j].element.offset + z[v],
-                        at_limit: self.at_limit(z, v),
+                        at_limit: self.reported_at_limit(z, v),
                     }
                 } else {
                     let j = self.trims[v - na];
@@ -727,7 +743,7 @@ impl Problem<'_> {
                         kind: "trim rate",
                         designed: bom[j].stiffness,
                         set: z[v],
-                        at_limit: self.at_limit(z, v),
+                        at_limit: self.reported_at_limit(z, v),
                     }
                 }
             })
@@ -779,6 +795,17 @@ impl Problem<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 42 item 11: an offset 3.5e-9 rad short of its +0.2 rad end is reported at the end;
+    /// one a thousandth of its range inside is not.
+    #[test]
+    fn an_offset_a_hair_from_its_end_is_at_the_end() {
+        assert!(at_end(0.2 - 3.5e-9, -0.2, 0.2));
+        assert!(at_end(-0.2 + 3.5e-9, -0.2, 0.2));
+        assert!(!at_end(0.2 - 4e-4, -0.2, 0.2));
+        assert!(!at_end(0.0, -0.2, 0.2));
+        assert!(at_end(0.0, 0.0, 0.0));
+    }
 
     /// The default design's bill (twelve adjustable elements, three trims), fitted on a small fan.
     fn default_bill(design: &Design) -> Vec<BomRow> {

@@ -71,11 +71,15 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
     let records = &comparison.records;
     for r in records {
         progress.say(format!(
-            "{}: {} springs, p99 {}, max {}{}",
+            "{}: {} springs, p99 {}, max {}{}{}",
             r.label,
             r.used,
             springfit::report::deg(r.stats.p99_abs),
             springfit::report::deg(r.stats.max_abs),
+            match (r.spring_mass_kg, r.mass_over_floor) {
+                (Some(m), Some(f)) => format!(", springs {m:.3} kg ({f:.1}× the floor)"),
+                _ => String::new(),
+            },
             r.actuator_share.map(|a| format!(", actuator share {:.3} %", 100.0 * a)).unwrap_or_default()
         ));
         if let Some(b) = &r.as_built {

@@ -7,7 +7,6 @@ use springfit::asbuilt::AsBuilt;
 use springfit::design::fit::FitSettings;
 use springfit::design::fit::SolverKind;
 use springfit::design::tolerance::TrimRule;
-use springfit::fit::mass::Floor;
 use springfit::jobs::fit::{FitJob, FitRequest, FitRun};
 use springfit::jobs::{Topic, about};
 use springfit::realise::cam::FittedCam;
@@ -51,15 +50,9 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     }
     if let Some(p) = &run.parts {
         super::parts::say(p, &run.warnings, session);
-        let floor = Floor::on(&design, settings.frequency, &run.outcome.evaluation);
-        let mass: f64 = p.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum();
-        progress.say(format!(
-            "springs {mass:.3} kg: {:.1}× the floor of {:.3} kg (U* = ½ω²r² = {:.1} J over {:.2} MJ/m³ of steel)",
-            mass / floor.mass,
-            floor.mass,
-            floor.energy,
-            floor.density / 1e6
-        ));
+        if let Some(m) = springfit::report::mass::MassSummary::new(&design, &run.outcome, Some(p)) {
+            progress.say(m.line());
+        }
     }
     let files = if args.exact {
         "summary.json, residuals.csv, histogram, potential, report.md, report.html"

@@ -97,7 +97,15 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
         share_note,
         source: dir.to_path_buf(),
         as_built: crate::asbuilt::Brief::from_json(&summary),
+        spring_mass_kg: mass_figure(&summary, "spring_mass_kg"),
+        mass_over_floor: mass_figure(&summary, "mass_over_floor"),
     })
+}
+
+/// A figure of the springs' mass from `summary.json`: its `mass` section, else (a folder from
+/// before that section) its `realised` one, which has the same two keys.
+fn mass_figure(summary: &serde_json::Value, key: &str) -> Option<f64> {
+    ["mass", "realised"].iter().find_map(|section| summary.get(section)?.get(key)?.as_f64())
 }
 
 /// The actuator share of the design's `sensitivity` (else `switch`) scenario from the

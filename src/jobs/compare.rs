@@ -22,9 +22,19 @@ pub fn fitted(design: &Design, catalog: &Catalog, path: &Path, progress: Progres
     let outcome = crate::fit::run::fit(design, catalog, &design.fit, Progress::none())
         .map_err(|e| crate::fit::hints::explain(design, &design.fit, catalog, design.fit.max_elements, e))?;
     let as_built = crate::asbuilt::of_fit(design, &outcome)?;
+    let stock = crate::files::stock::of_design(design)?;
+    let parts = crate::parts::of_fit(design, &outcome, design.fit.frequency, &stock)?;
     let mut r = record_of(&outcome, path);
     r.as_built = as_built.as_ref().map(crate::asbuilt::Brief::of);
+    with_mass(&mut r, crate::report::mass::MassSummary::new(design, &outcome, Some(&parts)));
     Ok(r)
+}
+
+/// Puts the springs' mass and its ratio to the floor into a record (what `compare` shows beside
+/// the residuals).
+pub fn with_mass(r: &mut FitRecord, mass: Option<crate::report::mass::MassSummary>) {
+    r.spring_mass_kg = mass.and_then(|m| m.spring_mass_kg);
+    r.mass_over_floor = mass.and_then(|m| m.mass_over_floor);
 }
 
 /// The record of the exact potential ½ω²r² of `design` (read from `file`), labelled as the

@@ -288,7 +288,34 @@ pub fn histogram_figure(residuals: &[AngleSample], st: &AngleStats, title: &str,
 /// Adds the as-built band to a residual-angle histogram: the p99 |angle| of the Monte Carlo
 /// builds from its p50 to its p95 over builds (mirrored for signed angles), and the trimmed one
 /// when the design has trim springs.
+///
+/// The x axis stays the histogram's own, widened to show a band at most to [`BAND_REACH`] times
+/// the histogram's reach: the builds' band usually lies well beyond the drawing's residuals, and
+/// an axis set by it squeezed the histogram into a fifth of the panel (issue 42 item 8). A band
+/// the axis cuts says so in its legend entry, with its figures (the notes give them too).
 pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed: bool) {
+    let reach = panel
+        .layers
+        .iter()
+        .filter_map(|l| match l {
+            // The bins that hold samples: the edges may span a rounder range than the data.
+            Layer::Histogram { edges, counts, .. } => counts
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c > 0.0)
+                .map(|(i, _)| edges[i].abs().max(edges[i + 1].abs()))
+                .reduce(f64::max),
+            _ => None,
+        })
+        .reduce(f64::max)
+        .filter(|r| r.is_finite() && *r > 0.0);
+    let bands: Vec<&crate::asbuilt::Spread> =
+        std::iter::once(&ab.p99_deg).chain(ab.trimmed.as_ref().map(|t| &t.p99_deg)).collect();
+    let widest = bands.iter().map(|sp| sp.p95.max(sp.p50)).filter(|x| x.is_finite()).fold(0.0, f64::max);
+    let limit = reach.map(|r| (r.max(widest.min(BAND_REACH * r))) * 1.05);
+    if let Some(l) = limit {
+        panel.x_range = Some(if signed { (-l, l) } else { (0.0, l) });
+    }
     let band = |sp: &crate::asbuilt::Spread| {
         let (a, b) = (sp.p50, sp.p95.max(sp.p50));
         if !(a.is_finite() && b.is_finite()) {
@@ -296,12 +323,17 @@ pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed
         }
         if signed { vec![(a, b), (-b, -a)] } else { vec![(a, b)] }
     };
+    let pair = |sp: &crate::asbuilt::Spread| format!("{} / {}", sp.text(sp.p50, 3, "°"), sp.text(sp.p95, 3, "°"));
+    let label = |what: &str, sp: &crate::asbuilt::Spread| {
+        let cut = limit.is_some_and(|l| sp.p95.max(sp.p50) > l);
+        let beyond = if cut { format!(" (to {} beyond the axis)", sp.text(sp.p95, 3, "°")) } else { String::new() };
+        format!("{what}: p99 |angle|, p50–p95 over builds{beyond}")
+    };
     panel.layers.push(Layer::Spans {
         spans: band(&ab.p99_deg),
         style: Style::fill(palette(3), 0.25),
-        label: Some("as built: p99 |angle|, p50–p95 over builds".into()),
+        label: Some(label("as built", &ab.p99_deg)),
     });
-    let pair = |sp: &crate::asbuilt::Spread| format!("{} / {}", sp.text(sp.p50, 3, "°"), sp.text(sp.p95, 3, "°"));
     panel.notes.push(format!(
         "as built ({}, {} builds): p99 {} (p50 / p95)",
         ab.tolerance.label(),
@@ -312,12 +344,16 @@ pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed
         panel.layers.push(Layer::Spans {
             spans: band(&t.p99_deg),
             style: Style::fill(palette(2), 0.25),
-            label: Some("trimmed: p99 |angle|, p50–p95 over builds".into()),
+            label: Some(label("trimmed", &t.p99_deg)),
         });
         panel.notes.push(format!("trimmed: p99 {}", pair(&t.p99_deg)));
     }
     panel.legend = true;
 }
+
+/// How far beyond the histogram's reach (as a multiple of it) the as-built bands may widen its
+/// x axis: the histogram keeps at least half the panel's width.
+const BAND_REACH: f64 = 2.0;
 
 /// Isolines of the total potential over the region's bounding box, with geodesics and the region
 /// boundary on top (the paper's Fig. 5b). For a perfect potential the isolines are the geodesic

@@ -74,6 +74,9 @@ pub struct Summary {
     /// The realised design: residual angles with each element's mechanism in place of the ideal
     /// element, and the parts found (null for the exact reference and when no parts were chosen).
     pub realised: Option<super::parts::RealisedSummary>,
+    /// The springs' mass against the arm and the floor, their stored energy over U* and their
+    /// total |preload| at q_eq (null for the exact reference; see [`super::mass`]).
+    pub mass: Option<super::mass::MassSummary>,
 }
 
 /// The region part of the summary.
@@ -119,6 +122,7 @@ impl Summary {
         summary.as_built = as_built.cloned();
         let floor = crate::fit::mass::Floor::on(design, o.settings.frequency, &o.evaluation);
         summary.realised = parts.map(|p| super::parts::RealisedSummary::new(p, &floor));
+        summary.mass = super::mass::MassSummary::new(design, o, parts);
         summary
     }
 
@@ -167,6 +171,7 @@ impl Summary {
             spring_set: (o.solve.solver != Solver::Exact).then(|| crate::fit::bill::fingerprint(&o.springs)),
             as_built: None,
             realised: None,
+            mass: None,
         }
     }
 }
@@ -454,6 +459,9 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
             p.residual_deg.max_abs,
             p.max_change_deg
         ));
+    }
+    if let Some(m) = &s.mass {
+        r.push_str(&m.markdown());
     }
     r.push_str(&format!(
         "## Files\n\n- [summary.json](summary.json): the figures above\n- [residuals.csv](residuals.csv): every evaluated sample\n\nTimings: geodesics {:.3} s, assemble {:.3} s, solve {:.3} s, evaluate {:.3} s, total {:.3} s.\n",

@@ -299,13 +299,22 @@ fn scenario_md(json: &Value) -> String {
     if let Some(e) = json["label_error_deg"].as_f64() {
         let _ = write!(md, " (largest error {e:.2e}°)");
     }
-    md.push_str(".\n\n| run | mode drift (cumulative, wrapped) | actuator share | last 5 s | energy error, last 5 s | slowest settling |\n| --- | ---: | ---: | ---: | ---: | ---: |\n");
+    // The geodesic deviation leads: it measures how far the motion left its mode, while the
+    // label drift spikes where the motion passes near the ε-ball (the label of a point a little
+    // off the mode turns fast there), so a drift of 178° can head a release that stays within 9 %
+    // of r₀ of its geodesic (issue 42 item 9).
+    md.push_str(".\n\nThe geodesic deviation is how far the arm left its mode (largest metric distance to the mode's geodesic, and its ratio to the start's r₀); the label drift is a secondary figure: it spikes where the motion passes close to q_eq, inside or near the ε-ball, where the label of a point a little off the mode turns fast (docs/simulation.md).\n\n| run | geodesic deviation (max, of r₀) | label drift (cumulative, wrapped) | actuator share | last 5 s | energy error, last 5 s | slowest settling |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     let pct = |v: &Value| v.as_f64().map(|x| format!("{:.3} %", 100.0 * x)).unwrap_or_else(|| "–".into());
     if let Some(runs) = json["runs"].as_object() {
         for (name, m) in runs {
             let drift = match (m["mode_drift_deg"].as_f64(), m["mode_drift_wrapped_deg"].as_f64()) {
                 (Some(d), Some(w)) => format!("{d:.3}°, {w:.3}°"),
                 (Some(d), None) => format!("{d:.3}°"),
+                _ => "–".into(),
+            };
+            let deviation = match (m["geodesic_deviation"]["max"].as_f64(), m["geodesic_deviation"]["max_rel"].as_f64())
+            {
+                (Some(d), Some(r)) => format!("{d:.2e} ({:.1} %)", 100.0 * r),
                 _ => "–".into(),
             };
             let energy = m
@@ -324,7 +333,7 @@ fn scenario_md(json: &Value) -> String {
                 .unwrap_or_else(|| "–".into());
             let _ = writeln!(
                 md,
-                "| {name} | {drift} | {} | {} | {energy} | {settle} |",
+                "| {name} | {deviation} | {drift} | {} | {} | {energy} | {settle} |",
                 pct(&m["actuator_share"]),
                 pct(&m["actuator_share_last5s"])
             );
@@ -464,7 +473,23 @@ mod tests {
         )
         .unwrap();
         let md = scenario_md(&json);
-        assert!(md.contains("| release_1 | 0.500° | 0.000 % | 0.000 % | – | – |"), "{md}");
-        assert!(md.contains("| step | – | 0.760 % | 0.100 % | – | never |"), "{md}");
+        assert!(md.contains("| release_1 | – | 0.500° | 0.000 % | 0.000 % | – | – |"), "{md}");
+        assert!(md.contains("| step | – | – | 0.760 % | 0.100 % | – | never |"), "{md}");
+    }
+
+    /// Issue 42 item 9: a three-joint release whose label drift spikes to 178° near the ε-ball
+    /// while it stays within 9 % of r₀ of its geodesic is headed by the deviation, not the drift.
+    #[test]
+    fn the_geodesic_deviation_leads_the_label_drift() {
+        let json: Value = serde_json::from_str(
+            r#"{"scenario":"free","kind":"free","potential":"springs (fit)","label":"table",
+                "runs":{"release_1":{"geodesic_deviation":{"start_radius":2.0,"max":0.18,"max_rel":0.09,"per_swing":[]},
+                "mode_drift_deg":178.0,"mode_drift_wrapped_deg":178.0,"actuator_share":0.0,"actuator_share_last5s":0.0,"settling_s":[]}}}"#,
+        )
+        .unwrap();
+        let md = scenario_md(&json);
+        assert!(md.contains("| release_1 | 1.80e-1 (9.0 %) | 178.000°, 178.000° |"), "{md}");
+        let header = md.lines().find(|l| l.starts_with("| run |")).unwrap();
+        assert!(header.find("geodesic deviation").unwrap() < header.find("label drift").unwrap(), "{header}");
     }
 }

@@ -7,6 +7,7 @@ pub mod fit;
 pub mod geodesics;
 pub mod html;
 pub mod identify;
+pub mod mass;
 pub mod output;
 pub mod parts;
 pub mod plot;

@@ -39,7 +39,7 @@ pub struct RealisedSummary {
 impl RealisedSummary {
     /// The summary of `parts`, its mass against `floor`.
     pub fn new(parts: &Parts, floor: &Floor) -> RealisedSummary {
-        let mass: f64 = parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum();
+        let mass = super::mass::spring_mass(parts);
         RealisedSummary {
             residual_deg: parts.realised,
             p99_change_deg: parts.realised.p99_abs - parts.ideal.p99_abs,

@@ -46,6 +46,11 @@ pub struct FitRecord {
     pub source: PathBuf,
     /// As-built p99 over builds (untrimmed and trimmed), if the fit has as-built figures.
     pub as_built: Option<crate::asbuilt::Brief>,
+    /// The chosen springs' total mass, kg (None: no parts chosen, the exact reference, or a fit
+    /// folder without it).
+    pub spring_mass_kg: Option<f64>,
+    /// `spring_mass_kg` over the floor ρ·U*/u of the design (docs/parts.md).
+    pub mass_over_floor: Option<f64>,
 }
 
 /// The record of a fit just computed.
@@ -64,6 +69,8 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         share_note: Some("fitted on the fly: no simulation of these springs".into()),
         source: design_file.to_path_buf(),
         as_built: None,
+        spring_mass_kg: None,
+        mass_over_floor: None,
     }
 }
 
@@ -103,12 +110,12 @@ pub fn disambiguate(records: &mut [FitRecord]) {
 /// The comparison table as CSV.
 pub fn table_csv(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg\n",
+        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,spring_mass_kg,mass_over_floor\n",
     );
     for r in records {
         let totals = r.totals.iter().map(|(u, t)| format!("{t} {u}")).collect::<Vec<_>>().join("; ");
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             csv_field(&r.label),
             csv_field(&r.design),
             csv_field(&r.catalog),
@@ -120,7 +127,9 @@ pub fn table_csv(records: &[FitRecord]) -> String {
             r.stats.p99_abs,
             r.stats.max_abs,
             r.actuator_share.map(|a| a.to_string()).unwrap_or_default(),
-            as_built_csv(r.as_built.as_ref())
+            as_built_csv(r.as_built.as_ref()),
+            r.spring_mass_kg.map(|m| m.to_string()).unwrap_or_default(),
+            r.mass_over_floor.map(|m| m.to_string()).unwrap_or_default()
         ));
     }
     s
@@ -143,10 +152,19 @@ pub fn spread_md(s: Option<crate::asbuilt::Spread>) -> String {
     s.map(|s| format!("{:.3}° / {:.3}°", s.p50, s.p95)).unwrap_or_else(|| "–".into())
 }
 
+/// "12.117 kg (74.8×)", or "–" without parts.
+fn mass_md(r: &FitRecord) -> String {
+    match (r.spring_mass_kg, r.mass_over_floor) {
+        (Some(m), Some(f)) => format!("{m:.3} kg ({f:.1}×)"),
+        (Some(m), None) => format!("{m:.3} kg"),
+        _ => "–".into(),
+    }
+}
+
 /// The comparison table as Markdown.
 pub fn table_md(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from a simulation of the same springs (`<fit folder>_simulate`, scenario `sensitivity`, else `switch`) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | actuator share | as built p99 (p50 / p95 over builds) | trimmed |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "# Design comparison\n\nResidual angles on each fit's held-out geodesics; actuator share from a simulation of the same springs (`<fit folder>_simulate`, scenario `sensitivity`, else `switch`) where one was run.\n\n| design | catalogue | solver | springs | total stiffness | median | p95 | p99 | max | spring mass (× floor) | actuator share | as built p99 (p50 / p95 over builds) | trimmed |\n| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
     for r in records {
         let totals = if r.totals.is_empty() {
@@ -155,7 +173,7 @@ pub fn table_md(records: &[FitRecord]) -> String {
             r.totals.iter().map(|(u, t)| format!("{t:.2} {}", crate::units::shown(u))).collect::<Vec<_>>().join(", ")
         };
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.label.replace('|', "/"),
             r.catalog,
             r.solver,
@@ -165,6 +183,7 @@ pub fn table_md(records: &[FitRecord]) -> String {
             crate::units::deg(r.stats.p95_abs),
             crate::units::deg(r.stats.p99_abs),
             crate::units::deg(r.stats.max_abs),
+            mass_md(r),
             r.actuator_share.map(|a| format!("{:.3} %", 100.0 * a)).unwrap_or_else(|| "–".into()),
             spread_md(r.as_built.map(|b| b.p99_deg)),
             spread_md(r.as_built.and_then(|b| b.trimmed_p99_deg))
