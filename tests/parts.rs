@@ -176,8 +176,11 @@ fn parts_of(design: &Design) -> (springfit::fit::FitOutcome, springfit::parts::P
 fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible() {
     // Ideal eyelets (no rollers): every mechanism's potential is then its element's, with the
     // rate recomputed from the spring's geometry, so the realised residuals are the ideal ones.
+    // The trims are leaves here: a trim crank's law is the geared crank's k g² (1 − cos(d/g)),
+    // not ½ k d², whatever its rollers (its law is tested in `realise::mechanism`).
     let mut design = quick_design("");
     design.parts.pulley_radius_mm = 0.0;
+    design.parts.trim_mechanism = "leaf".into();
     let (o, parts) = parts_of(&design);
     let messages = |p: &springfit::parts::Parts| -> Vec<String> {
         p.missing().map(|(e, l)| springfit::parts::limit_message(e, l)).collect()
