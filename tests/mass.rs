@@ -120,9 +120,10 @@ fn the_solvers_meet_their_kkt_conditions_with_the_mass_term() {
 /// The mass model against the part chooser: for every element of a shipped design's bill that
 /// gets a spring, cᵢ·kᵢ (the model's mass per unit stiffness, read at a reference stiffness)
 /// against the mass of the part `springfit parts` chooses at the fitted kᵢ. Prints the ratios.
-/// Measured on these reduced fits: the paper's arm, 10 parts, 6.2 kg by the model against 8.6 kg
-/// by the parts (the three big cranks at 0.60–0.64: the envelope makes a crank heavier per unit
-/// stiffness as it grows), median 0.75; the triple pendulum, 137 parts, median 1.32. Small parts
+/// Measured on these reduced fits (stops on cable drums, chosen by mass): the paper's arm, 10
+/// parts, 4.11 kg by the model against 5.94 kg by the parts (the big cranks at 0.58–0.64: the
+/// envelope makes a crank heavier per unit stiffness as it grows; the five drum stops at
+/// 0.94–1.02), median 0.975; the triple pendulum, 137 parts, 5.00 kg against 5.38 kg, median 1.11. Small parts
 /// are not linear in k (the least wire and coils a maker winds: ratios down to 0.001 for stops
 /// of a few grams), which matters little to the objective: what is held is the bill's total and
 /// median within 0.6–1.6 and every part of 2 % of the bill's mass or more within 2× either way.
