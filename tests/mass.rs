@@ -1,7 +1,8 @@
 //! The springs' mass in the fit (`fit::mass`): the floor and its refusal before any work, the
 //! mass model against the part chooser's masses on shipped designs (the agreement stated), the
 //! optimality conditions of the solvers with the linear mass term (KKT), `mass_weight = 0`
-//! reproducing today's fit, and the budget `max_spring_mass` held.
+//! reproducing today's fit, the budget `max_spring_mass` held, and the stops' and trims' steel
+//! against the energy they store (the lighter mechanisms of issue 44).
 
 mod util;
 
@@ -15,8 +16,9 @@ use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::fit::FitOutcome;
 use springfit::fit::mass::{Floor, MassModel};
 use springfit::fit::run::fit;
-use springfit::parts::of_fit;
+use springfit::parts::{of_fit, requirements};
 use springfit::progress::Progress;
+use springfit::realise::mechanism::{self, Mechanism};
 use springfit::solve::lsq::Gram;
 use springfit::solve::nnls::{NnlsSettings, nnls};
 use springfit::solve::qp::{QpSettings, qp_signed};
@@ -118,9 +120,10 @@ fn the_solvers_meet_their_kkt_conditions_with_the_mass_term() {
 /// The mass model against the part chooser: for every element of a shipped design's bill that
 /// gets a spring, cᵢ·kᵢ (the model's mass per unit stiffness, read at a reference stiffness)
 /// against the mass of the part `springfit parts` chooses at the fitted kᵢ. Prints the ratios.
-/// Measured on these reduced fits: the paper's arm, 10 parts, 6.2 kg by the model against 8.6 kg
-/// by the parts (the three big cranks at 0.60–0.64: the envelope makes a crank heavier per unit
-/// stiffness as it grows), median 0.75; the triple pendulum, 137 parts, median 1.32. Small parts
+/// Measured on these reduced fits (stops on cable drums, chosen by mass): the paper's arm, 10
+/// parts, 4.11 kg by the model against 5.94 kg by the parts (the big cranks at 0.58–0.64: the
+/// envelope makes a crank heavier per unit stiffness as it grows; the five drum stops at
+/// 0.94–1.02), median 0.975; the triple pendulum, 137 parts, 5.00 kg against 5.38 kg, median 1.11. Small parts
 /// are not linear in k (the least wire and coils a maker winds: ratios down to 0.001 for stops
 /// of a few grams), which matters little to the objective: what is held is the bill's total and
 /// median within 0.6–1.6 and every part of 2 % of the bill's mass or more within 2× either way.
@@ -212,4 +215,69 @@ fn the_mass_weight_lightens_and_the_budget_holds() {
         eprintln!("{solver:?}: budget {budget:.3} kg: {held:.3} kg at p99 {:.3}°", bounded.metrics.stats.p99_abs);
         assert!(held <= budget * 1.02, "{solver:?}: {held} over {budget}");
     }
+}
+
+/// The stops' and trims' steel against their energy on the paper's arm: each part's mass over
+/// ρ E / u, the least steel that stores the element's energy E at the floor's usable energy
+/// density u (docs/parts.md, "The floor"). E is ½ k e² at the stop's largest engagement e over
+/// the region, ½ k_top x² for a trim at the top of its range and its largest deflection x (what
+/// it may be set to store), and a crank's range k (1 − cos d) over the region for comparison.
+/// The chooser's drum stops and trim cranks are lighter than the torsion stops and leaves they
+/// replace; measured on this reduced fit: drum stops 2.0–2.5×, trim cranks 3–4× at the top of
+/// their range, cranks 3–7× (the torsion stops 7–9×, the leaves about 20×).
+#[test]
+fn stops_and_trims_use_their_steel() {
+    let (design, catalog) = shipped("double_pendulum");
+    let settings = reduced(&design);
+    let outcome = fitted(&design, &catalog, &settings);
+    let parts = of_fit(&design, &outcome, settings.frequency, &[]).unwrap();
+    let floor = Floor::on(&design, settings.frequency, &outcome.evaluation);
+    let (mut stops, mut trims) = (0, 0);
+    for e in &parts.elements {
+        let Ok(part) = &e.part else { continue };
+        let req = requirements(&design.parts, &e.id);
+        let need = |energy: f64| req.material.density * energy / floor.density;
+        let reach = e.duty.range[0].abs().max(e.duty.range[1].abs());
+        let row = outcome.bom.iter().find(|r| r.id == e.id).unwrap();
+        let (energy, lighter_than) = match part.mechanism {
+            Mechanism::DrumStop { plus, .. } => {
+                let engaged = if plus { e.duty.range[1].max(0.0) } else { (-e.duty.range[0]).max(0.0) };
+                let torsion = mechanism::stop(e.stiffness, plus, &e.duty, &req).ok();
+                stops += 1;
+                (0.5 * part.realised_rate * engaged * engaged, torsion.map(|t| t.mass))
+            }
+            Mechanism::TrimCrank { .. } => {
+                let range = row.adjust.trim_range.unwrap();
+                let leaf = mechanism::leaf(range, e.stiffness, &e.duty, &req).ok();
+                trims += 1;
+                (0.5 * range[1] * reach * reach, leaf.map(|l| l.mass))
+            }
+            Mechanism::Crank { .. } => {
+                let u = |d: f64| e.stiffness * (1.0 - d.cos());
+                let samples =
+                    (0..=200).map(|i| e.duty.range[0] + (e.duty.range[1] - e.duty.range[0]) * f64::from(i) / 200.0);
+                let (lo, hi) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), d| (a.min(u(d)), b.max(u(d))));
+                (hi - lo, None)
+            }
+            _ => continue,
+        };
+        let ratio = part.mass / need(energy);
+        let other = lighter_than.map(|m| format!(", the mechanism it replaces {m:.4} kg ({:.1}×)", m / need(energy)));
+        eprintln!(
+            "{} {:?}: {:.4} kg, E = {energy:.2} J, {ratio:.2}× ρE/u{}",
+            e.id,
+            part.spring.kind(),
+            part.mass,
+            other.clone().unwrap_or_default()
+        );
+        match part.mechanism {
+            Mechanism::DrumStop { .. } => assert!(ratio < 3.0, "{}: {ratio}", e.id),
+            Mechanism::TrimCrank { .. } => assert!(ratio < 5.0, "{}: {ratio}", e.id),
+            _ => {}
+        }
+        if let Some(m) = lighter_than {
+            assert!(part.mass < m, "{}: {} kg against {m} kg", e.id, part.mass);
+        }
+    }
+    assert!(stops > 0 && trims > 0, "{stops} drum stops, {trims} trim cranks");
 }

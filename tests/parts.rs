@@ -126,6 +126,8 @@ fn the_realised_crank_against_its_closed_form() {
         max_lever: 100.0,
         shaft_diameter: 12.0,
         pulley_radius: pulley,
+        stop: mechanism::StopMechanism::Lightest,
+        trim: mechanism::TrimMechanism::Lightest,
     };
     let duty = Duty { at_eq: -0.7, range: [-2.6, 1.9], swing: [-1.5, 0.4] };
     for k in [4.0, 12.0, 30.0] {
@@ -174,8 +176,11 @@ fn parts_of(design: &Design) -> (springfit::fit::FitOutcome, springfit::parts::P
 fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible() {
     // Ideal eyelets (no rollers): every mechanism's potential is then its element's, with the
     // rate recomputed from the spring's geometry, so the realised residuals are the ideal ones.
+    // The trims are leaves here: a trim crank's law is the geared crank's k g² (1 − cos(d/g)),
+    // not ½ k d², whatever its rollers (its law is tested in `realise::mechanism`).
     let mut design = quick_design("");
     design.parts.pulley_radius_mm = 0.0;
+    design.parts.trim_mechanism = "leaf".into();
     let (o, parts) = parts_of(&design);
     let messages = |p: &springfit::parts::Parts| -> Vec<String> {
         p.missing().map(|(e, l)| springfit::parts::limit_message(e, l)).collect()

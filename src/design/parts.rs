@@ -11,6 +11,14 @@ pub const MATERIALS: &[&str] = &["EN10270-1-SM", "EN10270-1-DM", "ASTM-A228", "A
 /// thousand times) EN 10270-1's static grade SM is enough.
 pub const DYNAMIC_FROM_CYCLES: f64 = 1e4;
 
+/// What `[parts] stop_mechanism` may name: the lightest mechanism that passes (the default), or
+/// one forced.
+pub const STOP_MECHANISMS: &[&str] = &["lightest", "torsion", "drum"];
+
+/// What `[parts] trim_mechanism` may name: the lightest mechanism that passes (the default), or
+/// one forced.
+pub const TRIM_MECHANISMS: &[&str] = &["lightest", "leaf", "crank"];
+
 /// `[[parts.element]]`: the room one element has, overriding the defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -58,6 +66,14 @@ pub struct PartsSettings {
     /// false: wind every crank spring (a named list's torsion and compression springs are still
     /// ordered where their rate matches the wound one's) and read no list unless `stock` names one.
     pub prefer_stock: bool,
+    /// The mechanism of a one-sided compression element: `lightest` (the lighter of the two that
+    /// passes every check), `torsion` (a torsion spring on a leg stop) or `drum` (a compression
+    /// spring pulled by a cable wound on a drum on x).
+    pub stop_mechanism: String,
+    /// The mechanism of a trim: `lightest` (the lighter of the two that passes), `leaf` (a leaf
+    /// spring in a sliding clamp) or `crank` (an extension spring on a geared crank whose pin
+    /// radius, set by a screw, sets the rate).
+    pub trim_mechanism: String,
     /// Per-element envelopes.
     pub element: Vec<ElementEnvelope>,
 }
@@ -77,6 +93,8 @@ impl Default for PartsSettings {
             pulley_radius_mm: 5.0,
             stock: None,
             prefer_stock: true,
+            stop_mechanism: "lightest".into(),
+            trim_mechanism: "lightest".into(),
             element: Vec::new(),
         }
     }
@@ -140,6 +158,14 @@ impl PartsSettings {
         if !(self.pulley_radius_mm.is_finite() && (0.0..=1000.0).contains(&self.pulley_radius_mm)) {
             return err("pulley_radius_mm", format!("must be from 0 to 1000 mm, got {}", self.pulley_radius_mm));
         }
+        for (f, v, allowed) in [
+            ("stop_mechanism", &self.stop_mechanism, STOP_MECHANISMS),
+            ("trim_mechanism", &self.trim_mechanism, TRIM_MECHANISMS),
+        ] {
+            if !allowed.contains(&v.as_str()) {
+                return err(f, format!("unknown mechanism `{v}`: expected one of {}", allowed.join(", ")));
+            }
+        }
         for (i, e) in self.element.iter().enumerate() {
             for (f, v) in [
                 ("max_outer_diameter_mm", e.max_outer_diameter_mm),
@@ -176,6 +202,8 @@ mod tests {
         );
         bad(PartsSettings { grade: 4, ..Default::default() }, "parts.grade", "1, 2 or 3");
         bad(PartsSettings { safety_factor: 0.5, ..Default::default() }, "parts.safety_factor", "from 1");
+        bad(PartsSettings { stop_mechanism: "spiral".into(), ..Default::default() }, "parts.stop_mechanism", "drum");
+        bad(PartsSettings { trim_mechanism: "screw".into(), ..Default::default() }, "parts.trim_mechanism", "crank");
         let e = ElementEnvelope {
             id: "S01".into(),
             max_outer_diameter_mm: Some(-1.0),

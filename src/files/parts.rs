@@ -15,6 +15,8 @@ fn mechanism_name(m: &Mechanism) -> &'static str {
     match m {
         Mechanism::TorsionPair { .. } => "torsion pair",
         Mechanism::TorsionStop { .. } => "torsion spring on a leg stop",
+        Mechanism::DrumStop { .. } => "compression spring on a cable drum",
+        Mechanism::TrimCrank { .. } => "geared crank, pin radius set by a screw",
         Mechanism::Crank { .. } => "zero-free-length crank",
         Mechanism::Leaf { .. } => "leaf spring in a sliding clamp",
         Mechanism::Follower => "cam follower spring",

@@ -112,6 +112,19 @@ impl ElementPart {
                 self.element.offset.to_degrees(),
                 if plus { ">" } else { "<" }
             ),
+            mechanism::Mechanism::DrumStop { plus, drum } => format!(
+                "{on}: a drum of radius {drum} mm on x; a cable wound on it runs through the compression spring's bore to a washer at its far end, the spring's near end on a fixed seat; set the cable just taut at the engagement angle x₀ = {:.4} rad ({:.2}°), so the spring is compressed by {drum} mm per rad for x {} x₀ and the cable is slack on the other side",
+                self.element.offset,
+                self.element.offset.to_degrees(),
+                if plus { ">" } else { "<" }
+            ),
+            mechanism::Mechanism::TrimCrank { r, big_r, pulley, phase, gear } => format!(
+                "{on}: crank on a shaft geared {gear:.2} : 1 down from x, its pin in a slot along the arm; cable over a fairlead of two rollers (radius {pulley} mm) at R = {big_r} mm from the axis, spring beyond it; the pin's screw sets the rate k_s·r·R / g² in proportion to the pin radius r, from 0 (pin on the axis) to {:.1} mm ({:.3} N·m/rad), {:.1} mm at mid-range; clamp the crank to its shaft on the built arm with the pin {:+.5} rad of the crank ahead of the fairlead's line at the equilibrium",
+                r[0],
+                p.realised_rate * r[0] / r[1],
+                r[1],
+                phase
+            ),
             mechanism::Mechanism::Crank { r, big_r, pulley, phase } => format!(
                 "{on}: crank pin at radius r = {r} mm, at the phase x₀ {:+.5} rad = {:.4} rad; cable over a fairlead of two rollers (radius {pulley} mm) at R = {big_r} mm from the axis, spring beyond it (k_s·r·R = k); keep the cable plane clear of the shaft end",
                 phase,
@@ -284,7 +297,7 @@ pub fn choose(
                 };
             }
             let part = match (r.element.profile, r.adjust.trim_range) {
-                (Profile::Linear, Some(range)) => mechanism::leaf(range, k, &duty, &req),
+                (Profile::Linear, Some(range)) => mechanism::trim(range, k, &duty, &req),
                 (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
                     design_at(k).map_err(|l| Limit { torque_bound: torque_bound(&r.element, k, &duty, design_at), ..l })
                 }
@@ -609,6 +622,8 @@ mod tests {
             max_lever: 100.0,
             shaft_diameter: 10.0,
             pulley_radius: 0.0,
+            stop: mechanism::StopMechanism::Lightest,
+            trim: mechanism::TrimMechanism::Lightest,
         };
         let (k, x0) = (2.5, 0.3);
         let duty = Duty { at_eq: 0.0, range: [-1.2, 0.9], swing: [-0.8, 0.8] };

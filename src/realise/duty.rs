@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::material::by_key;
-use super::mechanism::{Duty, Requirements};
+use super::mechanism::{Duty, Requirements, StopMechanism, TrimMechanism};
 use super::spring::Surface;
 use crate::design::Design;
 use crate::design::parts::PartsSettings;
@@ -33,6 +33,16 @@ pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
         max_lever: over.and_then(|e| e.max_lever_mm).unwrap_or(s.max_lever_mm),
         shaft_diameter: s.shaft_diameter_mm,
         pulley_radius: s.pulley_radius_mm,
+        stop: match s.stop_mechanism.as_str() {
+            "torsion" => StopMechanism::Torsion,
+            "drum" => StopMechanism::Drum,
+            _ => StopMechanism::Lightest,
+        },
+        trim: match s.trim_mechanism.as_str() {
+            "leaf" => TrimMechanism::Leaf,
+            "crank" => TrimMechanism::Crank,
+            _ => TrimMechanism::Lightest,
+        },
     }
 }
 

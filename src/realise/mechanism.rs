@@ -4,9 +4,9 @@
 //! | element | mechanism |
 //! | --- | --- |
 //! | linear (on a joint or, through a bevel-gear differential, on a coupling) | two equal torsion springs wound against each other, so neither leg ever leaves its stop: a rate k/2 each, preloaded by the largest deflection |
-//! | one-sided compression | a torsion spring whose free leg meets a stop at the engagement angle x₀ |
+//! | one-sided compression | a torsion spring whose free leg meets a stop at the engagement angle x₀, or a compression spring pulled by a cable wound on a drum on x (taut from x₀): the lighter that passes, unless `[parts] stop_mechanism` forces one |
 //! | crank | an extension spring in a zero-free-length arrangement: a cable from a pin at radius r on the crank over a fairlead of two rollers at distance R from the axis to the spring beyond it, k_s r R = k |
-//! | trim | a leaf spring in a sliding clamp, loaded at its tip by a lever geared to x: the clamp position sets the rate |
+//! | trim | a leaf spring in a sliding clamp, loaded at its tip by a lever geared to x: the clamp position sets the rate; or an extension spring on a crank geared to x whose pin radius (a screw in a slot) sets the rate: the lighter that passes, unless `[parts] trim_mechanism` forces one |
 //! | cam follower | a compression spring with the follower's rate, preload and stroke |
 //!
 //! Every design function searches the material's wire sizes and spring indices for the lightest
@@ -27,6 +27,18 @@ fn indices() -> impl Iterator<Item = f64> {
     (0..=48).map(|i| INDEX_RANGE.0 + 0.25 * i as f64)
 }
 
+/// The helical springs of rate `rate` (N/mm) the search tries: every wire size of the material and
+/// spring index of [`indices`], the active coils following from the rate (0.5 to 400 of them).
+fn helical(rate: f64, req: &Requirements) -> impl Iterator<Item = HelicalSpring> + '_ {
+    req.material.sizes().into_iter().flat_map(move |d| {
+        indices().filter_map(move |w| {
+            let dm = w * d;
+            let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
+            (0.5..=400.0).contains(&n).then_some(HelicalSpring { material: req.material, d, dm, n })
+        })
+    })
+}
+
 /// Crank radii tried, mm.
 const CRANK_RADII: &[f64] = &[10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0, 150.0, 200.0];
 
@@ -35,6 +47,39 @@ const ANCHOR_RATIOS: &[f64] = &[1.5, 2.0, 2.5, 3.0, 4.0];
 
 /// Largest lever angle of a trim's leaf (rad): its tip deflects at most this times the lever.
 pub const LEAF_LEVER_ANGLE: f64 = 0.25;
+
+/// Drum radii tried for a stop's cable drum, mm.
+const DRUM_RADII: &[f64] = &[5.0, 8.0, 10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 120.0, 150.0];
+
+/// Largest crank angles (rad) tried for a trim's crank at the far end of the region: its shaft is
+/// geared down from x so that the crank turns at most this far. A small angle keeps the crank's
+/// law k g² (1 − cos(d/g)) close to the trim's ½ k d² (the torque short by 1 − sin(φ)/φ at the
+/// end, 1.5 % at 0.3 rad, 13 % at 0.9 rad); a large one lets the spring store less besides the
+/// element's energy (the zero-free-length spring's energy at the anchor line, ½ k_s (R − r)²).
+/// The search takes the lightest; the realised residual judges the law.
+const TRIM_CRANK_ANGLES: &[f64] = &[0.3, 0.5, 0.7, 0.9];
+
+/// Which mechanism a one-sided compression element gets (`[parts] stop_mechanism`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopMechanism {
+    /// The lighter of [`StopMechanism::Torsion`] and [`StopMechanism::Drum`] that passes every check.
+    Lightest,
+    /// A torsion spring whose leg meets a stop ([`stop`]).
+    Torsion,
+    /// A compression spring pulled by a cable wound on a drum ([`drum_stop`]).
+    Drum,
+}
+
+/// Which mechanism a trim gets (`[parts] trim_mechanism`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrimMechanism {
+    /// The lighter of [`TrimMechanism::Leaf`] and [`TrimMechanism::Crank`] that passes every check.
+    Lightest,
+    /// A leaf spring in a sliding clamp ([`leaf`]).
+    Leaf,
+    /// An extension spring on a geared crank whose pin radius sets the rate ([`trim_crank`]).
+    Crank,
+}
 
 /// What a part must meet: the `[parts]` settings resolved for one element.
 #[derive(Debug, Clone, Copy)]
@@ -59,6 +104,10 @@ pub struct Requirements {
     pub shaft_diameter: f64,
     /// Radius of a crank cable's fairlead rollers, mm.
     pub pulley_radius: f64,
+    /// The mechanism of a one-sided compression element.
+    pub stop: StopMechanism,
+    /// The mechanism of a trim.
+    pub trim: TrimMechanism,
 }
 
 /// The deflections an element sees, x − x₀ in rad: at the equilibrium, over the region, and over
@@ -217,6 +266,35 @@ pub enum Mechanism {
         /// True: the leg meets its stop for x > x₀; false: for x < x₀.
         plus: bool,
     },
+    /// A compression spring pulled by a cable wound on a drum of radius `drum` (mm) on x: the
+    /// cable runs through the spring's bore to a washer at its far end and is just taut at x₀, so
+    /// the spring is compressed by exactly `drum`·(x − x₀) on the side `plus` and the cable is
+    /// slack on the other.
+    DrumStop {
+        /// True: the cable winds on for x > x₀; false: for x < x₀.
+        plus: bool,
+        /// Radius of the drum (to the cable's centre), mm.
+        drum: f64,
+    },
+    /// A trim's crank: an extension spring on a cable from a pin on a crank geared `gear` : 1
+    /// down from x, over a fairlead at `big_r` (mm) from the crank's axis. The pin sits in a slot
+    /// along the crank arm and a screw sets its radius r, so the rate on x, k_s r R / g², runs
+    /// from 0 (the pin on the axis) to the top of the trim's range; the crank is clamped to its
+    /// shaft on the built arm with the pin on the fairlead's line (relaxed at the build's
+    /// equilibrium), `phase` rad of the crank from it as the rollers ask.
+    TrimCrank {
+        /// Pin radius, mm: at the top of the trim's range and at mid-range (where the trim is
+        /// drawn and judged).
+        r: [f64; 2],
+        /// Distance of the fairlead from the axis, mm.
+        big_r: f64,
+        /// Radius of the fairlead's rollers, mm.
+        pulley: f64,
+        /// Angle of the pin ahead of the fairlead's line at q_eq, rad of the crank.
+        phase: f64,
+        /// Reduction from x to the crank's shaft (≥ 1).
+        gear: f64,
+    },
     /// A crank of radius `r` and an anchor at `big_r` (mm) with fairlead rollers of radius
     /// `pulley`; the spring's extension is the cable path less F₀/k_s. The pin sits `phase` rad
     /// ahead of x₀ (set at assembly, with the spring's rate, so that the realised torque and
@@ -265,7 +343,8 @@ pub struct Part {
     pub spring: Spring,
     /// How many of it (2 for a torsion pair).
     pub quantity: usize,
-    /// The element's realised rate in the fit's unit (N·m/rad; N·m for a crank: k_s r R).
+    /// The element's realised rate in the fit's unit (N·m/rad; N·m for a crank: k_s r R; a trim's
+    /// as set on the built arm).
     pub realised_rate: f64,
     /// Working points.
     pub points: Vec<WorkingPoint>,
@@ -293,11 +372,11 @@ impl Part {
             Mechanism::TorsionPair { .. } | Mechanism::Leaf { .. } | Mechanism::Follower => (0.5 * k * d * d, k * d, k),
             // The cam's profile is the cubic's; the follower's rate scales it.
             Mechanism::CubicCam { .. } => (0.25 * k * d.powi(4), k * d.powi(3), 3.0 * k * d * d),
-            Mechanism::TorsionStop { plus } => {
+            Mechanism::TorsionStop { plus } | Mechanism::DrumStop { plus, .. } => {
                 let e = if plus { d.max(0.0) } else { d.min(0.0) };
                 (0.5 * k * e * e, k * e, if e != 0.0 { k } else { 0.0 })
             }
-            Mechanism::Crank { .. } => {
+            Mechanism::Crank { .. } | Mechanism::TrimCrank { .. } => {
                 // The curvature by central differences of the exact torque (the roller's wrap
                 // has a kink where the pin crosses the exit line, at d = phase + kπ).
                 let h = 1e-4;
@@ -314,11 +393,17 @@ impl Part {
     pub fn energy_torque(&self, d: f64) -> (f64, f64) {
         match self.mechanism {
             Mechanism::Crank { r, big_r, pulley, phase } => {
-                let ks = k_s(self.realised_rate, r, big_r);
-                let (length, slope) = cable_path_slope(r, big_r, pulley, d - phase);
-                // The constant ½k_s (R − r)² is dropped so that U(0) ≈ 0 like k (1 − cos d).
-                let base = 0.5 * ks * (big_r - r).powi(2) / 1000.0;
-                (0.5 * ks * length * length / 1000.0 - base, ks * length * slope / 1000.0)
+                crank_energy_torque(self.realised_rate, r, big_r, pulley, phase, 1.0, d)
+            }
+            // The crank's own stiffness is the trim's rate times g².
+            // The crank's own stiffness k_s r R from its spring's geometry (the trim's rate times g²,
+            // and the rollers' factor: the stiffness at the equilibrium is the trim's rate).
+            Mechanism::TrimCrank { r, big_r, pulley, phase, gear } => {
+                let k = match self.spring {
+                    Spring::Extension(s, _) => s.rate() * r[1] * big_r / 1000.0,
+                    _ => self.realised_rate * gear * gear,
+                };
+                crank_energy_torque(k, r[1], big_r, pulley, phase, gear, d)
             }
             _ => {
                 let (u, t, _) = self.potential(d);
@@ -326,6 +411,17 @@ impl Part {
             }
         }
     }
+}
+
+/// (U in J, dU/dx in N·m) of a crank of stiffness `k` (N·m, k_s r R) on a shaft geared `gear` : 1
+/// down from x, at deflection `d` of x: the crank turns d/g, its spring stores ½ k_s ℓ² with ℓ
+/// the cable path, and the torque on x is the crank's over g. The constant ½k_s (R − r)² is
+/// dropped so that U(0) ≈ 0 like k g² (1 − cos(d/g)).
+fn crank_energy_torque(k: f64, r: f64, big_r: f64, pulley: f64, phase: f64, gear: f64, d: f64) -> (f64, f64) {
+    let ks = k_s(k, r, big_r);
+    let (length, slope) = cable_path_slope(r, big_r, pulley, d / gear - phase);
+    let base = 0.5 * ks * (big_r - r).powi(2) / 1000.0;
+    (0.5 * ks * length * length / 1000.0 - base, ks * length * slope / 1000.0 / gear)
 }
 
 /// The crank's spring rate k_s (N/mm) that gives the element's rate k (N·m/rad) at small angles.
@@ -425,6 +521,19 @@ impl Search {
     }
 }
 
+/// The lighter of two mechanisms' parts that pass; when neither does, the limit closer to being
+/// met (a limit without a ratio, no candidate built at all, counts as the farthest).
+fn lighter(a: Result<Part, Limit>, b: Result<Part, Limit>) -> Result<Part, Limit> {
+    match (a, b) {
+        (Ok(a), Ok(b)) => Ok(if b.mass < a.mass { b } else { a }),
+        (Ok(p), Err(_)) | (Err(_), Ok(p)) => Ok(p),
+        (Err(a), Err(b)) => {
+            let ratio = |l: &Limit| if l.check.name == "mechanism" { f64::INFINITY } else { l.check.ratio() };
+            Err(if ratio(&b) < ratio(&a) { b } else { a })
+        }
+    }
+}
+
 fn upper(name: &'static str, value: f64, limit: f64, unit: &'static str) -> Check {
     Check { name, value, limit, unit, upper: true }
 }
@@ -494,14 +603,32 @@ fn tolerance_of_torsion(s: &TorsionSpring, torque: f64, grade: u8) -> f64 {
 /// The part of a spring element of profile `profile` and stiffness `k` (the fit's unit): the one
 /// dispatch from an element to its mechanism, shared by `springfit parts` (`parts::choose`) and
 /// the fit's mass model (`fit::mass`), so that the mass the fit weighs is the mass of the part
-/// the bill will get. Linear: [`linear`]; one-sided compression: [`stop`]; anything else:
-/// [`crank`]. A cubic's disc cam and a cam's follower are chosen by their own functions (they
-/// need the cam's profile), and a trim by [`leaf`] (it needs its rate range).
+/// the bill will get. Linear: [`linear`]; one-sided compression: [`stop`] or [`drum_stop`], the
+/// lighter that passes (or the one `[parts] stop_mechanism` forces); anything else: [`crank`]. A
+/// cubic's disc cam and a cam's follower are chosen by their own functions (they need the cam's
+/// profile), and a trim by [`trim`] (it needs its rate range).
 pub fn spring_element(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
     match profile {
         Profile::Linear => linear(k, duty, req),
-        Profile::Compression(side) => stop(k, side == Side::Plus, duty, req),
+        Profile::Compression(side) => {
+            let plus = side == Side::Plus;
+            match req.stop {
+                StopMechanism::Torsion => stop(k, plus, duty, req),
+                StopMechanism::Drum => drum_stop(k, plus, duty, req),
+                StopMechanism::Lightest => lighter(stop(k, plus, duty, req), drum_stop(k, plus, duty, req)),
+            }
+        }
         _ => crank(k, duty, req),
+    }
+}
+
+/// The part of a trim of rates `range` set at `mid` (N·m/rad): [`leaf`] or [`trim_crank`], the
+/// lighter that passes (or the one `[parts] trim_mechanism` forces).
+pub fn trim(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    match req.trim {
+        TrimMechanism::Leaf => leaf(range, mid, duty, req),
+        TrimMechanism::Crank => trim_crank(range, mid, duty, req),
+        TrimMechanism::Lightest => lighter(leaf(range, mid, duty, req), trim_crank(range, mid, duty, req)),
     }
 }
 
@@ -538,16 +665,8 @@ pub fn linear(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
 /// A one-sided compression element of rate `k` (N·m/rad) engaged on side `plus`: a torsion
 /// spring against a leg stop.
 pub fn stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
-    let engaged = |d: f64| if plus { d.max(0.0) } else { (-d).max(0.0) };
-    let wind = [engaged(duty.range[0]).min(engaged(duty.range[1])), engaged(duty.range[0]).max(engaged(duty.range[1]))];
-    // The range may straddle x₀: the least wind is then 0.
-    let wind = if duty.range[0] < 0.0 && duty.range[1] > 0.0 { [0.0, wind[1]] } else { wind };
-    let sw = [engaged(duty.swing[0]), engaged(duty.swing[1])];
-    let swing = if duty.swing[0] < 0.0 && duty.swing[1] > 0.0 {
-        [0.0, sw[0].max(sw[1])]
-    } else {
-        [sw[0].min(sw[1]), sw[0].max(sw[1])]
-    };
+    let engaged = |d: f64| engagement(plus, d);
+    let (wind, swing) = engaged_span(plus, duty);
     let rate = k * 1000.0;
     let search = torsion(rate, 1.0, wind, swing, req, |s, checks, life| {
         let r = s.rate();
@@ -567,6 +686,63 @@ pub fn stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<Part,
             life,
         }
     });
+    search.finish()
+}
+
+/// How far a one-sided element engaged on side `plus` is engaged at deflection `d`, rad (0 on the
+/// free side).
+fn engagement(plus: bool, d: f64) -> f64 {
+    if plus { d.max(0.0) } else { (-d).max(0.0) }
+}
+
+/// The least and largest engagement of a one-sided element over the region and over the swing,
+/// rad: a range that straddles x₀ engages from 0.
+fn engaged_span(plus: bool, duty: &Duty) -> ([f64; 2], [f64; 2]) {
+    let span = |[a, b]: [f64; 2]| {
+        let (ea, eb) = (engagement(plus, a), engagement(plus, b));
+        if a < 0.0 && b > 0.0 { [0.0, ea.max(eb)] } else { [ea.min(eb), ea.max(eb)] }
+    };
+    (span(duty.range), span(duty.swing))
+}
+
+/// A one-sided compression element of rate `k` (N·m/rad) engaged on side `plus`: one to four
+/// equal compression springs side by side, pulled by a cable wound on a drum of radius ρ on x
+/// (through each spring's bore to a washer at its far end), just taut at x₀. The cable winds on
+/// by ρ·(x − x₀) exactly, so the springs' rate ρ² k_s is the element's and the potential is
+/// ½ k max(0, ±(x − x₀))² with no geometry error; the springs store the element's energy and
+/// nothing else (no preload), where a torsion spring stores it in bending (σ²/8E per unit volume
+/// against τ²/4G: about half as much at the standards' allowed stresses). The drum radius is
+/// searched with the springs: a small drum asks a short stiff spring, a large one a long soft one
+/// (buckling and the envelope decide).
+pub fn drum_stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let (range, swing) = engaged_span(plus, duty);
+    let mut search = Search::new();
+    for &drum in DRUM_RADII.iter().filter(|&&r| r <= req.max_lever) {
+        // N/mm of all the springs together: k (N·mm/rad) = k_s ρ².
+        let rate = k * 1000.0 / (drum * drum);
+        let scale = |[a, b]: [f64; 2]| [a * drum, b * drum];
+        compression(&mut search, rate, scale(range), scale(swing), req, |quantity, s, l0, checks, life| {
+            let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+                .into_iter()
+                .map(|(at, d)| {
+                    let c = drum * engagement(plus, d);
+                    WorkingPoint { at, position: l0 - c, load: s.rate() * c }
+                })
+                .collect();
+            let q = quantity as f64;
+            Part {
+                mechanism: Mechanism::DrumStop { plus, drum },
+                spring: Spring::Compression(s, l0),
+                quantity,
+                realised_rate: q * s.rate() * drum * drum / 1000.0,
+                points,
+                tolerance: rate_tolerance(s.d, s.dm, s.n, s.rate() * drum * range[1].max(1e-3), req.grade),
+                mass: q * s.mass(),
+                checks,
+                life,
+            }
+        });
+    }
     search.finish()
 }
 
@@ -596,24 +772,15 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
             let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
             let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
             let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
-            for d in req.material.sizes() {
-                for w in indices() {
-                    let dm = w * d;
-                    let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * ks);
-                    if !(0.5..=400.0).contains(&n) {
-                        continue;
-                    }
-                    let s = HelicalSpring { material: req.material, d, dm, n };
-                    search.consider(
-                        s.mass(),
-                        || {
-                            let geometry =
-                                CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
-                            crank_part(&geometry, duty, req, s, s.initial_tension(), &path)
-                        },
-                        || format!("r = {r} mm, R = {big_r} mm, d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
-                    );
-                }
+            for s in helical(ks, req) {
+                search.consider(
+                    s.mass(),
+                    || {
+                        let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
+                        crank_part(&geometry, duty, req, s, s.initial_tension(), &path)
+                    },
+                    || format!("r = {r} mm, R = {big_r} mm, d = {} mm, D = {:.1} mm, n = {:.2}", s.d, s.dm, s.n),
+                );
             }
         }
     }
@@ -872,58 +1039,147 @@ pub fn leaf(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
 /// round the stem, preload `preload` (mm) at the base circle and the cam's largest `stroke` (mm).
 pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Result<Part, Limit> {
     let mut search = Search::new();
-    // Up to four equal springs side by side round the follower's stem share the rate.
+    let most = preload + stroke;
+    // The cam's whole stroke is the swing: every turn runs the follower from base circle to top.
+    compression(&mut search, rate, [preload, most], [preload, most], req, |quantity, s, l0, checks, life| {
+        let q = quantity as f64;
+        let per = rate / q;
+        let (f1, f2) = (per * preload, per * most);
+        let points = vec![
+            WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
+            WorkingPoint { at: "largest stroke", position: l0 - most, load: f2 },
+        ];
+        Part {
+            mechanism: Mechanism::Follower,
+            spring: Spring::Compression(s, l0),
+            quantity,
+            realised_rate: q * s.rate(),
+            points,
+            checks,
+            tolerance: rate_tolerance(s.d, s.dm, s.n, f2, req.grade),
+            mass: q * s.mass(),
+            life,
+        }
+    });
+    search.finish()
+}
+
+/// Offers `search` one to four equal compression springs side by side sharing `rate` (N/mm),
+/// compressed `range` = [least, most] mm from free over the region and `swing` over the swings:
+/// closed and ground ends, free length l₀ = solid + the smallest gaps + the largest compression,
+/// ends guided against buckling. `build` makes the part of `quantity` springs `s` of free length
+/// l₀ from their checks and life.
+fn compression(
+    search: &mut Search,
+    rate: f64,
+    range: [f64; 2],
+    swing: [f64; 2],
+    req: &Requirements,
+    build: impl Fn(usize, HelicalSpring, f64, Vec<Check>, f64) -> Part,
+) {
     for quantity in 1..=4usize {
         let q = quantity as f64;
         let rate = rate / q;
-        let (f1, f2) = (rate * preload, rate * (preload + stroke));
-        for d in req.material.sizes() {
-            for w in indices() {
-                let dm = w * d;
-                let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
-                if !(0.5..=400.0).contains(&n) {
+        let (f1, f2) = (rate * swing[0], rate * swing[1]);
+        let fmax = rate * range[1];
+        for s in helical(rate, req) {
+            let (d, dm, n) = (s.d, s.dm, s.n);
+            search.consider(
+                q * s.mass(),
+                || {
+                    let l0 = s.solid_length() + s.min_gaps() + range[1];
+                    let rm = s.rm();
+                    let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
+                    let checks = vec![
+                        lower("active coils", n, MIN_COILS, "coils"),
+                        upper("static stress", s.stress(fmax) * req.safety, 0.5 * rm, "MPa"),
+                        upper(
+                            "fatigue (Goodman)",
+                            Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface)
+                                * req.safety,
+                            1.0,
+                            "utilisation",
+                        ),
+                        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+                        upper("free length", l0, req.max_length, "mm"),
+                        lower("buckling deflection (ends guided, ν = 0.5)", buckling, range[1], "mm"),
+                    ];
+                    let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
+                    build(quantity, s, l0, checks, life)
+                },
+                || format!("{quantity} × d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+            );
+        }
+    }
+}
+
+/// Fairlead distances over the pin's largest radius, R/r, tried for a trim's crank: the
+/// zero-free-length spring is stretched by about R − r at the anchor line, energy it stores
+/// besides the element's, so R close to r keeps the spring light (the rollers' clearance bounds it).
+const TRIM_ANCHOR_RATIOS: &[f64] = &[1.1, 1.25, 1.5, 2.0, 3.0];
+
+/// A trim of rates `range` (N·m/rad) set at `mid` as a crank: an extension spring of rate k_s on
+/// a cable from a pin over a fairlead at R, the crank geared g : 1 down from x so that it turns
+/// at most one of [`TRIM_CRANK_ANGLES`] over the region, its rate on x k_s r R / g². The pin
+/// slides in a slot along the crank arm and a screw sets its radius r, so the rate is set in
+/// proportion to r over the whole range, down to 0 with the pin on the axis (the spring, still
+/// zero-free-length, then pulls the axis with k_s R and turns nothing). The spring is checked
+/// statically at its longest cable path over every setting (R with the pin on the axis, or the
+/// top of the range at the region's ends), in fatigue at mid-range (a build moves the setting by
+/// a fraction of the range), its initial tension against the shortest path (the top of the
+/// range at the anchor line). The crank is clamped to its shaft on the built arm with the pin on
+/// the fairlead's line at the equilibrium, so the trim is relaxed there and its rate, like the
+/// leaf's, is set on the built arm: no rate tolerance. The potential is the geared crank's,
+/// rollers included ([`Part::potential`]), not ½ k d².
+pub fn trim_crank(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
+    let reach = duty.range[0].abs().max(duty.range[1].abs()).max(1e-3);
+    let pulley = req.pulley_radius;
+    let clearance = 2.0 * pulley + 2.0;
+    let top_rate = range[1].max(mid);
+    let mut search = Search::new();
+    if mid <= 0.0 {
+        return search.finish();
+    }
+    for &angle in TRIM_CRANK_ANGLES {
+        let gear = (reach / angle).max(1.0);
+        for &r_top in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
+            let r = r_top * mid / top_rate;
+            for &ratio in TRIM_ANCHOR_RATIOS {
+                let big_r = ratio * r_top;
+                if big_r - r_top < clearance {
                     continue;
                 }
-                let s = HelicalSpring { material: req.material, d, dm, n };
-                search.consider(
-                    q * s.mass(),
-                    || {
-                        let l0 = s.solid_length() + s.min_gaps() + preload + stroke;
-                        let rm = s.rm();
-                        let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
-                        let checks = vec![
-                            lower("active coils", n, MIN_COILS, "coils"),
-                            upper("static stress", s.stress(f2) * req.safety, 0.5 * rm, "MPa"),
-                            upper(
-                                "fatigue (Goodman)",
-                                Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface)
-                                    * req.safety,
-                                1.0,
-                                "utilisation",
-                            ),
-                            upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
-                            upper("free length", l0, req.max_length, "mm"),
-                            lower("buckling deflection (ends guided, ν = 0.5)", buckling, preload + stroke, "mm"),
-                        ];
-                        let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
-                        let points = vec![
-                            WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
-                            WorkingPoint { at: "largest stroke", position: l0 - preload - stroke, load: f2 },
-                        ];
-                        Part {
-                            mechanism: Mechanism::Follower,
-                            spring: Spring::Compression(s, l0),
-                            quantity,
-                            realised_rate: q * s.rate(),
-                            points,
-                            checks,
-                            tolerance: rate_tolerance(d, dm, n, f2, req.grade),
-                            mass: q * s.mass(),
-                            life,
-                        }
-                    },
-                    || format!("{quantity} × d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
-                );
+                // The crank's own stiffness k_s r R at mid-range is the trim's rate times g².
+                let k_crank = mid * gear * gear;
+                let (phase, scale) = compensate(k_crank, r, big_r, pulley, duty.at_eq / gear);
+                let ks = k_s(scale * k_crank, r, big_r);
+                let at = |radius: f64| move |d: f64| cable_path(radius, big_r, pulley, d / gear - phase);
+                let path = at(r);
+                let [lmin, top_max] = extremes(duty.range[0], duty.range[1], at(r_top));
+                let lmax = top_max.max(big_r);
+                let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+                let geometry = CrankGeometry { r: r_top, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
+                for s in helical(ks, req) {
+                    search.consider(
+                        s.mass(),
+                        || {
+                            let mut part = crank_part(&geometry, duty, req, s, s.initial_tension(), &path);
+                            part.mechanism = Mechanism::TrimCrank { r: [r_top, r], big_r, pulley, phase, gear };
+                            // The pin is set on the built arm for the trim's rate (the spring's own
+                            // tolerance tuned out): its stiffness at the equilibrium, from the
+                            // spring's geometry and the rollers' factor, is the trim's.
+                            part.realised_rate = mid;
+                            part.tolerance = 0.0;
+                            part
+                        },
+                        || {
+                            format!(
+                                "crank geared {gear:.2} : 1, pin radius {r:.1} mm (up to {r_top} mm), R = {big_r} mm, d = {} mm, D = {:.1} mm, n = {:.2}",
+                                s.d, s.dm, s.n
+                            )
+                        },
+                    );
+                }
             }
         }
     }
@@ -947,6 +1203,8 @@ mod tests {
             max_lever: 100.0,
             shaft_diameter: 10.0,
             pulley_radius: 0.0,
+            stop: StopMechanism::Lightest,
+            trim: TrimMechanism::Lightest,
         }
     }
 
@@ -1049,5 +1307,95 @@ mod tests {
         let err = super::crank(1e-9, &duty, &req()).unwrap_err();
         assert_eq!(err.check.name, "mechanism", "{err:?}");
         assert!(err.best.contains("no wire size"), "{err:?}");
+    }
+
+    /// A stop on a cable drum: the spring is compressed by ρ·(x − x₀) exactly, so the realised
+    /// potential is ½ k max(0, ±d)² with the springs' own rate, which is the element's within its
+    /// grade; on a stop of the paper's size it is lighter than the torsion stop, and the chooser
+    /// takes the lighter unless `[parts] stop_mechanism` forces one.
+    #[test]
+    fn a_drum_stop_has_the_exact_law_and_the_chooser_takes_the_lighter() {
+        let duty = Duty { at_eq: 0.6, range: [-0.9, 2.1], swing: [-0.2, 1.4] };
+        let drum = drum_stop(10.0, true, &duty, &req()).expect("a drum stop");
+        assert!(drum.worst() <= 1.0);
+        assert!((drum.realised_rate / 10.0 - 1.0).abs() <= drum.tolerance, "{}", drum.realised_rate);
+        let Mechanism::DrumStop { plus: true, drum: radius } = drum.mechanism else { panic!("{:?}", drum.mechanism) };
+        let Spring::Compression(s, l0) = drum.spring else { panic!() };
+        let k = drum.realised_rate;
+        assert!((k - drum.quantity as f64 * s.rate() * radius * radius / 1000.0).abs() < 1e-12 * k);
+        for d in [-0.9f64, -0.1, 0.0, 0.4, 2.1] {
+            let e = d.max(0.0);
+            assert_eq!(drum.potential(d), (0.5 * k * e * e, k * e, if e > 0.0 { k } else { 0.0 }));
+        }
+        // The largest compression leaves the smallest gaps above solid.
+        assert!((l0 - s.solid_length() - s.min_gaps() - radius * 2.1).abs() < 1e-9);
+        let torsion = stop(10.0, true, &duty, &req()).expect("a torsion stop");
+        assert!(drum.mass < torsion.mass, "drum {} kg, torsion {} kg", drum.mass, torsion.mass);
+        let chosen =
+            |stop| spring_element(Profile::Compression(Side::Plus), 10.0, &duty, &Requirements { stop, ..req() });
+        assert_eq!(chosen(StopMechanism::Lightest).unwrap(), drum);
+        assert_eq!(chosen(StopMechanism::Drum).unwrap(), drum);
+        assert_eq!(chosen(StopMechanism::Torsion).unwrap(), torsion);
+        // The mirror image engages on the other side.
+        let minus =
+            drum_stop(10.0, false, &Duty { at_eq: -0.6, range: [-2.1, 0.9], swing: [-1.4, 0.2] }, &req()).unwrap();
+        assert_eq!(minus.mass, drum.mass);
+        assert_eq!(minus.potential(-0.4).1, -drum.potential(0.4).1);
+    }
+
+    /// A trim's crank: its rate at mid-range is the trim's, the pin's radius sets it in
+    /// proportion from 0 to the top of the range, and its potential is the geared crank's
+    /// k g² (1 − cos(d/g)) (without rollers exactly; with them the torque and stiffness at the
+    /// equilibrium are kept); the torque is the energy's slope.
+    #[test]
+    fn a_trim_crank_follows_the_geared_crank_law() {
+        let duty = Duty { at_eq: 0.0, range: [-1.6, 1.4], swing: [-0.7, 0.7] };
+        for pulley in [0.0, 5.0] {
+            let req = Requirements { pulley_radius: pulley, max_lever: 150.0, ..req() };
+            let part = trim_crank([0.0, 4.0], 2.0, &duty, &req).expect("a trim crank");
+            assert!(part.worst() <= 1.0 && part.tolerance == 0.0);
+            let Mechanism::TrimCrank { r, gear, .. } = part.mechanism else { panic!("{:?}", part.mechanism) };
+            assert!((r[1] / r[0] - 0.5).abs() < 1e-12, "mid-range is half the top radius: {r:?}");
+            let turn = 1.6 / gear;
+            assert!(TRIM_CRANK_ANGLES.iter().any(|a| (a - turn).abs() < 1e-9) || gear == 1.0, "{gear}");
+            let k = part.realised_rate;
+            assert!((k / 2.0 - 1.0).abs() < 0.02, "{k}");
+            let (_, t0, c0) = part.potential(0.0);
+            assert!(t0.abs() < 1e-9 && (c0 / k - 1.0).abs() < 1e-3, "{t0} {c0}");
+            let h = 1e-6;
+            for d in [-1.5f64, -0.8, 0.3, 1.2] {
+                let (u, t) = part.energy_torque(d);
+                let fd = (part.energy_torque(d + h).0 - part.energy_torque(d - h).0) / (2.0 * h);
+                assert!((t - fd).abs() < 1e-6 * k, "d = {d}: {t} vs {fd}");
+                if pulley == 0.0 {
+                    let g2 = gear * gear;
+                    assert!((u - k * g2 * (1.0 - (d / gear).cos())).abs() < 1e-9 * k, "U at {d}");
+                    assert!((t - k * gear * (d / gear).sin()).abs() < 1e-6 * k, "torque at {d}");
+                }
+                // Softer than ½ k d² away from x₀, by 1 − sin(φ)/φ at most.
+                let angle = (d / gear).abs();
+                assert!(t.abs() <= k * d.abs() * 1.001 && t.abs() >= k * d.abs() * (angle.sin() / angle) * 0.98);
+            }
+        }
+    }
+
+    /// The trim's chooser: the lighter of the leaf and the crank, or the one forced.
+    #[test]
+    fn the_trim_chooser_takes_the_lighter_or_the_forced() {
+        let duty = Duty { at_eq: 0.0, range: [-1.6, 1.4], swing: [-0.7, 0.7] };
+        let req = Requirements { max_lever: 150.0, pulley_radius: 5.0, ..req() };
+        let leaf = leaf([0.0, 4.0], 2.0, &duty, &req).unwrap();
+        let crank = trim_crank([0.0, 4.0], 2.0, &duty, &req).unwrap();
+        let lightest = trim([0.0, 4.0], 2.0, &duty, &req).unwrap();
+        assert_eq!(lightest.mass, leaf.mass.min(crank.mass));
+        assert_eq!(trim([0.0, 4.0], 2.0, &duty, &Requirements { trim: TrimMechanism::Leaf, ..req }).unwrap(), leaf);
+        assert_eq!(trim([0.0, 4.0], 2.0, &duty, &Requirements { trim: TrimMechanism::Crank, ..req }).unwrap(), crank);
+        // Neither passes: the limit closer to being met, never the sentence without a ratio.
+        let none = lighter(Err(super::Search::new().finish().unwrap_err()), leaf_limit());
+        assert_eq!(none.unwrap_err().check.name, "static stress");
+    }
+
+    fn leaf_limit() -> Result<Part, Limit> {
+        Err(Limit { check: upper("static stress", 2.0, 1.0, "MPa"), best: "a leaf".into(), torque_bound: None })
     }
 }

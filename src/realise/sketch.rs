@@ -38,10 +38,13 @@ pub fn svg(part: &Part, title: &str) -> String {
     let s = &part.spring;
     let body = match (part.mechanism, *s) {
         (Mechanism::Crank { r, big_r, pulley, .. }, _) => crank(r, big_r, pulley),
+        (Mechanism::TrimCrank { r, big_r, pulley, .. }, _) => crank(r[1], big_r, pulley),
         (Mechanism::Leaf { lever, gear }, Spring::Leaf { t, b, lengths, .. }) => {
             leaf(part.quantity, lever, gear, t, b, lengths)
         }
-        (Mechanism::Follower | Mechanism::CubicCam { .. }, Spring::Compression(c, l0)) => follower(&c, l0),
+        (Mechanism::Follower | Mechanism::CubicCam { .. } | Mechanism::DrumStop { .. }, Spring::Compression(c, l0)) => {
+            follower(&c, l0)
+        }
         (Mechanism::TorsionPair { .. } | Mechanism::TorsionStop { .. }, Spring::Torsion(t)) => {
             torsion(&t, matches!(part.mechanism, Mechanism::TorsionStop { .. }))
         }
