@@ -161,6 +161,56 @@ fn a_three_joint_switch_through_five_modes_settles() {
     println!("settling {settling:?}, share {}", m["actuator_share"]);
 }
 
+/// A three-joint URDF arm under gravity with the gains left to the arm (`panda_three`, which
+/// ships no scenario, with the URDF's effort limits and a switch through five directions added):
+/// every step settles within its 5 s, the actuator share stays below 5 %, every joint's motor
+/// torque within its limit, and `sim_switch.json` names the four gains derived from the arm.
+#[test]
+fn a_urdf_arm_with_gains_from_the_arm_switches_through_five_modes() {
+    let dir = temp_dir("sim-switch-urdf");
+    let mut text = std::fs::read_to_string(repo().join("designs/panda_three.toml")).unwrap();
+    text = text.replace("\"../", &format!("\"{}/", repo().display()));
+    text.push_str(
+        "\n[controllers]\nmax_torque = [87.0, 87.0, 12.0]\n\n[[scenario]]\nname = \"switch\"\nkind = \"switch\"\n\
+         energy = 1.0\nevery = 5.0\nmodes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, -1.0, 0.5], [0.3, 0.5, -1.0]]\n",
+    );
+    let design = dir.join("panda_switch.toml");
+    std::fs::write(&design, text).unwrap();
+    let run = springfit(&dir, &["simulate", design.to_str().unwrap(), "--scenario", "switch", "--out", "sim"]).ok();
+    assert!(run.stdout().contains("k_θ = ") && run.stdout().contains("(from the arm)"), "{}", run.report());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sim/sim_switch.json")).unwrap()).unwrap();
+    let from: Vec<&str> = json["gains"]["from_arm"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
+    assert_eq!(from, ["k_theta", "epsilon", "beta_e", "beta_nd"], "{}", json["gains"]);
+    let m = &json["runs"]["switch"];
+    let settling: Vec<Option<f64>> = m["settling_s"].as_array().unwrap().iter().map(|v| v.as_f64()).collect();
+    assert_eq!(settling.len(), 5, "{m}");
+    assert!(settling.iter().all(|s| s.is_some_and(|s| s < 5.0)), "{settling:?}\n{}", run.report());
+    let share = m["actuator_share"].as_f64().unwrap();
+    assert!(share <= 0.05, "{m}");
+    // Every joint within its own limit, on every output sample (the saturation holds them at every
+    // stage; the samples are what a user can check by hand).
+    let limits = [87.0, 87.0, 12.0];
+    let csv = std::fs::read_to_string(dir.join("sim/sim_switch.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let mut peak = [0.0f64; 3];
+    for line in lines {
+        let r: Vec<f64> = line.split(',').map(|v| v.parse::<f64>().unwrap_or(f64::NAN)).collect();
+        for (i, p) in peak.iter_mut().enumerate() {
+            let j = i + 1;
+            let tau = r[col(&format!("tau_mode{j}"))]
+                + r[col(&format!("tau_energy{j}"))]
+                + r[col(&format!("tau_compensation{j}"))];
+            *p = p.max(tau.abs());
+        }
+    }
+    assert!(peak.iter().zip(limits).all(|(p, l)| *p <= l + 1e-9), "{peak:?} against {limits:?}");
+    assert!(m["peak_actuator_torque_nm"].as_f64().unwrap() <= 87.0 + 1e-9, "{m}");
+    println!("gains {}; settling {settling:?}, share {share}, peak per joint {peak:?}", json["gains"]);
+}
+
 /// Bad `modes`: one clear error naming the scenario and the field.
 #[test]
 fn bad_modes_are_named_with_their_scenario_and_field() {

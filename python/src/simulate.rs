@@ -101,6 +101,30 @@ impl PySimulation {
         json(py, &s)
     }
 
+    /// What the springs save on each run of scenario `name` against the arm without them, a dict
+    /// by run name of the `savings` of `sim_<name>.json`: `with_springs` and `without_springs`
+    /// (`energy_j`, `peak_torque_nm`, `rms_torque_nm`, `copper_loss_j`) and the fractions saved
+    /// `energy_saved`, `peak_torque_saved`, `rms_torque_saved`, `copper_loss_saved`, beside the
+    /// run's `actuator_share`.
+    fn savings<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+        let o = self.outcome(name)?;
+        let out = PyDict::new(py);
+        for (r, m) in &o.runs {
+            let d = json(py, &m.savings)?;
+            d.set_item("actuator_share", m.actuator_share)?;
+            out.set_item(&r.name, d)?;
+        }
+        Ok(out)
+    }
+
+    /// The controllers' gains the runs used, a dict (the `gains` of `sim_<name>.json`): `k_theta`,
+    /// `zeta`, `epsilon`, `beta_e`, `beta_nd`, `from_arm` (the keys the design left out, derived
+    /// from the arm) and `basis` (what they were derived from, or None).
+    #[getter]
+    fn gains<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json(py, &springfit::report::simulate::GainsReport::of(&self.design.controllers))
+    }
+
     /// The runs of scenario `name`, each a dict: `name`, `t` (K,), `q` and `qdot` (K, n), `tau` (a
     /// dict of (K, n) arrays per source: spring, gravity, damping, mode, energy, compensation),
     /// `energy`, `label`, `label_target`, `geodesic_deviation` (K,), `in_ball` (K,) and `metrics`

@@ -42,6 +42,13 @@ def test_the_settling_rule_is_the_simulators(design, fit):
     got = springfit.settling_times(run["t"], run["label"], run["label_target"], run["in_ball"], c.mode_steps, 100.0)
     assert got == run["metrics"]["settling_s"]
     assert np.isfinite(run["energy"]).all()
+    # The savings beside the actuator share, and the gains the design sets (none from the arm).
+    savings = sim.savings("switch")["switch"]
+    assert savings["actuator_share"] == run["metrics"]["actuator_share"]
+    assert {k: v for k, v in savings.items() if k != "actuator_share"} == run["metrics"]["savings"]
+    assert 0.9 < savings["energy_saved"] < 1.0
+    assert sim.gains["from_arm"] == [] and sim.gains["k_theta"] == 1.0
+    assert sim.gains == sim.summary("switch")["gains"]
 
 
 def test_sweep_writes_the_commands_tables(design, tmp_path):

@@ -74,6 +74,7 @@ fn say_setup(design: &Design, run: &SimulateRun, progress: &Progress) {
         ));
     }
     let c = &design.controllers;
+    progress.say(c.gains_summary());
     if let Some(max) = &c.max_torque {
         let max: Vec<String> = max.iter().map(|m| format!("{m}")).collect();
         progress.say(format!(

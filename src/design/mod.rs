@@ -205,6 +205,17 @@ impl Design {
             return Err(invalid("name", format!("`{name}` cannot name an output folder")));
         }
         let catalog = file.catalog.as_ref().map(|c| path.parent().unwrap_or(Path::new(".")).join(c));
+        let mut controllers = file.controllers.clone();
+        controllers.derive_from_arm(&controllers::ArmScale {
+            mass: chain.mass_matrix(&q_eq).transpose().as_slice().to_vec(),
+            omega: file.fit.frequency,
+            energy: scenario::gain_energy(&file.scenario),
+            paper_form: match controllers.inertia {
+                controllers::ModeInertia::Paper => true,
+                controllers::ModeInertia::Consistent => false,
+                controllers::ModeInertia::Auto => scenario::theta_law(chain.dof(), &file.scenario),
+            },
+        });
         Ok(Design {
             path: path.to_path_buf(),
             fingerprint: String::new(),
@@ -218,7 +229,7 @@ impl Design {
             geodesics: file.geodesics,
             fit: file.fit,
             simulate: file.simulate,
-            controllers: file.controllers,
+            controllers,
             scenarios: file.scenario,
             sweep: file.sweep,
             sweep_given: file.sweep_given,

@@ -417,6 +417,31 @@ impl ScenarioSpec {
     }
 }
 
+/// The energy the gains a design leaves out are sized for
+/// ([`crate::design::controllers::ControllerSettings::derive_from_arm`]), J: the largest energy a
+/// switch or swing-up scenario names (defaults included: those run the controllers), else the
+/// largest release energy, else none. The largest, because β_E = ω/(πE) then never pushes harder
+/// than the top of the swing-up needs and k_θ = E/2 holds the most energetic swing's mode.
+pub fn gain_energy(scenarios: &[ScenarioSpec]) -> Option<f64> {
+    let largest = |controlled: bool| {
+        scenarios
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| (s.kind != ScenarioKind::Free) == controlled)
+            .flat_map(|(i, s)| s.energies(i))
+            .map(|(_, e)| e)
+            .filter(|e| e.is_finite() && *e > 0.0)
+            .fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))))
+    };
+    largest(true).or_else(|| largest(false))
+}
+
+/// Whether the mode law of a design's switches is the two-joint θ law (rather than the law on
+/// the sphere of modes): two joints and no switch given by `modes`.
+pub fn theta_law(dof: usize, scenarios: &[ScenarioSpec]) -> bool {
+    dof == 2 && !scenarios.iter().any(|s| s.kind == ScenarioKind::Switch && !s.modes.is_empty())
+}
+
 fn kind_name(k: ScenarioKind) -> &'static str {
     match k {
         ScenarioKind::Free => "free",

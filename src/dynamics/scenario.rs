@@ -77,7 +77,7 @@ pub struct RunMetrics {
 }
 
 /// The load on the actuators along one trajectory (see [`Savings`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct ActuatorLoad {
     /// ∫|τᵀq̇| dt, J: the mechanical energy through the actuators.
     pub energy_j: f64,
@@ -95,7 +95,7 @@ pub struct ActuatorLoad {
 /// (τ_spring = −∂U_e/∂q, the `tau_spring` columns). Integrals are sums over the output samples
 /// (left rectangles, as `sim_<name>.csv` holds them, so a hand computation from the CSV matches);
 /// the fractions saved are 1 − with/without.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct Savings {
     /// The actuators with the springs.
     pub with_springs: ActuatorLoad,
@@ -112,6 +112,26 @@ pub struct Savings {
 }
 
 impl Savings {
+    /// The columns of [`Savings::md_cells`], for a Markdown table's header (`sweep`'s
+    /// `tolerance.md`, `compare.md`).
+    pub const MD_HEADER: &'static str = "energy with / without (J) | saved | peak torque with / without (N·m) | saved | RMS torque saved | copper losses saved";
+
+    /// The cells of one row of a savings table, `|`-separated (without the outer bars).
+    pub fn md_cells(&self) -> String {
+        let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "–".into() };
+        format!(
+            "{:.3} / {:.3} | {} | {:.2} / {:.2} | {} | {} | {}",
+            self.with_springs.energy_j,
+            self.without_springs.energy_j,
+            pct(self.energy_saved),
+            self.with_springs.peak_torque_nm,
+            self.without_springs.peak_torque_nm,
+            pct(self.peak_torque_saved),
+            pct(self.rms_torque_saved),
+            pct(self.copper_loss_saved)
+        )
+    }
+
     /// The savings of a run from its samples; `motor_constant` k_m per joint (N·m/√W).
     pub fn of(trace: &crate::dynamics::simulate::Trace, motor_constant: &[f64]) -> Savings {
         let n = trace.n;

@@ -79,9 +79,9 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
     let bom_path = dir.join("bom.csv");
     let rows = if bom_path.is_file() { bom::read(&bom_path)? } else { Vec::new() };
     let fingerprint = summary.get("spring_set").and_then(|v| v.as_str()).map(str::to_string);
-    let (actuator_share, share_note) = match simulation_share(dir, fingerprint.as_deref()) {
-        Ok(share) => (Some(share), None),
-        Err(note) => (None, Some(note)),
+    let (actuator_share, savings, share_note) = match simulation_share(dir, fingerprint.as_deref()) {
+        Ok((share, savings)) => (Some(share), savings, None),
+        Err(note) => (None, None, Some(note)),
     };
     Ok(FitRecord {
         label: design.clone(),
@@ -94,6 +94,7 @@ pub fn load_fit_dir(dir: &Path) -> Result<FitRecord> {
         angles,
         totals: totals(&rows),
         actuator_share,
+        savings,
         share_note,
         source: dir.to_path_buf(),
         as_built: crate::asbuilt::Brief::from_json(&summary),
@@ -109,9 +110,14 @@ fn mass_figure(summary: &serde_json::Value, key: &str) -> Option<f64> {
 }
 
 /// The actuator share of the design's `sensitivity` (else `switch`) scenario from the
-/// simulation folder next to a fit folder (`<folder>_simulate`), only when that simulation ran
-/// the fit's own springs (the same `spring_set` fingerprint); else why there is none.
-fn simulation_share(dir: &Path, fingerprint: Option<&str>) -> std::result::Result<f64, String> {
+/// simulation folder next to a fit folder (`<folder>_simulate`), with the same run's savings
+/// against the arm without springs (None from a simulation that predates them), only when that
+/// simulation ran the fit's own springs (the same `spring_set` fingerprint); else why there is
+/// none.
+fn simulation_share(
+    dir: &Path,
+    fingerprint: Option<&str>,
+) -> std::result::Result<(f64, Option<crate::dynamics::scenario::Savings>), String> {
     let Some(fingerprint) = fingerprint else {
         return Err(
             "the fit's summary.json has no spring_set fingerprint (the exact reference, or an older springfit)".into(),
@@ -128,10 +134,10 @@ fn simulation_share(dir: &Path, fingerprint: Option<&str>) -> std::result::Resul
             other = Some(path);
             continue;
         }
-        if let Some(share) =
-            json["runs"].as_object().and_then(|runs| runs.values().next()).and_then(|r| r["actuator_share"].as_f64())
-        {
-            return Ok(share);
+        let run = json["runs"].as_object().and_then(|runs| runs.values().next());
+        if let Some(share) = run.and_then(|r| r["actuator_share"].as_f64()) {
+            let savings = run.and_then(|r| serde_json::from_value(r["savings"].clone()).ok());
+            return Ok((share, savings));
         }
     }
     Err(match other {

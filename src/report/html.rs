@@ -338,6 +338,74 @@ fn scenario_md(json: &Value) -> String {
                 pct(&m["actuator_share_last5s"])
             );
         }
+        md.push_str(&savings_md(runs));
+    }
+    md.push_str(&gains_md(&json["gains"]));
+    md
+}
+
+/// The savings of a scenario's runs with control against the arm without springs (`savings` in
+/// `sim_<name>.json`), as a markdown table; empty when no run has control (free releases, whose
+/// actuators do nothing).
+fn savings_md(runs: &serde_json::Map<String, Value>) -> String {
+    let controlled = |m: &Value| {
+        ["mode", "energy", "compensation"].iter().map(|k| m["flux"][k].as_f64().unwrap_or(0.0)).sum::<f64>() > 0.0
+    };
+    let num = |v: &Value, digits: usize| v.as_f64().map(|x| format!("{x:.digits$}")).unwrap_or_else(|| "–".into());
+    let pct = |v: &Value| v.as_f64().map(|x| format!("{:.1} %", 100.0 * x)).unwrap_or_else(|| "–".into());
+    let mut md = String::new();
+    for (name, m) in runs.iter().filter(|(_, m)| controlled(m) && m["savings"].is_object()) {
+        if md.is_empty() {
+            md.push_str("\nAgainst the arm without springs (the same motion driven by the actuators alone):\n\n| run | energy with / without (J) | saved | peak torque with / without (N·m) | saved | RMS torque with / without (N·m) | saved | copper losses with / without (J) | saved |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+        }
+        let (v, a, b) = (&m["savings"], &m["savings"]["with_springs"], &m["savings"]["without_springs"]);
+        let _ = writeln!(
+            md,
+            "| {name} | {} / {} | {} | {} / {} | {} | {} / {} | {} | {} / {} | {} |",
+            num(&a["energy_j"], 3),
+            num(&b["energy_j"], 3),
+            pct(&v["energy_saved"]),
+            num(&a["peak_torque_nm"], 2),
+            num(&b["peak_torque_nm"], 2),
+            pct(&v["peak_torque_saved"]),
+            num(&a["rms_torque_nm"], 3),
+            num(&b["rms_torque_nm"], 3),
+            pct(&v["rms_torque_saved"]),
+            num(&a["copper_loss_j"], 4),
+            num(&b["copper_loss_j"], 4),
+            pct(&v["copper_loss_saved"])
+        );
+    }
+    md
+}
+
+/// The controllers' gains of `sim_<name>.json` (`gains`) in one line, naming those derived from
+/// the arm; empty for a file without them.
+fn gains_md(g: &Value) -> String {
+    if !g.is_object() {
+        return String::new();
+    }
+    let num = |k: &str| g[k].as_f64().map(|x| format!("{x:.4}")).unwrap_or_else(|| "–".into());
+    let from: Vec<&str> =
+        g["from_arm"].as_array().map(|a| a.iter().filter_map(Value::as_str).collect()).unwrap_or_default();
+    let mut md = format!(
+        "\nGains: k_θ = {} N·m/rad, ζ = {}, ε = {} rad, β_E = {} 1/(J·s), β_nD = {}",
+        num("k_theta"),
+        num("zeta"),
+        num("epsilon"),
+        num("beta_e"),
+        num("beta_nd")
+    );
+    if from.is_empty() {
+        md.push_str(" (as the design sets them).\n");
+    } else {
+        let _ = writeln!(
+            md,
+            "; from the arm: {} (sized for E = {} J at ω = {} rad/s).",
+            from.join(", "),
+            g["basis"]["energy_j"].as_f64().map_or("?".into(), |e| e.to_string()),
+            g["basis"]["omega"].as_f64().map_or("?".into(), |e| e.to_string())
+        );
     }
     md
 }

@@ -12,7 +12,7 @@ use super::figures::{
 use super::output::OutputDir;
 use super::plot::{Figure, Layer, Panel, Style, palette, render};
 use crate::design::Design;
-use crate::design::controllers::Blend;
+use crate::design::controllers::{Blend, ControllerSettings, GainBasis};
 use crate::design::scenario::{ModeSpec, ScenarioKind};
 use crate::dynamics::backbone::Backbone;
 use crate::dynamics::scenario::{RunMetrics, ScenarioOutcome, unwrap_angles};
@@ -121,6 +121,8 @@ pub struct ScenarioSummary {
     pub label_error_deg: Option<f64>,
     /// How the mode controller is switched on at the ε-ball: `smooth` or `hard`.
     pub blend: Blend,
+    /// The gains in force and which of them came from the arm.
+    pub gains: GainsReport,
     /// How the scenario handles energy (for a switch scenario: its `energy_target`).
     pub energy_handling: String,
     /// Worst distance to the mode's geodesic over the runs, √(kg·m²)·rad (free scenarios).
@@ -139,6 +141,41 @@ pub struct ScenarioSummary {
     pub runs: std::collections::BTreeMap<String, RunMetrics>,
     /// Fingerprint of the spring set simulated (`fit::bill::fingerprint`; null for the exact potential).
     pub spring_set: Option<String>,
+}
+
+/// The controllers' gains as `simulate` ran them (`sim_<name>.json`, key `gains`).
+#[derive(Debug, Clone, Serialize)]
+pub struct GainsReport {
+    /// k_θ, N·m per rad of label.
+    pub k_theta: f64,
+    /// ζ.
+    pub zeta: f64,
+    /// ε, rad.
+    pub epsilon: f64,
+    /// β_E, 1/(J·s).
+    pub beta_e: f64,
+    /// β_nD, N·m·s/(rad·J).
+    pub beta_nd: f64,
+    /// The keys the design left out and that were derived from the arm (empty: all as written).
+    pub from_arm: Vec<&'static str>,
+    /// What they were derived from (null when none was).
+    pub basis: Option<GainBasis>,
+}
+
+impl GainsReport {
+    /// The gains of `[controllers]` as resolved for the design.
+    pub fn of(c: &ControllerSettings) -> GainsReport {
+        let derived = c.basis.is_some();
+        GainsReport {
+            k_theta: c.k_theta,
+            zeta: c.zeta,
+            epsilon: c.epsilon,
+            beta_e: c.beta_e,
+            beta_nd: c.beta_nd,
+            from_arm: if derived { c.from_arm.keys() } else { Vec::new() },
+            basis: c.basis.filter(|_| c.from_arm.any()),
+        }
+    }
 }
 
 fn columns(n: usize) -> String {
@@ -238,6 +275,7 @@ pub fn summary(
         label: label_name.into(),
         label_error_deg,
         blend: design.controllers.blend,
+        gains: GainsReport::of(&design.controllers),
         energy_handling: outcome.scenario.energy_handling.clone(),
         geodesic_deviation_max: worst(&|m| m.geodesic_deviation.as_ref().map(|d| d.max)),
         mode_drift_deg: worst(&|m| m.mode_drift_deg),

@@ -13,7 +13,8 @@ use crate::studies::sweep::{ItemResult, SweepTables, WorkItem};
 pub fn items_csv(results: &[ItemResult]) -> String {
     let mut s = String::from(
         "index,kind,eps,tolerance,build,flux_potential,flux_mode,flux_energy,actuator_share,residual_p99_deg,\
-         residual_p99_deg_trimmed,actuator_share_tuned,residual_p99_deg_tuned,equilibrium_shift_rad_tuned\n",
+         residual_p99_deg_trimmed,actuator_share_tuned,residual_p99_deg_tuned,equilibrium_shift_rad_tuned,\
+         energy_saved,peak_torque_saved,rms_torque_saved,copper_loss_saved\n",
     );
     let mut sorted: Vec<&ItemResult> = results.iter().collect();
     sorted.sort_by_key(|r| r.index);
@@ -32,7 +33,7 @@ pub fn items_csv(results: &[ItemResult]) -> String {
         let opt = |x: Option<f64>| x.map(|v| format!("{v}")).unwrap_or_default();
         let tuned = r.tuned.as_ref();
         s.push_str(&format!(
-            "{},{kind},{eps},{tol},{build},{},{},{},{},{},{},{},{},{}\n",
+            "{},{kind},{eps},{tol},{build},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             r.index,
             r.flux_potential,
             r.flux_mode,
@@ -42,7 +43,11 @@ pub fn items_csv(results: &[ItemResult]) -> String {
             opt(r.residual_p99_deg_trimmed),
             opt(tuned.map(|t| t.actuator_share)),
             opt(tuned.map(|t| t.residual_p99_deg)),
-            opt(tuned.map(|t| t.equilibrium_shift_rad))
+            opt(tuned.map(|t| t.equilibrium_shift_rad)),
+            opt(r.savings.map(|v| v.energy_saved)),
+            opt(r.savings.map(|v| v.peak_torque_saved)),
+            opt(r.savings.map(|v| v.rms_torque_saved)),
+            opt(r.savings.map(|v| v.copper_loss_saved))
         ));
     }
     s
@@ -114,6 +119,48 @@ pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
         s.push_str(&format!(
             "\n## Stock rates\n\nEach stiffness snapped to the nearest stock rate (largest torque first, the others refitted after each snap); see `bom_stock.csv`.\n\n| | residual p99 | actuator share |\n| --- | ---: | ---: |\n| fitted | {:.3}° | {:.3} % |\n| snapped | {:.3}° | {:.3} % |\n",
             st.residual_p99_deg_before, 100.0 * st.actuator_share_before, st.residual_p99_deg_after, 100.0 * st.actuator_share_after
+        ));
+    }
+    s.push_str(&savings_md(t));
+    s
+}
+
+/// The savings section of `tolerance.md`: what the springs save on each item's closed-loop run
+/// against the same motion on the arm without them (`savings` in `sim_<name>.json`).
+fn savings_md(t: &SweepTables) -> String {
+    let pct = |x: f64| if x.is_finite() { format!("{:.1} %", 100.0 * x) } else { "–".into() };
+    let mut s = String::from(
+        "\n## Savings against the arm without springs\n\nThe same closed-loop motion driven by the actuators alone (τ_act + τ_spring): the actuators' energy ∫|τᵀq̇| dt, peak and RMS torque and copper losses with the springs against without, and the fraction saved.\n",
+    );
+    if t.parasitic.iter().any(|r| r.savings.is_some()) {
+        s.push_str(&format!(
+            "\n| ε | {} |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+            crate::dynamics::scenario::Savings::MD_HEADER
+        ));
+        for r in &t.parasitic {
+            if let Some(v) = &r.savings {
+                s.push_str(&format!("| {} | {} |\n", r.eps, v.md_cells()));
+            }
+        }
+    }
+    if !t.tolerance_levels.is_empty() {
+        s.push_str("\nOver the builds of each tolerance level (untuned):\n\n| tolerance | energy saved p50 | p5 (95 % of builds save at least) | peak torque saved p50 | copper losses saved p50 |\n| --- | ---: | ---: | ---: | ---: |\n");
+        for l in &t.tolerance_levels {
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {} |\n",
+                l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
+                pct(l.energy_saved_p50),
+                pct(l.energy_saved_p5),
+                pct(l.peak_torque_saved_p50),
+                pct(l.copper_loss_saved_p50)
+            ));
+        }
+    }
+    if let Some(st) = &t.stock {
+        s.push_str(&format!(
+            "\nStock rates: energy saved {} with the fitted rates, {} snapped to stock.\n",
+            pct(st.energy_saved_before),
+            pct(st.energy_saved_after)
         ));
     }
     s

@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use crate::design::Design;
 use crate::design::fit::FitSettings;
+use crate::dynamics::scenario::Savings;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::fit::run::fit;
@@ -40,6 +41,9 @@ pub struct FitRecord {
     pub totals: Vec<(String, f64)>,
     /// Actuator share from a simulation of the same spring set, if one was found.
     pub actuator_share: Option<f64>,
+    /// What the springs save on that simulation's run against the arm without them (with the
+    /// actuator share; None where there is none, or the simulation predates savings).
+    pub savings: Option<Savings>,
     /// Why there is no actuator share (no simulation folder, another spring set simulated).
     pub share_note: Option<String>,
     /// Where it came from (a folder or a design file).
@@ -66,6 +70,7 @@ pub fn record_of(outcome: &FitOutcome, design_file: &Path) -> FitRecord {
         angles: outcome.metrics.residuals.iter().map(|r| r.angle_deg).collect(),
         totals: totals(&outcome.bom),
         actuator_share: None,
+        savings: None,
         share_note: Some("fitted on the fly: no simulation of these springs".into()),
         source: design_file.to_path_buf(),
         as_built: None,
@@ -110,12 +115,12 @@ pub fn disambiguate(records: &mut [FitRecord]) {
 /// The comparison table as CSV.
 pub fn table_csv(records: &[FitRecord]) -> String {
     let mut s = String::from(
-        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,spring_mass_kg,mass_over_floor\n",
+        "label,design,catalog,solver,springs,total_stiffness,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,actuator_share,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,energy_saved,peak_torque_saved,rms_torque_saved,copper_loss_saved,spring_mass_kg,mass_over_floor\n",
     );
     for r in records {
         let totals = r.totals.iter().map(|(u, t)| format!("{t} {u}")).collect::<Vec<_>>().join("; ");
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             csv_field(&r.label),
             csv_field(&r.design),
             csv_field(&r.catalog),
@@ -128,11 +133,25 @@ pub fn table_csv(records: &[FitRecord]) -> String {
             r.stats.max_abs,
             r.actuator_share.map(|a| a.to_string()).unwrap_or_default(),
             as_built_csv(r.as_built.as_ref()),
+            savings_csv(r.savings.as_ref()),
             r.spring_mass_kg.map(|m| m.to_string()).unwrap_or_default(),
             r.mass_over_floor.map(|m| m.to_string()).unwrap_or_default()
         ));
     }
     s
+}
+
+/// The four savings columns, fractions saved against the arm without springs (empty without a
+/// simulation of the fit's springs).
+fn savings_csv(v: Option<&Savings>) -> String {
+    let f = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+    format!(
+        "{},{},{},{}",
+        f(v.map(|v| v.energy_saved)),
+        f(v.map(|v| v.peak_torque_saved)),
+        f(v.map(|v| v.rms_torque_saved)),
+        f(v.map(|v| v.copper_loss_saved))
+    )
 }
 
 /// The four as-built columns (empty when the fit has none).
@@ -195,6 +214,14 @@ pub fn table_md(records: &[FitRecord]) -> String {
         .collect();
     if !notes.is_empty() {
         s.push_str(&format!("\nActuator shares are shown only from a simulation of the same spring set (the `spring_set` fingerprint of summary.json and sim_<name>.json):\n\n{}\n", notes.join("\n")));
+    }
+    if records.iter().any(|r| r.savings.is_some()) {
+        s.push_str(&format!("\n## Savings against the arm without springs\n\nOn the same simulated run: the actuators' energy ∫|τᵀq̇| dt, peak and RMS torque and copper losses with the springs against the same motion driven without them, and the fraction saved.\n\n| design | {} |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n", Savings::MD_HEADER));
+        for r in records {
+            if let Some(v) = &r.savings {
+                s.push_str(&format!("| {} | {} |\n", r.label.replace('|', "/"), v.md_cells()));
+            }
+        }
     }
     s
 }

@@ -30,7 +30,7 @@ use crate::design::Design;
 use crate::design::controllers::ControllerSettings;
 use crate::design::scenario::ScenarioKind;
 use crate::design::simulate::SimSettings;
-use crate::dynamics::scenario::{LabelSource, metrics};
+use crate::dynamics::scenario::{LabelSource, Savings, metrics};
 use crate::dynamics::simulate::{Dynamics, ElasticPotential, Parasitic, RunSpec, SOURCES, run};
 use crate::error::{Error, Result};
 use crate::fit::FitOutcome;
@@ -112,6 +112,14 @@ pub struct ItemResult {
     /// the first `tuned_builds` builds of the level.
     #[serde(default)]
     pub tuned: Option<TunedBuild>,
+    /// What the springs save on the item's closed-loop run against the arm without them (the
+    /// same motion driven by the actuators alone; see [`Savings`]); with the nominal springs
+    /// for stock snapping's `before`, see `savings_before`.
+    #[serde(default)]
+    pub savings: Option<Savings>,
+    /// Stock only: the savings with the fitted springs before snapping.
+    #[serde(default)]
+    pub savings_before: Option<Savings>,
     /// Stiffnesses after snapping (stock only), in BOM order.
     pub stock_stiffness: Option<Vec<f64>>,
     /// Time series (parasitic only).
@@ -413,6 +421,7 @@ impl<'a> SweepContext<'a> {
         r.equilibrium_shift_rad = Some(shift);
         r.residual_p99_deg_before = Some(self.fit.metrics.stats.p99_abs);
         r.actuator_share_before = Some(before.actuator_share);
+        r.savings_before = Some(before.savings);
         r.stock_stiffness = Some(k);
         Ok(r)
     }
@@ -435,6 +444,8 @@ impl ItemResult {
             equilibrium_shift_rad: None,
             residual_p99_deg_trimmed: None,
             tuned: None,
+            savings: Some(m.savings),
+            savings_before: None,
             stock_stiffness: None,
             series: None,
         }
@@ -456,6 +467,9 @@ pub struct ParasiticRow {
     pub flux_energy: f64,
     /// (∫|P_θ| + ∫|P_E|) / ∫|P_Ũ|, a fraction: how much of the motion the actuators supply.
     pub actuator_share: f64,
+    /// What the springs save on the same run against the arm without them (None: a result
+    /// written before savings were reported).
+    pub savings: Option<Savings>,
 }
 
 /// Percentiles of a tolerance level.
@@ -471,6 +485,15 @@ pub struct ToleranceSummary {
     pub actuator_share_p50: f64,
     /// 95th percentile over the builds of the actuator share, a fraction.
     pub actuator_share_p95: f64,
+    /// Median over the builds of the energy the springs save against the arm without them
+    /// (`savings.energy_saved`), a fraction (NaN: no build reported savings).
+    pub energy_saved_p50: f64,
+    /// The fraction of energy saved that 95 % of the builds reach (their 5th percentile).
+    pub energy_saved_p5: f64,
+    /// Median over the builds of the peak actuator torque saved, a fraction.
+    pub peak_torque_saved_p50: f64,
+    /// Median over the builds of the copper losses saved, a fraction.
+    pub copper_loss_saved_p50: f64,
     /// Median over the builds of their p99 |residual angle| about their own equilibrium, degrees.
     pub residual_p99_deg_p50: f64,
     /// 95th percentile over the builds of their p99 |residual angle|, degrees.
@@ -518,6 +541,10 @@ pub struct StockSummary {
     pub actuator_share_before: f64,
     /// Actuator share with the stock rates, a fraction.
     pub actuator_share_after: f64,
+    /// Energy saved against the arm without springs by the fitted springs, a fraction.
+    pub energy_saved_before: f64,
+    /// The same with the stock rates, a fraction.
+    pub energy_saved_after: f64,
 }
 
 /// `sweep.json`.
@@ -546,6 +573,7 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 flux_mode: r.flux_mode,
                 flux_energy: r.flux_energy,
                 actuator_share: r.actuator_share,
+                savings: r.savings,
             }),
             _ => None,
         })
@@ -564,6 +592,12 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
             let builds: Vec<&&ItemResult> =
                 sorted.iter().filter(|r| matches!(r.item, WorkItem::Build { level: l, .. } if l == *level)).collect();
             let mut share: Vec<f64> = builds.iter().map(|r| r.actuator_share).collect();
+            let saved = |f: fn(&Savings) -> f64| {
+                let mut v: Vec<f64> = builds.iter().map(|r| r.savings.as_ref().map_or(f64::NAN, f)).collect();
+                v.sort_by(f64::total_cmp);
+                v
+            };
+            let energy_saved = saved(|s| s.energy_saved);
             let mut resid: Vec<f64> = builds.iter().map(|r| r.residual_p99_deg).collect();
             let mut shift: Vec<f64> = builds.iter().map(|r| r.equilibrium_shift_rad.unwrap_or(f64::NAN)).collect();
             let trimmed = builds
@@ -592,6 +626,10 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
                 builds: builds.len(),
                 actuator_share_p50: percentile(&share, 50.0),
                 actuator_share_p95: percentile(&share, 95.0),
+                energy_saved_p50: percentile(&energy_saved, 50.0),
+                energy_saved_p5: percentile(&energy_saved, 5.0),
+                peak_torque_saved_p50: percentile(&saved(|s| s.peak_torque_saved), 50.0),
+                copper_loss_saved_p50: percentile(&saved(|s| s.copper_loss_saved), 50.0),
                 residual_p99_deg_p50: percentile(&resid, 50.0),
                 residual_p99_deg_p95: percentile(&resid, 95.0),
                 residual_p99_deg_p95_ci: percentile_interval(&resid, 95.0, crate::asbuilt::CONFIDENCE),
@@ -609,6 +647,8 @@ pub fn tables(settings: &SweepSettings, results: &[ItemResult]) -> SweepTables {
         residual_p99_deg_after: r.residual_p99_deg,
         actuator_share_before: r.actuator_share_before.unwrap_or(f64::NAN),
         actuator_share_after: r.actuator_share,
+        energy_saved_before: r.savings_before.map_or(f64::NAN, |s| s.energy_saved),
+        energy_saved_after: r.savings.map_or(f64::NAN, |s| s.energy_saved),
     });
     SweepTables { parasitic, tolerance: tolerance_levels.first().cloned(), tolerance_levels, stock }
 }
