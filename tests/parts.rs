@@ -290,6 +290,11 @@ fn bad_parts_input_and_a_stock_part() {
     let design = write(&dir, "units.toml", &format!("{base}\n[parts]\nstock = \"units.csv\"\n"));
     springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
         .fails(2, &["units.csv", "line 5: rate_unit", "lbf/in", "N/mm"]);
+    // A row that cites no source is refused the same way (issue 45: every row cites its source).
+    write(&dir, "unsourced.csv", &fixture.replace("126,N,invented for the tests", "126,N,"));
+    let design = write(&dir, "unsourced.toml", &format!("{base}\n[parts]\nstock = \"unsourced.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
+        .fails(2, &["unsourced.csv", "line 5: source"]);
     assert!(!dir.join("out").exists());
     // An envelope no spring fits: exit 1, the limit named.
     let design = write(&dir, "tiny.toml", &format!("{base}\n[parts]\nmax_outer_diameter_mm = 3.0\n"));
