@@ -224,9 +224,31 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
     for (e, l) in &failed {
         let m = springfit::parts::limit_message(e, l);
         assert!(m.contains(&e.id) && m.contains(l.check.name) && l.check.ratio() > 1.0, "{m}");
-        assert_eq!(l.torque_bound.is_some(), m.contains("max_element_torque"), "{m}");
+        let at_most = matches!(l.torque_bound, Some(mechanism::TorqueBound::AtMost(_)));
+        assert_eq!(at_most, m.contains("max_element_torque"), "{m}");
     }
-    let bound = failed.iter().filter_map(|(_, l)| l.torque_bound).fold(f64::INFINITY, f64::min);
+    // The verdict judges what is built: the shipped envelope's realised design is acceptable
+    // (every element has a part), the tight one's is poor whatever its residual, naming each
+    // element without a part, its limit and the bound; the ideal figure is kept beside it.
+    let accept = design.fit.accept_p99_deg;
+    let fine = parts.verdict(accept);
+    assert!(fine.acceptable() && fine.judged == springfit::fit::outcome::Judged::Realised, "{}", fine.reason());
+    assert!(fine.reason().starts_with("realised design p99") && fine.reason().contains("ideal elements p99"));
+    let poor = tight.verdict(accept);
+    assert_eq!((poor.word(), poor.without_part.len()), ("poor", failed.len()), "{}", poor.reason());
+    assert_eq!(poor.ideal_p99_deg, o.metrics.stats.p99_abs);
+    for (e, l) in &failed {
+        let named = poor.without_part.iter().find(|w| w.id == e.id).expect("each element without a part is named");
+        assert!(named.reason.contains(l.check.name), "{}", named.reason);
+        assert!(poor.reason().contains(&e.id));
+    }
+    let bound = failed
+        .iter()
+        .filter_map(|(_, l)| match l.torque_bound {
+            Some(mechanism::TorqueBound::AtMost(t)) => Some(t),
+            _ => None,
+        })
+        .fold(f64::INFINITY, f64::min);
     assert!(bound.is_finite(), "{:?}", messages(&tight));
     let mut bounded = small.clone();
     bounded.fit.max_element_torque = bound;
@@ -234,7 +256,11 @@ fn an_impossible_spring_names_its_limit_and_the_fit_bound_keeps_a_part_possible(
     for r in ob.bom.iter().filter(|r| r.adjust.trim_range.is_none()) {
         assert!(r.max_torque_nm <= bound * (1.0 + 1e-6), "{}: {} > {bound}", r.id, r.max_torque_nm);
     }
-    assert!(pb.missing().all(|(_, l)| l.torque_bound.is_none()), "{:?}", messages(&pb));
+    assert!(
+        pb.missing().all(|(_, l)| !matches!(l.torque_bound, Some(mechanism::TorqueBound::AtMost(_)))),
+        "{:?}",
+        messages(&pb)
+    );
 }
 
 fn choose(design: &Design, o: &springfit::fit::FitOutcome) -> springfit::parts::Parts {
@@ -269,6 +295,11 @@ fn bad_parts_input_and_a_stock_part() {
     let design = write(&dir, "units.toml", &format!("{base}\n[parts]\nstock = \"units.csv\"\n"));
     springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
         .fails(2, &["units.csv", "line 5: rate_unit", "lbf/in", "N/mm"]);
+    // A row that cites no source is refused the same way (issue 45: every row cites its source).
+    write(&dir, "unsourced.csv", &fixture.replace("126,N,invented for the tests", "126,N,"));
+    let design = write(&dir, "unsourced.toml", &format!("{base}\n[parts]\nstock = \"unsourced.csv\"\n"));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--out", "out"])
+        .fails(2, &["unsourced.csv", "line 5: source"]);
     assert!(!dir.join("out").exists());
     // An envelope no spring fits: exit 1, the limit named.
     let design = write(&dir, "tiny.toml", &format!("{base}\n[parts]\nmax_outer_diameter_mm = 3.0\n"));

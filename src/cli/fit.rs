@@ -105,15 +105,24 @@ fn say_fit(run: &FitRun, settings: &FitSettings, progress: &Progress) {
     for w in about(warnings, &Topic::Equalities) {
         progress.warn(w);
     }
-    let verdict = springfit::fit::hints::verdict(st.p99_abs, settings.accept_p99_deg);
-    progress.say(if verdict == "acceptable" {
-        format!("verdict: acceptable (p99 {:.4}° ≤ fit.accept_p99_deg = {}°)", st.p99_abs, settings.accept_p99_deg)
+    // With parts the verdict judges what would be built (the realised design, every element
+    // with a part); the exact reference has only its ideal figure.
+    let verdict = match &run.parts {
+        Some(parts) => parts.verdict(settings.accept_p99_deg),
+        None => springfit::fit::outcome::Verdict::ideal(st.p99_abs, settings.accept_p99_deg),
+    };
+    progress.say(if verdict.acceptable() {
+        format!("verdict: acceptable ({})", verdict.reason())
+    } else if !verdict.ideal_passes() {
+        format!(
+            "verdict: poor ({}): released on a geodesic, the arm drifts off it; {}",
+            verdict.reason(),
+            springfit::fit::hints::poor_fit_advice(&outcome.region)
+        )
     } else {
         format!(
-            "verdict: poor (p99 {:.4}° > fit.accept_p99_deg = {}°): released on a geodesic, the arm drifts off it; {}",
-            st.p99_abs,
-            settings.accept_p99_deg,
-            springfit::fit::hints::poor_fit_advice(&outcome.region)
+            "verdict: poor ({}): the ideal elements pass, what is built does not; parts.md gives each element's limit and its fitted against realised rate",
+            verdict.reason()
         )
     });
     for w in about(warnings, &Topic::Bill) {

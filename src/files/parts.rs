@@ -7,9 +7,15 @@ use std::fmt::Write as _;
 use crate::csv::csv_field;
 use crate::parts::{ElementPart, Parts, limit_message};
 use crate::realise::mechanism::{Mechanism, Part, Spring};
+use crate::realise::sketch::{lengths, units};
 
 /// The header of `parts.csv`.
-pub const HEADER: &str = "id,family,profile,coupling,offset_rad,mechanism,spring,quantity,material,grade,wire_d_mm,mean_D_mm,outer_D_mm,active_coils,free_length_mm,leg_mm,rate_maker,rate_maker_unit,fitted_stiffness,realised_rate,fit_unit,rate_tolerance,initial_tension_n,position_unit,load_unit,eq_position,eq_load,low_position,low_load,high_position,high_load,max_stress_mpa,allowed_stress_mpa,static_utilisation,fatigue_utilisation,life_cycles,mass_kg,vendor,part_number,source,geometry,limit";
+pub const HEADER: &str = "id,family,profile,coupling,offset_rad,mechanism,spring,quantity,material,grade,wire_d_mm,mean_D_mm,outer_D_mm,active_coils,free_length_mm,leg_mm,rate_maker,rate_maker_unit,fitted_stiffness,realised_rate,fit_unit,rate_tolerance,initial_tension_n,position_unit,load_unit,eq_position,eq_load,low_position,low_load,high_position,high_load,base_circle_position,base_circle_load,largest_stroke_position,largest_stroke_load,max_stress_mpa,allowed_stress_mpa,static_utilisation,fatigue_utilisation,life_cycles,mass_kg,vendor,part_number,source,geometry,limit";
+
+/// The working points of `parts.csv`'s columns, in order: the element's (`eq_`, `low_`,
+/// `high_`), then a cam follower's (`base_circle_`, `largest_stroke_`), as
+/// `realise::mechanism` names them.
+const POINTS: [&str; 5] = ["q_eq", "range low", "range high", "base circle", "largest stroke"];
 
 fn mechanism_name(m: &Mechanism) -> &'static str {
     match m {
@@ -24,28 +30,10 @@ fn mechanism_name(m: &Mechanism) -> &'static str {
     }
 }
 
-fn units(p: &Part) -> (&'static str, &'static str) {
-    match p.spring {
-        Spring::Torsion(_) => ("deg", "N*mm"),
-        Spring::Leaf { .. } => ("mm tip deflection", "N"),
-        _ => ("mm length", "N"),
-    }
-}
-
 fn fit_unit(e: &ElementPart) -> &'static str {
     match e.part.as_ref().map(|p| p.mechanism) {
         Ok(Mechanism::Follower) => "N/mm",
         _ => e.element.profile.unit(),
-    }
-}
-
-/// The spring's free length (compression, extension) and leg length (torsion), mm.
-fn lengths(s: &Spring) -> (Option<f64>, Option<f64>) {
-    match s {
-        Spring::Torsion(t) => (None, Some(t.leg)),
-        Spring::Extension(h, _) => (Some(h.extension_free_length()), None),
-        Spring::Compression(_, l0) => (Some(*l0), None),
-        Spring::Leaf { lengths, .. } => (Some(lengths[2]), None),
     }
 }
 
@@ -75,7 +63,10 @@ pub fn csv(parts: &Parts, grade: u8, safety: f64) -> String {
                 let (free, leg) = lengths(&p.spring);
                 let (rate, unit) = p.spring.maker_rate();
                 let (pu, lu) = units(p);
-                let at = |i: usize| p.points.get(i).map(|w| (w.position, w.load));
+                // Each working point in the columns of its name, so that a column means one thing
+                // for every mechanism: a cam follower's base circle and largest stroke are not
+                // the element's q_eq and range ends.
+                let at = |name: &str| p.points.iter().find(|w| w.at == name).map(|w| (w.position, w.load));
                 let stress = check(p, "static stress");
                 f.extend([
                     mechanism_name(&p.mechanism).to_string(),
@@ -105,14 +96,17 @@ pub fn csv(parts: &Parts, grade: u8, safety: f64) -> String {
                     pu.to_string(),
                     lu.to_string(),
                 ]);
-                for i in 0..3 {
-                    let (a, b) = at(i).map_or((None, None), |(a, b)| (Some(a), Some(b)));
+                for name in POINTS {
+                    let (a, b) = at(name).map_or((None, None), |(a, b)| (Some(a), Some(b)));
                     f.push(num(a));
                     f.push(num(b));
                 }
                 f.extend([
                     num(stress.map(|c| c.value / safety)),
-                    num(stress.map(|c| c.limit)),
+                    // What the stress may reach: the standard's allowed stress over the safety
+                    // factor, so that `max_stress_mpa` ≤ it passes and their ratio is the
+                    // utilisation.
+                    num(stress.map(|c| c.limit / safety)),
                     num(stress.map(|c| c.ratio())),
                     // The worst fatigue check: the body's, or an extension spring's hook's.
                     num(p.checks.iter().filter(|c| c.name.contains("fatigue")).map(|c| c.ratio()).reduce(f64::max)),

@@ -182,3 +182,124 @@ impl FitOutcome {
         if self.cams.is_empty() { "springs".into() } else { format!("elements ({} cams)", self.cams.len()) }
     }
 }
+
+/// Which design a [`Verdict`] judges. Written as `ideal` or `realised` (its serde form, the
+/// text of `summary.json`'s `verdict_judges`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Judged {
+    /// The fitted elements as the catalogue defines them: all there is before parts are chosen
+    /// (the exact reference, `compare`'s and `pareto`'s budgets).
+    Ideal,
+    /// Each element's part (its mechanism's own potential) in place of the ideal element: what
+    /// would be built. A fit whose parts are chosen is judged on this, since the ideal figure
+    /// says nothing of an arm that cannot be built or whose parts move the residual.
+    Realised,
+}
+
+/// An element of a realised design that no part meets, as the verdict names it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WithoutPart {
+    /// The element's id in the bill (`S57`).
+    pub id: String,
+    /// The limit no spring meets, by how much, and the bound that keeps a part possible, in
+    /// words (the parts stage's sentence, shortened).
+    pub reason: String,
+}
+
+/// The plain verdict on a fit: `acceptable` when the judged design's p99 residual angle on the
+/// held-out geodesics is at most `[fit] accept_p99_deg` and (for a realised design) every
+/// element has a part; else `poor`. The ideal figure is kept beside the realised one so that a
+/// reader sees what the parts cost.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Verdict {
+    /// The design judged.
+    pub judged: Judged,
+    /// Its p99 |residual angle|, degrees.
+    pub p99_deg: f64,
+    /// The ideal elements' p99 |residual angle|, degrees (the same as `p99_deg` for
+    /// [`Judged::Ideal`]).
+    pub ideal_p99_deg: f64,
+    /// The threshold, degrees (`[fit] accept_p99_deg`).
+    pub accept_p99_deg: f64,
+    /// The elements no part meets (a realised design with any is poor: it cannot be built).
+    pub without_part: Vec<WithoutPart>,
+}
+
+impl Verdict {
+    /// The verdict on the ideal elements alone (no parts were chosen).
+    pub fn ideal(p99_deg: f64, accept_p99_deg: f64) -> Verdict {
+        Verdict { judged: Judged::Ideal, p99_deg, ideal_p99_deg: p99_deg, accept_p99_deg, without_part: Vec::new() }
+    }
+
+    /// Whether the residual passes (p99 ≤ the threshold); the parts aside.
+    pub fn residual_passes(&self) -> bool {
+        self.p99_deg <= self.accept_p99_deg
+    }
+
+    /// Whether the ideal elements' residual passes.
+    pub fn ideal_passes(&self) -> bool {
+        self.ideal_p99_deg <= self.accept_p99_deg
+    }
+
+    /// True when the judged design passes: its residual, and a part for every element.
+    pub fn acceptable(&self) -> bool {
+        self.residual_passes() && self.without_part.is_empty()
+    }
+
+    /// `acceptable` or `poor`.
+    pub fn word(&self) -> &'static str {
+        if self.acceptable() { "acceptable" } else { "poor" }
+    }
+
+    /// Why, in words: the judged figure against the threshold (`p99 0.3687° ≤ fit.accept_p99_deg
+    /// = 2°`), for a realised design with the ideal figure beside it, and the elements without
+    /// a part with their limits.
+    pub fn reason(&self) -> String {
+        let sign = if self.residual_passes() { "≤" } else { ">" };
+        let mut r = match self.judged {
+            Judged::Ideal => format!("p99 {:.4}° {sign} fit.accept_p99_deg = {}°", self.p99_deg, self.accept_p99_deg),
+            Judged::Realised => format!(
+                "realised design p99 {:.4}° {sign} fit.accept_p99_deg = {}°; ideal elements p99 {:.4}°",
+                self.p99_deg, self.accept_p99_deg, self.ideal_p99_deg
+            ),
+        };
+        if !self.without_part.is_empty() {
+            let n = self.without_part.len();
+            r.push_str(&format!(
+                "; {n} element{} without a part: {}",
+                if n == 1 { "" } else { "s" },
+                self.without_part.iter().map(|w| format!("{} ({})", w.id, w.reason)).collect::<Vec<_>>().join(", ")
+            ));
+        }
+        r
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The realised design is judged on its own p99 and on having every part: an element without
+    /// one makes it poor even when both residuals pass, and the reason keeps the ideal figure.
+    #[test]
+    fn a_realised_design_needs_its_residual_and_every_part() {
+        let ideal = Verdict::ideal(1.69, 2.0);
+        assert_eq!((ideal.word(), ideal.reason().as_str()), ("acceptable", "p99 1.6900° ≤ fit.accept_p99_deg = 2°"));
+        let realised = Verdict { judged: Judged::Realised, p99_deg: 4.01, ..ideal.clone() };
+        assert_eq!(realised.word(), "poor");
+        assert!(realised.ideal_passes() && !realised.residual_passes());
+        assert_eq!(
+            realised.reason(),
+            "realised design p99 4.0100° > fit.accept_p99_deg = 2°; ideal elements p99 1.6900°"
+        );
+        let missing = Verdict {
+            judged: Judged::Realised,
+            p99_deg: 1.0,
+            without_part: vec![WithoutPart { id: "S57".into(), reason: "`initial tension` 1.29× the limit".into() }],
+            ..ideal
+        };
+        assert!(missing.residual_passes() && !missing.acceptable());
+        assert!(missing.reason().ends_with("; 1 element without a part: S57 (`initial tension` 1.29× the limit)"));
+    }
+}

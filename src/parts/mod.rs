@@ -21,7 +21,7 @@ use crate::realise::cam::FittedCam;
 use crate::realise::duty::{duty, spans, swing};
 pub use crate::realise::duty::{requirements, scenario_energy, surface};
 use crate::realise::material::by_key;
-use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring};
+use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring, TorqueBound};
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
@@ -271,6 +271,8 @@ pub fn choose(
     let spans = spans(couplings, q_eq, evaluation, radius);
     // Each element's part is searched on its own: in parallel, in the bill's order.
     let springs: Vec<&BomRow> = bom.iter().filter(|r| !matches!(r.element.profile, Profile::Spline(_))).collect();
+    // The bill's largest peak torque, what `[fit] used_threshold` is a share of.
+    let largest = bom.iter().map(|r| r.max_torque_nm).fold(0.0, f64::max);
     let mut elements: Vec<ElementPart> = springs
         .par_iter()
         .map(|r| {
@@ -279,6 +281,10 @@ pub fn choose(
             let k = r.stiffness;
             // The fitted elements' mechanisms, as functions of the stiffness (for the bound below).
             let design_at = |k: f64| mechanism::spring_element(r.element.profile, k, &duty, &req);
+            let bound = |l: Limit| Limit {
+                torque_bound: torque_bound(&r.element, k, &duty, r.max_torque_nm, largest, design_at),
+                ..l
+            };
             // A crank is built round a listed extension spring when one passes every check
             // (`[parts] prefer_stock`): its anchor distance set for the element's rate.
             let listed = (r.element.profile == Profile::Crank && s.prefer_stock)
@@ -298,9 +304,7 @@ pub fn choose(
             }
             let part = match (r.element.profile, r.adjust.trim_range) {
                 (Profile::Linear, Some(range)) => mechanism::trim(range, k, &duty, &req),
-                (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => {
-                    design_at(k).map_err(|l| Limit { torque_bound: torque_bound(&r.element, k, &duty, design_at), ..l })
-                }
+                (Profile::Linear | Profile::Compression(_) | Profile::Crank, _) => design_at(k).map_err(bound),
                 (Profile::Cubic, _) => cubic_cam(k, r.element.offset, &duty, &req),
                 (Profile::Spline(_), _) => unreachable!("filtered above"),
             };
@@ -411,27 +415,47 @@ fn cubic_cam(k: f64, offset: f64, duty: &Duty, req: &Requirements) -> std::resul
     Ok(part)
 }
 
-/// The largest torque on x (N·m) element `e` of stiffness `k` may carry and still get a part:
-/// bisection on a factor of its stiffness (its peak torque over the region scales with it), as
-/// `[fit] max_element_torque` caps it. None when even a thousandth of `k` gets no part.
+/// The peak torque on x (N·m) element `e` of stiffness `k` must stay within to get a part:
+/// bisection on a factor of its stiffness (its peak torque over the region scales with it).
+/// When a thousandth of `k` gets a part the limit grows with the load and the bound is the most
+/// it may carry, as `[fit] max_element_torque` caps it; else, when up to a thousand times `k`
+/// gets one, the limit grows as the load falls (a soft crank's initial tension) and the bound is
+/// the least it must carry, with its share of `largest` (the bill's largest peak torque, N·m:
+/// what `[fit] used_threshold` compares `max_torque` with). None when neither does.
 fn torque_bound(
     e: &Element,
     k: f64,
     duty: &Duty,
+    max_torque: f64,
+    largest: f64,
     design_at: impl Fn(f64) -> std::result::Result<Part, Limit>,
-) -> Option<f64> {
-    let (mut lo, mut hi) = (1e-3, 1.0);
-    design_at(k * lo).ok()?;
-    for _ in 0..14 {
-        let mid = (lo * hi).sqrt();
-        if design_at(k * mid).is_ok() { lo = mid } else { hi = mid }
-    }
+) -> Option<TorqueBound> {
     // The peak |u′| over the region, as the fit's bound computes it.
     let peak = (0..=200)
         .map(|i| duty.range[0] + (duty.range[1] - duty.range[0]) * f64::from(i) / 200.0)
         .map(|d| e.profile.slope(d).abs())
         .fold(0.0, f64::max);
-    Some(k * lo * peak)
+    // The factor between `fail` and `pass` where the part becomes possible, to 2⁻¹⁴ in log.
+    let edge = |mut fail: f64, mut pass: f64| {
+        for _ in 0..14 {
+            let mid = (fail * pass).sqrt();
+            if design_at(k * mid).is_ok() { pass = mid } else { fail = mid }
+        }
+        pass
+    };
+    if design_at(k * 1e-3).is_ok() {
+        return Some(TorqueBound::AtMost(k * edge(1.0, 1e-3) * peak));
+    }
+    // Stronger elements, a factor of 2 at a time: the first that gets a part brackets the edge.
+    let mut fail = 1.0;
+    while fail < 1e3 {
+        if design_at(k * fail * 2.0).is_ok() {
+            let f = edge(fail, fail * 2.0);
+            return Some(TorqueBound::AtLeast { torque: k * f * peak, share: f * max_torque / largest.max(1e-300) });
+        }
+        fail *= 2.0;
+    }
+    None
 }
 
 /// The lightest crank of stiffness `k` built round a listed extension spring (with its initial
@@ -560,43 +584,80 @@ impl Potential for RealisedSet {
     }
 }
 
-/// The sentence for an element no spring meets: the limit, by how much, the best candidate and,
-/// when the limit scales with the load, the `[fit] max_element_torque` that keeps a part possible.
+/// What keeps a part possible for element `e` whose limit is `l`, in words: the `[fit]` bound
+/// on its torque (`max_element_torque` when a weaker element gets a part, `used_threshold` when
+/// only a stronger one does), a cam follower's stroke, or the `[parts]` envelope to widen. The
+/// envelope is named only when no torque bound exists: a limit a bound removes is not the
+/// envelope's, and naming it would send the user to the wrong key.
+fn remedy(e: &ElementPart, l: &Limit) -> String {
+    match (l.torque_bound, e.follower) {
+        (Some(TorqueBound::AtMost(t)), _) => format!(
+            "set [fit] max_element_torque = {t:.3} (N·m) to keep a part possible, or widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm, safety_factor)"
+        ),
+        (Some(TorqueBound::AtLeast { torque, share }), _) => format!(
+            "a weaker element makes it worse: a part needs a peak torque of at least {torque:.4} N·m on x; no [fit] key raises an element's torque, but [fit] used_threshold = {share:.3e} drops the elements below it (a qp fit without max_elements keeps them when its equalities need them: set [fit] max_elements too){}",
+            // A wound torsion spring closes on its shaft: a thinner one is the one key of
+            // `[parts]` that relaxes this lower limit.
+            if l.check.name.starts_with("arbor") { ", or a thinner shaft ([parts] shaft_diameter_mm)" } else { "" }
+        ),
+        (None, Some([rate, preload, stroke])) => format!(
+            "the cam's follower has rate {rate:.3} N/mm, preload {preload:.2} mm and stroke {stroke:.2} mm: a longer stroke (the cam family's `max_stroke`) stores the same energy in a softer spring, or widen [parts] for {}",
+            e.id
+        ),
+        (None, None) => format!(
+            "widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm; [[parts.element]] id = \"{}\") for this element",
+            e.id
+        ),
+    }
+}
+
+/// The sentence for an element no spring meets: the limit, by how much, the best candidate and
+/// what keeps a part possible ([`remedy`]).
 pub fn limit_message(e: &ElementPart, l: &Limit) -> String {
     let c = &l.check;
-    let mut m = if c.name == "mechanism" {
-        format!("{} ({}): {}", e.id, e.element.label(), l.best)
-    } else {
-        format!(
-            "{} ({}): no spring meets `{}`: the best candidate ({}) reaches {:.4} {} against {:.4} {} ({:.2}× the limit)",
-            e.id,
-            e.element.label(),
-            c.name,
-            l.best,
-            c.value,
-            c.unit,
-            c.limit,
-            c.unit,
-            c.ratio()
-        )
-    };
-    if let Some(t) = l.torque_bound {
-        m.push_str(&format!(
-            "; set [fit] max_element_torque = {:.3} (N·m) to keep a part possible, or widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm, safety_factor)",
-            t
-        ));
-    } else if let Some([rate, preload, stroke]) = e.follower {
-        m.push_str(&format!(
-            "; the cam's follower has rate {rate:.3} N/mm, preload {preload:.2} mm and stroke {stroke:.2} mm: a longer stroke (the cam family's `max_stroke`) stores the same energy in a softer spring, or widen [parts] for {}",
-            e.id
-        ));
-    } else if c.name != "mechanism" {
-        m.push_str(&format!(
-            "; widen [parts] (max_outer_diameter_mm, max_length_mm, max_lever_mm; [[parts.element]] id = \"{}\") for this element",
-            e.id
-        ));
+    if c.name == "mechanism" {
+        return format!("{} ({}): {}", e.id, e.element.label(), l.best);
     }
-    m
+    format!(
+        "{} ({}): no spring meets `{}`: the best candidate ({}) reaches {:.4} {} against {:.4} {} ({:.2}× the limit); {}",
+        e.id,
+        e.element.label(),
+        c.name,
+        l.best,
+        c.value,
+        c.unit,
+        c.limit,
+        c.unit,
+        c.ratio(),
+        remedy(e, l)
+    )
+}
+
+impl Parts {
+    /// The verdict on the realised design (`[fit] accept_p99_deg` = `accept_p99_deg`): its p99
+    /// residual angle with each mechanism in place of its ideal element, the ideal figure beside
+    /// it, and every element without a part named with its limit and remedy. A design with an
+    /// element no part meets is poor whatever its residual: it cannot be built as fitted.
+    pub fn verdict(&self, accept_p99_deg: f64) -> crate::fit::outcome::Verdict {
+        let without_part = self
+            .missing()
+            .map(|(e, l)| crate::fit::outcome::WithoutPart {
+                id: e.id.clone(),
+                reason: if l.check.name == "mechanism" {
+                    l.best.clone()
+                } else {
+                    format!("`{}` {:.2}× the limit; {}", l.check.name, l.check.ratio(), remedy(e, l))
+                },
+            })
+            .collect();
+        crate::fit::outcome::Verdict {
+            judged: crate::fit::outcome::Judged::Realised,
+            p99_deg: self.realised.p99_abs,
+            ideal_p99_deg: self.ideal.p99_abs,
+            accept_p99_deg,
+            without_part,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -605,13 +666,9 @@ mod tests {
     use crate::realise::cam::realise_profile;
     use crate::realise::material::by_key;
 
-    /// A hardening element built as a disc cam: the follower spring stores exactly the cubic's
-    /// potential over the region's deflections (the cam's pitch curve is solved for it), the
-    /// part's rate from the spring's geometry is the fitted k within its grade, and the
-    /// mechanism's potential is k d⁴/4 scaled by that rate.
-    #[test]
-    fn a_cubic_element_is_a_cam_that_stores_its_potential() {
-        let req = Requirements {
+    /// DM wire at grade 2 for 10⁶ cycles, as wound, in a wide envelope with ideal eyelets.
+    fn requirements() -> Requirements {
+        Requirements {
             material: by_key("EN10270-1-DM").unwrap(),
             grade: 2,
             cycles: 1e6,
@@ -624,7 +681,56 @@ mod tests {
             pulley_radius: 0.0,
             stop: mechanism::StopMechanism::Lightest,
             trim: mechanism::TrimMechanism::Lightest,
+        }
+    }
+
+    /// A crank too soft for any extension spring's initial tension (F₀ above k_s times the
+    /// shortest cable path) gets a bound from below: the least peak torque with which a part
+    /// passes, bracketed to the bisection's precision, and its share of the bill's largest; the
+    /// message names the initial tension and `[fit] used_threshold`, not the envelope.
+    #[test]
+    fn a_crank_too_soft_for_its_initial_tension_is_bounded_from_below() {
+        let req = requirements();
+        let duty = Duty { at_eq: 0.0, range: [-0.6, 0.6], swing: [-0.4, 0.4] };
+        let e = Element { profile: Profile::Crank, coupling: vec![1.0, 0.0], offset: 0.0 };
+        let design_at = |k: f64| mechanism::spring_element(Profile::Crank, k, &duty, &req);
+        // 1 N·mm: the thinnest wire's initial tension is 1.27× what the cable path allows.
+        let k = 1e-3;
+        let limit = design_at(k).expect_err("a 1 N·mm crank is too soft for any spring");
+        assert!(limit.check.name.starts_with("initial tension"), "{}", limit.check.name);
+        let (peak, largest) = (k * 0.6f64.sin(), 2.0);
+        let Some(TorqueBound::AtLeast { torque, share }) = torque_bound(&e, k, &duty, peak, largest, design_at) else {
+            panic!("a bound from below")
         };
+        // The element at the bound gets a part, a little below it none does.
+        let factor = torque / peak;
+        assert!(factor > 1.0 && design_at(k * factor).is_ok() && design_at(k * factor * 0.99).is_err(), "{factor}");
+        assert!((share - torque / largest).abs() < 1e-3 * share, "{share} vs {}", torque / largest);
+        let ep = ElementPart {
+            id: "S01".into(),
+            family: "crank".into(),
+            element: e,
+            stiffness: k,
+            duty,
+            part: Err(Limit { torque_bound: Some(TorqueBound::AtLeast { torque, share }), ..limit }),
+            stock: None,
+            follower: None,
+        };
+        let Err(l) = &ep.part else { unreachable!() };
+        let m = limit_message(&ep, l);
+        assert!(
+            m.contains("initial tension") && m.contains("used_threshold") && !m.contains("max_outer_diameter_mm"),
+            "{m}"
+        );
+    }
+
+    /// A hardening element built as a disc cam: the follower spring stores exactly the cubic's
+    /// potential over the region's deflections (the cam's pitch curve is solved for it), the
+    /// part's rate from the spring's geometry is the fitted k within its grade, and the
+    /// mechanism's potential is k d⁴/4 scaled by that rate.
+    #[test]
+    fn a_cubic_element_is_a_cam_that_stores_its_potential() {
+        let req = requirements();
         let (k, x0) = (2.5, 0.3);
         let duty = Duty { at_eq: 0.0, range: [-1.2, 0.9], swing: [-0.8, 0.8] };
         let part = cubic_cam(k, x0, &duty, &req).expect("a 2.5 N·m/rad³ cubic gets a cam and springs");

@@ -151,10 +151,28 @@ pub struct Limit {
     pub check: Check,
     /// The best candidate in words (`d = 8 mm, D = 64 mm, n = 7.7`).
     pub best: String,
-    /// The largest torque on x (N·m) the element could carry with a part that passes (the
-    /// parts stage finds it by bisection on the element's stiffness); None when no stiffness
-    /// gets a part (a geometric limit) or the element is no fit candidate (trims, cams).
-    pub torque_bound: Option<f64>,
+    /// The torque on x the element must stay within to get a part that passes (the parts
+    /// stage finds it by bisection on the element's stiffness); None when no stiffness gets a
+    /// part (a geometric limit) or the element is no fit candidate (trims, cams).
+    pub torque_bound: Option<TorqueBound>,
+}
+
+/// The peak torque on x (N·m) that keeps a part possible for an element that has none.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TorqueBound {
+    /// At most this: the limit grows with the load (stress, fatigue, envelope), so a weaker
+    /// element gets a part (`[fit] max_element_torque` caps it).
+    AtMost(f64),
+    /// At least this: the limit grows as the load falls (an extension spring's initial tension
+    /// against a soft crank), so only a stronger element, or none, gets a part. `share` is that
+    /// torque over the bill's largest peak torque (`[fit] used_threshold` drops the elements
+    /// below it).
+    AtLeast {
+        /// The least peak torque, N·m.
+        torque: f64,
+        /// Its share of the bill's largest element peak torque.
+        share: f64,
+    },
 }
 
 /// The spring of a part.

@@ -32,9 +32,78 @@ fn text(b: &mut String, x: f64, y: f64, s: &str) {
         writeln!(b, "<text x=\"{x:.1}\" y=\"{y:.1}\" font-size=\"11\" font-family=\"sans-serif\">{}</text>", esc(s));
 }
 
-/// The sketch of `part` titled `title` (empty when the part's spring is not its mechanism's).
-pub fn svg(part: &Part, title: &str) -> String {
-    let (w, h) = SKETCH_SIZE;
+/// The units of a part's working points: (position, load).
+pub fn units(p: &Part) -> (&'static str, &'static str) {
+    match p.spring {
+        Spring::Torsion(_) => ("deg", "N*mm"),
+        Spring::Leaf { .. } => ("mm tip deflection", "N"),
+        _ => ("mm length", "N"),
+    }
+}
+
+/// The spring's free length (compression, extension with its loops; a leaf's at mid-range) and
+/// leg length (torsion), mm.
+pub fn lengths(s: &Spring) -> (Option<f64>, Option<f64>) {
+    match s {
+        Spring::Torsion(t) => (None, Some(t.leg)),
+        Spring::Extension(h, _) => (Some(h.extension_free_length()), None),
+        Spring::Compression(_, l0) => (Some(*l0), None),
+        Spring::Leaf { lengths, .. } => (Some(lengths[2]), None),
+    }
+}
+
+/// What a spring maker reads off a drawing, in the order of a DIN 2099 data sheet (part 1
+/// compression, part 2 extension; torsion and leaf springs alike): the wire and its coil
+/// diameters, the free length or the legs, the coils, the rate with its EN 15800 grade, every
+/// working point, then material and surface. `grade` is `[parts] grade` and `surface` the
+/// surface's name (as wound, shot peened): neither is the part's own, the design sets them.
+/// `order` says how it is bought (a stock part's vendor and number, or wound to the sheet).
+pub fn data_block(part: &Part, grade: u8, surface: &str, order: &str) -> Vec<String> {
+    let s = &part.spring;
+    let mut rows = vec![format!("{} × {} spring, {order}", part.quantity, s.kind())];
+    match *s {
+        Spring::Leaf { t, b, lengths, .. } => {
+            rows.push(format!("strip t × b = {t} × {b} mm"));
+            rows.push(format!("free length {:.1} – {:.1} mm (mid-range {:.1} mm)", lengths[0], lengths[1], lengths[2]));
+        }
+        _ => {
+            let (d, dm) = (s.d(), s.dm());
+            rows.push(format!("d = {d} mm, D = {dm:.2} mm, De = {:.2} mm, Di = {:.2} mm", dm + d, dm - d));
+            let coils = s.coils().unwrap_or(0.0);
+            rows.push(match lengths(s) {
+                (Some(l0), _) => format!("L0 = {l0:.1} mm, n = {coils:.2} active coils"),
+                (None, Some(leg)) => format!("legs 2 × {leg:.1} mm from the coil axis, n = {coils:.2} body coils"),
+                (None, None) => format!("n = {coils:.2} active coils"),
+            });
+        }
+    }
+    if let Spring::Extension(_, f0) = s {
+        rows.push(format!("initial tension F0 = {f0:.2} N, full loop at each end"));
+    }
+    let (rate, unit) = s.maker_rate();
+    rows.push(format!(
+        "rate {rate:.4} {}, ±{:.1} % (EN 15800 grade {grade})",
+        unit.replace('*', "·").replace("deg", "°"),
+        100.0 * part.tolerance
+    ));
+    let (pu, lu) = units(part);
+    let (pu, lu) = (pu.replace("deg", "°").replace(" length", ""), lu.replace('*', "·"));
+    for w in &part.points {
+        rows.push(format!("{}: {:.2} {pu} at {:.2} {lu}", w.at, w.position, w.load));
+    }
+    rows.push(format!("material {}, surface {surface}", s.material()));
+    rows
+}
+
+/// Height of one line of the data block, px.
+const LINE: f64 = 15.0;
+
+/// The sketch of `part` titled `title` (empty when the part's spring is not its mechanism's),
+/// with its data block ([`data_block`]: `grade`, `surface`, `order`) under the drawing.
+pub fn svg(part: &Part, title: &str, grade: u8, surface: &str, order: &str) -> String {
+    let block = data_block(part, grade, surface, order);
+    let (w, drawing) = SKETCH_SIZE;
+    let h = drawing + 10.0 + LINE * block.len() as f64;
     let s = &part.spring;
     let body = match (part.mechanism, *s) {
         (Mechanism::Crank { r, big_r, pulley, .. }, _) => crank(r, big_r, pulley),
@@ -50,6 +119,12 @@ pub fn svg(part: &Part, title: &str) -> String {
         }
         _ => return String::new(),
     };
+    let mut body = body;
+    let _ =
+        writeln!(body, "<line x1=\"10\" y1=\"{drawing}\" x2=\"{:.1}\" y2=\"{drawing}\" stroke=\"#888\"/>", w - 10.0);
+    for (i, row) in block.iter().enumerate() {
+        text(&mut body, 14.0, drawing + LINE * (i as f64 + 1.0), row);
+    }
     format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\">\n<title>{}</title>\n\
          <rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n<text x=\"10\" y=\"18\" font-size=\"13\" font-family=\"sans-serif\" font-weight=\"bold\">{}</text>\n{body}</svg>\n",

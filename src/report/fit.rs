@@ -62,8 +62,18 @@ pub struct Summary {
     /// The directions and samples the fit used (counts of 0 in the design resolved from the
     /// number of joints).
     pub sampling: Sampling,
-    /// `acceptable` (p99 residual ≤ `accept_p99_deg`) or `poor`.
+    /// `acceptable` or `poor`: when parts were chosen, of the realised design (its p99 residual
+    /// ≤ `accept_p99_deg` and a part for every element), else of the ideal elements (p99 ≤
+    /// `accept_p99_deg`).
     pub verdict: String,
+    /// The design the verdict judges: `realised` when parts were chosen, else `ideal`.
+    pub verdict_judges: crate::fit::outcome::Judged,
+    /// The verdict's reason in words, as `springfit fit` prints it: the judged p99 against the
+    /// threshold, the ideal one beside it, the elements without a part with their limits.
+    pub verdict_reason: String,
+    /// The verdict on the ideal elements alone (`residual_deg.p99_abs` against the threshold),
+    /// kept beside the realised design's.
+    pub ideal_verdict: String,
     /// The verdict's threshold, degrees (`fit.accept_p99_deg`).
     pub accept_p99_deg: f64,
     /// Fingerprint of the fitted spring set (`fit::bill::fingerprint`; null for the exact reference).
@@ -123,12 +133,23 @@ impl Summary {
         let floor = crate::fit::mass::Floor::on(design, o.settings.frequency, &o.evaluation);
         summary.realised = parts.map(|p| super::parts::RealisedSummary::new(p, &floor));
         summary.mass = super::mass::MassSummary::new(design, o, parts);
+        if let Some(p) = parts {
+            summary.set_verdict(&p.verdict(o.settings.accept_p99_deg));
+        }
         summary
+    }
+
+    /// Writes `verdict` into the summary's verdict keys.
+    fn set_verdict(&mut self, verdict: &crate::fit::outcome::Verdict) {
+        self.verdict = verdict.word().to_string();
+        self.verdict_judges = verdict.judged;
+        self.verdict_reason = verdict.reason();
     }
 
     /// The summary of a fit of `design`.
     pub fn new(o: &FitOutcome, design: &Design) -> Summary {
         let design_file = &design.path;
+        let ideal = crate::fit::outcome::Verdict::ideal(o.metrics.stats.p99_abs, o.settings.accept_p99_deg);
         Summary {
             design: o.design.clone(),
             design_file: std::fs::canonicalize(design_file)
@@ -166,7 +187,10 @@ impl Summary {
                 evaluation_samples: o.settings.evaluation_samples,
                 check_directions: design.geodesics.check_count(o.dof),
             },
-            verdict: crate::fit::hints::verdict(o.metrics.stats.p99_abs, o.settings.accept_p99_deg).to_string(),
+            verdict: ideal.word().to_string(),
+            verdict_judges: ideal.judged,
+            verdict_reason: ideal.reason(),
+            ideal_verdict: ideal.word().to_string(),
             accept_p99_deg: o.settings.accept_p99_deg,
             spring_set: (o.solve.solver != Solver::Exact).then(|| crate::fit::bill::fingerprint(&o.springs)),
             as_built: None,
@@ -428,16 +452,21 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     }
     let st = &s.residual_deg;
     r.push_str(&format!(
-        "| **all** | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n\n**Verdict: {}** (p99 {:.4}° {} `fit.accept_p99_deg` = {}°).\n\n![histogram](histogram.svg)\n\n",
+        "| **all** | {} | {:.4}° | {:.4}° | {:.4}° | {:.4}° |\n\n**Verdict: {}** ({}){}.\n\n![histogram](histogram.svg)\n\n",
         st.count,
         st.median_abs,
         st.p95_abs,
         st.p99_abs,
         st.max_abs,
         s.verdict,
-        st.p99_abs,
-        if s.verdict == "acceptable" { "≤" } else { ">" },
-        s.accept_p99_deg
+        s.verdict_reason,
+        match s.verdict_judges {
+            crate::fit::outcome::Judged::Realised => format!(
+                ": judged on the realised design (see Parts below); the ideal elements alone are {}",
+                s.ideal_verdict
+            ),
+            crate::fit::outcome::Judged::Ideal => String::new(),
+        }
     ));
     r.push_str(&as_built_md(s.as_built.as_ref(), exact));
     if potential_plot {

@@ -62,7 +62,12 @@ pub fn write(out: &OutputDir, design: &Design, parts: &Parts) -> Result<()> {
     for e in &parts.elements {
         if let Ok(p) = &e.part {
             let title = format!("{} {}: {}", design.name, e.id, crate::parts::on_axis(&e.element.coupling));
-            out.write(&format!("sketch_{}.svg", e.id), crate::realise::sketch::svg(p, &title))?;
+            let order = match &e.stock {
+                Some(row) => format!("stock part {} {}", row.vendor, row.part_number),
+                None => "wound to this sheet".to_string(),
+            };
+            let sketch = crate::realise::sketch::svg(p, &title, s.grade, crate::parts::surface(s).name(), &order);
+            out.write(&format!("sketch_{}.svg", e.id), sketch)?;
             // A cubic element's disc cam is drawn as the fitted cams are (their drawings are
             // written with the bill), so the maker has its pitch curve too.
             if let crate::realise::mechanism::Mechanism::CubicCam { .. } = p.mechanism {
