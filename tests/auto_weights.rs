@@ -55,6 +55,11 @@ fn the_automatic_choice_is_reported_and_the_same_on_one_and_two_threads() {
     assert!(one.stdout().contains("weights chosen by springfit (3 candidates"), "{}", one.report());
     let report = std::fs::read_to_string(dir.join("one/report.md")).unwrap();
     assert!(report.contains("## Weights chosen by springfit"), "{report}");
+    // `simulate` fits the design itself: the same choice, so the springs `fit` wrote.
+    springfit(&dir, &["simulate", d, "--scenario", "free", "--out", "sim"]).ok();
+    let sim: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sim/sim_free.json")).unwrap()).unwrap();
+    assert_eq!(sim["spring_set"], a["spring_set"], "simulate fitted other springs than fit");
 }
 
 #[test]

@@ -126,6 +126,26 @@ impl<'a> FitJob<'a> {
     }
 }
 
+/// The springs of `design` as `springfit fit` fits them, for the commands that fit a design
+/// themselves (`simulate`, `sweep`, `compare`, `export`; `parts` without a bill does not, as
+/// `jobs/parts.rs` is what this file takes its warnings from): with weights
+/// set to `"auto"` the same choice over candidates (its parts and builds included, so it costs
+/// what `fit` costs), otherwise one fit with `settings`. Without this, those commands would fit
+/// the default numbers in place of `"auto"` and simulate other springs than `fit` wrote.
+pub fn springs_of(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    progress: Progress<'_>,
+) -> Result<FitOutcome> {
+    if Search::wanted(settings) {
+        let stock = crate::files::stock::of_design(design)?;
+        choose_weights(design, catalog, settings, &stock, progress).map(|(outcome, _, _)| outcome)
+    } else {
+        crate::fit::run::fit(design, catalog, settings, progress)
+    }
+}
+
 /// The fit with the weights the design leaves to springfit chosen ([`crate::fit::auto`]): every
 /// candidate the search proposes is solved on one preparation (the fans, candidates, rows and
 /// mass model are shared: only the solve is repeated), its parts are chosen and its builds
