@@ -41,6 +41,32 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     for (i, cam) in run.outcome.cams.iter().enumerate() {
         say_cam(cam, about(&run.warnings, &Topic::Cam(i)), progress);
     }
+    if let Some(choice) = &run.outcome.auto {
+        progress.say(format!(
+            "weights chosen by springfit ({} candidates, budget {}; the lightest within 15 % + 0.05° of the best of each figure):",
+            choice.tried.len(),
+            choice.budget
+        ));
+        progress.say(
+            "  stage      tolerance trimmed  mass     restarts  p99      built p95  trimmed p95  springs    elements",
+        );
+        for row in springfit::report::fit::auto_rows(choice) {
+            progress.say(format!(
+                "{} {:<10} {:<9} {:<8} {:<8} {:<9} {:<8} {:<10} {:<12} {:<10} {}",
+                if row[0].is_empty() { " " } else { "*" },
+                row[1],
+                row[2],
+                row[3],
+                row[4],
+                row[5],
+                row[6],
+                row[7],
+                row[8],
+                row[9],
+                row[10]
+            ));
+        }
+    }
     match (&run.as_built, args.exact) {
         (Some(ab), _) => say_as_built(ab, run.as_built_seconds, progress),
         (None, false) => progress.say(

@@ -75,7 +75,8 @@ pub struct FitSettings {
     /// Random restarts of the sparse selection's local search: steps of iterated local search in
     /// 8 chains, each replacing 1 to ⌈K/2⌉ elements of its chain's best support at random (seeded
     /// by `seed`). 0 with `pair_swaps = false` is the single exchange search of springfit before
-    /// restarts.
+    /// restarts. `"auto"`: chosen by the fit job.
+    #[serde(deserialize_with = "restarts_or_auto")]
     pub restarts: usize,
     /// Try 2-for-2 swaps in the sparse selection when no single exchange improves.
     pub pair_swaps: bool,
@@ -101,11 +102,14 @@ pub struct FitSettings {
     pub accept_p99_deg: f64,
     /// With a tolerance: weight λ of the expected spread of the builds, ‖A k − b‖² + λ Σ Dᵢᵢ kᵢ²
     /// (1: the expected residual over builds; less trades as-built accuracy for nominal
-    /// accuracy).
+    /// accuracy). `"auto"`: chosen by the fit job ([`AutoWeights`]).
+    #[serde(deserialize_with = "tolerance_weight_or_auto")]
     pub tolerance_weight: f64,
     /// With a tolerance and trim springs in the catalogue: weight of the expected spread of the
     /// *trimmed* builds (each build's trims re-relaxed at its equilibrium and re-set by
-    /// `trim_rule`), added to `tolerance_weight`'s untrimmed term. 0: off.
+    /// `trim_rule`), added to `tolerance_weight`'s untrimmed term. 0: off. `"auto"`: chosen by
+    /// the fit job.
+    #[serde(deserialize_with = "trimmed_weight_or_auto")]
     pub trimmed_weight: f64,
     /// What each build's trims are set for (the as-built figures, `sweep` and `tune`):
     /// `"residual"` (default: the least-squares residual of a training fan from the build's
@@ -125,12 +129,94 @@ pub struct FitSettings {
     pub max_element_torque: f64,
     /// Weight of the springs' mass in the objective (0: none): a bill of the floor's mass (the
     /// least steel that stores U* = ½ω²r², docs/parts.md) costs this many times the residual of
-    /// no springs, so one weight means the same on every arm (`fit::mass`).
+    /// no springs, so one weight means the same on every arm (`fit::mass`). `"auto"`: chosen by the
+    /// fit job.
+    #[serde(deserialize_with = "mass_weight_or_auto")]
     pub mass_weight: f64,
     /// Upper bound on the springs' mass cᵀk in kg by the part chooser's mass per unit stiffness
     /// (0: none). Exact with `qp`; with `nnls` met by raising the mass weight. Below the floor it
     /// is refused before any work.
     pub max_spring_mass: f64,
+    /// Most candidate fits the automatic choice of the weights may run (each a solve on the
+    /// one preparation, its parts and its as-built builds): a count, not seconds, so the choice
+    /// is the same on any machine and thread count. Default 8.
+    pub auto_budget: usize,
+    /// Which of the weights the design left to the fit job (`"auto"`): set from the
+    /// file by [`crate::design::Design::parse`]; none in [`FitSettings::default`], so a fit
+    /// called from code runs with exactly the numbers it is given.
+    #[serde(skip)]
+    pub auto: AutoWeights,
+}
+
+/// The `[fit]` weights a design may leave to springfit: the keys it sets to `"auto"`.
+/// The fit job ([`crate::jobs::fit`]) then chooses them by measured figures
+/// ([`crate::fit::auto`]); every other caller uses the numbers in [`FitSettings`] (the
+/// defaults, or the choice a fit job made).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AutoWeights {
+    /// `tolerance_weight` is chosen.
+    pub tolerance_weight: bool,
+    /// `trimmed_weight` is chosen.
+    pub trimmed_weight: bool,
+    /// `mass_weight` is chosen.
+    pub mass_weight: bool,
+    /// `restarts` is chosen.
+    pub restarts: bool,
+}
+
+impl AutoWeights {
+    /// The keys the `[fit]` table of a design file (None: no `[fit]` table) sets to `"auto"`. A
+    /// key left out keeps its default number ([`FitSettings::default`]), so the designs written
+    /// before the choice existed fit as they did.
+    pub fn of_table(fit: Option<&toml::Table>) -> AutoWeights {
+        let auto = |key: &str| fit.and_then(|t| t.get(key)).is_some_and(|v| v.as_str() == Some("auto"));
+        AutoWeights {
+            tolerance_weight: auto("tolerance_weight"),
+            trimmed_weight: auto("trimmed_weight"),
+            mass_weight: auto("mass_weight"),
+            restarts: auto("restarts"),
+        }
+    }
+
+    /// Whether any weight is left to springfit.
+    pub fn any(self) -> bool {
+        self.tolerance_weight || self.trimmed_weight || self.mass_weight || self.restarts
+    }
+}
+
+/// A number, or the word `"auto"` (the default's value stands in until the fit job chooses).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum NumberOrAuto<T> {
+    Number(T),
+    Word(String),
+}
+
+fn number_or_auto<'de, D: serde::Deserializer<'de>, T: serde::Deserialize<'de>>(
+    d: D,
+    default: T,
+) -> Result<T, D::Error> {
+    match NumberOrAuto::<T>::deserialize(d)? {
+        NumberOrAuto::Number(x) => Ok(x),
+        NumberOrAuto::Word(w) if w == "auto" => Ok(default),
+        NumberOrAuto::Word(w) => Err(serde::de::Error::custom(format!("\"{w}\": expected a number or \"auto\""))),
+    }
+}
+
+fn tolerance_weight_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    number_or_auto(d, FitSettings::default().tolerance_weight)
+}
+
+fn trimmed_weight_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    number_or_auto(d, FitSettings::default().trimmed_weight)
+}
+
+fn mass_weight_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    number_or_auto(d, FitSettings::default().mass_weight)
+}
+
+fn restarts_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<usize, D::Error> {
+    number_or_auto(d, FitSettings::default().restarts)
 }
 
 impl Default for FitSettings {
@@ -165,6 +251,8 @@ impl Default for FitSettings {
             max_element_torque: 0.0,
             mass_weight: 0.0,
             max_spring_mass: 0.0,
+            auto_budget: 8,
+            auto: AutoWeights::default(),
         }
     }
 }
@@ -269,6 +357,9 @@ impl FitSettings {
         }
         if !(self.max_spring_mass.is_finite() && self.max_spring_mass >= 0.0) {
             return err("max_spring_mass", "must be ≥ 0 kg (0: no bound)");
+        }
+        if !(1..=64).contains(&self.auto_budget) {
+            return err("auto_budget", "must be 1 to 64 candidate fits");
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");

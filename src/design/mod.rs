@@ -143,7 +143,11 @@ impl Design {
     /// problem in `text` is an [`Error`].
     pub fn parse(path: &Path, text: &str) -> Result<Design> {
         let mut file: DesignFile = parse_toml(path, text)?;
-        file.sweep_given = toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("sweep"));
+        let table = toml::from_str::<toml::Table>(text).ok();
+        file.sweep_given = table.as_ref().is_some_and(|t| t.contains_key("sweep"));
+        file.fit.auto = crate::design::fit::AutoWeights::of_table(
+            table.as_ref().and_then(|t| t.get("fit")).and_then(|f| f.as_table()),
+        );
         let mut design = Design::from_file(path, file)?;
         design.fingerprint = crate::input::fingerprint(text.as_bytes());
         Ok(design)

@@ -4,6 +4,7 @@
 //! around it (the parts, a refit at their tolerances, the as-built builds, the files) is the fit
 //! job, [`crate::jobs::fit`].
 
+pub mod auto;
 pub mod bill;
 pub mod evaluate;
 pub mod hints;

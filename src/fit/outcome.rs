@@ -167,6 +167,9 @@ pub struct FitOutcome {
     pub training: Fan,
     /// The held-out evaluation fan.
     pub evaluation: Fan,
+    /// The weights springfit chose, with every candidate tried (None: the design's weights were
+    /// fitted as they are; set by the fit job, [`crate::jobs::fit`]).
+    pub auto: Option<super::auto::Choice>,
 }
 
 impl FitOutcome {

@@ -15,11 +15,11 @@ use crate::studies::compare::{
     BudgetPoint, FitRecord, RadiusPoint, budget_curve, disambiguate, radius_curve, record_of,
 };
 
-/// The record of a design fitted for a comparison (with the catalogue's fit as `fit::run::fit`
+/// The record of a design fitted for a comparison (with the catalogue's fit as `springfit fit`
 /// makes it, and its as-built brief); an infeasible fit's error names the key to change.
 pub fn fitted(design: &Design, catalog: &Catalog, path: &Path, progress: Progress<'_>) -> Result<FitRecord> {
     progress.stage(&format!("fitting {}", path.display()));
-    let outcome = crate::fit::run::fit(design, catalog, &design.fit, Progress::none())
+    let outcome = super::fit::springs_of(design, catalog, &design.fit, Progress::none())
         .map_err(|e| crate::fit::hints::explain(design, &design.fit, catalog, design.fit.max_elements, e))?;
     let as_built = crate::asbuilt::of_fit(design, &outcome)?;
     let stock = crate::files::stock::of_design(design)?;

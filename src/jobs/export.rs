@@ -47,7 +47,7 @@ pub fn export(design: &Design, springs: ExportSprings<'_>, progress: Progress<'_
         ExportSprings::Fitted(o) => ExportRun { rows: o.bom.clone(), from: fitted_from(o), fit: None },
         ExportSprings::Fit(catalog) => {
             progress.stage("fitting the springs");
-            let o = crate::fit::run::fit(design, catalog, &design.fit, Progress::none())?;
+            let o = super::fit::springs_of(design, catalog, &design.fit, Progress::none())?;
             ExportRun { rows: o.bom.clone(), from: fitted_from(&o), fit: Some(o) }
         }
     })

@@ -16,6 +16,8 @@ use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
 use crate::fit::FitOutcome;
+use crate::fit::Prepared;
+use crate::fit::auto::{Figures, Search};
 use crate::fit::hints;
 use crate::parts::Parts;
 use crate::progress::Progress;
@@ -96,16 +98,23 @@ impl<'a> FitJob<'a> {
                 Some((catalog, stock))
             }
         };
-        let (outcome, parts) = match &catalog {
-            None => (crate::fit::run::exact_reference(design, settings, progress)?, None),
+        let (outcome, parts, chosen) = match &catalog {
+            None => (crate::fit::run::exact_reference(design, settings, progress)?, None, None),
+            Some((catalog, stock)) if Search::wanted(settings) => {
+                choose_weights(design, catalog, settings, stock, progress)
+                    .map(|(o, p, ab)| (o, Some(p), Some(ab)))
+                    .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?
+            }
             Some((catalog, stock)) => crate::parts::fit_with_parts(design, catalog, settings, stock, progress)
-                .map(|(o, p)| (o, Some(p)))
+                .map(|(o, p)| (o, Some(p), None))
                 .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?,
         };
         let t = Instant::now();
-        let as_built = match catalog {
-            None => None,
-            Some(_) => {
+        let as_built = match (&catalog, chosen) {
+            (None, _) => None,
+            // The chosen candidate's builds were drawn while choosing.
+            (Some(_), Some(as_built)) => as_built,
+            (Some(_), None) => {
                 progress.stage("as-built Monte Carlo builds");
                 crate::asbuilt::of_fit(design, &outcome)?
             }
@@ -114,6 +123,91 @@ impl<'a> FitJob<'a> {
         let warnings =
             catalog.map(|(c, _)| warnings(design, settings, c, &outcome, parts.as_ref())).unwrap_or_default();
         Ok(FitRun { outcome, parts, as_built, as_built_seconds, exact: self.exact, warnings })
+    }
+}
+
+/// The springs of `design` as `springfit fit` fits them, for the commands that fit a design
+/// themselves (`simulate`, `sweep`, `compare`, `export`; `parts` without a bill does not, as
+/// `jobs/parts.rs` is what this file takes its warnings from): with weights
+/// set to `"auto"` the same choice over candidates (its parts and builds included, so it costs
+/// what `fit` costs), otherwise one fit with `settings`. Without this, those commands would fit
+/// the default numbers in place of `"auto"` and simulate other springs than `fit` wrote.
+pub fn springs_of(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    progress: Progress<'_>,
+) -> Result<FitOutcome> {
+    if Search::wanted(settings) {
+        let stock = crate::files::stock::of_design(design)?;
+        choose_weights(design, catalog, settings, &stock, progress).map(|(outcome, _, _)| outcome)
+    } else {
+        crate::fit::run::fit(design, catalog, settings, progress)
+    }
+}
+
+/// The fit with the weights the design leaves to springfit chosen ([`crate::fit::auto`]): every
+/// candidate the search proposes is solved on one preparation (the fans, candidates, rows and
+/// mass model are shared: only the solve is repeated), its parts are chosen and its builds
+/// drawn, and the chosen candidate's outcome, parts and builds are returned, with the choice in
+/// [`FitOutcome::auto`]. A candidate infeasible at its weights is recorded as such; only when
+/// every one is does the first such error stand.
+fn choose_weights(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    stock: &[crate::parts::StockPart],
+    progress: Progress<'_>,
+) -> Result<(FitOutcome, Parts, Option<AsBuilt>)> {
+    let t0 = Instant::now();
+    let prepared = Prepared::new(design, catalog, settings, progress)?;
+    let trims = catalog.families.iter().any(|f| f.trim_range.is_some());
+    let mut search = Search::new(settings, trims);
+    let mut measured = Vec::new();
+    let mut first_error = None;
+    while let Some((stage, weights)) = search.propose() {
+        progress.stage(&format!(
+            "choosing the weights: candidate {} (at most {})",
+            measured.len() + 1,
+            settings.auto_budget
+        ));
+        let here = weights.apply(settings);
+        let fitted = match prepared.solve(&here, progress) {
+            Ok(outcome) => {
+                let parts = crate::parts::of_fit(design, &outcome, here.frequency, stock)?;
+                let as_built = crate::asbuilt::of_fit(design, &outcome)?;
+                Some((outcome, parts, as_built))
+            }
+            Err(e @ Error::Infeasible { .. }) => {
+                first_error.get_or_insert(e);
+                None
+            }
+            Err(e) => return Err(e),
+        };
+        search.record(stage, weights, fitted.as_ref().map(|(o, p, ab)| figures(o, p, ab.as_ref())));
+        measured.push(fitted);
+    }
+    let Some(choice) = search.finish() else {
+        return Err(first_error.unwrap_or_else(|| Error::numerical("fit", "no candidate weights were tried")));
+    };
+    let Some((mut outcome, parts, as_built)) = measured.swap_remove(choice.chosen) else {
+        return Err(Error::numerical("fit", "the chosen candidate has no fit"));
+    };
+    outcome.timings.total = t0.elapsed().as_secs_f64();
+    outcome.auto = Some(choice);
+    Ok((outcome, parts, as_built))
+}
+
+/// What the rule of [`crate::fit::auto`] judges a candidate by.
+fn figures(outcome: &FitOutcome, parts: &Parts, as_built: Option<&AsBuilt>) -> Figures {
+    Figures {
+        p99_deg: outcome.metrics.stats.p99_abs,
+        built_p95_deg: as_built.map(|ab| ab.p99_deg.p95),
+        // The trims' figure, or with cams and no trims the followers' preloads re-set.
+        trimmed_p95_deg: as_built
+            .and_then(|ab| ab.trimmed.map(|t| t.p99_deg.p95).or(ab.preload_trimmed.map(|t| t.p99_deg.p95))),
+        spring_mass_kg: parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum(),
+        used: outcome.used(),
     }
 }
 

@@ -101,7 +101,7 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
         Springs::Given { potential, name } => (potential.clone(), name.clone()),
         Springs::Fit(catalog) => {
             progress.stage("fitting the springs");
-            let outcome = crate::fit::run::fit(design, catalog, &design.fit, Progress::none())
+            let outcome = super::fit::springs_of(design, catalog, &design.fit, Progress::none())
                 .map_err(|e| crate::fit::hints::explain(design, &design.fit, catalog, design.fit.max_elements, e))?;
             let springs = ElasticPotential::Springs(outcome.springs.clone());
             fit = Some(outcome);

@@ -129,7 +129,7 @@ impl<'a> SweepJob<'a> {
     pub fn run(self, progress: Progress<'_>) -> Result<SweepRun> {
         let (design, catalog) = (self.design, self.catalog);
         let fit = || {
-            crate::fit::run::fit(design, catalog, &design.fit, Progress::none())
+            super::fit::springs_of(design, catalog, &design.fit, Progress::none())
                 .map_err(|e| crate::fit::hints::explain(design, &design.fit, catalog, design.fit.max_elements, e))
         };
         let sharded = self.shard.is_some() || !self.request.merge.is_empty();

@@ -87,6 +87,11 @@ pub struct Summary {
     /// The springs' mass against the arm and the floor, their stored energy over U* and their
     /// total |preload| at q_eq (null for the exact reference; see [`super::mass`]).
     pub mass: Option<super::mass::MassSummary>,
+    /// The weights springfit chose for the keys the design left out or set to `"auto"`: every
+    /// candidate tried with its figures, and the one chosen (absent when the design's weights
+    /// were fitted as they are).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub auto_weights: Option<crate::fit::auto::Choice>,
 }
 
 /// The region part of the summary.
@@ -196,6 +201,7 @@ impl Summary {
             as_built: None,
             realised: None,
             mass: None,
+            auto_weights: o.auto.clone(),
         }
     }
 }
@@ -403,6 +409,40 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
     r
 }
 
+/// The candidates of an automatic choice of the weights, one row of cells each: the winner
+/// marked, the stage, the four weights, the nominal p99, the as-built p95 untrimmed and trimmed,
+/// the springs' mass and the elements (what `report.md` tabulates and `springfit fit` prints).
+pub fn auto_rows(choice: &crate::fit::auto::Choice) -> Vec<Vec<String>> {
+    let deg = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.3}°"));
+    choice
+        .tried
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let w = &t.weights;
+            let mut row = vec![
+                if i == choice.chosen { "chosen".to_string() } else { String::new() },
+                format!("{:?}", t.stage).to_lowercase(),
+                format!("{}", w.tolerance_weight),
+                format!("{}", w.trimmed_weight),
+                format!("{}", w.mass_weight),
+                format!("{}", w.restarts),
+            ];
+            match &t.figures {
+                Some(f) => row.extend([
+                    deg(Some(f.p99_deg)),
+                    deg(f.built_p95_deg),
+                    deg(f.trimmed_p95_deg),
+                    format!("{:.2} kg", f.spring_mass_kg),
+                    f.used.to_string(),
+                ]),
+                None => row.extend(["infeasible", "", "", "", ""].map(String::from)),
+            }
+            row
+        })
+        .collect()
+}
+
 fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool) -> String {
     let exact = o.solve.solver == Solver::Exact;
     let mut r = format!("# springfit fit: {}\n\n", o.design);
@@ -469,6 +509,17 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
         }
     ));
     r.push_str(&as_built_md(s.as_built.as_ref(), exact));
+    if let Some(choice) = &s.auto_weights {
+        r.push_str(&format!(
+            "## Weights chosen by springfit\n\nThe design leaves these weights to springfit: {} candidates fitted (budget {}), each judged by its measured figures; the lightest whose every accuracy figure is within 15 % + 0.05° of the best any candidate reached wins (docs/theory.md, \"Weights chosen by springfit\").\n\n| | stage | tolerance_weight | trimmed_weight | mass_weight | restarts | p99 | as built p95 | trimmed p95 | springs | elements |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+            choice.tried.len(),
+            choice.budget
+        ));
+        for line in auto_rows(choice) {
+            r.push_str(&format!("| {} |\n", line.join(" | ")));
+        }
+        r.push('\n');
+    }
     if potential_plot {
         r.push_str("## Potential\n\n![potential](potential.svg)\n\n");
     }
