@@ -237,7 +237,7 @@ class Controller:
         label: Optional[str] = None,
         damping: Optional[ArrayLike] = None,
     ) -> None:
-        """With `scenario`, its run `run`'s θ_d / E_d schedules and damping; `label` "table" or
+        """With `scenario`, its run `run`'s θ_d / E_d schedules and damping; `label` "auto", "table" or
         "exact" (default: the design's); `damping` (n,) the D the compensation feeds forward."""
     def torque(self, q: ArrayLike, qdot: ArrayLike, t: float) -> ControlOutput:
         """The motor torques at (q, q̇, t)."""

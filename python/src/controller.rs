@@ -137,10 +137,10 @@ impl PyController {
     /// The controller of `design` believing the springs `springs` (a Fit, a Potential, or the
     /// path of a bom.csv). With `scenario` (a name of the design's `[[scenario]]`), it follows
     /// that scenario's run `run` (its θ_d and E_d schedules and damping, as `simulate` does);
-    /// without one, mode and energy control are off until targets are set. `label` is `"table"`
-    /// (two joints; refused for more) or `"exact"` (default: the design's `[simulate] label`, which
-    /// for three or more joints is the exact log map). `damping` (n,) is the joint
-    /// damping D the compensation feeds forward.
+    /// without one, mode and energy control are off until targets are set. `label` is `"auto"`,
+    /// `"table"` (the grid table for two joints, the fitted log map for more; its error in
+    /// `label_error_deg`) or `"exact"` (Newton shooting per call), as `[simulate] label`, which is
+    /// the default. `damping` (n,) is the joint damping D the compensation feeds forward.
     #[new]
     #[pyo3(signature = (design, springs, scenario = None, run = 0, label = None, damping = None))]
     fn new(
@@ -158,17 +158,12 @@ impl PyController {
         let mut sim = d.simulate;
         sim.label = match label {
             None => sim.label,
-            Some("table") if n != 2 => {
-                return Err(setting(
-                    "label",
-                    format!(
-                        "\"table\" tabulates the label of a two-joint arm; this one has {n} joints: use \"exact\" (or leave label out)"
-                    ),
-                ));
-            }
+            Some("auto") => LabelKind::Auto,
             Some("table") => LabelKind::Table,
             Some("exact") => LabelKind::Exact,
-            Some(other) => return Err(setting("label", format!("must be \"table\" or \"exact\", got \"{other}\""))),
+            Some(other) => {
+                return Err(setting("label", format!("must be \"auto\", \"table\" or \"exact\", got \"{other}\"")));
+            }
         };
         let index = match scenario {
             None => None,

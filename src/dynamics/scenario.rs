@@ -774,6 +774,8 @@ pub fn geodesic_deviation(
 pub enum LabelSource<'a> {
     /// The tabulated log map (two joints).
     Table(crate::geodesic::label::LogTable<'a>),
+    /// The fitted log map (three or more joints).
+    Fit(Box<crate::geodesic::logfit::LogFit<'a>>),
     /// The exact log map.
     Exact(crate::geodesic::label::ExactLog<'a>),
 }
@@ -783,27 +785,49 @@ impl<'a> LabelSource<'a> {
     pub fn field(&self) -> Box<dyn crate::geodesic::label::LogField + 'a> {
         match self {
             LabelSource::Table(t) => Box::new(t.clone()),
+            LabelSource::Fit(f) => Box::new(f.as_ref().clone()),
             LabelSource::Exact(e) => Box::new(e.clone()),
         }
     }
 }
 
 /// The label source for a design and, for a table, its largest error against the exact label on
-/// held-out geodesics (degrees) and the number of samples compared.
+/// held-out geodesics (degrees) and the number of samples compared. `[simulate] label`: `exact`,
+/// `table` (the grid for two joints, the fitted log map for more) or `auto` (the table, except
+/// for three or more joints when the fit's error exceeds
+/// [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact).
 pub fn label_source<'a>(
     design: &'a Design,
     settings: &crate::design::simulate::SimSettings,
 ) -> Result<(LabelSource<'a>, Option<(f64, usize)>)> {
-    use crate::design::simulate::LabelKind;
+    use crate::design::simulate::{AUTO_LABEL_MAX_ERROR_DEG, LabelKind};
     use crate::geodesic::label::{ExactLog, LogTable};
+    use crate::geodesic::logfit::{LogFit, LogFitSpec};
     use crate::geodesic::{Fan, FanSpec};
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
-    if settings.label == LabelKind::Exact || design.dof() != 2 {
+    if settings.label == LabelKind::Exact {
         return Ok((LabelSource::Exact(exact), None));
     }
     let region = design.valid_region()?;
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
     let ode = design.geodesics.ode;
+    let n = design.dof();
+    let check = Fan::trace(
+        &design.chain,
+        &design.q_eq,
+        FanSpec { count: 36 * (n - 1).max(1), phase: 0.5, stop, spacing: region.extent / 20.0 },
+        ode,
+    )?;
+    if n != 2 {
+        let spec = LogFitSpec::for_joints(n, region.extent);
+        let mut fit = LogFit::build(&design.chain, &design.q_eq, ode, spec)?;
+        let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
+        let err = fit.label_error(&frame, &check, 0.05 * region.extent)?;
+        if settings.label == LabelKind::Auto && err.0 > AUTO_LABEL_MAX_ERROR_DEG {
+            return Ok((LabelSource::Exact(exact), None));
+        }
+        return Ok((LabelSource::Fit(Box::new(fit)), Some(err)));
+    }
     let fan = Fan::trace(
         &design.chain,
         &design.q_eq,
@@ -812,12 +836,6 @@ pub fn label_source<'a>(
     )?;
     let nodes = settings.table_nodes;
     let mut table = LogTable::build(&design.chain, &design.q_eq, &fan, ode, nodes, nodes, 0.25)?;
-    let check = Fan::trace(
-        &design.chain,
-        &design.q_eq,
-        FanSpec { count: 36, phase: 0.5, stop, spacing: region.extent / 20.0 },
-        ode,
-    )?;
     let err = table.label_error(&design.chain, &design.q_eq, &check, ode, 0.05 * region.extent)?;
     Ok((LabelSource::Table(table), Some(err)))
 }

@@ -8,6 +8,7 @@
 pub mod directions;
 pub mod fan;
 pub mod label;
+pub mod logfit;
 pub mod logmap;
 pub mod region;
 pub mod shoot;

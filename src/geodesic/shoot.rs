@@ -44,6 +44,9 @@ pub struct Shooter<'a> {
     tmp: Vec<f64>,
 }
 
+/// Per arc length of [`Shooter::jacobi_samples`]: q and Φ_q (column-major n × n).
+pub type JacobiSamples = Vec<(Vec<f64>, Vec<f64>)>;
+
 /// A geodesic traced with its Jacobi fields: the trace and the first conjugate point, if any.
 #[derive(Debug, Clone)]
 pub struct JacobiTrace {
@@ -213,6 +216,36 @@ impl<'a> Shooter<'a> {
         let (chain, ws) = (self.chain, &mut self.ws);
         let mut rhs = |_t: f64, y: &[f64], dy: &mut [f64]| chain.variational_rhs(ws, y, dy);
         self.ode_var.start(&mut rhs, 0.0, &self.y_var, s_end).map_err(|e| ode_error(what, e))
+    }
+
+    /// The point q and the Jacobi field Φ_q (column-major n × n) of the geodesic with unit initial
+    /// velocity `u` at each arc length of `arcs` (ascending, > 0), from one integration with
+    /// full error control and dense output: d exp at v = s·u is Φ_q(s)/s. What a fitted log map
+    /// is fitted to ([`crate::geodesic::logfit`]): exact pairs (v, exp v) with their
+    /// derivatives, no Newton shooting.
+    pub fn jacobi_samples(&mut self, u: &DVector<f64>, arcs: &[f64]) -> Result<JacobiSamples> {
+        let n = self.chain.dof();
+        let Some(&s_end) = arcs.last() else { return Ok(Vec::new()) };
+        self.start_variational(u, s_end, "Jacobi fields")?;
+        let (chain, ws) = (self.chain, &mut self.ws);
+        let mut rhs = |_t: f64, y: &[f64], dy: &mut [f64]| chain.variational_rhs(ws, y, dy);
+        let ode = &mut self.ode_var;
+        let mut out = Vec::with_capacity(arcs.len());
+        let mut next = arcs.iter().peekable();
+        loop {
+            let done = ode.step(&mut rhs, s_end).map_err(|e| ode_error("Jacobi fields", e))?;
+            while let Some(&&s) = next.peek() {
+                if s > ode.t() && !done {
+                    break;
+                }
+                ode.dense(s.min(ode.t()), &mut self.tmp);
+                out.push((self.tmp[..n].to_vec(), self.tmp[2 * n..2 * n + n * n].to_vec()));
+                next.next();
+            }
+            if done {
+                return Ok(out);
+            }
+        }
     }
 
     /// Traces the geodesic with unit initial velocity `u` to arc length `s_end` together with its

@@ -1,0 +1,418 @@
+//! A fitted log map for any number of joints: the mode label without Newton shooting.
+//!
+//! **What is fitted.** In the scaled metric frame at q_eq, x = Lᵀ(q − q_eq)/R and
+//! w = Lᵀ log(q)/R (M(q_eq) = L Lᵀ, R the radius of the fitted ball), the log map is
+//! w = x + P(x) with P = O(|x|²): log(q_eq) = 0 and d log = I there. P is a polynomial of total
+//! degree 2 … d in x, one per component of w, with coefficients found by least squares on exact
+//! pairs (w, x) *and* their derivatives ∂w/∂x, each sample weighted by 1/|x|.
+//!
+//! **Why this scheme.** The cost per call must not depend on shooting and must stay flat in n:
+//! a grid (the two-joint [`super::label::LogTable`]) has kⁿ nodes, 121⁶ for six joints, while
+//! a polynomial of degree 5 in six variables has 462 terms. The log map is analytic inside the
+//! region (no conjugate point, one geodesic per point), so a low-degree polynomial converges
+//! fast there. The data cost no Newton step: the geodesic of frame direction u reaches q at arc
+//! length s, so log(q) = s·u exactly, and its Jacobi fields give d exp = Φ_q(s)/s, whence
+//! ∂v/∂q = s Φ_q⁻¹ ([`super::shoot::Shooter::jacobi_samples`]). Fitting the derivatives too
+//! makes the gradient of the label, which the mode law uses, as good as the label. The weight
+//! 1/|x| makes the fit minimise the *relative* error of w, which is the angle of the label
+//! direction u = w/|w| (what a controller reads): the angle error is |δw⊥|/|w|. Writing
+//! w = x + P with P starting at degree 2 makes that relative error vanish at q_eq rather than
+//! blow up where the label is undefined.
+//!
+//! A Gauss–Newton correction from the fit's value (one exp with its Jacobian) was the other
+//! candidate; it is one variational integration per call, 2n + 2n² states at the integrator's
+//! tolerance, the bulk of what Newton shooting costs, so it would not meet the target.
+//!
+//! **Cost.** One call evaluates the monomials and their gradients by a recursion (each monomial
+//! is a lower one times one coordinate) and multiplies them by the coefficients in one matrix
+//! product: about (n + 1)·n·m multiply–adds for m monomials (at most [`MAX_TERMS`]: m = 165 for
+//! three joints at degree 8, 210 for six at degree 4), a few µs. Memory: m·n coefficients
+//! (4 kB for three joints, 10 kB for six) plus the scratch basis m·(n + 1). The build traces
+//! (3m/(n + 1) or more) directions with their Jacobi fields once (no Newton) and solves one
+//! least-squares problem of m unknowns with n right-hand sides: about 0.15–0.4 s for three
+//! joints and 1.5 s for six on the 2-core machine (`cargo bench --bench controller`,
+//! `BENCHMARKS.md`).
+//!
+//! **Where it does not serve.** The polynomial is in the joint angles (through x), so it serves
+//! where the region's joints turn by a radian or so: on the shipped three-joint arms its largest
+//! label error is 3e-5° (`ur5_pan_lift_elbow`) and 2e-3° (`panda_three`). On `ur5_six` the light
+//! wrist roll turns by ±4.4 rad inside the ball of radius 0.6, the log map is trigonometric in
+//! it, and no affordable degree follows it (4–5° at degrees 3–5): `label = "auto"` then keeps the
+//! exact log map, and `label = "table"` reports that error.
+//!
+//! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
+//! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log
+//! map, as the two-joint table does outside its grid. The error reported
+//! ([`LogFit::label_error`]) is the doubled angle between the fitted and exact label lines,
+//! 2·∠(±u_fit, u), the same measure as the two-joint θ error, on held-out geodesics.
+
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::geodesic::label::{ExactLog, LogField, LogValue};
+use crate::geodesic::shoot::JacobiSamples;
+use crate::geodesic::{Fan, MetricFrame, Shooter, unit_vectors};
+use crate::model::Chain;
+use crate::numerics::ode::OdeSettings;
+
+/// How a [`LogFit`] is built.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LogFitSpec {
+    /// The region's extent (largest arc length from q_eq inside it), √(kg·m²)·rad.
+    pub extent: f64,
+    /// The fitted ball reaches (1 + margin) × extent, so that a swing a little past the region
+    /// still gets the fast label.
+    pub margin: f64,
+    /// Total degree of the polynomial (≥ 2).
+    pub degree: usize,
+    /// Directions of the training fan.
+    pub directions: usize,
+    /// Samples per direction, equally spaced in arc length up to the ball's radius.
+    pub radii: usize,
+}
+
+impl LogFitSpec {
+    /// The default for `n` joints over a region of extent `extent`: the highest degree with at
+    /// most [`MAX_TERMS`] monomials (capped at 8, where monomials on the unit ball are still
+    /// well conditioned in double precision), and directions enough for about twice as many
+    /// conditions as unknowns on each sphere of directions.
+    pub fn for_joints(n: usize, extent: f64) -> Self {
+        let mut degree = 2;
+        while degree < 8 && monomial_count(n, degree + 1) <= MAX_TERMS {
+            degree += 1;
+        }
+        let terms = monomial_count(n, degree);
+        LogFitSpec {
+            extent,
+            margin: 0.1,
+            degree,
+            directions: (3 * terms / (n + 1)).max(4 * n * n).max(60),
+            radii: degree + 2,
+        }
+    }
+}
+
+/// The most monomials a fit uses: what keeps one call within a few µs (degree 8 for three
+/// joints, 6 for four, 4 for five and six).
+pub const MAX_TERMS: usize = 220;
+
+/// Number of monomials of total degree ≤ d in n variables, C(n + d, d).
+pub fn monomial_count(n: usize, d: usize) -> usize {
+    (1..=d).fold(1usize, |acc, k| acc * (n + k) / k)
+}
+
+/// The log map of one equilibrium fitted by a polynomial in the scaled metric frame (see the
+/// module docs), with the exact log map beyond its ball.
+#[derive(Clone)]
+pub struct LogFit<'a> {
+    n: usize,
+    q_eq: Vec<f64>,
+    /// Lᵀ/R (row-major): x = lt·(q − q_eq).
+    lt: Vec<f64>,
+    /// R·L⁻ᵀ (row-major): v = lt_inv·w.
+    lt_inv: Vec<f64>,
+    /// Monomials by increasing degree: (parent, variable), the monomial being parent·x[variable];
+    /// the first is the constant 1 (its entry unused).
+    monomials: Vec<(usize, usize)>,
+    /// Coefficients (monomials × n), zero on the rows of degree 0 and 1.
+    coef: DMatrix<f64>,
+    degree: usize,
+    /// Scratch: monomials' values (column 0) and gradients (columns 1 … n).
+    basis: DMatrix<f64>,
+    /// Scratch: coefᵀ·basis (n × (n + 1)).
+    product: DMatrix<f64>,
+    /// The last point the fit answered and its value: the potential and the mode controller of
+    /// one right-hand side ask at the same point.
+    last: Option<(Vec<f64>, LogValue)>,
+    fallback: ExactLog<'a>,
+}
+
+/// The monomials of degree ≤ d in n variables as (parent, variable), by increasing degree;
+/// each is listed once (variables non-decreasing along the chain of parents).
+fn monomials(n: usize, d: usize) -> Vec<(usize, usize)> {
+    // (parent, variable, last variable) with the constant first.
+    let mut list: Vec<(usize, usize, usize)> = vec![(0, 0, 0)];
+    let mut level = vec![0usize];
+    for deg in 1..=d {
+        let mut next = Vec::new();
+        for &p in &level {
+            let from = if deg == 1 { 0 } else { list[p].2 };
+            for var in from..n {
+                list.push((p, var, var));
+                next.push(list.len() - 1);
+            }
+        }
+        level = next;
+    }
+    list.into_iter().map(|(p, v, _)| (p, v)).collect()
+}
+
+/// Values (column 0) and gradients (columns 1 … n) of the monomials at x, into `basis`.
+fn fill_basis(monomials: &[(usize, usize)], x: &[f64], basis: &mut DMatrix<f64>) {
+    let n = x.len();
+    basis[(0, 0)] = 1.0;
+    for j in 0..n {
+        basis[(0, 1 + j)] = 0.0;
+    }
+    for (k, &(p, var)) in monomials.iter().enumerate().skip(1) {
+        let parent = basis[(p, 0)];
+        basis[(k, 0)] = parent * x[var];
+        for j in 0..n {
+            basis[(k, 1 + j)] = basis[(p, 1 + j)] * x[var];
+        }
+        basis[(k, 1 + var)] += parent;
+    }
+}
+
+/// Row-major n × n product a·b.
+fn mat_mul(a: &[f64], b: &[f64], n: usize, out: &mut [f64]) {
+    for i in 0..n {
+        for j in 0..n {
+            out[i * n + j] = (0..n).map(|k| a[i * n + k] * b[k * n + j]).sum();
+        }
+    }
+}
+
+impl<'a> LogFit<'a> {
+    /// Fits the log map of `q_eq` over the ball of `spec` (see the module docs). Directions are
+    /// traced in parallel and the least-squares sums are accumulated in direction order, so the
+    /// result does not depend on the thread count.
+    pub fn build(chain: &'a Chain, q_eq: &DVector<f64>, ode: OdeSettings, spec: LogFitSpec) -> Result<LogFit<'a>> {
+        let n = chain.dof();
+        if spec.degree < 2 || !(spec.extent.is_finite() && spec.extent > 0.0) {
+            return Err(Error::Setting {
+                field: "label".into(),
+                reason: format!(
+                    "a fitted label needs a degree ≥ 2 and a region of positive extent, got degree {} and extent {}",
+                    spec.degree, spec.extent
+                ),
+            });
+        }
+        let radius = spec.extent * (1.0 + spec.margin);
+        let m_eq = chain.mass_matrix(q_eq);
+        let frame = MetricFrame::new(&m_eq)?;
+        let l = m_eq
+            .clone()
+            .cholesky()
+            .ok_or_else(|| {
+                Error::numerical("fitted label", "the mass matrix at the equilibrium is not positive definite")
+            })?
+            .l();
+        let lt_m = l.transpose() / radius;
+        let lt_inv_m = lt_m
+            .clone()
+            .try_inverse()
+            .ok_or_else(|| Error::numerical("fitted label", "singular mass matrix at the equilibrium"))?;
+        let row_major = |m: &DMatrix<f64>| (0..n * n).map(|k| m[(k / n, k % n)]).collect::<Vec<f64>>();
+        let (lt, lt_inv) = (row_major(&lt_m), row_major(&lt_inv_m));
+        let monomials = monomials(n, spec.degree);
+        let terms = monomials.len();
+        let first = 1 + n;
+        let fitted = terms - first;
+        let arcs: Vec<f64> = (1..=spec.radii).map(|k| radius * k as f64 / spec.radii as f64).collect();
+        let dirs = unit_vectors(n, spec.directions, 0.0);
+        let traces: Vec<Result<JacobiSamples>> = dirs
+            .par_iter()
+            .map_init(|| Shooter::new(chain, q_eq, ode), |shooter, u| shooter.jacobi_samples(&frame.to_joint(u), &arcs))
+            .collect();
+        // Normal equations Nc = b over the monomials of degree ≥ 2, one right-hand side per
+        // component of w, accumulated direction by direction.
+        let mut normal = DMatrix::<f64>::zeros(fitted, fitted);
+        let mut rhs = DMatrix::<f64>::zeros(fitted, n);
+        let mut basis = DMatrix::<f64>::zeros(terms, n + 1);
+        let rows_per = spec.radii * (n + 1);
+        let mut a = DMatrix::<f64>::zeros(rows_per, fitted);
+        let mut y = DMatrix::<f64>::zeros(rows_per, n);
+        let mut x = vec![0.0; n];
+        let mut tmp = vec![0.0; n * n];
+        let mut dwdx = vec![0.0; n * n];
+        for (u, trace) in dirs.iter().zip(traces) {
+            let trace = trace?;
+            for (k, ((q, phi), &s)) in trace.iter().zip(&arcs).enumerate() {
+                for i in 0..n {
+                    x[i] = (0..n).map(|j| lt[i * n + j] * (q[j] - q_eq[j])).sum();
+                }
+                let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+                // ∂v/∂q = s Φ_q⁻¹; ∂w/∂x = (Lᵀ/R) ∂v/∂q (R L⁻ᵀ).
+                let phi = DMatrix::from_column_slice(n, n, phi);
+                let dvdq = phi.try_inverse().ok_or_else(|| {
+                    Error::numerical(
+                        "fitted label",
+                        format!("d exp is singular at arc length {s:.4} (a conjugate point inside the fitted ball)"),
+                    )
+                })? * s;
+                let dvdq = row_major(&dvdq);
+                mat_mul(&lt, &dvdq, n, &mut tmp);
+                mat_mul(&tmp, &lt_inv, n, &mut dwdx);
+                fill_basis(&monomials, &x, &mut basis);
+                let weight = 1.0 / xn.max(1e-12);
+                let row0 = k * (n + 1);
+                for c in 0..fitted {
+                    for r in 0..=n {
+                        a[(row0 + r, c)] = basis[(first + c, r)] * weight;
+                    }
+                }
+                for i in 0..n {
+                    // w = (s/R)·u, P = w − x; ∂P/∂x = ∂w/∂x − I.
+                    y[(row0, i)] = (s / radius * u[i] - x[i]) * weight;
+                    for j in 0..n {
+                        let id = if i == j { 1.0 } else { 0.0 };
+                        y[(row0 + 1 + j, i)] = (dwdx[i * n + j] - id) * weight;
+                    }
+                }
+            }
+            normal.gemm_tr(1.0, &a, &a, 1.0);
+            rhs.gemm_tr(1.0, &a, &y, 1.0);
+        }
+        // Equilibrate the columns (high-degree monomials are small on the unit ball), then
+        // Cholesky.
+        let scale: Vec<f64> = (0..fitted).map(|c| 1.0 / normal[(c, c)].max(1e-300).sqrt()).collect();
+        for c in 0..fitted {
+            for r in 0..fitted {
+                normal[(r, c)] *= scale[r] * scale[c];
+            }
+            for i in 0..n {
+                rhs[(c, i)] *= scale[c];
+            }
+        }
+        let chol = normal.cholesky().ok_or_else(|| {
+            Error::numerical(
+                "fitted label",
+                format!(
+                    "the least-squares fit of degree {} on {} directions is singular: too few directions",
+                    spec.degree, spec.directions
+                ),
+            )
+        })?;
+        let sol = chol.solve(&rhs);
+        let mut coef = DMatrix::<f64>::zeros(terms, n);
+        for c in 0..fitted {
+            for i in 0..n {
+                coef[(first + c, i)] = sol[(c, i)] * scale[c];
+            }
+        }
+        Ok(LogFit {
+            n,
+            q_eq: q_eq.as_slice().to_vec(),
+            lt,
+            lt_inv,
+            monomials,
+            coef,
+            degree: spec.degree,
+            basis,
+            product: DMatrix::zeros(n, n + 1),
+            last: None,
+            fallback: ExactLog::new(chain, q_eq, ode),
+        })
+    }
+
+    /// The polynomial's total degree.
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+
+    /// The number of monomials (of every degree, 0 and 1 included: their coefficients are 0).
+    pub fn terms(&self) -> usize {
+        self.monomials.len()
+    }
+
+    /// The fit's value at q, or None beyond its ball (|w| > 1, i.e. the fitted metric distance
+    /// beyond R).
+    fn fitted(&mut self, q: &[f64], out: &mut LogValue) -> bool {
+        let n = self.n;
+        let mut x = [0.0f64; 16];
+        if n > x.len() {
+            return false;
+        }
+        let x = &mut x[..n];
+        for i in 0..n {
+            x[i] = (0..n).map(|j| self.lt[i * n + j] * (q[j] - self.q_eq[j])).sum();
+        }
+        fill_basis(&self.monomials, x, &mut self.basis);
+        self.product.gemm_tr(1.0, &self.coef, &self.basis, 0.0);
+        // w = x + P, ∂w/∂x = I + ∂P/∂x.
+        let mut w = [0.0f64; 16];
+        let w = &mut w[..n];
+        for i in 0..n {
+            w[i] = x[i] + self.product[(i, 0)];
+        }
+        if w.iter().map(|v| v * v).sum::<f64>() > 1.0 {
+            return false;
+        }
+        for i in 0..n {
+            out.v[i] = (0..n).map(|k| self.lt_inv[i * n + k] * w[k]).sum();
+        }
+        // ∂v/∂q = (R L⁻ᵀ)(I + ∂P/∂x)(Lᵀ/R).
+        let mut g = [0.0f64; 256];
+        let g = &mut g[..n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let id = if i == j { 1.0 } else { 0.0 };
+                g[i * n + j] = id + self.product[(i, 1 + j)];
+            }
+        }
+        let mut t = [0.0f64; 256];
+        let t = &mut t[..n * n];
+        mat_mul(&self.lt_inv, g, n, t);
+        mat_mul(t, &self.lt, n, &mut out.dvdq);
+        true
+    }
+
+    /// Largest doubled angle 2·∠(±u_fit, ±u) between the fitted and the exact label lines, in
+    /// degrees, over the samples of `fan` farther than `min_r` from q_eq, and the number of
+    /// samples compared. The exact label at a sample is its geodesic's own direction (log(q) =
+    /// s·u: the fan is the exact log map, no Newton needed); samples the fit leaves to the exact
+    /// fallback count with error 0 (they get the exact label).
+    pub fn label_error(&mut self, frame: &MetricFrame, fan: &Fan, min_r: f64) -> Result<(f64, usize)> {
+        let mut out = LogValue::zeros(self.n);
+        let mut worst: f64 = 0.0;
+        let mut count = 0;
+        for (g, u) in fan.geodesics.iter().zip(&fan.frame_directions) {
+            for i in 0..g.len() {
+                if g.s(i) < min_r {
+                    continue;
+                }
+                count += 1;
+                if !self.fitted(g.q(i), &mut out) {
+                    continue;
+                }
+                let w = frame.to_frame(&DVector::from_column_slice(&out.v)).normalize();
+                let u = u.normalize();
+                // atan2 keeps small angles accurate, where acos of a cosine near 1 would not.
+                let c = w.dot(&u);
+                let perp = (&w - &u * c).norm();
+                worst = worst.max(2.0 * perp.atan2(c.abs()).to_degrees());
+            }
+        }
+        Ok((worst, count))
+    }
+}
+
+impl LogField for LogFit<'_> {
+    fn eval(&mut self, q: &[f64], out: &mut LogValue) -> Result<()> {
+        if let Some((q0, value)) = &self.last
+            && q0.as_slice() == q
+        {
+            out.v.copy_from_slice(&value.v);
+            out.dvdq.copy_from_slice(&value.dvdq);
+            return Ok(());
+        }
+        if !self.fitted(q, out) {
+            self.last = None;
+            return self.fallback.eval(q, out);
+        }
+        match &mut self.last {
+            Some((q0, value)) => {
+                q0.copy_from_slice(q);
+                value.v.copy_from_slice(&out.v);
+                value.dvdq.copy_from_slice(&out.dvdq);
+            }
+            None => self.last = Some((q.to_vec(), out.clone())),
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;
