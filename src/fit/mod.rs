@@ -5,6 +5,7 @@
 //! job, [`crate::jobs::fit`].
 
 pub mod bill;
+pub mod diagnosis;
 pub mod evaluate;
 pub mod hints;
 pub mod mass;

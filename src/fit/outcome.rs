@@ -167,6 +167,9 @@ pub struct FitOutcome {
     pub training: Fan,
     /// The held-out evaluation fan.
     pub evaluation: Fan,
+    /// What would lower the residual most, for a poor fit (set by the fit job; None for an
+    /// acceptable fit, the exact reference and fits run outside the job).
+    pub diagnosis: Option<crate::fit::diagnosis::Diagnosis>,
 }
 
 impl FitOutcome {

@@ -99,6 +99,7 @@ impl Prepared<'_> {
             region: self.region.clone(),
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
+            diagnosis: None,
         })
     }
 
@@ -228,5 +229,6 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progre
         region,
         training,
         evaluation,
+        diagnosis: None,
     })
 }
