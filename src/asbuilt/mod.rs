@@ -366,23 +366,98 @@ pub fn factors(
         .collect()
 }
 
-/// Trims a built spring set: the trims (rows with a trim range) are re-relaxed at the
-/// equilibrium of the other built springs and their rates set by [`crate::elements::trim::solve`] against
-/// the design's ω. Returns the trimmed set, the equilibrium and the trim solution; None if the
-/// other springs hold no equilibrium near q_eq.
-pub fn trim_build(
-    design: &Design,
-    bom: &[BomRow],
-    built: &SpringSet,
-) -> Option<(SpringSet, DVector<f64>, crate::elements::trim::TrimSolution)> {
+/// A trimmed build: the spring set, its equilibrium and the trims' settings.
+pub type TrimmedBuild = (SpringSet, DVector<f64>, crate::elements::trim::TrimSolution);
+
+/// Trims a built spring set. Returns the trimmed set, its equilibrium and the trim solution;
+/// None if no way of trimming leaves the arm an equilibrium near q_eq.
+///
+/// The trims (rows with a trim range) are re-relaxed at the equilibrium of the other built
+/// springs and their rates set by the design's `[fit] trim_rule` ([`relax_at_rest`]): on a
+/// two-joint arm three trims restore ∇²U = w² M exactly there. From three joints on, the trims
+/// carry much of the net stiffness of the light joints (2 N·m/rad of trim on a wrist whose whole
+/// stiffness ω² M is about 0.5 N·m/rad), so the other springs alone are soft or unstable and their
+/// equilibrium moves by radians with a 5 % rate error: on `panda_three` with a trim per joint,
+/// 901 of 1,000 builds had no stable equilibrium once trimmed so, and the rest were worse than
+/// untrimmed. With the residual rule (the default) a builder therefore also tries the trims
+/// where they were assembled (relaxed at q_eq, rates unchanged: the untrimmed build) and with
+/// their rates re-set at the build's own equilibrium, the arm then settling where they hold it,
+/// and keeps whichever of the three leaves the smallest residual rows on the trim fan traced
+/// from its own equilibrium ([`trim_fan`]: what a builder measures, not the held-out figures).
+/// Trimming so never makes a build worse by what the builder measures, and every build with an
+/// equilibrium has a trimmed figure.
+pub fn trim_build(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<TrimmedBuild> {
     let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
     if trims.is_empty() {
         return None;
     }
-    let rest = SpringSet {
-        elements: (0..bom.len()).filter(|j| !trims.contains(j)).map(|j| built.elements[j].clone()).collect(),
-        stiffness: (0..bom.len()).filter(|j| !trims.contains(j)).map(|j| built.stiffness[j]).collect(),
+    let relaxed = relax_at_rest(design, bom, built);
+    if design.fit.trim_rule != TrimRule::Residual {
+        return relaxed;
+    }
+    let frame_rows = |set: &SpringSet, q: &DVector<f64>| -> Option<f64> {
+        let fan = trim_fan(design, q).ok()?;
+        let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
+        Some(frame.rows(set).norm())
     };
+    let mut best: Option<(f64, TrimmedBuild)> = None;
+    let mut offer = |measured: Option<f64>, candidate: TrimmedBuild| {
+        if let Some(v) = measured.filter(|v| v.is_finite())
+            && best.as_ref().is_none_or(|(b, _)| v < *b)
+        {
+            best = Some((v, candidate));
+        }
+    };
+    if let Some((set, q, sol)) = relaxed {
+        offer(frame_rows(&set, &q), (set, q, sol));
+    }
+    // The trims as assembled (relaxed at q_eq), at the build's own equilibrium.
+    if let Some(q_b) = equilibrium(design, built) {
+        let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
+        let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
+        let nominal: Vec<f64> = trims.iter().map(|&j| built.stiffness[j]).collect();
+        let rest = without(built, &trims);
+        let h_rest = rest.hessian(q_b.as_slice()).ok().map(|h| h + design.chain.gravity_hessian(q_b.as_slice()));
+        let fan = trim_fan(design, &q_b).ok();
+        if let (Some(h_rest), Some(fan)) = (h_rest, fan) {
+            let m = design.chain.mass_matrix(&q_b);
+            let (columns, r0) = trim_rows(design, &fan, built, &trims);
+            // Kept: the rates as assembled (a range of one point each), nothing binding.
+            let fixed: Vec<[f64; 2]> = nominal.iter().map(|&k| [k, k]).collect();
+            let mut kept =
+                crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &fixed, &nominal);
+            kept.binding.clear();
+            let kept_rows = (&r0 + &columns * DVector::from_column_slice(&nominal)).norm();
+            offer(Some(kept_rows), (built.clone(), q_b.clone(), kept));
+            // Re-set: the rates for the residual rows at q_b; the arm then rests where they hold it.
+            let sol = crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &ranges, &nominal);
+            let mut reset = built.clone();
+            for (i, &j) in trims.iter().enumerate() {
+                reset.stiffness[j] = sol.rates[i];
+            }
+            if let Some(q) = equilibrium(design, &reset) {
+                offer(frame_rows(&reset, &q), (reset, q, sol));
+            }
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// The springs of `set` but its rows `trims`.
+fn without(set: &SpringSet, trims: &[usize]) -> SpringSet {
+    let kept = || (0..set.elements.len()).filter(|j| !trims.contains(j));
+    SpringSet {
+        elements: kept().map(|j| set.elements[j].clone()).collect(),
+        stiffness: kept().map(|j| set.stiffness[j]).collect(),
+    }
+}
+
+/// The trims re-relaxed at the equilibrium of the other built springs and their rates set by the
+/// design's `[fit] trim_rule` there ([`crate::elements::trim::solve`] against the design's ω, or
+/// the residual rows); None if the other springs hold no equilibrium near q_eq.
+fn relax_at_rest(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<TrimmedBuild> {
+    let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
+    let rest = without(built, &trims);
     let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
     let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
     let nominal: Vec<f64> = trims.iter().map(|&j| bom[j].stiffness).collect();

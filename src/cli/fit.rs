@@ -151,6 +151,15 @@ fn say_fit(run: &FitRun, settings: &FitSettings, progress: &Progress) {
             verdict.reason()
         )
     });
+    if let Some(d) = &outcome.diagnosis {
+        progress.say(format!(
+            "diagnosis ({} profiles on couplings the catalogue lacks, each added to a refit of the catalogue, {:.2} s):",
+            d.screened, d.seconds
+        ));
+        for line in d.lines() {
+            progress.say(format!("  {line}"));
+        }
+    }
     for w in about(warnings, &Topic::Bill) {
         progress.warn(w);
     }

@@ -6,6 +6,7 @@
 
 pub mod auto;
 pub mod bill;
+pub mod diagnosis;
 pub mod evaluate;
 pub mod hints;
 pub mod mass;

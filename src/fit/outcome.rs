@@ -170,6 +170,9 @@ pub struct FitOutcome {
     /// The weights springfit chose, with every candidate tried (None: the design's weights were
     /// fitted as they are; set by the fit job, [`crate::jobs::fit`]).
     pub auto: Option<super::auto::Choice>,
+    /// What would lower the residual most, for a poor fit (set by the fit job; None for an
+    /// acceptable fit, the exact reference and fits run outside the job).
+    pub diagnosis: Option<crate::fit::diagnosis::Diagnosis>,
 }
 
 impl FitOutcome {

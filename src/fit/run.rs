@@ -100,6 +100,7 @@ impl Prepared<'_> {
             training: self.training.clone(),
             evaluation: self.evaluation.clone(),
             auto: None,
+            diagnosis: None,
         })
     }
 
@@ -230,5 +231,6 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progre
         training,
         evaluation,
         auto: None,
+        diagnosis: None,
     })
 }

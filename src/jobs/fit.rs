@@ -98,7 +98,7 @@ impl<'a> FitJob<'a> {
                 Some((catalog, stock))
             }
         };
-        let (outcome, parts, chosen) = match &catalog {
+        let (mut outcome, parts, chosen) = match &catalog {
             None => (crate::fit::run::exact_reference(design, settings, progress)?, None, None),
             Some((catalog, stock)) if Search::wanted(settings) => {
                 choose_weights(design, catalog, settings, stock, progress)
@@ -109,6 +109,27 @@ impl<'a> FitJob<'a> {
                 .map(|(o, p)| (o, Some(p), None))
                 .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?,
         };
+        if let Some((catalog, _)) = &catalog
+            && hints::verdict(outcome.metrics.stats.p99_abs, settings.accept_p99_deg) == "poor"
+        {
+            progress.stage("diagnosing the poor fit");
+            // The trims are held at their billed rates: the screened springs answer the rest.
+            let trims: Vec<usize> =
+                (0..outcome.bom.len()).filter(|&j| outcome.bom[j].adjust.trim_range.is_some()).collect();
+            let held = crate::potential::SpringSet {
+                elements: trims.iter().map(|&j| outcome.springs.elements[j].clone()).collect(),
+                stiffness: trims.iter().map(|&j| outcome.springs.stiffness[j]).collect(),
+            };
+            let mut d = crate::fit::diagnosis::diagnose(
+                design,
+                catalog,
+                settings,
+                (&outcome.springs, &held),
+                &outcome.training,
+            )?;
+            d.needed_omega = super::init::stiffness(design).ok().map(|s| s.needed_omega);
+            outcome.diagnosis = Some(d);
+        }
         let t = Instant::now();
         let as_built = match (&catalog, chosen) {
             (None, _) => None,

@@ -174,7 +174,8 @@ fn pareto_tables(
     let mut md = format!(
         "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
     );
-    let opt = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+    // Empty where a percentile falls among builds without a figure: never NaN or inf.
+    let opt = |x: Option<f64>| x.filter(|v| v.is_finite()).map(|v| v.to_string()).unwrap_or_default();
     for b in budgets {
         let ab = b.as_built.as_ref();
         let tr = ab.and_then(|a| a.trimmed_p99_deg);

@@ -92,6 +92,10 @@ pub struct Summary {
     /// were fitted as they are).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub auto_weights: Option<crate::fit::auto::Choice>,
+    /// A poor fit's diagnosis: the additions that lower the residual most and the frequency
+    /// check (absent for an acceptable fit; see `fit::diagnosis`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diagnosis: Option<crate::fit::diagnosis::Diagnosis>,
 }
 
 /// The region part of the summary.
@@ -202,6 +206,7 @@ impl Summary {
             realised: None,
             mass: None,
             auto_weights: o.auto.clone(),
+            diagnosis: o.diagnosis.clone(),
         }
     }
 }
@@ -508,6 +513,9 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
             crate::fit::outcome::Judged::Ideal => String::new(),
         }
     ));
+    if let Some(d) = &s.diagnosis {
+        r.push_str(&diagnosis_md(d));
+    }
     r.push_str(&as_built_md(s.as_built.as_ref(), exact));
     if let Some(choice) = &s.auto_weights {
         r.push_str(&format!(
@@ -547,5 +555,18 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
         "## Files\n\n- [summary.json](summary.json): the figures above\n- [residuals.csv](residuals.csv): every evaluated sample\n\nTimings: geodesics {:.3} s, assemble {:.3} s, solve {:.3} s, evaluate {:.3} s, total {:.3} s.\n",
         s.timings_s.geodesics, s.timings_s.assemble, s.timings_s.solve, s.timings_s.evaluate, s.timings_s.total
     ));
+    r
+}
+
+/// The diagnosis section of `report.md`: the ranked additions and the frequency check.
+fn diagnosis_md(d: &crate::fit::diagnosis::Diagnosis) -> String {
+    let mut r = format!(
+        "## Diagnosis\n\nThe fit is poor. Of {} profiles on couplings the catalogue lacks, each added to a refit of the whole catalogue on the training rows (non-negative least squares, the equalities weighted; the shares rank, a fit measures), these lower the rows' ‖R‖² most (docs/guide.md, \"When the fit is poor\"):\n\n",
+        d.screened
+    );
+    for line in d.lines() {
+        r.push_str(&format!("- {line}\n"));
+    }
+    r.push('\n');
     r
 }

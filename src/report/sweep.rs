@@ -73,27 +73,27 @@ pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
     s.push_str("\n## Manufacturing tolerance\n\nResidual angles of each build are taken on held-out geodesics from the equilibrium the built springs actually have (its shift from q_eq is listed); the actuator share comes from the closed-loop run, whose controllers still assume the nominal springs and q_eq.\n\n| tolerance | distribution | builds | actuator share p50 | p95 | residual p99 p50 | p95 | p95, 95 % interval | equilibrium shift p50 | p95 |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     for l in &t.tolerance_levels {
         s.push_str(&format!(
-            "| {} | {} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {}° | {:.4} rad | {:.4} rad |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {}° | {} | {} |\n",
             l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
             l.distribution.name(),
             l.builds,
-            100.0 * l.actuator_share_p50,
-            100.0 * l.actuator_share_p95,
-            l.residual_p99_deg_p50,
-            l.residual_p99_deg_p95,
+            figure(100.0 * l.actuator_share_p50, 3, " %", NOT_RUN),
+            figure(100.0 * l.actuator_share_p95, 3, " %", NOT_RUN),
+            figure(l.residual_p99_deg_p50, 3, "°", NO_EQUILIBRIUM),
+            figure(l.residual_p99_deg_p95, 3, "°", NO_EQUILIBRIUM),
             interval(l.residual_p99_deg_p95_ci),
-            l.equilibrium_shift_rad_p50,
-            l.equilibrium_shift_rad_p95
+            figure(l.equilibrium_shift_rad_p50, 4, " rad", NO_EQUILIBRIUM),
+            figure(l.equilibrium_shift_rad_p95, 4, " rad", NO_EQUILIBRIUM)
         ));
     }
     if t.tolerance_levels.iter().any(|l| l.trimmed_residual_p99_deg_p50.is_some()) {
         s.push_str("\nAfter the trim a builder would make (trim springs re-relaxed at the build's equilibrium, rates set so that ∇²U = w² M there):\n\n| tolerance | trimmed residual p99 p50 | p95 | p95, 95 % interval |\n| --- | ---: | ---: | ---: |\n");
         for l in &t.tolerance_levels {
             s.push_str(&format!(
-                "| {} | {:.3}° | {:.3}° | {}° |\n",
+                "| {} | {} | {} | {}° |\n",
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
-                l.trimmed_residual_p99_deg_p50.unwrap_or(f64::NAN),
-                l.trimmed_residual_p99_deg_p95.unwrap_or(f64::NAN),
+                l.trimmed_residual_p99_deg_p50.map_or("–".into(), |x| figure(x, 3, "°", NO_EQUILIBRIUM)),
+                l.trimmed_residual_p99_deg_p95.map_or("–".into(), |x| figure(x, 3, "°", NO_EQUILIBRIUM)),
                 l.trimmed_residual_p99_deg_p95_ci.map_or("–".into(), interval)
             ));
         }
@@ -103,13 +103,13 @@ pub fn tables_md(design: &str, paper_arm: bool, t: &SweepTables) -> String {
         for l in &t.tolerance_levels {
             let Some(u) = &l.tuned else { continue };
             s.push_str(&format!(
-                "| {} | {} | {:.3} % | {:.3} % | {:.3}° | {:.3}° | {} rad | {} rad |\n",
+                "| {} | {} | {} | {} | {} | {} | {} rad | {} rad |\n",
                 l.tolerance.map(|t| format!("±{} %", 100.0 * t)).unwrap_or_else(|| "catalogue".into()),
                 u.builds,
-                100.0 * u.actuator_share.p50,
-                100.0 * u.actuator_share.p95,
-                u.residual_p99_deg.p50,
-                u.residual_p99_deg.p95,
+                u.actuator_share.text(100.0 * u.actuator_share.p50, 3, " %"),
+                u.actuator_share.text(100.0 * u.actuator_share.p95, 3, " %"),
+                u.residual_p99_deg.text(u.residual_p99_deg.p50, 3, "°"),
+                u.residual_p99_deg.text(u.residual_p99_deg.p95, 3, "°"),
                 crate::units::sci(u.equilibrium_shift_rad.p50, 2),
                 crate::units::sci(u.equilibrium_shift_rad.p95, 2)
             ));
@@ -376,8 +376,21 @@ fn write_tolerance(out: &OutputDir, design: &Design, tables: &SweepTables, resul
     Ok(())
 }
 
-/// A 95 % interval as text, `2.235–2.791` (∞ for an open end).
+/// What a table says for a percentile that falls among builds without a stable equilibrium
+/// near q_eq (their residual and shift are not numbers: they count as the worst).
+const NO_EQUILIBRIUM: &str = "no equilibrium";
+/// What a table says for an actuator share whose closed-loop run could not be made.
+const NOT_RUN: &str = "not run";
+
+/// A figure with `digits` after the point and its `unit`, or `why` it has none (NaN or ±∞:
+/// a percentile among builds without a figure), never "NaN" or "∞".
+fn figure(x: f64, digits: usize, unit: &str, why: &str) -> String {
+    if x.is_finite() { format!("{x:.digits$}{unit}") } else { why.into() }
+}
+
+/// A 95 % interval as text, `2.235–2.791` ("open" for an end beyond the builds, or among
+/// builds without a figure).
 fn interval(ci: [f64; 2]) -> String {
-    let end = |x: f64| if x.is_finite() { format!("{x:.3}") } else { "∞".into() };
+    let end = |x: f64| if x.is_finite() { format!("{x:.3}") } else { "open".into() };
     format!("{}–{}", end(ci[0]), end(ci[1]))
 }

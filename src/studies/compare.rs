@@ -154,9 +154,10 @@ fn savings_csv(v: Option<&Savings>) -> String {
     )
 }
 
-/// The four as-built columns (empty when the fit has none).
+/// The four as-built columns (empty when the fit has none, or where a percentile falls among
+/// builds without a figure: never NaN or inf).
 fn as_built_csv(b: Option<&crate::asbuilt::Brief>) -> String {
-    let f = |x: Option<f64>| x.map(|v| v.to_string()).unwrap_or_default();
+    let f = |x: Option<f64>| x.filter(|v| v.is_finite()).map(|v| v.to_string()).unwrap_or_default();
     format!(
         "{},{},{},{}",
         f(b.map(|b| b.p99_deg.p50)),
@@ -166,9 +167,10 @@ fn as_built_csv(b: Option<&crate::asbuilt::Brief>) -> String {
     )
 }
 
-/// "p50 / p95" of a spread in degrees, or "–".
+/// "p50 / p95" of a spread in degrees ("beyond X°" for a percentile among builds without a
+/// figure, never NaN or ∞), or "–".
 pub fn spread_md(s: Option<crate::asbuilt::Spread>) -> String {
-    s.map(|s| format!("{:.3}° / {:.3}°", s.p50, s.p95)).unwrap_or_else(|| "–".into())
+    s.map(|s| format!("{} / {}", s.text(s.p50, 3, "°"), s.text(s.p95, 3, "°"))).unwrap_or_else(|| "–".into())
 }
 
 /// "12.117 kg (74.8×)", or "–" without parts.
