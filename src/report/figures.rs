@@ -149,7 +149,8 @@ pub fn geodesics_figure(design: &Design, fan: &Fan, title: &str) -> Figure {
         let n = g.len();
         joint_layers.push(Layer::Lines {
             lines: vec![(0..n).map(|k| (g.q(k)[0], g.q(k)[1.min(design.dof() - 1)])).collect()],
-            style: Style::line(color, 1),
+            // 2 px: the bitmap backend draws a 1 px diagonal of light colour as a row of dots.
+            style: Style::line(color, 2),
             label: None,
         });
         let tip: Vec<(f64, f64)> = (0..n)
@@ -159,7 +160,7 @@ pub fn geodesics_figure(design: &Design, fan: &Fan, title: &str) -> Figure {
                 (t[0], t[1])
             })
             .collect();
-        cart_layers.push(Layer::Lines { lines: vec![tip], style: Style::line(color, 1), label: None });
+        cart_layers.push(Layer::Lines { lines: vec![tip], style: Style::line(color, 2), label: None });
     }
     if design.dof() >= 2 {
         joint_layers.push(Layer::Lines {

@@ -482,6 +482,22 @@ fn draw_boxes<DB: DrawingBackend>(
     Ok(())
 }
 
+/// The polyline without the points closer than `min_px` pixels on screen to the last one kept
+/// (the last point always kept). A densely sampled line (a geodesic's tip path: a sample every
+/// pixel) is otherwise drawn as one-pixel segments between rounded pixel positions, which the
+/// bitmap backend renders as a row of dots.
+pub(super) fn thin(line: &[(f64, f64)], scale: (f64, f64), min_px: f64) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(line.len());
+    for (i, &p) in line.iter().enumerate() {
+        let far =
+            out.last().is_none_or(|&(x, y): &(f64, f64)| ((p.0 - x) * scale.0).hypot((p.1 - y) * scale.1) >= min_px);
+        if far || i + 1 == line.len() {
+            out.push(p);
+        }
+    }
+    out
+}
+
 /// Draws a polyline (already clipped), solid or dashed (7 px on, 4 px off on screen).
 fn draw_line<DB: DrawingBackend>(
     chart: &mut Chart<'_, DB>,
@@ -491,7 +507,7 @@ fn draw_line<DB: DrawingBackend>(
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let s = style.shape();
     if !style.dashed {
-        chart.draw_series(std::iter::once(PathElement::new(line, s)))?;
+        chart.draw_series(std::iter::once(PathElement::new(thin(&line, scale, 4.0), s)))?;
         return Ok(());
     }
     chart.draw_series(dashes(&line, scale, 7.0, 4.0).into_iter().map(|d| PathElement::new(d, s)))?;

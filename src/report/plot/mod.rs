@@ -301,7 +301,7 @@ pub fn render(fig: &Figure, stem: &Path) -> Result<[PathBuf; 2]> {
 mod tests {
     use ab_glyph::{Font, ScaleFont};
 
-    use super::draw::{clip_polyline, dashes, data_range, one_two_five, to_log};
+    use super::draw::{clip_polyline, dashes, data_range, one_two_five, thin, to_log};
     use super::text::FONT;
     use super::*;
 
@@ -430,6 +430,12 @@ mod tests {
         assert_eq!(d[1], vec![(11.0, 0.0), (18.0, 0.0)]);
         let on: f64 = d.iter().map(|p| p.last().unwrap().0 - p[0].0).sum();
         assert!((on - 14.0).abs() < 1e-9, "{d:?}");
+        // 0.1 px apart at 10 px per unit: thinned to points ≥ 1.5 px apart, both ends kept.
+        let dense: Vec<(f64, f64)> = (0..=100).map(|i| (i as f64 * 0.01, 0.0)).collect();
+        let t = thin(&dense, (10.0, 10.0), 1.5);
+        assert_eq!((t[0], *t.last().unwrap()), ((0.0, 0.0), (1.0, 0.0)));
+        assert!(t[..t.len() - 1].windows(2).all(|w| (w[1].0 - w[0].0) * 10.0 >= 1.5 - 1e-9), "{t:?}");
+        assert!(t.len() < 10, "{}", t.len());
     }
 
     #[test]
