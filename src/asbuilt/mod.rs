@@ -373,7 +373,7 @@ pub type TrimmedBuild = (SpringSet, DVector<f64>, crate::elements::trim::TrimSol
 /// None if no way of trimming leaves the arm an equilibrium near q_eq.
 ///
 /// The trims (rows with a trim range) are re-relaxed at the equilibrium of the other built
-/// springs and their rates set by the design's `[fit] trim_rule` ([`relax_at_rest`]): on a
+/// springs and their rates set by the design's `[fit] trim_rule` (`relax_at_rest`): on a
 /// two-joint arm three trims restore ∇²U = w² M exactly there. From three joints on, the trims
 /// carry much of the net stiffness of the light joints (2 N·m/rad of trim on a wrist whose whole
 /// stiffness ω² M is about 0.5 N·m/rad), so the other springs alone are soft or unstable and their

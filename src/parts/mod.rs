@@ -612,7 +612,7 @@ fn remedy(e: &ElementPart, l: &Limit) -> String {
 }
 
 /// The sentence for an element no spring meets: the limit, by how much, the best candidate and
-/// what keeps a part possible ([`remedy`]).
+/// what keeps a part possible (`remedy`).
 pub fn limit_message(e: &ElementPart, l: &Limit) -> String {
     let c = &l.check;
     if c.name == "mechanism" {

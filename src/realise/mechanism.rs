@@ -1138,7 +1138,7 @@ const TRIM_ANCHOR_RATIOS: &[f64] = &[1.1, 1.25, 1.5, 2.0, 3.0];
 
 /// A trim of rates `range` (N·m/rad) set at `mid` as a crank: an extension spring of rate k_s on
 /// a cable from a pin over a fairlead at R, the crank geared g : 1 down from x so that it turns
-/// at most one of [`TRIM_CRANK_ANGLES`] over the region, its rate on x k_s r R / g². The pin
+/// at most one of `TRIM_CRANK_ANGLES` over the region, its rate on x k_s r R / g². The pin
 /// slides in a slot along the crank arm and a screw sets its radius r, so the rate is set in
 /// proportion to r over the whole range, down to 0 with the pin on the axis (the spring, still
 /// zero-free-length, then pulls the axis with k_s R and turns nothing). The spring is checked

@@ -290,7 +290,7 @@ pub fn histogram_figure(residuals: &[AngleSample], st: &AngleStats, title: &str,
 /// builds from its p50 to its p95 over builds (mirrored for signed angles), and the trimmed one
 /// when the design has trim springs.
 ///
-/// The x axis stays the histogram's own, widened to show a band at most to [`BAND_REACH`] times
+/// The x axis stays the histogram's own, widened to show a band at most to `BAND_REACH` times
 /// the histogram's reach: the builds' band usually lies well beyond the drawing's residuals, and
 /// an axis set by it squeezed the histogram into a fifth of the panel (issue 42 item 8). A band
 /// the axis cuts says so in its legend entry, with its figures (the notes give them too).
