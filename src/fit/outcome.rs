@@ -272,11 +272,13 @@ impl Verdict {
         };
         if !self.without_part.is_empty() {
             let n = self.without_part.len();
-            r.push_str(&format!(
-                "; {n} element{} without a part: {}",
+            let missing = format!(
+                "{n} element{} without a part: {}",
                 if n == 1 { "" } else { "s" },
                 self.without_part.iter().map(|w| format!("{} ({})", w.id, w.reason)).collect::<Vec<_>>().join(", ")
-            ));
+            );
+            // When the residual passes, the missing parts are why the design is poor: say so first.
+            r = if self.residual_passes() { format!("{missing}; {r}") } else { format!("{r}; {missing}") };
         }
         r
     }
@@ -306,6 +308,13 @@ mod tests {
             ..ideal
         };
         assert!(missing.residual_passes() && !missing.acceptable());
-        assert!(missing.reason().ends_with("; 1 element without a part: S57 (`initial tension` 1.29× the limit)"));
+        // The residual passes, so the missing part leads the reason.
+        assert!(
+            missing.reason().starts_with(
+                "1 element without a part: S57 (`initial tension` 1.29× the limit); realised design p99 1.0000° ≤"
+            ),
+            "{}",
+            missing.reason()
+        );
     }
 }
