@@ -117,3 +117,14 @@ def test_a_refused_folder_names_the_python_argument_not_the_flag(fit, tmp_path):
     assert "--out" not in message, message
     fit.write(folder, overwrite_edits=True)
     assert (folder / "report.md").read_text() != "edited by hand\n"
+
+
+def test_a_wrong_type_names_its_argument_in_a_note():
+    # Issue 42 item 11: a wrong Python type is Python's TypeError; the argument's name comes as a
+    # PEP 678 note, which tracebacks print under the message.
+    with pytest.raises(TypeError) as e:
+        springfit.Design.load(3)
+    assert "while processing 'path'" in getattr(e.value, "__notes__", []), e.value
+    with pytest.raises(TypeError) as e:
+        springfit.Design.from_toml(3)
+    assert "while processing 'text'" in getattr(e.value, "__notes__", []), e.value
