@@ -71,12 +71,6 @@ pub fn infeasible_hint(
     hints.join("; ")
 }
 
-/// The plain verdict on a fit: `acceptable` when the p99 residual angle is at most
-/// `fit.accept_p99_deg`, else `poor`.
-pub fn verdict(p99_deg: f64, accept_p99_deg: f64) -> &'static str {
-    if p99_deg <= accept_p99_deg { "acceptable" } else { "poor" }
-}
-
 /// Share of the largest valid radius from which a poor fit's advice puts the region first.
 ///
 /// r² (the exact potential's) is singular at the conjugate point or crossing that sets the

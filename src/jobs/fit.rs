@@ -110,7 +110,8 @@ impl<'a> FitJob<'a> {
                 .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?,
         };
         if let Some((catalog, _)) = &catalog
-            && hints::verdict(outcome.metrics.stats.p99_abs, settings.accept_p99_deg) == "poor"
+            && !crate::fit::outcome::Verdict::ideal(outcome.metrics.stats.p99_abs, settings.accept_p99_deg)
+                .residual_passes()
         {
             progress.stage("diagnosing the poor fit");
             // The trims are held at their billed rates: the screened springs answer the rest.
