@@ -18,7 +18,14 @@
 //!    measured elements (an offset change alters a crank's curvature).
 //! 3. **Residual**: Levenberg–Marquardt steps on the residual angles of the training fan,
 //!    restricted to the null space of (1) — and of (2) under the Hessian rule — linearised, each
-//!    step followed by (1) and (2) again and kept only if the residual falls.
+//!    step followed by (1) and (2) again and kept only if the residual falls, **down to the drawn
+//!    design's own residual on the same fan and no further**: tune restores what the build lost,
+//!    it does not redesign. The fit chose the stiffnesses (and the catalogue the offsets) for
+//!    more than this fan's residual — the builds' spread, the trims, the mass — which tune cannot
+//!    see; below the drawing's residual every offset it moved would trade those for a few
+//!    hundredths of a degree on its own fan, and a build measured as drawn would be handed a
+//!    dozen settings to make for nothing it lost (issue 42 item 11). The last step that crosses
+//!    the drawing's residual is shortened (bisection along it) to the least move that reaches it.
 //!
 //! The outcome says which ranges bind when (1) or (2) cannot be met.
 
@@ -109,6 +116,10 @@ const DIFFERENCE_STEP: f64 = 1e-6;
 /// every step.
 const FEASIBILITY_FLOOR: f64 = 1e-12;
 
+/// Bisections of [`Problem::shorten`]: the step fraction to 2⁻¹⁰ of the step, far finer than
+/// any screw is set.
+const SHORTEN_BISECTIONS: usize = 10;
+
 /// Geodesics of the fan from q_eq on which tune judges and lowers the residual: fewer than a
 /// fit's default training fan (72 for two joints), since every try of step 3 evaluates the
 /// residual on all of them.
@@ -195,6 +206,9 @@ struct Problem<'a> {
     /// `fan`'s rows with the model's part done once (residual rule with trims only): the trim
     /// solve of every trial step evaluates the other springs' rows on it.
     row_frame: Option<crate::fit::robust::RowFrame>,
+    /// The drawn bill's squared residual angles on `fan` (rates, offsets and trims as designed):
+    /// where step 3 stops.
+    designed_objective: f64,
 }
 
 /// Variables: Δx₀ per adjustable element, then the trim rates.
@@ -337,9 +351,7 @@ impl Problem<'_> {
 
     /// Residual angles (rad) on the training fan from q_eq.
     fn residual(&self, z: &[f64]) -> Result<DVector<f64>> {
-        let s = self.springs(z);
-        let a = crate::residual::fan_angles(&self.design.chain, &self.fan, &s.grouped())?;
-        Ok(DVector::from_iterator(a.len(), a.iter().map(|x| x.angle_deg.to_radians())))
+        residual_on(self.design, &self.fan, &self.springs(z))
     }
 
     /// ∂(residual angles)/∂z_v on the training fan for the variables `free`, in the row order of
@@ -437,6 +449,12 @@ fn state(design: &Design, extent: f64, springs: &SpringSet) -> Result<State> {
 
 /// Whether `value` is at an end of [lo, hi] as a setting is reported: within
 /// [`REPORTED_AT_LIMIT`] of the range's width (an empty range: always).
+/// Residual angles (rad) of `springs` on `fan`.
+fn residual_on(design: &Design, fan: &Fan, springs: &SpringSet) -> Result<DVector<f64>> {
+    let a = crate::residual::fan_angles(&design.chain, fan, &springs.grouped())?;
+    Ok(DVector::from_iterator(a.len(), a.iter().map(|x| x.angle_deg.to_radians())))
+}
+
 fn at_end(value: f64, lo: f64, hi: f64) -> bool {
     let slack = REPORTED_AT_LIMIT * (hi - lo);
     value <= lo + slack || value >= hi - slack
@@ -502,7 +520,8 @@ impl<'a> Problem<'a> {
             Some(frame) => frame.columns(trims.iter().map(|&j| &designed.elements[j])),
             None => DMatrix::zeros(0, 0),
         };
-        Ok(Problem { design, bom, k, adjustable, trims, fan, trim_columns, row_frame })
+        let designed_objective = residual_on(design, &fan, &designed)?.norm_squared();
+        Ok(Problem { design, bom, k, adjustable, trims, fan, trim_columns, row_frame, designed_objective })
     }
 }
 
@@ -541,17 +560,59 @@ impl Problem<'_> {
     /// Step 3: Levenberg–Marquardt steps on the residual within the constraints' null space,
     /// each followed by steps 1 and 2 and taken only when the residual falls and the
     /// constraints get no worse. Returns the trim solution at the final z.
+    ///
+    /// Stops at the drawn design's residual ([`Problem::designed_objective`]): a step that
+    /// crosses it is shortened to the least move along it that reaches it.
     fn lower_residual(&self, z: &mut Vec<f64>, mut sol: TrimSolution) -> Result<TrimSolution> {
+        let target = self.designed_objective;
         let mut best = self.objective(z)?;
         let mut mu = LM.damping_start;
         for _ in 0..LM.iterations {
+            if best <= target {
+                break;
+            }
             let Some(lin) = self.linearise(z, &sol)? else { break };
             let Some((trial, tsol, obj)) = self.try_steps(z, &sol, &lin, best, &mut mu)? else { break };
+            let (trial, tsol, obj) =
+                if obj < target { self.shorten(z, &sol, trial, tsol, obj, target)? } else { (trial, tsol, obj) };
             *z = trial;
             sol = tsol;
             best = obj;
         }
         Ok(sol)
+    }
+
+    /// The least fraction t of the step z → `trial` (whose objective `obj` is below `target`)
+    /// whose point, with steps 1 and 2 redone, reaches `target`: bisection on t with the end
+    /// that reaches it kept, so the result always does and its constraints are no worse than
+    /// z's. Points between z and a trial within the bounds stay within them.
+    fn shorten(
+        &self,
+        z: &[f64],
+        sol: &TrimSolution,
+        trial: Vec<f64>,
+        tsol: TrimSolution,
+        obj: f64,
+        target: f64,
+    ) -> Result<(Vec<f64>, TrimSolution, f64)> {
+        let allowed = self.violation(z, sol.w2)?.max(FEASIBILITY_FLOOR);
+        let mut hi = (trial, tsol, obj);
+        let (mut t_lo, mut t_hi) = (0.0, 1.0);
+        let end = hi.0.clone();
+        for _ in 0..SHORTEN_BISECTIONS {
+            let t = 0.5 * (t_lo + t_hi);
+            let mut point: Vec<f64> = z.iter().zip(&end).map(|(a, b)| a + t * (b - a)).collect();
+            self.restore_equilibrium(&mut point)?;
+            let psol = self.restore_hessian(&mut point)?;
+            let pobj = self.objective(&point)?;
+            if pobj <= target && self.violation(&point, psol.w2)? <= allowed {
+                hi = (point, psol, pobj);
+                t_hi = t;
+            } else {
+                t_lo = t;
+            }
+        }
+        Ok(hi)
     }
 
     /// Step 3's linearisation at z, or None when nothing can move (no variable, every variable at
@@ -852,6 +913,7 @@ mod tests {
             fan,
             trim_columns: DMatrix::zeros(0, 0),
             row_frame: None,
+            designed_objective: 0.0,
         };
         let nv = p.adjustable.len() + p.trims.len();
         let z: Vec<f64> = (0..nv)
