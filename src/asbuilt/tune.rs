@@ -116,6 +116,10 @@ const DIFFERENCE_STEP: f64 = 1e-6;
 /// every step.
 const FEASIBILITY_FLOOR: f64 = 1e-12;
 
+/// How far above the drawing's residual on tune's fan (relative, squared angles) a build that
+/// holds q_eq still counts as drawn ([`Problem::as_drawn`]): round-off of the same sums only.
+const AS_DRAWN: f64 = 1e-9;
+
 /// Bisections of [`Problem::shorten`]: the step fraction to 2⁻¹⁰ of the step, far finer than
 /// any screw is set.
 const SHORTEN_BISECTIONS: usize = 10;
@@ -167,6 +171,10 @@ pub struct TuneOutcome {
     pub settings: Vec<Setting>,
     /// Whether the equilibrium is back at q_eq (|∇U(q_eq)| within tolerance).
     pub equilibrium_restored: bool,
+    /// Whether the build lost nothing, so nothing was set: it holds q_eq and its residual on
+    /// tune's fan is the drawing's (a build measured as drawn). Every setting is then its
+    /// starting value and the trims stay as measured.
+    pub as_drawn: bool,
     /// What the trims were set for (`[fit] trim_rule`).
     pub trim_rule: TrimRule,
     /// Whether ∇²U(q_eq) = w² M(q_eq) holds again (trims; to [`crate::elements::trim::RESTORED`]).
@@ -187,6 +195,10 @@ pub struct TuneOutcome {
     #[serde(skip)]
     pub bom: Vec<BomRow>,
 }
+
+/// What step 2 solves with: the Hessian at q_eq without the trims (gravity included), the mass
+/// matrix there, and the trims' couplings.
+type TrimProblem = (DMatrix<f64>, DMatrix<f64>, Vec<Vec<f64>>);
 
 /// The tuning problem.
 struct Problem<'a> {
@@ -316,11 +328,10 @@ impl Problem<'_> {
         Ok(())
     }
 
-    /// Step 2: trim rates by the design's rule.
-    fn restore_hessian(&self, z: &mut [f64]) -> Result<TrimSolution> {
+    /// The arm's Hessian without its trims (gravity included), the mass matrix at q_eq and the
+    /// trims' couplings: what step 2 solves with.
+    fn trim_problem(&self, s: &SpringSet) -> Result<TrimProblem> {
         let q = self.design.q_eq.as_slice();
-        let na = self.adjustable.len();
-        let s = self.springs(z);
         let rest = SpringSet {
             elements: (0..s.elements.len())
                 .filter(|j| !self.trims.contains(j))
@@ -331,6 +342,34 @@ impl Problem<'_> {
         let h_rest = rest.hessian(q)? + self.design.chain.gravity_hessian(q);
         let m = self.design.chain.mass_matrix(&self.design.q_eq);
         let couplings: Vec<Vec<f64>> = self.trims.iter().map(|&j| self.bom[j].element.coupling.clone()).collect();
+        Ok((h_rest, m, couplings))
+    }
+
+    /// The build as it stands when it lost nothing: it holds q_eq (to [`RESTORED_TOLERANCE`])
+    /// and its residual on tune's fan is no more than the drawing's ([`AS_DRAWN`]). Then nothing
+    /// is set — step 2 would re-set the trims by the rule on tune's fan, which is not the fit's,
+    /// and step 3 has nothing to restore — and the trims' w² and mismatch are those they have
+    /// (their ranges pinned to their rates, so none binds). None when the build lost something.
+    fn as_drawn(&self, z: &[f64]) -> Result<Option<TrimSolution>> {
+        if self.gradient(z)?.amax() >= RESTORED_TOLERANCE * self.scale()
+            || self.objective(z)? > self.designed_objective * (1.0 + AS_DRAWN)
+        {
+            return Ok(None);
+        }
+        let (h_rest, m, couplings) = self.trim_problem(&self.springs(z))?;
+        let na = self.adjustable.len();
+        let rates = &z[na..];
+        let pinned: Vec<[f64; 2]> = rates.iter().map(|&k| [k, k]).collect();
+        let mut sol = crate::elements::trim::solve(&h_rest, &m, &couplings, &pinned, rates);
+        sol.binding.clear();
+        Ok(Some(sol))
+    }
+
+    /// Step 2: trim rates by the design's rule.
+    fn restore_hessian(&self, z: &mut [f64]) -> Result<TrimSolution> {
+        let na = self.adjustable.len();
+        let s = self.springs(z);
+        let (h_rest, m, couplings) = self.trim_problem(&s)?;
         let ranges: Vec<[f64; 2]> = (0..self.trims.len()).map(|i| self.bounds(na + i)).collect();
         let nominal: Vec<f64> = self.trims.iter().map(|&j| self.bom[j].stiffness).collect();
         // The row frame is there exactly under the residual rule with trims.
@@ -472,6 +511,11 @@ pub fn tune(design: &Design, bom: &[BomRow], measured: &[Option<f64>]) -> Result
     let p = Problem::new(design, bom, measured, extent)?;
     let mut z = p.start(measured);
     let before = state(design, extent, &p.springs(&z))?;
+    if let Some(sol) = p.as_drawn(&z)? {
+        let mut o = p.outcome(&z, &sol, before, extent, measured)?;
+        o.as_drawn = true;
+        return Ok(o);
+    }
     p.restore_equilibrium(&mut z)?;
     let sol = p.restore_hessian(&mut z)?;
     let sol = p.lower_residual(&mut z, sol)?;
@@ -721,6 +765,7 @@ impl Problem<'_> {
             after,
             settings: self.settings(z),
             equilibrium_restored,
+            as_drawn: false,
             trim_rule: design.fit.trim_rule,
             hessian_restored,
             trims_reached,

@@ -59,7 +59,13 @@ fn summary_lines(o: &TuneOutcome) -> Vec<String> {
     }
     v.push(format!(
         "equilibrium {}; {}",
-        if o.equilibrium_restored { "restored at q_eq" } else { "NOT restored" },
+        if o.as_drawn {
+            "holds at q_eq"
+        } else if o.equilibrium_restored {
+            "restored at q_eq"
+        } else {
+            "NOT restored"
+        },
         springfit::report::tune::trims_sentence(o, true)
     ));
     v.extend(o.binding.iter().cloned());

@@ -23,6 +23,12 @@ pub fn write(out: &OutputDir, name: &str, o: &TuneOutcome) -> Result<()> {
 /// a failure in capitals (the command's lines), else in lower case (`tune.md`).
 pub fn trims_sentence(o: &TuneOutcome, loud: bool) -> String {
     let not = if loud { "NOT restored" } else { "not restored" };
+    if o.as_drawn {
+        return format!(
+            "the build lost nothing (it holds q_eq with the drawing's residual on tune's fan): every setting stays as it is, trims included (w² = {:.4} (rad/s)²)",
+            o.w2
+        );
+    }
     match o.trim_rule {
         TrimRule::Hessian => {
             format!(
@@ -67,7 +73,13 @@ pub fn markdown(name: &str, o: &TuneOutcome) -> String {
     }
     s.push_str(&format!(
         "\nOffsets in rad, trim rates in N·m/rad. Equilibrium {}; {}.\n",
-        if o.equilibrium_restored { "restored" } else { "not restored" },
+        if o.as_drawn {
+            "holds"
+        } else if o.equilibrium_restored {
+            "restored"
+        } else {
+            "not restored"
+        },
         trims_sentence(o, false)
     ));
     for b in o.binding.iter().chain(&o.measured_trims) {
