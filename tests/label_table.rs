@@ -82,3 +82,34 @@ fn a_bad_label_value_is_refused_naming_the_file_and_the_field() {
     assert!(err.contains("ur5_pan_lift_elbow.toml") && err.contains("label"), "{err}");
     assert!(err.contains("auto") && err.contains("table") && err.contains("exact"), "{err}");
 }
+
+#[test]
+fn six_joints_auto_keeps_the_exact_label_and_reports_the_rejected_fit() {
+    use springfit::dynamics::scenario::choose_label;
+    let d = design("ur5_six");
+    // The fitted log map misses by degrees on this arm (6.61° when measured): `auto` keeps the
+    // exact one and says why, with the fit's error and the samples it was measured on.
+    let auto = choose_label(&d, &d.simulate).unwrap();
+    assert!(matches!(auto.source, LabelSource::Exact(_)) && auto.error.is_none());
+    assert_eq!(auto.name(), "exact");
+    let (err, count) = auto.rejected.unwrap();
+    assert!(err > AUTO_LABEL_MAX_ERROR_DEG && count > 1000, "rejected fit's error {err}° on {count} samples");
+    let note = auto.note().unwrap();
+    assert!(note.starts_with("fitted log map error ") && note.ends_with("° > 0.1°: exact log map used"), "{note}");
+    assert!(note.contains(&format!("{err:.2}°")), "{note}");
+    // `exact` builds no fit, so it rejects none; `table` takes the fit and reports its error.
+    let exact = choose_label(&d, &SimSettings { label: LabelKind::Exact, ..d.simulate }).unwrap();
+    assert!(exact.rejected.is_none() && exact.note().is_none());
+    let table = choose_label(&d, &SimSettings { label: LabelKind::Table, ..d.simulate }).unwrap();
+    assert!(matches!(table.source, LabelSource::Fit(_)) && table.rejected.is_none());
+    assert_eq!(table.name(), "table");
+    assert_eq!(table.error.unwrap().0, err, "the same fit, measured the same way");
+}
+
+#[test]
+fn three_joints_auto_rejects_nothing() {
+    use springfit::dynamics::scenario::choose_label;
+    let d = design("panda_three");
+    let auto = choose_label(&d, &d.simulate).unwrap();
+    assert!(matches!(auto.source, LabelSource::Fit(_)) && auto.rejected.is_none() && auto.note().is_none());
+}

@@ -266,6 +266,12 @@ class Controller:
     def label_error_deg(self) -> Optional[float]:
         """The table's largest error against the exact label, degrees (None: exact label)."""
     @property
+    def label_rejected_error_deg(self) -> Optional[float]:
+        """The error of the fitted log map `auto` rejected for the exact one, degrees (None: none rejected)."""
+    @property
+    def label_note(self) -> Optional[str]:
+        """Why the label is exact when `auto` rejected a fit, e.g. "fitted log map error 6.61° > 0.1°: exact log map used"."""
+    @property
     def settings(self) -> dict[str, Any]:
         """The `[controllers]` gains in use."""
 

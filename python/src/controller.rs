@@ -13,7 +13,7 @@ use springfit::design::Design;
 use springfit::design::controllers::EnergyLaw;
 use springfit::design::simulate::LabelKind;
 use springfit::dynamics::control::{Controller, ElasticPotential, EnergyControl, ModeControl, ModeTarget};
-use springfit::dynamics::scenario::{label_source, resolve_scenario};
+use springfit::dynamics::scenario::{choose_label, resolve_scenario};
 use springfit::dynamics::simulate::RunSpec;
 
 use crate::arrays::{shaped, vector};
@@ -122,6 +122,8 @@ pub struct PyController {
     start: Option<(Vec<f64>, Vec<f64>, f64)>,
     damping: Vec<f64>,
     label_error_deg: Option<f64>,
+    /// The rejected fitted log map's error, degrees (see `label_note`).
+    label_rejected_error_deg: Option<f64>,
 }
 
 impl PyController {
@@ -179,11 +181,14 @@ impl PyController {
             })?),
         };
         let damping = damping.map(|x| vector(x, n, "damping")).transpose()?;
-        let built = py.detach(|| -> springfit::Result<(Cell, Option<RunSpec>, Option<f64>)> {
-            let (mut spec, mut label_error) = (None, None);
+        type Built = (Cell, Option<RunSpec>, Option<f64>, Option<f64>);
+        let built = py.detach(|| -> springfit::Result<Built> {
+            let (mut spec, mut label_error, mut label_rejected) = (None, None, None);
             let cell = Cell::try_new(Owner { design: d.clone(), potential }, |o| {
-                let (label, error) = label_source(&o.design, &sim)?;
-                label_error = error.map(|e| e.0);
+                let choice = choose_label(&o.design, &sim)?;
+                label_error = choice.error.map(|e| e.0);
+                label_rejected = choice.rejected.map(|e| e.0);
+                let label = choice.source;
                 if let Some(i) = index {
                     let mut runs = resolve_scenario(&o.design, &o.potential, &label, i)?.runs;
                     if run >= runs.len() {
@@ -206,9 +211,10 @@ impl PyController {
                     Some(label.field()),
                 )
             })?;
-            Ok((cell, spec, label_error))
+            Ok((cell, spec, label_error, label_rejected))
         });
-        let (mut cell, spec, label_error_deg) = built.map_err(|e| in_design(e, &design.design.path))?;
+        let (mut cell, spec, label_error_deg, label_rejected_error_deg) =
+            built.map_err(|e| in_design(e, &design.design.path))?;
         let damping = damping.or_else(|| spec.as_ref().map(|s| s.damping.clone())).unwrap_or_else(|| vec![0.0; n]);
         cell.with_dependent_mut(|_, c| {
             c.set_damping(damping.clone());
@@ -223,6 +229,7 @@ impl PyController {
             start: spec.map(|s| (s.q0, s.qd0, s.duration)),
             damping,
             label_error_deg,
+            label_rejected_error_deg,
         })
     }
 
@@ -446,6 +453,20 @@ impl PyController {
     #[getter]
     fn label_error_deg(&self) -> Option<f64> {
         self.label_error_deg
+    }
+
+    /// The error, degrees, of the fitted log map that `label = "auto"` measured and rejected for
+    /// the exact one (None when none was rejected).
+    #[getter]
+    fn label_rejected_error_deg(&self) -> Option<f64> {
+        self.label_rejected_error_deg
+    }
+
+    /// Why the label is exact when `auto` rejected a fit, e.g. "fitted log map error 6.61° >
+    /// 0.1°: exact log map used" (None otherwise).
+    #[getter]
+    fn label_note(&self) -> Option<String> {
+        self.label_rejected_error_deg.map(springfit::dynamics::scenario::rejected_label_note)
     }
 
     /// The `[controllers]` gains in use, as a dict.

@@ -97,6 +97,7 @@ impl PySimulation {
             &r.potential_name,
             r.label_name,
             r.label_error.map(|e| e.0),
+            r.label_rejected.map(|e| e.0),
         );
         json(py, &s)
     }

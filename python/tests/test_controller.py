@@ -127,3 +127,15 @@ def test_the_switch_scenario_schedule(design, fit):
     assert c.mode_steps[:3] == [0.0, 15.0, 30.0]
     assert c.energy_target == 10.0 and c.duration == 100.0
     assert c.label_error_deg is not None and c.label_error_deg < 0.01
+
+
+def test_auto_says_why_the_label_is_exact(design, fit):
+    """`label = "auto"` on an arm whose fitted log map misses (triple_pendulum: 2.4°) keeps the
+    exact log map and reports the rejected fit's error; the two-joint table rejects nothing."""
+    triple = springfit.Design.load(DEFAULT.parent / "triple_pendulum.toml")
+    c = springfit.Controller(triple, springfit.Potential.exact(triple))
+    assert c.label_error_deg is None
+    assert c.label_rejected_error_deg is not None and c.label_rejected_error_deg > 0.1
+    assert c.label_note == f"fitted log map error {c.label_rejected_error_deg:.2f}° > 0.1°: exact log map used"
+    table = springfit.Controller(design, fit)
+    assert table.label_rejected_error_deg is None and table.label_note is None

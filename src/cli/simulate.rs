@@ -97,6 +97,12 @@ fn say_setup(design: &Design, run: &SimulateRun, progress: &Progress) {
             "tabulated mode label: largest error {err:.2e}° against the exact label on {count} held-out samples"
         ));
     }
+    if let Some((err, count)) = run.label_rejected {
+        progress.say(format!(
+            "mode label: {} (measured on {count} held-out samples)",
+            springfit::dynamics::scenario::rejected_label_note(err)
+        ));
+    }
 }
 
 /// A scenario's line and one line per run: deviation, actuator share, drift, energy, settling.

@@ -791,22 +791,67 @@ impl<'a> LabelSource<'a> {
     }
 }
 
+/// The label chosen for a design: the source the runs use, its measured error and, when
+/// `label = "auto"` measured a fitted log map and kept the exact one, that fit's error, so the
+/// outputs can say why the label is slow instead of discarding the measurement.
+pub struct LabelChoice<'a> {
+    /// What the runs evaluate.
+    pub source: LabelSource<'a>,
+    /// The tabulated or fitted label's largest error against the exact label on held-out
+    /// geodesics, degrees, and the number of samples compared (None for the exact label).
+    pub error: Option<(f64, usize)>,
+    /// The fitted log map `auto` built and rejected: its largest error, degrees, and the number
+    /// of samples compared (None when no fit was rejected).
+    pub rejected: Option<(f64, usize)>,
+}
+
+impl LabelChoice<'_> {
+    /// `table` or `exact`, as the outputs name the label.
+    pub fn name(&self) -> &'static str {
+        if self.error.is_some() { "table" } else { "exact" }
+    }
+
+    /// Why `auto` took the exact log map, e.g. "fitted log map error 6.61° > 0.1°: exact log map
+    /// used" (None when it did not reject a fit).
+    pub fn note(&self) -> Option<String> {
+        self.rejected.map(|(deg, _)| rejected_label_note(deg))
+    }
+}
+
+/// The note of a fitted log map of error `deg` (degrees) that `label = "auto"` rejected.
+pub fn rejected_label_note(deg: f64) -> String {
+    format!(
+        "fitted log map error {deg:.2}° > {}°: exact log map used",
+        crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG
+    )
+}
+
 /// The label source for a design and, for a table, its largest error against the exact label on
-/// held-out geodesics (degrees) and the number of samples compared. `[simulate] label`: `exact`,
-/// `table` (the grid for two joints, the fitted log map for more) or `auto` (the table, except
-/// for three or more joints when the fit's error exceeds
-/// [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact).
+/// held-out geodesics (degrees) and the number of samples compared: [`choose_label`] without
+/// the rejected fit's error.
 pub fn label_source<'a>(
     design: &'a Design,
     settings: &crate::design::simulate::SimSettings,
 ) -> Result<(LabelSource<'a>, Option<(f64, usize)>)> {
+    let choice = choose_label(design, settings)?;
+    Ok((choice.source, choice.error))
+}
+
+/// The label for a design. `[simulate] label`: `exact`, `table` (the grid for two joints, the
+/// fitted log map for more) or `auto` (the table, except for three or more joints when the fit's
+/// error exceeds [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact, with the
+/// fit's error kept in [`LabelChoice::rejected`]).
+pub fn choose_label<'a>(
+    design: &'a Design,
+    settings: &crate::design::simulate::SimSettings,
+) -> Result<LabelChoice<'a>> {
     use crate::design::simulate::{AUTO_LABEL_MAX_ERROR_DEG, LabelKind};
     use crate::geodesic::label::{ExactLog, LogTable};
     use crate::geodesic::logfit::{LogFit, LogFitSpec};
     use crate::geodesic::{Fan, FanSpec};
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
     if settings.label == LabelKind::Exact {
-        return Ok((LabelSource::Exact(exact), None));
+        return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: None });
     }
     let region = design.valid_region()?;
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
@@ -824,9 +869,9 @@ pub fn label_source<'a>(
         let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
         let err = fit.label_error(&frame, &check, 0.05 * region.extent)?;
         if settings.label == LabelKind::Auto && err.0 > AUTO_LABEL_MAX_ERROR_DEG {
-            return Ok((LabelSource::Exact(exact), None));
+            return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: Some(err) });
         }
-        return Ok((LabelSource::Fit(Box::new(fit)), Some(err)));
+        return Ok(LabelChoice { source: LabelSource::Fit(Box::new(fit)), error: Some(err), rejected: None });
     }
     let fan = Fan::trace(
         &design.chain,
@@ -837,7 +882,7 @@ pub fn label_source<'a>(
     let nodes = settings.table_nodes;
     let mut table = LogTable::build(&design.chain, &design.q_eq, &fan, ode, nodes, nodes, 0.25)?;
     let err = table.label_error(&design.chain, &design.q_eq, &check, ode, 0.05 * region.extent)?;
-    Ok((LabelSource::Table(table), Some(err)))
+    Ok(LabelChoice { source: LabelSource::Table(table), error: Some(err), rejected: None })
 }
 
 /// One scenario's results.

@@ -33,12 +33,22 @@
 //! joints and 1.5 s for six on the 2-core machine (`cargo bench --bench controller`,
 //! `BENCHMARKS.md`).
 //!
-//! **Where it does not serve.** The polynomial is in the joint angles (through x), so it serves
-//! where the region's joints turn by a radian or so: on the shipped three-joint arms its largest
-//! label error is 3e-5° (`ur5_pan_lift_elbow`) and 2e-3° (`panda_three`). On `ur5_six` the light
-//! wrist roll turns by ±4.4 rad inside the ball of radius 0.6, the log map is trigonometric in
-//! it, and no affordable degree follows it (4–5° at degrees 3–5): `label = "auto"` then keeps the
-//! exact log map, and `label = "table"` reports that error.
+//! **Where it does not serve.** On the shipped three-joint arms the largest label error is 3e-5°
+//! (`ur5_pan_lift_elbow`) and 2e-3° (`panda_three`). On `ur5_six` it is 6.61°, and `label =
+//! "auto"` keeps the exact log map there (saying so: [`crate::dynamics::scenario::LabelChoice`]).
+//! Measured on that arm (its check fan of 180 geodesics, 3600 samples; times under load):
+//! - the wrist roll is *not* what the metric is trigonometric in: M(q) does not change at all
+//!   when q₆ turns (a cyclic coordinate; it changes by 22 % per radian of wrist 2 and 44 % of the
+//!   elbow), so coordinates (cos q₆, sin q₆) cannot help, although q₆ turns by 4.1 rad inside
+//!   the ball (the others by 0.39, 0.42, 0.94, 1.23 and 1.12 rad);
+//! - a higher degree converges slowly: degree 3 (84 terms) 6.27°, 4 (210) 6.61°, 5 (462) 3.90°
+//!   on the default 144 directions; more directions help a little: degree 4 on 600 directions
+//!   3.82°, 5 on 1200 2.44°, 6 (924 terms) on 2000 directions 2.03°, built in 115 s;
+//! - a smaller ball converges: the fit over 0.5 × the region's extent misses by 1.94°, over
+//!   0.25 × by 0.096°, so sub-ball charts would need to be about a quarter of the radius across,
+//!   hundreds of them to cover a six-dimensional ball;
+//! - a Gauss–Newton correction needs exp and its Jacobian, 10 ms per call
+//!   ([`Shooter::exp_jacobian`]; `exp` alone 110 µs): beyond the 20 µs budget.
 //!
 //! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
 //! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log

@@ -14,7 +14,7 @@ use super::{Couplings, check_couplings, check_equilibrium};
 use crate::design::Design;
 use crate::design::simulate::{LabelKind, SimSettings};
 use crate::dynamics::backbone::{Backbone, backbone, backbone_energies, backbone_modes};
-use crate::dynamics::scenario::{OUT_OF_REACH, ScenarioOutcome, label_source, run_scenario};
+use crate::dynamics::scenario::{OUT_OF_REACH, ScenarioOutcome, choose_label, run_scenario};
 use crate::dynamics::simulate::ElasticPotential;
 use crate::elements::catalog::Catalog;
 use crate::error::{Error, Result};
@@ -113,7 +113,9 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
         settings.label = LabelKind::Exact;
     }
     progress.stage("preparing the mode label");
-    let (label, label_error) = label_source(design, &settings)?;
+    let choice = choose_label(design, &settings)?;
+    let (label_name, label_error, label_rejected) = (choice.name(), choice.error, choice.rejected);
+    let label = choice.source;
     let fan = crate::report::simulate::plot_fan(design)?;
     let mut scenarios = Vec::new();
     let mut not_met = Vec::new();
@@ -150,8 +152,9 @@ pub fn simulate(design: &Design, request: &SimulateRequest<'_>, progress: Progre
         potential,
         potential_name,
         settings,
-        label_name: if label_error.is_some() { "table" } else { "exact" },
+        label_name,
         label_error,
+        label_rejected,
         fan,
         scenarios,
         backbone,
@@ -196,6 +199,9 @@ pub struct SimulateRun {
     /// The tabulated label's largest error against the exact label, degrees, and the number of
     /// held-out samples it was measured on (None for the exact label).
     pub label_error: Option<(f64, usize)>,
+    /// The fitted log map `label = "auto"` measured and rejected for the exact one: its largest
+    /// error, degrees, and the number of samples compared (None when none was rejected).
+    pub label_rejected: Option<(f64, usize)>,
     /// The fan drawn behind the runs.
     pub fan: Fan,
     /// The scenarios in the order run.
@@ -227,6 +233,7 @@ impl SimulateRun {
                 &self.potential_name,
                 self.label_name,
                 self.label_error.map(|e| e.0),
+                self.label_rejected.map(|e| e.0),
                 &self.fan,
             )?;
         }

@@ -119,6 +119,12 @@ pub struct ScenarioSummary {
     pub label: String,
     /// Largest error of the tabulated label against the exact one on held-out geodesics, degrees.
     pub label_error_deg: Option<f64>,
+    /// The largest error, degrees, of the fitted log map that `label = "auto"` measured and
+    /// rejected for the exact one (its bound is 0.1°); `null` when none was rejected.
+    pub label_rejected_error_deg: Option<f64>,
+    /// Why the label is exact when `auto` rejected a fit ("fitted log map error 6.61° > 0.1°:
+    /// exact log map used"); `null` otherwise.
+    pub label_note: Option<String>,
     /// How the mode controller is switched on at the ε-ball: `smooth` or `hard`.
     pub blend: Blend,
     /// The gains in force and which of them came from the arm.
@@ -262,6 +268,7 @@ pub fn summary(
     potential_name: &str,
     label_name: &str,
     label_error_deg: Option<f64>,
+    label_rejected_error_deg: Option<f64>,
 ) -> ScenarioSummary {
     let runs: std::collections::BTreeMap<String, RunMetrics> =
         outcome.runs.iter().map(|(r, m)| (r.name.clone(), m.clone())).collect();
@@ -274,6 +281,8 @@ pub fn summary(
         potential: potential_name.into(),
         label: label_name.into(),
         label_error_deg,
+        label_rejected_error_deg,
+        label_note: label_rejected_error_deg.map(crate::dynamics::scenario::rejected_label_note),
         blend: design.controllers.blend,
         gains: GainsReport::of(&design.controllers),
         energy_handling: outcome.scenario.energy_handling.clone(),
@@ -301,11 +310,13 @@ pub fn write(
     potential_name: &str,
     label_name: &str,
     label_error_deg: Option<f64>,
+    label_rejected_error_deg: Option<f64>,
     fan: &Fan,
 ) -> Result<()> {
     let name = &outcome.scenario.name;
     out.write(&format!("sim_{name}.csv"), scenario_csv(outcome))?;
-    let summary = summary(design, outcome, potential, potential_name, label_name, label_error_deg);
+    let summary =
+        summary(design, outcome, potential, potential_name, label_name, label_error_deg, label_rejected_error_deg);
     out.write(&format!("sim_{name}.json"), serde_json::to_string_pretty(&summary).expect("serialises") + "\n")?;
     let title = |what: &str| format!("{} — scenario {name}: {what}", design.name);
     render(
