@@ -71,6 +71,7 @@ JOBS = {
     "sim.dense": ["simulate", "designs/double_pendulum_dense.toml", "--scenario", "free"],
     "sweep.dp": ["sweep", "designs/double_pendulum.toml"],
     "pareto.dp": ["pareto", "designs/double_pendulum.toml", "--radii", "0.5,2,3.5"],
+    "pareto.dp_mass": ["pareto", "designs/double_pendulum.toml", "--axis", "mass"],
     "geo.dp": ["geodesics", "designs/double_pendulum.toml"],
     "geo.triple": ["geodesics", "designs/triple_pendulum.toml"],
     "geo.dp_long": ["geodesics", "{probe:double_pendulum}"],
@@ -474,6 +475,29 @@ def pareto_radius(rad):
     return f
 
 
+def pareto_mass_table(r):
+    """The default design's mass curve (pareto_mass.csv) as a Markdown table: per mass budget, the
+    residual and the masses by the fit's model and by the parts chosen, against the floor."""
+    rows = r.csv("pareto.dp_mass", "pareto_mass.csv")
+    lines = [
+        "| max_spring_mass | p99 / max | model mass | parts' mass | × floor | stored energy / U* | total \\|preload\\| |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for x in rows:
+        budget = f"{sig(float(x['max_spring_mass_kg']))} kg" if x["max_spring_mass_kg"] else "none"
+        if x["infeasible"]:
+            lines.append(f"| {budget} | infeasible | | | | | |")
+            continue
+        parts = float(x["spring_mass_kg"]) if x["spring_mass_kg"] else None
+        lines.append(
+            f"| {budget} | {deg(float(x['p99_abs_deg']))} / {deg(float(x['max_abs_deg']))} "
+            f"| {sig(float(x['model_mass_kg']))} kg | {sig(parts) + ' kg' if parts else '–'} "
+            f"| {sig(parts / float(x['floor_kg']), 2) + '×' if parts else '–'} "
+            f"| {sig(float(x['stored_energy_over_potential']), 2)}× | {sig(float(x['preload_total_nm']))} N·m |"
+        )
+    return "\n".join(lines)
+
+
 def region_cell(job, probe_word):
     def f(r):
         rep = r.json(job, "region.json")
@@ -767,6 +791,7 @@ FIGURES = {
     "pareto.dp.r0.5": pareto_radius(0.5),
     "pareto.dp.r2": pareto_radius(2.0),
     "pareto.dp.r3.5": pareto_radius(3.5),
+    "pareto.dp.mass": pareto_mass_table,
     "region.dp": region_cell("geo.dp", "probe"),
     "region.dp.long": region_cell("geo.dp_long", "no failure found"),
     "region.straight.long": region_cell("geo.straight_long", "no failure found"),

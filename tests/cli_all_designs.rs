@@ -386,15 +386,7 @@ fn double_pendulum_paper_window() {
 
 /// The shipped designs in `designs/`, sorted.
 fn shipped() -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(repo().join("designs"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
+    util::shipped_names()
 }
 
 #[test]

@@ -96,25 +96,87 @@ pub fn compare(inputs: &[PathBuf], out: Option<PathBuf>, exact: bool, session: &
     Ok(())
 }
 
-pub fn pareto(
-    path: &Path,
-    out: Option<PathBuf>,
-    k_max: Option<usize>,
-    radii: Option<Vec<f64>>,
-    session: &Session,
-) -> Result<()> {
+/// The arguments of `springfit pareto`.
+pub struct ParetoArgs {
+    pub path: PathBuf,
+    pub out: Option<PathBuf>,
+    pub k_max: Option<usize>,
+    pub radii: Option<Vec<f64>>,
+    pub axis: Option<Vec<super::AxisArg>>,
+    pub masses: Option<Vec<f64>>,
+}
+
+pub fn pareto(args: ParetoArgs, session: &Session) -> Result<()> {
+    use springfit::jobs::compare::ParetoAxis;
+    let ParetoArgs { path, out, k_max, radii, axis, masses } = args;
     let progress = &session.progress;
-    let (design, catalog) = load_design_catalog(path, progress)?;
+    let (design, catalog) = load_design_catalog(&path, progress)?;
     let target = out.unwrap_or_else(|| PathBuf::from("out").join(format!("{}_pareto", design.name)));
     let plan = session.plan_for(&design, "pareto", springfit::report::compare::PARETO_FILES.iter().copied());
     let claim = springfit::report::output::check(&target, &plan)?;
     // The job's arguments as the command line names them.
-    let options = |e| super::flag(super::flag(e, "k_max", "--k-max"), "radii", "--radii");
-    let job = ParetoJob::new(&design, &catalog, ParetoRequest { k_max, radii }).map_err(options)?;
+    let options = |e| {
+        let e = super::flag(super::flag(e, "k_max", "--k-max"), "radii", "--radii");
+        super::flag(super::flag(e, "masses", "--masses"), "axes", "--axis")
+    };
+    let axes = axis.map(|a| {
+        a.iter()
+            .map(|a| match a {
+                super::AxisArg::Budget => ParetoAxis::Budget,
+                super::AxisArg::Radius => ParetoAxis::Radius,
+                super::AxisArg::Mass => ParetoAxis::Mass,
+            })
+            .collect()
+    });
+    let job = ParetoJob::new(&design, &catalog, ParetoRequest { k_max, radii, axes, masses }).map_err(options)?;
     let run = progress.run(|p| job.run(p)).map_err(|e| super::in_design(&design, options(e)))?;
     run.feasible()?;
     let written = run.write(&design, claim)?;
     let (curve, rcurve) = (&run.budgets, &run.radii);
+    if !curve.is_empty() {
+        print_budgets(curve, progress);
+    }
+    if !rcurve.is_empty() {
+        progress.say("radius: springs used, p99, max");
+        for r in rcurve {
+            match &r.infeasible {
+                None => progress
+                    .say(format!("  {:.2}: {:>3}  {:.4}°  {:.4}°", r.radius, r.used, r.stats.p99_abs, r.stats.max_abs)),
+                Some(why) => progress.say(format!("  {:.2}: infeasible ({why})", r.radius)),
+            }
+        }
+    }
+    if let Some(m) = &run.mass {
+        progress.say(format!(
+            "spring mass (floor {:.3} kg, arm {:.3} kg): max_spring_mass: springs used, p99, max; model mass, parts' mass (× floor)",
+            m.floor_kg, m.arm_mass_kg
+        ));
+        for p in &m.points {
+            let budget = p.max_spring_mass_kg.map(|b| format!("{b} kg")).unwrap_or_else(|| "none".into());
+            match &p.infeasible {
+                None => {
+                    let parts = p.realised.and_then(|r| r.spring_mass_kg);
+                    progress.say(format!(
+                        "  {budget:>10}: {:>3}  {:.4}°  {:.4}°  {:.3} kg  {}",
+                        p.used,
+                        p.stats.p99_abs,
+                        p.stats.max_abs,
+                        p.model_mass_kg.unwrap_or(f64::NAN),
+                        parts
+                            .map(|v| format!("{v:.3} kg ({:.1}×)", v / m.floor_kg))
+                            .unwrap_or_else(|| "no parts".into())
+                    ))
+                }
+                Some(why) => progress.say(format!("  {budget:>10}: infeasible ({why})")),
+            }
+        }
+    }
+    progress.say(format!("wrote {}", written.display()));
+    Ok(())
+}
+
+/// The budget curve as `pareto` prints it.
+fn print_budgets(curve: &[springfit::studies::compare::BudgetPoint], progress: &Progress) {
     progress.say("budget K: springs used, p99, max; as built p99 p50 / p95 over builds (untrimmed; trimmed)");
     for b in curve {
         match &b.infeasible {
@@ -144,14 +206,4 @@ pub fn pareto(
         progress
             .say("as built: no tolerance to draw builds at ([fit] tolerance = \"none\" and no catalogue tolerance)");
     }
-    progress.say("radius: springs used, p99, max");
-    for r in rcurve {
-        match &r.infeasible {
-            None => progress
-                .say(format!("  {:.2}: {:>3}  {:.4}°  {:.4}°", r.radius, r.used, r.stats.p99_abs, r.stats.max_abs)),
-            Some(why) => progress.say(format!("  {:.2}: infeasible ({why})", r.radius)),
-        }
-    }
-    progress.say(format!("wrote {}", written.display()));
-    Ok(())
 }

@@ -155,10 +155,14 @@ compare.csv, compare.md and compare.svg/.png (default folder out/compare)."
         #[arg(long)]
         exact: bool,
     },
-    /// The best residual per spring budget and per region size.
-    #[command(after_help = "Example:\n  springfit pareto designs/double_pendulum.toml\n\n\
+    /// The best residual per spring budget, per region size and per spring mass.
+    #[command(
+        after_help = "Examples:\n  springfit pareto designs/double_pendulum.toml\n  springfit pareto designs/double_pendulum.toml --axis mass\n\n\
 Fits the design's catalogue with K = 2 … K_max springs, and with its budget on geodesic balls\n\
-from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.svg/.png.")]
+from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.svg/.png.\n\
+With --axis mass: with its budget and max_spring_mass from the floor to the mass of the fit\n\
+without one, each point's parts chosen; writes pareto_mass.csv, .json, .svg/.png."
+    )]
     Pareto {
         /// Design file (TOML).
         #[arg(default_value = DEFAULT_DESIGN)]
@@ -173,6 +177,13 @@ from radius 0.5 to the largest valid one. Writes pareto.csv, pareto.md, pareto.s
         /// largest valid radius).
         #[arg(long, value_name = "R,R,…", value_delimiter = ',')]
         radii: Option<Vec<f64>>,
+        /// The curves to draw: budget, radius, mass (default: budget,radius).
+        #[arg(long, value_name = "AXIS,…", value_delimiter = ',')]
+        axis: Option<Vec<AxisArg>>,
+        /// Spring-mass budgets of the mass curve in kg, none below the floor (default: 8 evenly in
+        /// log from the floor to the mass of the fit without a budget).
+        #[arg(long, value_name = "KG,KG,…", value_delimiter = ',')]
+        masses: Option<Vec<f64>>,
     },
     /// Export the arm and its springs to MuJoCo (MJCF) to check the design there.
     #[command(
@@ -312,6 +323,17 @@ geodesics.svg/.png (the fan in joint space and the same motions in Cartesian spa
     },
 }
 
+/// `pareto --axis` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum AxisArg {
+    /// The element budget K = 2 … K_max.
+    Budget,
+    /// The geodesic-ball radius.
+    Radius,
+    /// The spring mass (max_spring_mass), each point's parts chosen.
+    Mass,
+}
+
 /// `--solver` values.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum SolverArg {
@@ -353,7 +375,9 @@ pub fn run() -> Result<()> {
             init::run(init::InitArgs { out, urdf, joints, lock, links, gravity, q }, &session.progress)
         }
         Command::Compare { inputs, out, exact } => compare::compare(&inputs, out, exact, &session),
-        Command::Pareto { design, out, k_max, radii } => compare::pareto(&design, out, k_max, radii, &session),
+        Command::Pareto { design, out, k_max, radii, axis, masses } => {
+            compare::pareto(compare::ParetoArgs { path: design, out, k_max, radii, axis, masses }, &session)
+        }
         Command::Sweep { design, out, shard, merge, builds, seed } => {
             sweep::run(sweep::SweepArgs { design, out, shard, merge, builds, seed }, &session)
         }

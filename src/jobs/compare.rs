@@ -1,5 +1,5 @@
 //! `springfit compare` (and Python's `springfit.compare()`): fits side by side; `springfit
-//! pareto`: the best residual per spring budget and per region size.
+//! pareto`: the best residual per spring budget, per region size and per spring mass.
 //!
 //! The feature's files: the records and curves `studies/compare.rs`, a fit's folder read back
 //! `files/fit_folder.rs`, the files written `report/compare.rs`, the command `cli/compare.rs`.
@@ -12,7 +12,8 @@ use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::report::output::Claim;
 use crate::studies::compare::{
-    BudgetPoint, FitRecord, RadiusPoint, budget_curve, disambiguate, radius_curve, record_of,
+    BudgetPoint, FitRecord, MassCurve, RadiusPoint, Realised, budget_curve, disambiguate, mass_curve, radius_curve,
+    record_of,
 };
 
 /// The record of a design fitted for a comparison (with the catalogue's fit as `springfit fit`
@@ -101,6 +102,29 @@ pub struct ParetoRequest {
     /// The radii of the region-size curve (default: [`DEFAULT_RADII`] up to the largest valid
     /// radius).
     pub radii: Option<Vec<f64>>,
+    /// The curves to draw (default: [`ParetoAxis::DEFAULT`], budget and radius).
+    pub axes: Option<Vec<ParetoAxis>>,
+    /// The mass budgets of the mass curve, kg (default: [`crate::studies::compare::DEFAULT_MASSES`]
+    /// from the floor to the unconstrained fit's mass).
+    pub masses: Option<Vec<f64>>,
+}
+
+/// A curve of `pareto`: what is varied against the residual.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParetoAxis {
+    /// The element budget K = 2 … K_max.
+    Budget,
+    /// The geodesic-ball radius, at the design's element budget.
+    Radius,
+    /// The spring-mass budget `max_spring_mass`, at the design's element budget, with each
+    /// point's parts chosen (their realised mass beside the model's).
+    Mass,
+}
+
+impl ParetoAxis {
+    /// The curves drawn when none are asked: the two that need no parts chosen (the mass curve
+    /// chooses every point's parts and takes about as long again, so it is asked for).
+    pub const DEFAULT: [ParetoAxis; 2] = [ParetoAxis::Budget, ParetoAxis::Radius];
 }
 
 /// Number of radii of the default region-size curve.
@@ -116,11 +140,14 @@ pub struct ParetoJob<'a> {
     catalog: &'a Catalog,
     k_max: usize,
     radii: Option<Vec<f64>>,
+    axes: Vec<ParetoAxis>,
+    masses: Option<Vec<f64>>,
 }
 
 impl<'a> ParetoJob<'a> {
     /// Checks `request` against `design` and its validated `catalog`. The fields of the errors
-    /// are `k_max` and `radii[i]`.
+    /// are `k_max`, `radii[i]`, `masses[i]` (a mass below the floor is refused here, before any
+    /// work, where the region is a ball) and `axes`.
     pub fn new(design: &'a Design, catalog: &'a Catalog, request: ParetoRequest) -> Result<ParetoJob<'a>> {
         let k_max = request.k_max.unwrap_or(design.fit.max_elements.max(16));
         if k_max < 2 {
@@ -140,21 +167,95 @@ impl<'a> ParetoJob<'a> {
                 });
             }
         }
-        Ok(ParetoJob { design, catalog, k_max, radii: request.radii })
+        let axes = request.axes.unwrap_or_else(|| ParetoAxis::DEFAULT.to_vec());
+        if axes.is_empty() {
+            return Err(Error::Setting {
+                field: "axes".into(),
+                reason: "give at least one of budget, radius, mass".into(),
+            });
+        }
+        for (field, given, axis, name) in [
+            ("radii", request.radii.is_some(), ParetoAxis::Radius, "radius"),
+            ("masses", request.masses.is_some(), ParetoAxis::Mass, "mass"),
+        ] {
+            if given && !axes.contains(&axis) {
+                return Err(Error::Setting {
+                    field: field.into(),
+                    reason: format!(
+                        "set the points of the {name} curve, which the axes asked do not include: add {name} to the axes"
+                    ),
+                });
+            }
+        }
+        if let Some(masses) = &request.masses {
+            if masses.is_empty() {
+                return Err(Error::Setting { field: "masses".into(), reason: "give at least one mass".into() });
+            }
+            let floor = crate::fit::mass::Floor::before_work(design, design.fit.frequency);
+            for (i, m) in masses.iter().enumerate() {
+                if !(m.is_finite() && *m > 0.0) {
+                    return Err(Error::Setting {
+                        field: format!("masses[{i}]"),
+                        reason: format!("must be a positive spring mass in kg, got {m}"),
+                    });
+                }
+                if let Some(f) = floor.filter(|f| *m < f.mass) {
+                    return Err(Error::Setting {
+                        field: format!("masses[{i}]"),
+                        reason: format!(
+                            "{m} kg is below the floor of {:.3} kg of {} (U* = ½ω²r² = {:.2} J over {:.3} MJ/m³ of steel: docs/parts.md, \"The floor\"): no springs that hold the potential are lighter",
+                            f.mass,
+                            design.path.display(),
+                            f.energy,
+                            f.density / 1e6
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(ParetoJob { design, catalog, k_max, radii: request.radii, axes, masses: request.masses })
     }
 
     /// Checks the radii against the region (before any fit, so that a radius past the largest
     /// valid one is blamed on the radii, not on the design's `region.radius`), then fits every
-    /// budget 2 … K on one preparation and the design's budget on every radius.
+    /// budget 2 … K on one preparation, the design's budget on every radius, and on every mass
+    /// budget with its parts chosen: the curves asked, in that order.
     pub fn run(self, progress: Progress<'_>) -> Result<ParetoRun> {
         let (design, catalog) = (self.design, self.catalog);
-        let radii = radii(design, self.radii, progress)?;
-        let budgets: Vec<usize> = (2..=self.k_max).collect();
-        progress.stage(&format!("budgets 2 … {}", self.k_max));
-        let budgets = budget_curve(design, catalog, &design.fit, &budgets, Progress::none())?;
-        progress.stage("region sizes");
-        let radii = radius_curve(design, catalog, &design.fit, &radii, Progress::none())?;
-        Ok(ParetoRun { k_max: self.k_max, budgets, radii })
+        let wants = |a: ParetoAxis| self.axes.contains(&a);
+        let radii = if wants(ParetoAxis::Radius) { radii(design, self.radii, progress)? } else { Vec::new() };
+        let budgets = if wants(ParetoAxis::Budget) {
+            let budgets: Vec<usize> = (2..=self.k_max).collect();
+            progress.stage(&format!("budgets 2 … {}", self.k_max));
+            budget_curve(design, catalog, &design.fit, &budgets, Progress::none())?
+        } else {
+            Vec::new()
+        };
+        let radii = if radii.is_empty() {
+            Vec::new()
+        } else {
+            progress.stage("region sizes");
+            radius_curve(design, catalog, &design.fit, &radii, Progress::none())?
+        };
+        let mass = if wants(ParetoAxis::Mass) {
+            progress.stage("spring masses");
+            let stock = crate::files::stock::of_design(design)?;
+            let realise = |o: &crate::fit::FitOutcome| -> Result<Realised> {
+                let parts = crate::parts::of_fit(design, o, o.settings.frequency, &stock)?;
+                let m = crate::report::mass::MassSummary::new(design, o, Some(&parts));
+                Ok(Realised {
+                    spring_mass_kg: m.and_then(|m| m.spring_mass_kg),
+                    without_part: parts.missing().count(),
+                    stored_energy_over_potential: m.map_or(f64::NAN, |m| m.stored_energy_over_potential),
+                    preload_total_nm: m.map_or(f64::NAN, |m| m.preload_total_nm),
+                })
+            };
+            let arm = crate::report::mass::arm_mass(&design.chain);
+            Some(mass_curve(design, catalog, &design.fit, self.masses.as_deref(), arm, &realise, progress)?)
+        } else {
+            None
+        };
+        Ok(ParetoRun { k_max: self.k_max, budgets, radii, mass })
     }
 }
 
@@ -206,17 +307,30 @@ fn radii(design: &Design, given: Option<Vec<f64>>, progress: Progress<'_>) -> Re
 pub struct ParetoRun {
     /// The largest budget.
     pub k_max: usize,
-    /// The best residual per budget 2 … K.
+    /// The best residual per budget 2 … K (empty when not asked).
     pub budgets: Vec<BudgetPoint>,
-    /// The residual per region radius.
+    /// The residual per region radius (empty when not asked).
     pub radii: Vec<RadiusPoint>,
+    /// The best residual per spring mass (None when not asked).
+    pub mass: Option<MassCurve>,
 }
 
 impl ParetoRun {
-    /// The error when no budget and no radius has a feasible fit: nothing to plot.
+    /// The error when no point of any curve has a feasible fit: nothing to plot. (The mass
+    /// curve's top, the fit without a mass budget, is feasible whenever the curve exists: its
+    /// failure is the run's error.)
     pub fn feasible(&self) -> Result<()> {
-        if self.budgets.iter().all(|b| b.infeasible.is_some()) && self.radii.iter().all(|r| r.infeasible.is_some()) {
-            let last = self.budgets.last().and_then(|b| b.infeasible.clone()).unwrap_or_default();
+        let mass = self.mass.as_ref().is_some_and(|m| m.points.iter().any(|p| p.infeasible.is_none()));
+        if self.budgets.iter().all(|b| b.infeasible.is_some())
+            && self.radii.iter().all(|r| r.infeasible.is_some())
+            && !mass
+        {
+            let last = self
+                .budgets
+                .last()
+                .and_then(|b| b.infeasible.clone())
+                .or_else(|| self.radii.last().and_then(|r| r.infeasible.clone()))
+                .unwrap_or_default();
             return Err(Error::Infeasible {
                 constraint: format!("every budget K = 2 … {} and every radius", self.k_max),
                 reason: last,
@@ -225,11 +339,19 @@ impl ParetoRun {
         Ok(())
     }
 
-    /// Writes `pareto.csv`, `pareto.md`, `pareto.svg`/`.png` and `report.html` into the claimed
-    /// folder.
+    /// Writes `pareto.md`, `report.html`, and for the curves run `pareto.csv` with
+    /// `pareto.svg`/`.png` (budget, radius) and `pareto_mass.csv`, `pareto_mass.json`,
+    /// `pareto_mass.svg`/`.png` (mass) into the claimed folder.
     pub fn write(&self, design: &Design, claim: Claim) -> Result<PathBuf> {
         let dir = claim.open()?;
-        crate::report::compare::write_pareto(&dir, &design.name, &self.budgets, &self.radii, design.fit.max_elements)?;
+        crate::report::compare::write_pareto(
+            &dir,
+            &design.name,
+            &self.budgets,
+            &self.radii,
+            self.mass.as_ref(),
+            design.fit.max_elements,
+        )?;
         crate::report::html::write_pareto(&dir, design)?;
         dir.commit()
     }

@@ -4,7 +4,7 @@ use super::output::OutputDir;
 use super::plot::{BoxItem, Figure, Layer, Panel, Style, histogram, palette, render};
 use crate::error::Result;
 use crate::residual::AngleStats;
-use crate::studies::compare::{BudgetPoint, FitRecord, RadiusPoint, table_csv, table_md};
+use crate::studies::compare::{BudgetPoint, FitRecord, MassCurve, MassPoint, RadiusPoint, table_csv, table_md};
 
 /// Edges of `bins` bins even in log₁₀ from a decade at or under the smallest record's 1st
 /// percentile of |angle| to a round value over the largest |angle| (at most 8 decades): fits whose
@@ -33,7 +33,17 @@ pub fn log_edges(records: &[FitRecord], bins: usize) -> Vec<f64> {
 pub const COMPARE_FILES: &[&str] = &["compare.csv", "compare.md", "compare.svg", "compare.png", super::html::FILE];
 
 /// The names `springfit pareto` may write, `report.html` included.
-pub const PARETO_FILES: &[&str] = &["pareto.csv", "pareto.md", "pareto.svg", "pareto.png", super::html::FILE];
+pub const PARETO_FILES: &[&str] = &[
+    "pareto.csv",
+    "pareto.md",
+    "pareto.svg",
+    "pareto.png",
+    "pareto_mass.csv",
+    "pareto_mass.json",
+    "pareto_mass.svg",
+    "pareto_mass.png",
+    super::html::FILE,
+];
 
 /// Writes everything `springfit compare` writes into the folder `target` under `plan`
 /// ([`COMPARE_FILES`]): the files of [`write_compare`] (signed histograms when any residual
@@ -133,19 +143,159 @@ pub fn write_compare(out: &OutputDir, records: &[FitRecord], signed: bool) -> Re
     Ok(())
 }
 
-/// Writes `pareto.csv`, `pareto.md` and `pareto.svg/.png`.
+/// Writes `pareto.md`; with a budget or radius curve `pareto.csv` and `pareto.svg/.png`; with a
+/// mass curve `pareto_mass.csv`, `pareto_mass.json` and `pareto_mass.svg/.png` (and its section
+/// of `pareto.md`).
 pub fn write_pareto(
     out: &OutputDir,
     design: &str,
     budgets: &[BudgetPoint],
     radii: &[RadiusPoint],
+    mass: Option<&MassCurve>,
     budget_for_radii: usize,
 ) -> Result<()> {
-    let (csv, md) = pareto_tables(design, budgets, radii, budget_for_radii);
-    out.write("pareto.csv", csv)?;
+    let (csv, mut md) = pareto_tables(design, budgets, radii, budget_for_radii);
+    if !budgets.is_empty() || !radii.is_empty() {
+        out.write("pareto.csv", csv)?;
+        render(&pareto_figure(design, budgets, radii), &out.path("pareto"))?;
+    }
+    if let Some(curve) = mass {
+        out.write("pareto_mass.csv", mass_csv(curve))?;
+        let json = serde_json::to_string_pretty(curve).expect("the mass curve serialises");
+        out.write("pareto_mass.json", json + "\n")?;
+        md.push_str(&mass_md(curve));
+        render(&mass_figure(curve), &out.path("pareto_mass"))?;
+    }
     out.write("pareto.md", md)?;
-    render(&pareto_figure(design, budgets, radii), &out.path("pareto"))?;
     Ok(())
+}
+
+/// A number as a CSV cell: empty when absent or not finite.
+fn cell(x: Option<f64>) -> String {
+    x.filter(|v| v.is_finite()).map(|v| v.to_string()).unwrap_or_default()
+}
+
+/// `pareto_mass.csv`: one row per mass budget, ascending, then the fit without one (empty
+/// `max_spring_mass_kg`); the floor and the arm's mass on every row, so that one file draws the
+/// figure.
+fn mass_csv(c: &MassCurve) -> String {
+    let mut s = String::from(
+        "max_spring_mass_kg,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,model_mass_kg,spring_mass_kg,without_part,stored_energy_over_potential,preload_total_nm,floor_kg,arm_mass_kg,infeasible\n",
+    );
+    for p in &c.points {
+        let r = p.realised.as_ref();
+        let used = if p.infeasible.is_none() { p.used.to_string() } else { String::new() };
+        s.push_str(&format!(
+            "{},{used},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            cell(p.max_spring_mass_kg),
+            cell(Some(p.stats.median_abs)),
+            cell(Some(p.stats.p95_abs)),
+            cell(Some(p.stats.p99_abs)),
+            cell(Some(p.stats.max_abs)),
+            cell(p.model_mass_kg),
+            cell(r.and_then(|r| r.spring_mass_kg)),
+            r.map(|r| r.without_part.to_string()).unwrap_or_default(),
+            cell(r.map(|r| r.stored_energy_over_potential)),
+            cell(r.map(|r| r.preload_total_nm)),
+            c.floor_kg,
+            c.arm_mass_kg,
+            pareto_reason(&p.infeasible)
+        ));
+    }
+    s
+}
+
+/// "0.412 kg", or "–".
+fn kg(x: Option<f64>) -> String {
+    x.filter(|v| v.is_finite()).map(|v| format!("{v:.3} kg")).unwrap_or_else(|| "–".into())
+}
+
+/// The mass section of `pareto.md`.
+fn mass_md(c: &MassCurve) -> String {
+    let mut md = format!(
+        "\n## Best residual per spring mass (budget {})\n\nEach row fits the design with `max_spring_mass` set to the budget (the last: without one). *model* is the mass the fit bounds, Σ cᵢkᵢ over the fitted springs by the mass model (trims aside); *parts* the chosen parts' total, trims included, what the arm carries. The floor ρ·U*/u is {:.3} kg (U* = {:.2} J), the arm's moving mass {:.3} kg.\n\n| max_spring_mass | springs used | median | p95 | p99 | max | model | parts | parts / floor | parts / arm | stored energy / U* | total \\|preload\\| |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        if c.max_elements == 0 { "none".to_string() } else { c.max_elements.to_string() },
+        c.floor_kg,
+        c.potential_energy_j,
+        c.arm_mass_kg
+    );
+    for p in &c.points {
+        let budget = p.max_spring_mass_kg.map(|m| format!("{m} kg")).unwrap_or_else(|| "none".into());
+        let r = p.realised.as_ref();
+        let parts = r.and_then(|r| r.spring_mass_kg);
+        let missing = r.filter(|r| r.without_part > 0).map(|r| format!(" ({} without a part)", r.without_part));
+        let ratio = |x: Option<f64>, by: f64| x.map(|v| format!("{:.1}×", v / by)).unwrap_or_else(|| "–".into());
+        md.push_str(&format!(
+            "| {budget} | {} | {} | {}{} | {} | {} | {} | {} |\n",
+            pareto_cells(p.used, &p.stats, &p.infeasible),
+            kg(p.model_mass_kg),
+            kg(parts),
+            missing.unwrap_or_default(),
+            ratio(parts, c.floor_kg),
+            ratio(parts, c.arm_mass_kg),
+            r.map(|r| format!("{:.1}×", r.stored_energy_over_potential)).unwrap_or_else(|| "–".into()),
+            r.map(|r| format!("{:.1} N·m", r.preload_total_nm)).unwrap_or_else(|| "–".into())
+        ));
+    }
+    push_infeasible(
+        &mut md,
+        c.points
+            .iter()
+            .filter_map(|p| p.infeasible.as_ref().map(|w| format!("{}: {w}", kg(p.max_spring_mass_kg))))
+            .collect(),
+    );
+    md
+}
+
+/// p99 |angle| against spring mass on log axes: by the parts chosen (what the arm carries) and by
+/// the fit's model (what the budget bounds), with the floor and the arm's moving mass as
+/// vertical lines; the fit without a budget is the rightmost point of each.
+fn mass_figure(c: &MassCurve) -> Figure {
+    let feasible: Vec<&MassPoint> = c.points.iter().filter(|p| p.infeasible.is_none()).collect();
+    let parts: Vec<(f64, f64)> = feasible
+        .iter()
+        .filter_map(|p| p.realised.and_then(|r| r.spring_mass_kg).map(|m| (m, p.stats.p99_abs)))
+        .collect();
+    let model: Vec<(f64, f64)> =
+        feasible.iter().filter_map(|p| p.model_mass_kg.map(|m| (m, p.stats.p99_abs))).collect();
+    let layers = vec![
+        Layer::VLine { x: c.floor_kg, style: Style::line(palette(6), 2).dashed() },
+        Layer::VLine { x: c.arm_mass_kg, style: Style::line(palette(2), 2).dashed() },
+        Layer::Lines {
+            lines: vec![parts.clone()],
+            style: Style::line(palette(0), 2),
+            label: Some("parts chosen".into()),
+        },
+        Layer::Points { points: parts, style: Style::fill(palette(0), 1.0), size: 4, label: None },
+        Layer::Lines {
+            lines: vec![model.clone()],
+            style: Style::line(palette(1), 2).dashed(),
+            label: Some("mass model (Σ c·k)".into()),
+        },
+        Layer::Points { points: model, style: Style::fill(palette(1), 1.0), size: 3, label: None },
+    ];
+    let panel = Panel {
+        title: format!(
+            "Best residual per spring mass ({})",
+            if c.max_elements == 0 {
+                "no element budget".to_string()
+            } else {
+                format!("at most {} elements", c.max_elements)
+            }
+        ),
+        x_label: "spring mass (kg, log scale)".into(),
+        y_label: "p99 |residual angle| (°, log scale)".into(),
+        legend: true,
+        log_x: true,
+        log_y: true,
+        notes: vec![
+            format!("grey dashed: floor ρ·U*/u = {:.3} kg", c.floor_kg),
+            format!("green dashed: arm's moving mass {:.3} kg", c.arm_mass_kg),
+        ],
+        layers,
+        ..Panel::default()
+    };
+    Figure { title: Some(format!("{}: accuracy versus spring mass", c.design)), ..Figure::single(panel, 1100, 560) }
 }
 
 /// A point's count of springs used and residual statistics as CSV cells; an infeasible point
@@ -192,9 +342,10 @@ fn pareto_tables(
     let mut csv = String::from(
         "curve,budget,radius,used,median_abs_deg,p95_abs_deg,p99_abs_deg,max_abs_deg,as_built_p99_p50_deg,as_built_p99_p95_deg,trimmed_p99_p50_deg,trimmed_p99_p95_deg,infeasible\n",
     );
-    let mut md = format!(
-        "# What accuracy costs: {design}\n\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
-    );
+    let mut md = format!("# What accuracy costs: {design}\n");
+    if !budgets.is_empty() {
+        md.push_str("\n## Best residual per spring budget\n\nAs built: p99 over Monte Carlo builds at the design's tolerance (p50 / p95 over builds), untrimmed and after each build's trim.\n\n| budget K | springs used | median | p95 | p99 | max | as built p99 | trimmed |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+    }
     // Empty where a percentile falls among builds without a figure: never NaN or inf.
     let opt = |x: Option<f64>| x.filter(|v| v.is_finite()).map(|v| v.to_string()).unwrap_or_default();
     for b in budgets {
@@ -229,7 +380,9 @@ fn pareto_tables(
         &mut md,
         budgets.iter().filter_map(|b| b.infeasible.as_ref().map(|w| format!("K = {}: {w}", b.budget))).collect(),
     );
-    md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
+    if !radii.is_empty() {
+        md.push_str(&format!("\n## Residual per region size (geodesic ball, budget {})\n\n| radius | springs used | median | p95 | p99 | max |\n| ---: | ---: | ---: | ---: | ---: | ---: |\n", if budget_for_radii == 0 { "none".to_string() } else { budget_for_radii.to_string() }));
+    }
     for r in radii {
         csv.push_str(&format!(
             "radius,,{},{},,,,,{}\n",

@@ -350,3 +350,169 @@ pub fn radius_curve(
         })
         .collect()
 }
+
+/// What the part chooser makes of a fitted bill, for a point of the mass curve (filled in by the
+/// caller, which chooses the parts: `jobs::compare`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Realised {
+    /// The chosen parts' total mass, trims included, kg (None: no parts were chosen).
+    pub spring_mass_kg: Option<f64>,
+    /// Elements of the bill the chooser found no part for (their mass is missing from
+    /// `spring_mass_kg`).
+    pub without_part: usize,
+    /// The elements' stored energy over U* (1: no element stores more than the potential needs).
+    pub stored_energy_over_potential: f64,
+    /// Σ |preload| at q_eq over the parts, N·m.
+    pub preload_total_nm: f64,
+}
+
+/// A point of the accuracy-versus-mass curve.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MassPoint {
+    /// The budget `max_spring_mass`, kg (None: the fit without a budget, the curve's top).
+    pub max_spring_mass_kg: Option<f64>,
+    /// Springs used (0 when infeasible).
+    pub used: usize,
+    /// Residual statistics (NaN, null in JSON, when infeasible).
+    pub stats: AngleStats,
+    /// The fit's own measure of the mass: Σ cᵢkᵢ over the fitted springs by the mass model
+    /// (`fit::mass`; trims, which the fit does not weigh, left out), kg: what the budget bounds.
+    pub model_mass_kg: Option<f64>,
+    /// The parts chosen for the bill (None when infeasible).
+    pub realised: Option<Realised>,
+    /// Why no set meets the fit's constraints within this mass (`None`: a set was found).
+    pub infeasible: Option<String>,
+}
+
+/// The best residual per spring mass, from the floor to the mass of the fit without a budget.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MassCurve {
+    /// The design's name.
+    pub design: String,
+    /// The budget of elements every point is fitted with (`max_elements`, 0: none).
+    pub max_elements: usize,
+    /// The floor ρ·U*/u, kg: no layout is lighter (docs/parts.md, "The floor").
+    pub floor_kg: f64,
+    /// U* = ½ω²r² at the region's boundary, J.
+    pub potential_energy_j: f64,
+    /// The arm's moving mass, kg.
+    pub arm_mass_kg: f64,
+    /// The budgets ascending, then the fit without one (the last point).
+    pub points: Vec<MassPoint>,
+}
+
+/// Default number of mass budgets between the floor and the unconstrained fit's mass.
+pub const DEFAULT_MASSES: usize = 8;
+
+/// The mass budgets of the default curve: `n` evenly from the floor up to (not including) the
+/// unconstrained fit's model mass `top`. Evenly in mass, not in log: on the default design every
+/// budget under 3.4× the floor is infeasible (the Hessian match needs that much steel) and the
+/// residual falls from 3° to 0.37° over the top third (2.8 to 4.2 kg), so the points belong where
+/// the mass is spent. Rounded up to 4 significant digits so the table and the file read the same
+/// number.
+pub fn default_masses(floor: f64, top: f64, n: usize) -> Vec<f64> {
+    if !(floor > 0.0 && top > floor) {
+        return Vec::new();
+    }
+    let round = |m: f64| {
+        let scale = 10f64.powi(3 - m.log10().floor() as i32);
+        (m * scale).ceil() / scale
+    };
+    let mut masses: Vec<f64> =
+        (0..n).map(|i| round(floor + (top - floor) * i as f64 / n as f64)).filter(|m| *m < top).collect();
+    masses.dedup();
+    masses
+}
+
+/// The model mass Σ cᵢkᵢ of a fitted bill's springs (trims aside: the fit does not weigh them),
+/// by the same mass model the fit's term and budget use (`fit::mass`: each candidate's mass per
+/// unit stiffness is read off its own coupling's duty, so the bill's rows alone give the same cᵢ
+/// as the preparation's candidates).
+pub fn model_mass(design: &Design, o: &FitOutcome) -> f64 {
+    let rows: Vec<&BomRow> = o.bom.iter().filter(|r| r.adjust.trim_range.is_none()).collect();
+    let candidates: Vec<crate::elements::catalog::Candidate> =
+        rows.iter().map(|r| crate::elements::catalog::Candidate::bare(r.element.clone())).collect();
+    let model = crate::fit::mass::MassModel::new(design, &candidates, &o.evaluation, o.settings.frequency);
+    rows.iter().zip(&model.per_stiffness).map(|(r, c)| c * r.stiffness).sum()
+}
+
+/// The best residual per spring mass: one preparation; the fit without a mass budget (the
+/// curve's top, its model mass the heaviest budget worth asking), then one fit per budget
+/// `max_spring_mass` in `masses` (default: [`default_masses`] from the floor), each with the
+/// design's element budget. `realise` chooses each point's parts (the caller's: parts sit above
+/// the studies). As for the budget curve, a budget allows every lighter set, so where a budget's
+/// search finds a worse set (by p99) than a smaller budget's, the smaller one's is reported for it
+/// too. Points are fitted one after another, each solve deterministic, so the curve is the same
+/// whatever the thread count.
+pub fn mass_curve(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    masses: Option<&[f64]>,
+    arm_mass_kg: f64,
+    realise: &dyn Fn(&FitOutcome) -> Result<Realised>,
+    progress: Progress<'_>,
+) -> Result<MassCurve> {
+    let prepared = Prepared::new(design, catalog, settings, progress)?;
+    progress.stage("mass: the fit without a budget");
+    let free = prepared.solve(&FitSettings { max_spring_mass: 0.0, ..*settings }, Progress::none())?;
+    let floor = crate::fit::mass::Floor::on(design, settings.frequency, &free.evaluation);
+    let top = model_mass(design, &free);
+    let mut budgets = match masses {
+        Some(m) => m.to_vec(),
+        None => default_masses(floor.mass, top, DEFAULT_MASSES),
+    };
+    budgets.sort_by(f64::total_cmp);
+    let point = |o: &FitOutcome, budget: Option<f64>| -> Result<MassPoint> {
+        Ok(MassPoint {
+            max_spring_mass_kg: budget,
+            used: o.used(),
+            stats: o.metrics.stats,
+            model_mass_kg: Some(model_mass(design, o)),
+            realised: Some(realise(o)?),
+            infeasible: None,
+        })
+    };
+    let mut out = Vec::new();
+    let mut best: Option<MassPoint> = None;
+    for m in budgets {
+        progress.stage(&format!("mass: at most {m} kg"));
+        let here = match prepared.solve(&FitSettings { max_spring_mass: m, ..*settings }, Progress::none()) {
+            Ok(o) => point(&o, Some(m))?,
+            // An infeasible budget is a point of the curve, not the end of it.
+            Err(e @ Error::Infeasible { .. }) => MassPoint {
+                max_spring_mass_kg: Some(m),
+                used: 0,
+                stats: no_stats(),
+                model_mass_kg: None,
+                realised: None,
+                infeasible: Some(format!(
+                    "{}: no set within {m} kg: {}",
+                    design.path.display(),
+                    crate::fit::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
+                )),
+            },
+            Err(e) => return Err(e),
+        };
+        let chosen = match &best {
+            Some(b) if here.infeasible.is_some() || b.stats.p99_abs < here.stats.p99_abs => {
+                MassPoint { max_spring_mass_kg: Some(m), ..b.clone() }
+            }
+            _ => here,
+        };
+        if chosen.infeasible.is_none() {
+            best = Some(chosen.clone());
+        }
+        out.push(chosen);
+    }
+    progress.stage("mass: the parts of the fit without a budget");
+    out.push(point(&free, None)?);
+    Ok(MassCurve {
+        design: design.name.clone(),
+        max_elements: settings.max_elements,
+        floor_kg: floor.mass,
+        potential_energy_j: floor.energy,
+        arm_mass_kg,
+        points: out,
+    })
+}

@@ -19,6 +19,19 @@ pub fn shipped(name: &str) -> (springfit::design::Design, springfit::elements::c
     (design, catalog)
 }
 
+/// The names of the shipped designs (`designs/<name>.toml`), sorted.
+pub fn shipped_names() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(repo().join("designs"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 /// A fresh empty folder under the target directory, unique per test.
 pub fn temp_dir(name: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
