@@ -75,7 +75,7 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
         (None, true) => {}
     }
     if let Some(p) = &run.parts {
-        super::parts::say(p, &run.warnings, session);
+        super::parts::say(p, &design.parts, &run.warnings, session);
         if let Some(m) = springfit::report::mass::MassSummary::new(&design, &run.outcome, Some(p)) {
             progress.say(m.line());
         }

@@ -6,14 +6,19 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use springfit::design::parts::PartsSettings;
 use springfit::jobs::{Topic, Warning, about};
 use springfit::parts::Parts;
 
 use super::Session;
 
-/// The lines `parts` and `fit` print about the parts, with the warnings about them.
-pub fn say(parts: &Parts, warnings: &[Warning], session: &Session) {
+/// The lines `parts` and `fit` print about the parts, with the warnings about them: the wire
+/// first (which one and why, and the key that overrides it: a static grade chosen for many
+/// swings is named as such), then what was found.
+pub fn say(parts: &Parts, settings: &PartsSettings, warnings: &[Warning], session: &Session) {
     let progress = &session.progress;
+    let key = if settings.material.is_some() { "" } else { "; [parts] material overrides it" };
+    progress.say(format!("wire: {} ({}{key})", settings.material_key(), settings.material_choice()));
     let found = parts.elements.iter().filter(|e| e.part.is_ok()).count();
     let stock = parts.elements.iter().filter(|e| e.stock.is_some()).count();
     let mass: f64 = parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum();
@@ -40,7 +45,7 @@ pub fn run(design: &Path, bom: Option<PathBuf>, out: Option<PathBuf>, session: &
         .run(|p| springfit::jobs::parts::parts(&design, validated.catalog.as_ref(), bom.as_deref(), p))
         .map_err(|e| super::in_design(&design, e))?;
     let written = run.write(&design, claim)?;
-    say(&run.parts, &run.warnings, session);
+    say(&run.parts, &design.parts, &run.warnings, session);
     progress.say(format!("wrote {} (parts.csv, parts.md, sketch_*.svg)", written.display()));
     run.missing(&design)?;
     Ok(())

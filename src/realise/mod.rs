@@ -1,6 +1,7 @@
 //! Realisations: the hardware that gives an element's potential (the disc cam of a cam
 //! profile), with its geometry and the limits a maker checks.
 
+pub mod accuracy;
 pub mod cam;
 pub mod duty;
 pub mod material;

@@ -140,7 +140,7 @@ impl Summary {
         let mut summary = Summary::new(o, design);
         summary.as_built = as_built.cloned();
         let floor = crate::fit::mass::Floor::on(design, o.settings.frequency, &o.evaluation);
-        summary.realised = parts.map(|p| super::parts::RealisedSummary::new(p, &floor));
+        summary.realised = parts.map(|p| super::parts::RealisedSummary::new(p, &floor, &design.parts));
         summary.mass = super::mass::MassSummary::new(design, o, parts);
         if let Some(p) = parts {
             summary.set_verdict(&p.verdict(o.settings.accept_p99_deg));

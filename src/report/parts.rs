@@ -34,11 +34,17 @@ pub struct RealisedSummary {
     pub floor_kg: f64,
     /// `spring_mass_kg` over `floor_kg`.
     pub mass_over_floor: f64,
+    /// The wire every spring is wound from (a key of the material table).
+    pub wire: String,
+    /// Why that wire: the default for `[parts] cycles`, or set in `[parts] material`
+    /// (`PartsSettings::material_choice`), so a reader of the summary sees a static grade chosen
+    /// for many swings named as such.
+    pub wire_choice: String,
 }
 
 impl RealisedSummary {
-    /// The summary of `parts`, its mass against `floor`.
-    pub fn new(parts: &Parts, floor: &Floor) -> RealisedSummary {
+    /// The summary of `parts` wound as `settings` say, its mass against `floor`.
+    pub fn new(parts: &Parts, floor: &Floor, settings: &crate::design::parts::PartsSettings) -> RealisedSummary {
         let mass = super::mass::spring_mass(parts);
         RealisedSummary {
             residual_deg: parts.realised,
@@ -50,6 +56,8 @@ impl RealisedSummary {
             spring_mass_kg: mass,
             floor_kg: floor.mass,
             mass_over_floor: mass / floor.mass,
+            wire: settings.material_key().to_string(),
+            wire_choice: settings.material_choice(),
         }
     }
 }
