@@ -296,12 +296,19 @@ fn releases(candidates: &[Candidate], chosen: &[(usize, usize)], seconds: f64) -
 fn information(rows: &Rows) -> DMatrix<f64> {
     let p = rows.width;
     let mut g = DMatrix::zeros(p, p);
+    // The upper triangle column by column (unit stride), then mirrored: xₐ x_b = x_b xₐ exactly.
+    let upper = g.as_mut_slice();
     for r in 0..rows.len() {
         let x = rows.row(r);
-        for a in 0..p {
-            for b in 0..p {
-                g[(a, b)] += x[a] * x[b];
+        for (b, &xb) in x.iter().enumerate() {
+            for (gab, xa) in upper[b * p..=b * p + b].iter_mut().zip(x) {
+                *gab += xa * xb;
             }
+        }
+    }
+    for b in 0..p {
+        for a in b + 1..p {
+            g[(a, b)] = g[(b, a)];
         }
     }
     g
