@@ -85,14 +85,19 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
     let mut g: DMatrix<f64> = DMatrix::zeros(p, p);
     let mut b: DVector<f64> = DVector::zeros(p);
     let mut phi_s = vec![0.0; p];
+    // The upper triangle column by column (G is column-major): each entry sums the same
+    // products in the same order as row by row would, at unit stride.
+    let upper = g.as_mut_slice();
     for r in 0..m {
         for (k, x) in rows.row(r).iter().enumerate() {
             phi_s[k] = x / scale[k];
         }
         for a in 0..p {
             b[a] += phi_s[a] * rows.y[r];
-            for c in a..p {
-                g[(a, c)] += phi_s[a] * phi_s[c];
+        }
+        for (c, &xc) in phi_s.iter().enumerate() {
+            for (gac, xa) in upper[c * p..=c * p + c].iter_mut().zip(&phi_s) {
+                *gac += xa * xc;
             }
         }
     }
@@ -174,7 +179,12 @@ fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) ->
             let a = scores.rows(0, steps - l);
             let b = scores.rows(l, steps - l);
             let gamma = a.transpose() * b;
-            meat += (&gamma + gamma.transpose()) * w;
+            // meat += (γ + γᵀ) w, entry by entry without the temporaries.
+            for j in 0..p {
+                for i in 0..p {
+                    meat[(i, j)] += (gamma[(i, j)] + gamma[(j, i)]) * w;
+                }
+            }
         }
         start = end;
     }

@@ -26,7 +26,7 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::log::{Log, Run};
+use super::log::Run;
 use super::regression::{Filters, Model, Rows};
 use super::swing::{Drive, encoder_reading, swing};
 use super::{Identification, Status};
@@ -237,7 +237,9 @@ fn choose(
     let mut sum = DMatrix::<f64>::identity(p, p) * ridge;
     let mut chosen: Vec<(usize, usize)> = Vec::new(); // (candidate, repeat)
     let mut repeats = vec![0usize; candidates.len()];
-    let mut readings: Vec<Run> = Vec::new();
+    // Each reading is checked and turned into rows once, not at every identification.
+    let mut readings =
+        super::Readings::new(design, bom_path, bom, settings, std::path::Path::new("(the plan's simulated releases)"))?;
     let budget = (settings.max_log_seconds / settings.release_seconds).floor().max(1.0) as usize;
     let mut predicted = None;
     while chosen.len() < budget {
@@ -253,8 +255,8 @@ fn choose(
         let mut reading =
             encoder_reading(&candidates[best].run, settings.encoder_bits, settings.encoder_noise_counts, &mut rng);
         reading.name = format!("release {}", chosen.len());
-        readings.push(reading);
-        let id = identify_readings(design, bom_path, bom, &readings)?;
+        readings.add(reading)?;
+        let id = readings.identify()?;
         let complete = id.rates.iter().all(|r| r.status == Status::Identified);
         predicted = Some(id);
         if complete {
@@ -290,31 +292,23 @@ fn releases(candidates: &[Candidate], chosen: &[(usize, usize)], seconds: f64) -
     releases
 }
 
-/// Identifies simulated readings as `identify` identifies logs.
-fn identify_readings(
-    design: &Design,
-    bom_path: &std::path::Path,
-    bom: &[BomRow],
-    runs: &[Run],
-) -> Result<Identification> {
-    let log = Log {
-        path: std::path::PathBuf::from("(the plan's simulated releases)"),
-        dof: design.dof(),
-        runs: runs.to_vec(),
-    };
-    super::identify(design, bom_path, bom, &[log], &design.identify)
-}
-
 /// ΦᵀΦ of a candidate's rows.
 fn information(rows: &Rows) -> DMatrix<f64> {
     let p = rows.width;
     let mut g = DMatrix::zeros(p, p);
+    // The upper triangle column by column (unit stride), then mirrored: xₐ x_b = x_b xₐ exactly.
+    let upper = g.as_mut_slice();
     for r in 0..rows.len() {
         let x = rows.row(r);
-        for a in 0..p {
-            for b in 0..p {
-                g[(a, b)] += x[a] * x[b];
+        for (b, &xb) in x.iter().enumerate() {
+            for (gab, xa) in upper[b * p..=b * p + b].iter_mut().zip(x) {
+                *gab += xa * xb;
             }
+        }
+    }
+    for b in 0..p {
+        for a in b + 1..p {
+            g[(a, b)] = g[(b, a)];
         }
     }
     g

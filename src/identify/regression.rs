@@ -228,6 +228,13 @@ impl Rows {
         self.step.append(&mut other.step);
         self.step_seconds.append(&mut other.step_seconds);
     }
+
+    /// Appends the rows `rows` of a further run `run` ([`run_rows`] with the next index) and
+    /// the seconds between its steps.
+    pub(super) fn push_run(&mut self, rows: Rows, run: &Run, filters: &Filters) {
+        self.append(rows);
+        self.step_seconds.push(filters.stride as f64 * run.dt);
+    }
 }
 
 /// Channel-major signals of one run: `channels` signals of `len` samples.
@@ -349,8 +356,7 @@ pub fn all_rows(design: &Design, model: &Model, runs: &[(&Run, Filters)]) -> Row
         runs.par_iter().enumerate().map(|(k, (run, f))| run_rows(design, model, run, k, f)).collect();
     let mut rows = Rows { width: model.unknowns.len(), ..Rows::default() };
     for ((run, f), r) in runs.iter().zip(parts) {
-        rows.append(r);
-        rows.step_seconds.push(f.stride as f64 * run.dt);
+        rows.push_run(r, run, f);
     }
     rows
 }
