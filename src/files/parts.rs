@@ -172,7 +172,15 @@ pub fn markdown(design: &str, parts: &Parts, settings: &crate::design::parts::Pa
         if let Ok(p) = &e.part {
             part_section(&mut m, e, p, settings);
         }
+        if let Some(note) = &e.stock_note {
+            let _ = writeln!(m, "Stock: {note}; wound instead.\n");
+        }
     }
+    let _ = writeln!(
+        m,
+        "Stock rows examined for this bill: {} (the list indexed by type and rate: each element examines the rows near its rate).",
+        parts.stock_examined
+    );
     m
 }
 

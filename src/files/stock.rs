@@ -9,7 +9,10 @@
 //! `type` is `torsion`, `compression` or `extension`; `D_mm` the mean coil diameter; `length_mm`
 //! the free length (compression, extension) or the leg length (torsion). The units are
 //! columns of their own and must be the ones of the type: `N*mm/deg`, `deg`, `N*mm` for a
-//! torsion spring, `N/mm`, `mm`, `N` otherwise.
+//! torsion spring, `N/mm`, `mm`, `N` otherwise. Optional columns: `initial_tension_N` (an
+//! extension spring's F₀) and `rate_tolerance_pct` (the vendor's stated ± tolerance on the listed
+//! rate, %, which caps the grade's when a listed spring is matched; unset: ±10 %). Every bad
+//! row is refused with the file, its line and the field, before any work.
 
 use std::path::Path;
 
@@ -100,19 +103,42 @@ pub fn parse(path: &Path, text: &str) -> Result<Vec<StockPart>> {
                 return Err(bad(ln, name, "is empty: every row names its vendor, part number and source".into()));
             }
         }
+        let (d, dm) = (num("d_mm")?, num("D_mm")?);
+        if dm <= d {
+            return Err(bad(
+                ln,
+                "D_mm",
+                format!(
+                    "the mean coil diameter {dm} mm is not above the wire's d_mm = {d} mm: D_mm is the mean diameter, outside diameter less d"
+                ),
+            ));
+        }
         out.push(StockPart {
             vendor: text("vendor"),
             part_number: text("part_number"),
             kind,
             material: text("material"),
-            d: num("d_mm")?,
-            dm: num("D_mm")?,
+            d,
+            dm,
             n: num("n")?,
             length: num("length_mm")?,
             rate: num("rate")?,
             max_deflection: num("max_deflection")?,
             max_load: num("max_load")?,
             source: text("source"),
+            rate_tolerance: match names.iter().position(|n| n.trim() == "rate_tolerance_pct") {
+                Some(i) if !f[i].trim().is_empty() => match f[i].trim().parse::<f64>() {
+                    Ok(x) if x.is_finite() && x > 0.0 && x < 100.0 => Some(x / 100.0),
+                    _ => {
+                        return Err(bad(
+                            ln,
+                            "rate_tolerance_pct",
+                            format!("`{}` is not the vendor's rate tolerance in % (above 0, below 100)", f[i].trim()),
+                        ));
+                    }
+                },
+                _ => None,
+            },
             initial_tension: match names.iter().position(|n| n.trim() == "initial_tension_N") {
                 Some(i) if !f[i].trim().is_empty() => match f[i].trim().parse::<f64>() {
                     Ok(x) if x.is_finite() && x >= 0.0 => Some(x),
@@ -148,5 +174,31 @@ mod tests {
         err(format!("{HEADER}\n{}\n", ROW.replace("N*mm/deg", "N/mm")), "rate_unit");
         err(format!("{HEADER}\n{}\n", ROW.replace(",12.5,", ",fast,")), "rate");
         err(format!("{HEADER}\n{}\n", ROW.replace("torsion", "spiral")), "type");
+    }
+
+    /// Issue 45: each bad row refused with one clear message naming the file, the line and the
+    /// field: a wrong unit string, a negative wire, coils not above 0, a mean diameter not above
+    /// the wire, a missing part number or source, a vendor tolerance that is no percentage.
+    #[test]
+    fn each_bad_row_names_its_line_and_field() {
+        let p = Path::new("stock.csv");
+        let header = format!("{HEADER},rate_tolerance_pct");
+        let good = format!("{ROW},10");
+        let rows = parse(p, &format!("# a comment\n{header}\n{good}\n")).unwrap();
+        assert_eq!(rows[0].rate_tolerance, Some(0.1));
+        assert_eq!(parse(p, &format!("{HEADER}\n{ROW}\n")).unwrap()[0].rate_tolerance, None);
+        for (row, field, words) in [
+            (good.replace("N*mm/deg", "lbf*in/deg"), "rate_unit", "`lbf*in/deg`: a torsion spring's is `N*mm/deg`"),
+            (good.replace(",180,deg,", ",180,rad,"), "max_deflection_unit", "`rad`"),
+            (good.replace("music wire,1,", "music wire,-1,"), "d_mm", "`-1` is not a positive number"),
+            (good.replace(",10,5,20,", ",10,0,20,"), "n", "`0` is not a positive number"),
+            (good.replace(",1,10,5,", ",1,0.8,5,"), "D_mm", "not above the wire's d_mm"),
+            (good.replace(",EX-1,", ",,"), "part_number", "is empty"),
+            (good.replace("invented for this test", ""), "source", "is empty"),
+            (format!("{ROW},ten"), "rate_tolerance_pct", "`ten`"),
+        ] {
+            let e = parse(p, &format!("# a comment\n{header}\n{row}\n")).unwrap_err().to_string();
+            assert!(e.contains("stock.csv") && e.contains(&format!("line 3: {field}")) && e.contains(words), "{e}");
+        }
     }
 }

@@ -561,9 +561,9 @@ fn lower(name: &'static str, value: f64, limit: f64, unit: &'static str) -> Chec
 }
 
 /// The checks every torsion spring gets at wind angles `wind` (rad: at q_eq, over the range, and
-/// the swing's two ends) under torques `rate · wind`.
-fn torsion_checks(s: &TorsionSpring, wind: [f64; 2], swing: [f64; 2], req: &Requirements) -> (Vec<Check>, f64) {
-    let k = s.rate();
+/// the swing's two ends) under torques `k · wind`: `k` (N·mm/rad) is the geometry's rate for a
+/// wound spring, the vendor's listed rate for a stock one (the torque it really carries).
+fn torsion_checks(s: &TorsionSpring, k: f64, wind: [f64; 2], swing: [f64; 2], req: &Requirements) -> (Vec<Check>, f64) {
     let rm = s.rm();
     let stress = s.stress(k * wind[1]) * req.safety;
     let (lo, hi) = (s.stress(k * swing[0]), s.stress(k * swing[1]));
@@ -603,7 +603,7 @@ fn torsion(
             search.consider(
                 quantity * s.mass(),
                 || {
-                    let (checks, life) = torsion_checks(&s, wind, swing, req);
+                    let (checks, life) = torsion_checks(&s, s.rate(), wind, swing, req);
                     build(s, checks, life)
                 },
                 || format!("d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
@@ -652,59 +652,75 @@ pub fn trim(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Resul
 
 /// A linear element of rate `k` (N·m/rad): two torsion springs of k/2 against each other.
 pub fn linear(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
-    let reach = duty.range[0].abs().max(duty.range[1].abs());
-    // Each spring is wound by the preload ± d and must never unwind to its free position.
-    let preload = reach * 1.1 + 0.05;
+    let (preload, wind, swing) = linear_span(duty);
     let rate = 0.5 * k * 1000.0;
-    let wind = [preload - reach, preload + reach];
-    let sw = duty.swing[0].abs().max(duty.swing[1].abs());
-    let swing = [preload - sw, preload + sw];
     let search = torsion(rate, 2.0, wind, swing, req, |s, checks, life| {
-        let r = s.rate();
-        let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
-            .into_iter()
-            .map(|(at, d)| WorkingPoint { at, position: (preload + d).to_degrees(), load: r * (preload + d) })
-            .collect();
-        Part {
-            mechanism: Mechanism::TorsionPair { preload },
-            spring: Spring::Torsion(s),
-            quantity: 2,
-            realised_rate: 2.0 * r / 1000.0,
-            points,
-            tolerance: tolerance_of_torsion(&s, r * wind[1], req.grade),
-            mass: 2.0 * s.mass(),
-            checks,
-            life,
-        }
+        linear_part(s, s.rate(), preload, duty, req.grade, checks, life)
     });
     search.finish()
+}
+
+/// A torsion pair's preload and its springs' wind angles over the region and over the swing,
+/// rad: each spring is wound by the preload ± d and must never unwind to its free position.
+fn linear_span(duty: &Duty) -> (f64, [f64; 2], [f64; 2]) {
+    let reach = duty.range[0].abs().max(duty.range[1].abs());
+    let preload = reach * 1.1 + 0.05;
+    let sw = duty.swing[0].abs().max(duty.swing[1].abs());
+    (preload, [preload - reach, preload + reach], [preload - sw, preload + sw])
+}
+
+/// The torsion pair of springs `s` of rate `r` (N·mm/rad: the geometry's for a wound spring, the
+/// listed one for a stock spring), preloaded `preload` rad, with its checks and life.
+fn linear_part(s: TorsionSpring, r: f64, preload: f64, duty: &Duty, grade: u8, checks: Vec<Check>, life: f64) -> Part {
+    let reach = duty.range[0].abs().max(duty.range[1].abs());
+    let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+        .into_iter()
+        .map(|(at, d)| WorkingPoint { at, position: (preload + d).to_degrees(), load: r * (preload + d) })
+        .collect();
+    Part {
+        mechanism: Mechanism::TorsionPair { preload },
+        spring: Spring::Torsion(s),
+        quantity: 2,
+        realised_rate: 2.0 * r / 1000.0,
+        points,
+        tolerance: tolerance_of_torsion(&s, r * (preload + reach), grade),
+        mass: 2.0 * s.mass(),
+        checks,
+        life,
+    }
 }
 
 /// A one-sided compression element of rate `k` (N·m/rad) engaged on side `plus`: a torsion
 /// spring against a leg stop.
 pub fn stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
-    let engaged = |d: f64| engagement(plus, d);
     let (wind, swing) = engaged_span(plus, duty);
     let rate = k * 1000.0;
     let search = torsion(rate, 1.0, wind, swing, req, |s, checks, life| {
-        let r = s.rate();
-        let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
-            .into_iter()
-            .map(|(at, d)| WorkingPoint { at, position: engaged(d).to_degrees(), load: r * engaged(d) })
-            .collect();
-        Part {
-            mechanism: Mechanism::TorsionStop { plus },
-            spring: Spring::Torsion(s),
-            quantity: 1,
-            realised_rate: r / 1000.0,
-            points,
-            tolerance: tolerance_of_torsion(&s, r * wind[1].max(1e-3), req.grade),
-            mass: s.mass(),
-            checks,
-            life,
-        }
+        stop_part(s, s.rate(), plus, duty, req.grade, checks, life)
     });
     search.finish()
+}
+
+/// The torsion stop of spring `s` of rate `r` (N·mm/rad: the geometry's, or a stock spring's
+/// listed one) engaged on side `plus`, with its checks and life.
+fn stop_part(s: TorsionSpring, r: f64, plus: bool, duty: &Duty, grade: u8, checks: Vec<Check>, life: f64) -> Part {
+    let engaged = |d: f64| engagement(plus, d);
+    let (wind, _) = engaged_span(plus, duty);
+    let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+        .into_iter()
+        .map(|(at, d)| WorkingPoint { at, position: engaged(d).to_degrees(), load: r * engaged(d) })
+        .collect();
+    Part {
+        mechanism: Mechanism::TorsionStop { plus },
+        spring: Spring::Torsion(s),
+        quantity: 1,
+        realised_rate: r / 1000.0,
+        points,
+        tolerance: tolerance_of_torsion(&s, r * wind[1].max(1e-3), grade),
+        mass: s.mass(),
+        checks,
+        life,
+    }
 }
 
 /// How far a one-sided element engaged on side `plus` is engaged at deflection `d`, rad (0 on the
@@ -740,28 +756,47 @@ pub fn drum_stop(k: f64, plus: bool, duty: &Duty, req: &Requirements) -> Result<
         let rate = k * 1000.0 / (drum * drum);
         let scale = |[a, b]: [f64; 2]| [a * drum, b * drum];
         compression(&mut search, rate, scale(range), scale(swing), req, |quantity, s, l0, checks, life| {
-            let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
-                .into_iter()
-                .map(|(at, d)| {
-                    let c = drum * engagement(plus, d);
-                    WorkingPoint { at, position: l0 - c, load: s.rate() * c }
-                })
-                .collect();
-            let q = quantity as f64;
-            Part {
-                mechanism: Mechanism::DrumStop { plus, drum },
-                spring: Spring::Compression(s, l0),
-                quantity,
-                realised_rate: q * s.rate() * drum * drum / 1000.0,
-                points,
-                tolerance: rate_tolerance(s.d, s.dm, s.n, s.rate() * drum * range[1].max(1e-3), req.grade),
-                mass: q * s.mass(),
-                checks,
-                life,
-            }
+            let spring = Listed { quantity, rate: s.rate(), checks, life };
+            drum_part(spring, s, l0, plus, drum, duty, req.grade)
         });
     }
     search.finish()
+}
+
+/// How many springs of a part, their rate in N/mm (or N·mm/rad: the geometry's for a wound spring,
+/// the vendor's listed one for a stock spring), their checks and life: what the parts built
+/// round a given spring share.
+struct Listed {
+    quantity: usize,
+    rate: f64,
+    checks: Vec<Check>,
+    life: f64,
+}
+
+/// The drum stop of `spring.quantity` compression springs `s` of free length `l0` (mm) on a drum
+/// of radius `drum` (mm) engaged on side `plus`.
+fn drum_part(spring: Listed, s: HelicalSpring, l0: f64, plus: bool, drum: f64, duty: &Duty, grade: u8) -> Part {
+    let (range, _) = engaged_span(plus, duty);
+    let rate = spring.rate;
+    let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
+        .into_iter()
+        .map(|(at, d)| {
+            let c = drum * engagement(plus, d);
+            WorkingPoint { at, position: l0 - c, load: rate * c }
+        })
+        .collect();
+    let q = spring.quantity as f64;
+    Part {
+        mechanism: Mechanism::DrumStop { plus, drum },
+        spring: Spring::Compression(s, l0),
+        quantity: spring.quantity,
+        realised_rate: q * rate * drum * drum / 1000.0,
+        points,
+        tolerance: rate_tolerance(s.d, s.dm, s.n, rate * drum * range[1].max(1e-3), grade),
+        mass: q * s.mass(),
+        checks: spring.checks,
+        life: spring.life,
+    }
 }
 
 /// Smallest and largest of `f` over [a, b] (sampled, with the ends).
@@ -903,9 +938,18 @@ fn crank_part(
 /// anchor distance R is set so that the spring's own rate gives the element's, k_s r R = k (with
 /// the rollers' compensation, iterated), within the anchor ratios 1.5–4 R/r of the wound
 /// search. The candidate that passes with the most margin, else the one closest to passing;
-/// None when no radius takes the rate. A listed rate that differs from the geometry's by more
-/// than the part's grade tolerance fails a check of its own.
-pub fn crank_round(k: f64, duty: &Duty, req: &Requirements, s: HelicalSpring, f0: f64, listed: f64) -> Option<Part> {
+/// None when no radius takes the rate. The part's tolerance is its grade's capped at `cap`, the
+/// vendor's stated tolerance; a listed rate that differs from the geometry's by more than that
+/// fails a check of its own.
+pub fn crank_round(
+    k: f64,
+    duty: &Duty,
+    req: &Requirements,
+    s: HelicalSpring,
+    f0: f64,
+    listed: f64,
+    cap: f64,
+) -> Option<Part> {
     let pulley = req.pulley_radius;
     let rate = s.rate();
     let mut best: Option<Part> = None;
@@ -927,12 +971,127 @@ pub fn crank_round(k: f64, duty: &Duty, req: &Requirements, s: HelicalSpring, f0
         let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
         let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
         let mut part = crank_part(&geometry, duty, req, s, f0, &path);
+        part.tolerance = part.tolerance.min(cap);
         part.checks.push(upper("listed rate against the geometry's", (listed / rate - 1.0).abs(), part.tolerance, ""));
         if best.as_ref().is_none_or(|b| part.worst() < b.worst()) {
             best = Some(part);
         }
     }
     best
+}
+
+/// The rates (N/mm) of the extension springs [`crank_round`] can build a crank of stiffness `k`
+/// round, one interval per crank radius: the anchor distance R = k/(r k_s) must lie within the
+/// anchor ratios before the rollers' compensation (a few per cent) is iterated. Each interval is
+/// widened by a part in 10⁹, so that a pre-filter on it never drops a spring `crank_round`
+/// would take.
+pub fn crank_rates(k: f64, req: &Requirements) -> Vec<[f64; 2]> {
+    let (lo, hi) = (ANCHOR_RATIOS[0], ANCHOR_RATIOS[ANCHOR_RATIOS.len() - 1]);
+    CRANK_RADII
+        .iter()
+        .filter(|&&r| r <= req.max_lever)
+        .map(|&r| [k * 1000.0 / (r * hi * r) * (1.0 - 1e-9), k * 1000.0 / (r * lo * r) * (1.0 + 1e-9)])
+        .collect()
+}
+
+/// A listed (stock) spring as the vendor publishes it: its geometry (a torsion spring's legs
+/// its listed leg length, a compression spring's free length the listed one) and the vendor's
+/// figures, in the maker's units (N·mm/°, °, N·mm for torsion; N/mm, mm, N otherwise).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StockSpring {
+    /// The geometry: [`Spring::Torsion`] or [`Spring::Compression`] with its free length.
+    pub spring: Spring,
+    /// The listed rate.
+    pub rate: f64,
+    /// The listed largest deflection.
+    pub max_deflection: f64,
+    /// The listed largest load.
+    pub max_load: f64,
+    /// The vendor's stated rate tolerance (± fraction) that caps the grade's.
+    pub cap: f64,
+}
+
+/// The part of `wound`'s mechanism, over the same working deflections (`duty`), built round a
+/// listed spring instead of the wound one: the same checks a wound spring gets (static stress
+/// and Goodman at its working points, the envelope; a compression spring's buckling and its
+/// length at the largest compression against solid; a torsion spring's arbor), under the loads
+/// of the vendor's listed rate (what the spring really carries), plus the stock row's own: its
+/// rate within the element's by the part's tolerance, its listed rate within its geometry's by
+/// the same, its listed largest deflection and load. The tolerance is EN 15800's for the
+/// listed spring's geometry and grade, capped at the vendor's stated one: a listed spring is
+/// not accepted further from the element than the vendor promises to hold it. The realised
+/// rate is the listed one, and it must be within the wound spring's tolerance of the element's
+/// too. None when the mechanism takes no spring of that kind (a crank, a
+/// leaf; a torsion spring on a drum).
+pub fn round_listed(wound: &Part, duty: &Duty, req: &Requirements, listed: StockSpring) -> Option<Part> {
+    let rate = listed.rate;
+    let mut part = match (wound.mechanism, listed.spring) {
+        (Mechanism::TorsionPair { preload }, Spring::Torsion(s)) => {
+            let r = rate.to_degrees();
+            let (_, wind, swing) = linear_span(duty);
+            let (checks, life) = torsion_checks(&s, r, wind, swing, req);
+            linear_part(s, r, preload, duty, req.grade, checks, life)
+        }
+        (Mechanism::TorsionStop { plus }, Spring::Torsion(s)) => {
+            let r = rate.to_degrees();
+            let (wind, swing) = engaged_span(plus, duty);
+            let (checks, life) = torsion_checks(&s, r, wind, swing, req);
+            stop_part(s, r, plus, duty, req.grade, checks, life)
+        }
+        (Mechanism::DrumStop { plus, drum }, Spring::Compression(s, l0)) => {
+            let (range, swing) = engaged_span(plus, duty);
+            let loads = [rate * drum * swing[0], rate * drum * swing[1], rate * drum * range[1]];
+            let (checks, life) = compression_checks(&s, l0, loads, drum * range[1], req);
+            let spring = Listed { quantity: wound.quantity, rate, checks, life };
+            drum_part(spring, s, l0, plus, drum, duty, req.grade)
+        }
+        (Mechanism::Follower | Mechanism::CubicCam { .. }, Spring::Compression(s, l0)) => {
+            let Spring::Compression(w, l0w) = wound.spring else { return None };
+            let [base, top] = [&wound.points[0], &wound.points[wound.points.len() - 1]];
+            let span = [l0w - base.position, l0w - top.position];
+            let loads = [rate * span[0], rate * span[1], rate * span[1]];
+            let (checks, life) = compression_checks(&s, l0, loads, span[1], req);
+            let spring = Listed { quantity: wound.quantity, rate, checks, life };
+            let mut part = follower_part(spring, s, l0, span, req.grade);
+            if let Mechanism::CubicCam { .. } = wound.mechanism {
+                // The cam's rate scales with its follower springs' (the cam stores k (x − x₀)⁴/4
+                // at the asked follower rate).
+                part.realised_rate = wound.realised_rate * rate / w.rate();
+                part.mechanism = wound.mechanism;
+            }
+            part
+        }
+        _ => return None,
+    };
+    let need = wound.spring.maker_rate().0;
+    let (geometry, _) = listed.spring.maker_rate();
+    part.tolerance = part.tolerance.min(listed.cap);
+    // The deflection of each working point from free: a torsion spring's wind angle (°), a
+    // compression spring's length change (mm).
+    let deflection = |w: &WorkingPoint| match listed.spring {
+        Spring::Compression(_, l0) => l0 - w.position,
+        _ => w.position,
+    };
+    let most = part.points.iter().fold((0.0f64, 0.0f64), |(a, b), w| (a.max(deflection(w)), b.max(w.load)));
+    let (du, lu) = if matches!(listed.spring, Spring::Torsion(_)) { ("°", "N·mm") } else { ("mm", "N") };
+    // Never further from the element than the wound spring's own grade tolerance either: the
+    // stock part replaces it, and is not to be held to a looser rate than it.
+    let within = part.tolerance.min(wound.tolerance);
+    part.checks.push(upper("stock rate against the element's", (rate / need - 1.0).abs(), within, ""));
+    part.checks.push(upper("listed rate against the geometry's", (rate / geometry - 1.0).abs(), part.tolerance, ""));
+    part.checks.push(upper("listed largest deflection", most.0, listed.max_deflection, du));
+    part.checks.push(upper("listed largest load", most.1, listed.max_load, lu));
+    if let Spring::Compression(s, l0) = listed.spring {
+        // What the stroke needs, solid length + least gaps + largest compression, against the
+        // listed free length (a wound spring's free length is this sum).
+        part.checks.push(upper(
+            "free length for the stroke (solid + least gaps + largest compression)",
+            s.solid_length() + s.min_gaps() + most.0,
+            l0,
+            "mm",
+        ));
+    }
+    Some(part)
 }
 
 /// The pin's phase δ and the rate factor s that make the crank's cable geometry give the fitted
@@ -1060,26 +1219,39 @@ pub fn follower(rate: f64, preload: f64, stroke: f64, req: &Requirements) -> Res
     let most = preload + stroke;
     // The cam's whole stroke is the swing: every turn runs the follower from base circle to top.
     compression(&mut search, rate, [preload, most], [preload, most], req, |quantity, s, l0, checks, life| {
-        let q = quantity as f64;
-        let per = rate / q;
-        let (f1, f2) = (per * preload, per * most);
+        let part = follower_part(Listed { quantity, rate: s.rate(), checks, life }, s, l0, [preload, most], req.grade);
+        // The loads are the follower's asked rate shared by the springs (the geometry's is that
+        // rate to rounding).
+        let per = rate / quantity as f64;
         let points = vec![
-            WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
-            WorkingPoint { at: "largest stroke", position: l0 - most, load: f2 },
+            WorkingPoint { at: "base circle", position: l0 - preload, load: per * preload },
+            WorkingPoint { at: "largest stroke", position: l0 - most, load: per * most },
         ];
-        Part {
-            mechanism: Mechanism::Follower,
-            spring: Spring::Compression(s, l0),
-            quantity,
-            realised_rate: q * s.rate(),
-            points,
-            checks,
-            tolerance: rate_tolerance(s.d, s.dm, s.n, f2, req.grade),
-            mass: q * s.mass(),
-            life,
-        }
+        Part { points, tolerance: rate_tolerance(s.d, s.dm, s.n, per * most, req.grade), ..part }
     });
     search.finish()
+}
+
+/// The follower of `spring.quantity` compression springs `s` of free length `l0` (mm), compressed
+/// `[preload, most]` mm from free at the base circle and at the largest stroke.
+fn follower_part(spring: Listed, s: HelicalSpring, l0: f64, [preload, most]: [f64; 2], grade: u8) -> Part {
+    let q = spring.quantity as f64;
+    let (f1, f2) = (spring.rate * preload, spring.rate * most);
+    let points = vec![
+        WorkingPoint { at: "base circle", position: l0 - preload, load: f1 },
+        WorkingPoint { at: "largest stroke", position: l0 - most, load: f2 },
+    ];
+    Part {
+        mechanism: Mechanism::Follower,
+        spring: Spring::Compression(s, l0),
+        quantity: spring.quantity,
+        realised_rate: q * spring.rate,
+        points,
+        checks: spring.checks,
+        tolerance: rate_tolerance(s.d, s.dm, s.n, f2, grade),
+        mass: q * s.mass(),
+        life: spring.life,
+    }
 }
 
 /// Offers `search` one to four equal compression springs side by side sharing `rate` (N/mm),
@@ -1106,29 +1278,42 @@ fn compression(
                 q * s.mass(),
                 || {
                     let l0 = s.solid_length() + s.min_gaps() + range[1];
-                    let rm = s.rm();
-                    let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
-                    let checks = vec![
-                        lower("active coils", n, MIN_COILS, "coils"),
-                        upper("static stress", s.stress(fmax) * req.safety, 0.5 * rm, "MPa"),
-                        upper(
-                            "fatigue (Goodman)",
-                            Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface)
-                                * req.safety,
-                            1.0,
-                            "utilisation",
-                        ),
-                        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
-                        upper("free length", l0, req.max_length, "mm"),
-                        lower("buckling deflection (ends guided, ν = 0.5)", buckling, range[1], "mm"),
-                    ];
-                    let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
+                    let (checks, life) = compression_checks(&s, l0, [f1, f2, fmax], range[1], req);
                     build(quantity, s, l0, checks, life)
                 },
                 || format!("{quantity} × d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
             );
         }
     }
+}
+
+/// The checks every compression spring `s` of free length `l0` (mm) gets under the loads
+/// `[f1, f2, fmax]` (N: the swing's two ends and the largest over the region, at the largest
+/// compression `most`, mm), and its fatigue life.
+fn compression_checks(
+    s: &HelicalSpring,
+    l0: f64,
+    [f1, f2, fmax]: [f64; 3],
+    most: f64,
+    req: &Requirements,
+) -> (Vec<Check>, f64) {
+    let rm = s.rm();
+    let buckling = s.buckling_deflection(l0, 0.5).unwrap_or(f64::INFINITY);
+    let checks = vec![
+        lower("active coils", s.n, MIN_COILS, "coils"),
+        upper("static stress", s.stress(fmax) * req.safety, 0.5 * rm, "MPa"),
+        upper(
+            "fatigue (Goodman)",
+            Loading::Shear.goodman(rm, s.stress(f1), s.stress(f2), req.cycles, req.surface) * req.safety,
+            1.0,
+            "utilisation",
+        ),
+        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+        upper("free length", l0, req.max_length, "mm"),
+        lower("buckling deflection (ends guided, ν = 0.5)", buckling, most, "mm"),
+    ];
+    let life = Loading::Shear.life(rm, s.stress(f1), s.stress(f2), 1.0 / req.safety, req.surface);
+    (checks, life)
 }
 
 /// Fairlead distances over the pin's largest radius, R/r, tried for a trim's crank: the
