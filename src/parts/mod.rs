@@ -977,6 +977,35 @@ mod tests {
         assert!((1..=9).contains(&m.examined), "{} examined", m.examined);
     }
 
+    /// A listed spring on a drum stop: the drum is machined for it, its radius set so that the
+    /// element gets the wound spring's rate exactly (q k_s ρ²), so a stock spring 2 % soft costs
+    /// a drum 1 % larger, not 2 % of the element's rate (issue 45: every element within 1.5 %).
+    #[test]
+    fn a_listed_spring_on_a_drum_gives_the_element_its_rate() {
+        let req = requirements();
+        let duty = Duty { at_eq: 0.0, range: [-0.6, 0.6], swing: [-0.4, 0.4] };
+        let wound = mechanism::drum_stop(5.0, true, &duty, &req).expect("a drum stop");
+        let (Spring::Compression(s, l0), mechanism::Mechanism::DrumStop { drum, .. }) = (wound.spring, wound.mechanism)
+        else {
+            panic!("{:?}", wound.mechanism)
+        };
+        let most = wound.points.iter().map(|w| l0 - w.position).fold(0.0f64, f64::max);
+        let listed = crate::realise::spring::HelicalSpring { n: s.n / 0.98, ..s };
+        let length = listed.solid_length() + listed.min_gaps() + most * 1.02 + 1e-6;
+        let near = [listed_like(&wound, 0.98, length, "NEAR")];
+        let (part, m) = snap(Ok(wound.clone()), &duty, &req, &StockIndex::new(&near));
+        let part = part.unwrap();
+        assert_eq!(m.found.map(|f| f.1.part_number.clone()).as_deref(), Some("NEAR"), "{:?}", m.note);
+        assert!(
+            (part.realised_rate / wound.realised_rate - 1.0).abs() < 1e-12,
+            "{} against {}",
+            part.realised_rate,
+            wound.realised_rate
+        );
+        let mechanism::Mechanism::DrumStop { drum: built, .. } = part.mechanism else { panic!("{:?}", part.mechanism) };
+        assert!((built / drum - 1.0 / 0.98f64.sqrt()).abs() < 1e-12, "drum {built} against {drum}");
+    }
+
     /// A hardening element built as a disc cam: the follower spring stores exactly the cubic's
     /// potential over the region's deflections (the cam's pitch curve is solved for it), the
     /// part's rate from the spring's geometry is the fitted k within its grade, and the
