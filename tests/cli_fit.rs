@@ -220,3 +220,23 @@ fn a_poor_fit_gets_a_plain_verdict_against_the_design_threshold() {
     assert!(s["residual_deg"]["p99_abs"].as_f64().unwrap() > 2.0);
     assert!(std::fs::read_to_string(dir.join("few/report.md")).unwrap().contains("**Verdict: poor**"));
 }
+
+/// Issue 46: a URDF arm springfit ships no hand-tuned design for (the Franka Panda's three pitch
+/// joints, 78 cranks whose preloads cancel on a small net torque), fitted with the defaults, is
+/// realised within 1.5°: the lightest crank geometries realised it at 3.13° (their rollers'
+/// small departures from k sin d add up), so the parts are chosen again with the rollers bounded
+/// (`parts::ROLLER_SLACK_DEG`), while the default design, realised within 0.1° of its ideal
+/// elements, keeps its light cranks.
+#[test]
+fn a_urdf_arm_is_realised_within_a_degree_and_a_half() {
+    let dir = temp_dir("fit-panda-realised");
+    let run =
+        springfit(&dir, &["fit", repo().join("designs/panda_three.toml").to_str().unwrap(), "--out", "result"]).ok();
+    let s = summary(&dir.join("result"));
+    let ideal = s["residual_deg"]["p99_abs"].as_f64().unwrap();
+    let realised = s["realised"]["residual_deg"]["p99_abs"].as_f64().unwrap();
+    assert!(ideal <= 1.0 && realised <= 1.5, "ideal {ideal}°, realised {realised}°\n{}", run.report());
+    let mass = s["mass"]["spring_mass_kg"].as_f64().unwrap();
+    let arm = s["mass"]["arm_mass_kg"].as_f64().unwrap();
+    assert!(mass <= arm, "springs {mass} kg on an arm of {arm} kg");
+}

@@ -128,6 +128,7 @@ fn the_realised_crank_against_its_closed_form() {
         pulley_radius: pulley,
         stop: mechanism::StopMechanism::Lightest,
         trim: mechanism::TrimMechanism::Lightest,
+        roller_departure: None,
     };
     let duty = Duty { at_eq: -0.7, range: [-2.6, 1.9], swing: [-1.5, 0.4] };
     for k in [4.0, 12.0, 30.0] {

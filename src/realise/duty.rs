@@ -43,6 +43,7 @@ pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
             "crank" => TrimMechanism::Crank,
             _ => TrimMechanism::Lightest,
         },
+        roller_departure: None,
     }
 }
 

@@ -108,6 +108,12 @@ pub struct Requirements {
     pub stop: StopMechanism,
     /// The mechanism of a trim.
     pub trim: TrimMechanism,
+    /// How far a crank's rollers may make its torque depart from k sin d over the region, as a
+    /// share of k; None: not bounded (the lightest geometry). The part chooser bounds it
+    /// ([`MAX_ROLLER_DEPARTURE`]) only when the realised design needs it
+    /// (`crate::parts::choose`): the bound costs steel, and only bills whose cranks' preloads
+    /// cancel on a small net torque lose accuracy without it.
+    pub roller_departure: Option<f64>,
 }
 
 /// The deflections an element sees, x − x₀ in rad: at the equilibrium, over the region, and over
@@ -811,9 +817,16 @@ fn extremes(a: f64, b: f64, f: impl Fn(f64) -> f64) -> [f64; 2] {
 }
 
 /// A crank of stiffness `k` (N·m): an extension spring of rate k_s = k/(r R) on a cable.
+///
+/// Without a bound on the rollers' departure (`req.roller_departure` None) the lightest part
+/// over every geometry. With one, the lightest part among the geometries whose rollers depart
+/// from k sin d by at most that share of k. When none of those passes every other check (a weak element
+/// whose spring would need more coils than any wire gives, an envelope that takes only a short
+/// anchor), the lightest part of the geometry that departs least among those that can pass;
+/// when no geometry passes at all, the limit of the whole search.
 pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
-    let mut search = Search::new();
     let pulley = req.pulley_radius;
+    let mut geometries: Vec<CrankSetting> = Vec::new();
     for &r in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
         for &ratio in ANCHOR_RATIOS {
             let big_r = ratio * r;
@@ -821,20 +834,68 @@ pub fn crank(k: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
                 continue;
             }
             let (phase, scale) = compensate(k, r, big_r, pulley, duty.at_eq);
-            let ks = k_s(scale * k, r, big_r);
-            let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
-            let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
-            let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
-            for s in helical(ks, req) {
-                search.consider(
-                    s.mass(),
-                    || {
-                        let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
-                        crank_part(&geometry, duty, req, s, s.initial_tension(), &path)
-                    },
-                    || format!("r = {r} mm, R = {big_r} mm, d = {} mm, D = {:.1} mm, n = {:.2}", s.d, s.dm, s.n),
-                );
-            }
+            let departure = roller_departure(r, big_r, pulley, phase, scale, duty.range);
+            geometries.push(CrankSetting { r, big_r, phase, scale, departure });
+        }
+    }
+    let Some(bound) = req.roller_departure else {
+        return crank_search(k, duty, req, &geometries, f64::INFINITY);
+    };
+    let within: Vec<CrankSetting> = geometries.iter().copied().filter(|g| g.departure <= bound).collect();
+    let bounded = crank_search(k, duty, req, &within, bound);
+    if bounded.is_ok() {
+        return bounded;
+    }
+    geometries.sort_by(|a, b| a.departure.total_cmp(&b.departure));
+    for g in geometries.iter().filter(|g| g.departure > bound) {
+        if let Ok(part) = crank_search(k, duty, req, std::slice::from_ref(g), g.departure) {
+            return Ok(part);
+        }
+    }
+    // No geometry passes the other checks: the limit over them all, as without the bound.
+    crank_search(k, duty, req, &geometries, f64::INFINITY)
+}
+
+/// A crank geometry the search tries: radius, anchor distance (mm), the rollers' compensation
+/// (phase, rate factor) and the departure it leaves ([`roller_departure`]).
+#[derive(Clone, Copy)]
+struct CrankSetting {
+    r: f64,
+    big_r: f64,
+    phase: f64,
+    scale: f64,
+    departure: f64,
+}
+
+/// The lightest crank part over `geometries` and every spring of each, checked against the
+/// departure `allowed` (a share of k; infinite: the departure is not checked).
+fn crank_search(
+    k: f64,
+    duty: &Duty,
+    req: &Requirements,
+    geometries: &[CrankSetting],
+    allowed: f64,
+) -> Result<Part, Limit> {
+    let mut search = Search::new();
+    let pulley = req.pulley_radius;
+    for &CrankSetting { r, big_r, phase, scale, departure } in geometries {
+        let ks = k_s(scale * k, r, big_r);
+        let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
+        let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
+        let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+        for s in helical(ks, req) {
+            search.consider(
+                s.mass(),
+                || {
+                    let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
+                    let mut part = crank_part(&geometry, duty, req, s, s.initial_tension(), &path);
+                    if allowed.is_finite() {
+                        part.checks.push(departure_check(departure, allowed));
+                    }
+                    part
+                },
+                || format!("r = {r} mm, R = {big_r} mm, d = {} mm, D = {:.1} mm, n = {:.2}", s.d, s.dm, s.n),
+            );
         }
     }
     search.finish()
@@ -972,6 +1033,9 @@ pub fn crank_round(
         let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
         let mut part = crank_part(&geometry, duty, req, s, f0, &path);
         part.tolerance = part.tolerance.min(cap);
+        if let Some(allowed) = req.roller_departure {
+            part.checks.push(departure_check(roller_departure(r, big_r, pulley, phase, comp.1, duty.range), allowed));
+        }
         part.checks.push(upper("listed rate against the geometry's", (listed / rate - 1.0).abs(), part.tolerance, ""));
         if best.as_ref().is_none_or(|b| part.worst() < b.worst()) {
             best = Some(part);
@@ -1098,6 +1162,43 @@ pub fn round_listed(wound: &Part, duty: &Duty, req: &Requirements, listed: Stock
         ));
     }
     Some(part)
+}
+
+/// Largest departure of a crank's realised torque over its rollers from the element's k sin d
+/// over the region, as a share of k: the part chooser passes only geometries within it
+/// ([`roller_departure`]). The rollers' compensation ([`compensate`]) makes torque and
+/// stiffness exact at q_eq; away from it the cable's wrap round a roller of radius ρ leaves a
+/// departure that falls about as (ρ / (R − r))² with the anchor distance. A bill of many cranks
+/// whose preloads cancel at q_eq adds these departures up on a small net torque (the Panda's
+/// three pitch joints: realised p99 3.13° from an ideal 0.16° with the lightest geometries, whose
+/// departures reach 0.6 % of k); a few tenths of a percent of k are a few percent of the net.
+/// Every crank radius has anchor ratios that keep 0.1 % over a ±0.3 rad range (R/r ≥ 2.5 from
+/// r = 10 mm, R/r ≥ 2 from 50 mm), at the cost of more stored energy (the zero-free-length
+/// spring's ½ k_s (R − r)² besides the element's).
+pub const MAX_ROLLER_DEPARTURE: f64 = 0.001;
+
+/// The check of a geometry's rollers' departure (a share of k) against `allowed`:
+/// [`MAX_ROLLER_DEPARTURE`], or for a crank no geometry within it can build, the least departure
+/// of the geometries that pass the other checks (what the part then reaches, stated in
+/// `parts.csv`).
+fn departure_check(departure: f64, allowed: f64) -> Check {
+    upper("rollers' departure from k sin d over the region (share of k)", departure, allowed, "")
+}
+
+/// The largest |τ(d)/k − sin d| over the deflections `range` of a crank of radius `r`, anchor
+/// `big_r` and rollers of radius `pulley` (mm) with the compensation's phase and rate factor:
+/// the realised torque [`Part::energy_torque`] gives (k's realised rate is `scale` k), against
+/// the element's. Linear in k, so evaluated at k = 1 on 101 deflections. 0 without rollers.
+fn roller_departure(r: f64, big_r: f64, pulley: f64, phase: f64, scale: f64, range: [f64; 2]) -> f64 {
+    if pulley <= 0.0 {
+        return 0.0;
+    }
+    (0..=100)
+        .map(|i| {
+            let d = range[0] + (range[1] - range[0]) * i as f64 / 100.0;
+            (crank_energy_torque(scale, r, big_r, pulley, phase, 1.0, d).1 - d.sin()).abs()
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The pin's phase δ and the rate factor s that make the crank's cable geometry give the fitted
@@ -1414,6 +1515,7 @@ mod tests {
             pulley_radius: 0.0,
             stop: StopMechanism::Lightest,
             trim: TrimMechanism::Lightest,
+            roller_departure: None,
         }
     }
 
@@ -1450,6 +1552,35 @@ mod tests {
         let (_, t2, _) = part.potential(1.5);
         let err = (t2 - 15.0 * 1.5f64.sin()).abs() / 15.0;
         assert!(err > 1e-6 && err < 0.02, "{err}");
+    }
+
+    /// The chooser keeps a crank's rollers within [`MAX_ROLLER_DEPARTURE`] of k sin d over the
+    /// region where a geometry can: the short anchors the lightest springs would take depart
+    /// more (r = 100 mm, R = 150 mm: 0.34 % of k over ±0.3 rad), the part chosen departs at most
+    /// the bound over the whole range, and its check states it.
+    #[test]
+    fn a_crank_over_rollers_departs_from_k_sin_d_within_the_bound() {
+        let duty = Duty { at_eq: 0.0, range: [-0.3, 0.3], swing: [-0.2, 0.2] };
+        let rollers = Requirements { pulley_radius: 5.0, roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req() };
+        let (phase, scale) = compensate(1.0, 100.0, 150.0, 5.0, 0.0);
+        let short = roller_departure(100.0, 150.0, 5.0, phase, scale, duty.range);
+        assert!(short > 3.0 * MAX_ROLLER_DEPARTURE, "{short}");
+        let k = 20.0;
+        let part = crank(k, &duty, &rollers).expect("a spring");
+        let worst = (0..=60)
+            .map(|i| {
+                let d = -0.3 + 0.01 * i as f64;
+                (part.energy_torque(d).1 / k - d.sin()).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst <= MAX_ROLLER_DEPARTURE * 1.001, "{worst}");
+        let check = part.checks.iter().find(|c| c.name.starts_with("rollers' departure")).expect("the check");
+        assert!(check.limit == MAX_ROLLER_DEPARTURE && check.value <= check.limit, "{check:?}");
+        // Without rollers nothing departs: the bound changes nothing there.
+        let ideal =
+            crank(k, &duty, &Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req() }).expect("a spring");
+        let check = ideal.checks.iter().find(|c| c.name.starts_with("rollers' departure")).expect("the check");
+        assert_eq!(check.value, 0.0);
     }
 
     /// Rollers of radius ρ: the path is continuous across the exit line, equals the straight
