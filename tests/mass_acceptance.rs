@@ -17,7 +17,7 @@ use springfit::elements::Profile;
 use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::fit::mass::MassModel;
 use springfit::fit::run::fit;
-use springfit::parts::of_fit;
+use springfit::parts::lightest_of_fit;
 use springfit::progress::Progress;
 use springfit::solve::constraint::LinearGroup;
 use springfit::solve::lsq::Gram;
@@ -216,7 +216,7 @@ struct Agreement {
 fn agreement(design: &Design, catalog: &Catalog) -> Option<Agreement> {
     let settings = reduced(design);
     let outcome = fit(design, catalog, &settings, Progress::none()).unwrap();
-    let parts = of_fit(design, &outcome, settings.frequency, &[]).unwrap();
+    let parts = lightest_of_fit(design, &outcome, settings.frequency, &[]).unwrap();
     let rows: Vec<_> = outcome
         .bom
         .iter()

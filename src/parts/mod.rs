@@ -334,6 +334,19 @@ pub fn choose(
     Ok(if bounded.realised.p99_abs < light.realised.p99_abs { bounded } else { light })
 }
 
+/// The parts of a fit as the lightest geometries give them, the cranks' rollers not bounded:
+/// what the fit's mass model ([`lightest_mass`]) sizes, so what it is judged against. [`of_fit`]
+/// gives the parts `fit` reports, bounded where the realised design needs it.
+pub fn lightest_of_fit(
+    design: &Design,
+    outcome: &crate::fit::FitOutcome,
+    frequency: f64,
+    stock: &[StockPart],
+) -> Result<Parts> {
+    let (o, ideal) = (outcome, Some(outcome.metrics.stats));
+    choose_with(design, &o.bom, &o.cams, &o.evaluation, frequency, stock, ideal, None)
+}
+
 /// How far (degrees of p99) a realised design may depart from its ideal elements before
 /// [`choose`] bounds the cranks' rollers: the light-springs issue's aim for the realised design
 /// (within 0.1° of the ideal).
