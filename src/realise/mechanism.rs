@@ -1166,7 +1166,7 @@ pub fn round_listed(wound: &Part, duty: &Duty, req: &Requirements, listed: Stock
 
 /// Largest departure of a crank's realised torque over its rollers from the element's k sin d
 /// over the region, as a share of k: the part chooser passes only geometries within it
-/// ([`roller_departure`]). The rollers' compensation ([`compensate`]) makes torque and
+/// (`roller_departure`). The rollers' compensation (`compensate`) makes torque and
 /// stiffness exact at q_eq; away from it the cable's wrap round a roller of radius ρ leaves a
 /// departure that falls about as (ρ / (R − r))² with the anchor distance. A bill of many cranks
 /// whose preloads cancel at q_eq adds these departures up on a small net torque (the Panda's
