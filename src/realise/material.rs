@@ -49,8 +49,13 @@ pub struct Material {
     pub name: &'static str,
     /// Young's modulus E, MPa.
     pub e: f64,
-    /// Shear modulus G, MPa.
+    /// Shear modulus G, MPa: the value at every size unless `moduli_by_size` says otherwise.
     pub g: f64,
+    /// `(upper diameter mm, E MPa, G MPa)` by size range, thinnest first, where the source states
+    /// the moduli by size (music wire: Shigley's Table 10-5, whose G spans 80.0–82.7 GPa, 3.4 %,
+    /// enough to move a thin spring's rate by 2 %); empty when `e` and `g` hold at every size.
+    /// A size on a boundary takes the thinner range; above the last, the last range holds.
+    pub moduli_by_size: &'static [(f64, f64, f64)],
     /// Density, kg/m³.
     pub density: f64,
     /// R_m by size.
@@ -68,6 +73,21 @@ impl Material {
                 sizes.to_vec()
             }
         }
+    }
+
+    /// Young's modulus E (MPa) of wire of size `d` (mm).
+    pub fn e_at(&self, d: f64) -> f64 {
+        self.moduli_at(d).map_or(self.e, |m| m.1)
+    }
+
+    /// Shear modulus G (MPa) of wire of size `d` (mm).
+    pub fn g_at(&self, d: f64) -> f64 {
+        self.moduli_at(d).map_or(self.g, |m| m.2)
+    }
+
+    fn moduli_at(&self, d: f64) -> Option<(f64, f64, f64)> {
+        let ranges = self.moduli_by_size;
+        ranges.iter().find(|r| d <= r.0 + 1e-9).or(ranges.last()).copied()
     }
 
     /// Minimum tensile strength R_m at size `d` (mm), MPa; None outside the tabulated sizes.
@@ -159,6 +179,15 @@ const STAINLESS_WIRE_SIZES: &[f64] = &[
     9.0, 10.0,
 ];
 
+/// Shigley's Table 10-5 for A228 music wire: (upper diameter mm, E MPa, G MPa). The table's ranges
+/// (< 0.032, 0.033–0.063, 0.064–0.125, > 0.125 in) leave gaps of 0.001 in, split at their middle.
+const A228_MODULI: &[(f64, f64, f64)] = &[
+    (0.0325 * 25.4, 203_400.0, 82_700.0),
+    (0.0635 * 25.4, 200_000.0, 81_700.0),
+    (0.125 * 25.4, 196_500.0, 81_000.0),
+    (f64::INFINITY, 193_000.0, 80_000.0),
+];
+
 /// Shigley's fit of ASTM A313 type 302 by diameter range: (upper diameter mm, A MPa·mm^m, m).
 const A313_302_PIECES: &[(f64, f64, f64)] = &[(2.5, 1867.0, 0.146), (5.0, 2065.0, 0.263), (10.0, 2911.0, 0.478)];
 
@@ -173,6 +202,7 @@ pub const MATERIALS: &[Material] = &[
         e: 206_000.0,
         g: 81_500.0,
         density: 7850.0,
+        moduli_by_size: &[],
         strength: Strength::Table(EN10270_1_SM),
         source: "EN 10270-1 grade SM: density 7.85 kg/dm³, E = 206 kN/mm², G = 81.5 kN/mm² and the R_m ranges by \
                  diameter as published by Mollificio Modenese, https://www.mollificiomodenese.it/en/glossary/\
@@ -186,6 +216,7 @@ pub const MATERIALS: &[Material] = &[
         e: 206_000.0,
         g: 81_500.0,
         density: 7850.0,
+        moduli_by_size: &[],
         strength: Strength::Table(EN10270_1_SM),
         source: "EN 10270-1 grade DM: the standard gives DM the R_m ranges of SM at every diameter, as published by \
                  Hengming, https://hengmingsteelwire.com/patented-cold-drawn-unalloyed-spring-steel-wire.html, and by \
@@ -199,10 +230,13 @@ pub const MATERIALS: &[Material] = &[
         e: 196_500.0,
         g: 81_000.0,
         density: 7850.0,
+        moduli_by_size: A228_MODULI,
         strength: Strength::Power { a: 2211.0, m: 0.145, sizes: MUSIC_WIRE_SIZES },
         source: "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
-                 A = 2211 MPa·mm^m, m = 0.145 for A228 music wire 0.10–6.5 mm; Table 10-5: E = 196.5 GPa, \
-                 G = 81.0 GPa for 1.61–3.18 mm (the middle of the range); density of steel 7850 kg/m³",
+                 A = 2211 MPa·mm^m, m = 0.145 for A228 music wire 0.10–6.5 mm; Table 10-5: E and G by diameter \
+                 (< 0.032 in: 203.4 / 82.7 GPa; 0.033–0.063 in: 200 / 81.7; 0.064–0.125 in: 196.5 / 81.0; \
+                 > 0.125 in: 193 / 80.0), the gaps between its ranges split at their middle; `e` and `g` are \
+                 the 0.064–0.125 in row, for what has no size; density of steel 7850 kg/m³",
     },
     Material {
         key: "ASTM-A313-302",
@@ -210,6 +244,7 @@ pub const MATERIALS: &[Material] = &[
         e: 193_000.0,
         g: 69_000.0,
         density: 7900.0,
+        moduli_by_size: &[],
         strength: Strength::PowerPieces { pieces: A313_302_PIECES, sizes: STAINLESS_WIRE_SIZES },
         source: "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m for \
                  A313 302 stainless, 0.3–2.5 mm A = 1867 MPa·mm^m, m = 0.146; 2.5–5 mm A = 2065, m = 0.263; 5–10 mm \
@@ -224,6 +259,7 @@ pub const MATERIALS: &[Material] = &[
         e: 206_000.0,
         g: 81_500.0,
         density: 7850.0,
+        moduli_by_size: &[],
         strength: Strength::Constant { rm: 1200.0, sizes: STRIP_SIZES },
         source: "EN 10132-4 C67S after hardening and tempering, 0.3 ≤ t < 3 mm: R_m 1200–1700 MPa (lower bound used), \
                  as published by Akrostal, https://akrostal.pl/cs/?p=2577; E, G and density as for EN 10270-1 steel",

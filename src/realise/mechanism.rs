@@ -33,7 +33,7 @@ fn helical(rate: f64, req: &Requirements) -> impl Iterator<Item = HelicalSpring>
     req.material.sizes().into_iter().flat_map(move |d| {
         indices().filter_map(move |w| {
             let dm = w * d;
-            let n = req.material.g * d.powi(4) / (8.0 * dm.powi(3) * rate);
+            let n = req.material.g_at(d) * d.powi(4) / (8.0 * dm.powi(3) * rate);
             (0.5..=400.0).contains(&n).then_some(HelicalSpring { material: req.material, d, dm, n })
         })
     })

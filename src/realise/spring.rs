@@ -206,10 +206,10 @@ pub fn usable_energy_density(material: &Material, cycles: f64, safety: f64, surf
     material
         .sizes()
         .iter()
-        .filter_map(|&d| material.tensile_strength(d))
-        .map(|rm| {
+        .filter_map(|&d| material.tensile_strength(d).map(|rm| (d, rm)))
+        .map(|(d, rm)| {
             let tau = fraction * rm / safety.max(1.0);
-            tau * tau / (4.0 * material.g) * 1e6
+            tau * tau / (4.0 * material.g_at(d)) * 1e6
         })
         .fold(0.0, f64::max)
 }
@@ -249,7 +249,7 @@ impl TorsionSpring {
     /// Rate in N·mm/rad with the legs' bending (EN 13906-3): E d⁴ / (64 D n_e),
     /// n_e = n + 2 l / (3πD) for two legs of length `leg` loaded as cantilevers.
     pub fn rate(&self) -> f64 {
-        self.material.e * self.d.powi(4) / (64.0 * self.dm * self.effective_coils())
+        self.material.e_at(self.d) * self.d.powi(4) / (64.0 * self.dm * self.effective_coils())
     }
 
     /// n_e = n + (l₁ + l₂)/(3πD): the coils the legs' bending adds, EN 13906-3.
@@ -259,7 +259,7 @@ impl TorsionSpring {
 
     /// Active coils n for a rate `rate` (N·mm/rad) including the legs: n_e − 2l/(3πD).
     pub fn coils_for(material: &Material, d: f64, dm: f64, leg: f64, rate: f64) -> f64 {
-        material.e * d.powi(4) / (64.0 * dm * rate) - 2.0 * leg / (3.0 * PI * dm)
+        material.e_at(d) * d.powi(4) / (64.0 * dm * rate) - 2.0 * leg / (3.0 * PI * dm)
     }
 
     /// The part of a total wind angle `angle` (rad) the coils take (the rest bends the legs).
@@ -331,7 +331,7 @@ pub struct HelicalSpring {
 impl HelicalSpring {
     /// Rate in N/mm: G d⁴ / (8 D³ n).
     pub fn rate(&self) -> f64 {
-        self.material.g * self.d.powi(4) / (8.0 * self.dm.powi(3) * self.n)
+        self.material.g_at(self.d) * self.d.powi(4) / (8.0 * self.dm.powi(3) * self.n)
     }
 
     /// Shear stress at force `f` (N), MPa.
@@ -365,7 +365,7 @@ impl HelicalSpring {
     /// s_K = L₀ · 0.5/(1 − G/E) · [1 − sqrt(1 − (1 − G/E)/(0.5 + G/E) · (π D/(ν L₀))²)].
     /// None when the root is imaginary: the spring cannot buckle.
     pub fn buckling_deflection(&self, l0: f64, nu: f64) -> Option<f64> {
-        let ge = self.material.g / self.material.e;
+        let ge = self.material.g_at(self.d) / self.material.e_at(self.d);
         let r = 1.0 - (1.0 - ge) / (0.5 + ge) * (PI * self.dm / (nu * l0)).powi(2);
         (r >= 0.0).then(|| l0 * 0.5 / (1.0 - ge) * (1.0 - r.sqrt()))
     }
