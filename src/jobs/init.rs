@@ -166,6 +166,29 @@ fn equilibrium(ranges: &[crate::model::urdf::JointRange]) -> Vec<f64> {
         .collect()
 }
 
+/// An equilibrium given with `--q`: one angle per moving joint, each strictly inside its
+/// `<limit>`, refused naming `--q` (the design file it would go into does not exist yet).
+fn check_given_equilibrium(q: &[f64], ranges: &[crate::model::urdf::JointRange], names: &[String]) -> Result<()> {
+    use crate::model::urdf::JointRange;
+    let setting = |reason: String| Error::Setting { field: "--q".into(), reason };
+    if q.len() != ranges.len() {
+        return Err(setting(format!("{} angles for {} moving joints: give one per joint", q.len(), ranges.len())));
+    }
+    for (i, (range, &x)) in ranges.iter().zip(q).enumerate() {
+        if let JointRange::Limited { lower, upper } = *range
+            && !(lower < x && x < upper)
+        {
+            let name = names.get(i).map_or_else(|| format!("{}", i + 1), |n| format!("`{n}`"));
+            return Err(setting(format!(
+                "angle {} is {x} rad, not inside joint {name}'s <limit> [{lower}, {upper}] rad: give an equilibrium within the limits (the middle, {:.4}, leaves the most room), or leave --q out and init chooses one",
+                i + 1,
+                0.5 * (lower + upper)
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// `to` relative to the folder `from` (both made absolute), for the paths a design names.
 fn relative(to: &std::path::Path, from: &std::path::Path) -> std::path::PathBuf {
     let abs = |p: &std::path::Path| {
@@ -279,19 +302,19 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
     let out = &request.out;
     let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "arm".into());
     let robot = robot_text(&request.arm, out);
-    let n = match &request.arm {
+    let (ranges, names) = match &request.arm {
         InitArm::Urdf { urdf, joints, locked, gravity } => {
-            let (_, ranges) = crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?;
-            ranges.len()
+            (crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?.1, joints.clone())
         }
-        InitArm::Planar { links, .. } => links.len(),
+        InitArm::Planar { links, .. } => (vec![crate::model::urdf::JointRange::Unlimited; links.len()], Vec::new()),
     };
-    let q = match (&request.q_eq, &request.arm) {
-        (Some(q), _) => q.clone(),
-        (None, InitArm::Urdf { urdf, joints, locked, gravity }) => {
-            equilibrium(&crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?.1)
+    let n = ranges.len();
+    let q = match &request.q_eq {
+        Some(q) => {
+            check_given_equilibrium(q, &ranges, &names)?;
+            q.clone()
         }
-        (None, InitArm::Planar { .. }) => vec![0.0; n],
+        None => equilibrium(&ranges),
     };
     // A first design to measure the arm with: a small ball, probed far.
     let probe_text = design_text(&stem, &robot, &q, 1.0, None, &[]);
@@ -335,6 +358,15 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
             (None, InitArm::Planar { .. }) => "every joint at 0 (give --q for another pose)",
         }
     ));
+    // A joint whose URDF states no range: the region check treats it as free, which a real
+    // joint rarely is; the assumption is written where the user reads the design.
+    for (name, range) in names.iter().zip(&ranges) {
+        if *range == crate::model::urdf::JointRange::Unstated {
+            notes.push(format!(
+                "assumed: joint `{name}` turns freely (its URDF <limit> gives no range); give it lower and upper limits in the URDF if it stops somewhere"
+            ));
+        }
+    }
     let text = design_text(&stem, &robot, &q, radius, omega, &notes);
     // What is written must load and pass its region check as written.
     let check = Design::parse(out, &text)?;
