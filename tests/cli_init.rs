@@ -14,6 +14,14 @@ fn panda() -> PathBuf {
     root().join("robots/panda/panda.urdf")
 }
 
+/// `springfit init arm.toml` on the Panda with these joints moving and the extra arguments.
+fn init_panda(dir: &Path, joints: &str, extra: &[&str]) -> Output {
+    let urdf = panda();
+    let mut args = vec!["init", "arm.toml", "--urdf", urdf.to_str().unwrap(), "--joints", joints];
+    args.extend_from_slice(extra);
+    springfit(dir, &args)
+}
+
 /// A fresh folder of its own for one test.
 fn folder(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("springfit-cli-init-{name}-{}", std::process::id()));
@@ -45,21 +53,8 @@ fn refused(out: &Output, dir: &Path, words: &[&str], keep: &[&str]) {
 #[test]
 fn an_equilibrium_outside_the_limits_is_refused_naming_q_and_the_joint() {
     let dir = folder("q");
-    let urdf = panda();
     // Joint 4's limits are [-3.0718, -0.0698]: 0 is beyond its upper stop.
-    let out = springfit(
-        &dir,
-        &[
-            "init",
-            "arm.toml",
-            "--urdf",
-            urdf.to_str().unwrap(),
-            "--joints",
-            "panda_joint2,panda_joint4,panda_joint6",
-            "--q",
-            "0,0,1.5",
-        ],
-    );
+    let out = init_panda(&dir, "panda_joint2,panda_joint4,panda_joint6", &["--q", "0,0,1.5"]);
     refused(&out, &dir, &["--q", "panda_joint4", "-3.0718", "-0.0698"], &[]);
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -67,20 +62,7 @@ fn an_equilibrium_outside_the_limits_is_refused_naming_q_and_the_joint() {
 #[test]
 fn a_held_joint_outside_its_limits_is_refused() {
     let dir = folder("lock");
-    let urdf = panda();
-    let out = springfit(
-        &dir,
-        &[
-            "init",
-            "arm.toml",
-            "--urdf",
-            urdf.to_str().unwrap(),
-            "--joints",
-            "panda_joint2,panda_joint6",
-            "--lock",
-            "panda_joint4=0",
-        ],
-    );
+    let out = init_panda(&dir, "panda_joint2,panda_joint6", &["--lock", "panda_joint4=0"]);
     refused(&out, &dir, &["panda_joint4", "outside its <limit>", "-3.0718"], &[]);
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -90,11 +72,7 @@ fn a_held_joint_outside_its_limits_is_refused() {
 #[test]
 fn a_region_edited_past_a_joint_limit_is_refused_by_check_and_fit() {
     let dir = folder("region");
-    let urdf = panda();
-    let out = springfit(
-        &dir,
-        &["init", "arm.toml", "--urdf", urdf.to_str().unwrap(), "--joints", "panda_joint2,panda_joint4,panda_joint6"],
-    );
+    let out = init_panda(&dir, "panda_joint2,panda_joint4,panda_joint6", &[]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = std::fs::read_to_string(dir.join("arm.toml")).unwrap();
     let radius = text.lines().find(|l| l.starts_with("radius = ")).unwrap().to_string();
