@@ -145,6 +145,10 @@ pub struct InitRun {
 /// triple families left out for an arm of fewer than three joints.
 const CHAIN_CATALOG: &str = include_str!("../../catalogs/chain.toml");
 
+/// The share of the target stiffness ω²M by which a trim spring at the top of its range may
+/// stiffen any direction (see [`trim_text`]).
+const TRIM_SHARE: f64 = 0.2;
+
 /// The ball `init` probes first, in units of √λ_max(M) (metric arc length per radian of the
 /// heaviest direction): the check then looks out to PROBE_FACTOR times it for what limits the region.
 const PROBE_RADIUS: f64 = 0.5;
@@ -164,6 +168,29 @@ fn equilibrium(ranges: &[crate::model::urdf::JointRange]) -> Vec<f64> {
             JointRange::Unlimited | JointRange::Unstated => 0.0,
         })
         .collect()
+}
+
+/// An equilibrium given with `--q`: one angle per moving joint, each strictly inside its
+/// `<limit>`, refused naming `--q` (the design file it would go into does not exist yet).
+fn check_given_equilibrium(q: &[f64], ranges: &[crate::model::urdf::JointRange], names: &[String]) -> Result<()> {
+    use crate::model::urdf::JointRange;
+    let setting = |reason: String| Error::Setting { field: "--q".into(), reason };
+    if q.len() != ranges.len() {
+        return Err(setting(format!("{} angles for {} moving joints: give one per joint", q.len(), ranges.len())));
+    }
+    for (i, (range, &x)) in ranges.iter().zip(q).enumerate() {
+        if let JointRange::Limited { lower, upper } = *range
+            && !(lower < x && x < upper)
+        {
+            let name = names.get(i).map_or_else(|| format!("{}", i + 1), |n| format!("`{n}`"));
+            return Err(setting(format!(
+                "angle {} is {x} rad, not inside joint {name}'s <limit> [{lower}, {upper}] rad: give an equilibrium within the limits (the middle, {:.4}, leaves the most room), or leave --q out and init chooses one",
+                i + 1,
+                0.5 * (lower + upper)
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// `to` relative to the folder `from` (both made absolute), for the paths a design names.
@@ -233,7 +260,15 @@ fn robot_text(arm: &InitArm, out: &std::path::Path) -> String {
 }
 
 /// The design text with the given equilibrium, radius and ω (None: left to the default).
-fn design_text(name: &str, robot: &str, q: &[f64], radius: f64, omega: Option<f64>, notes: &[String]) -> String {
+fn design_text(
+    name: &str,
+    robot: &str,
+    q: &[f64],
+    radius: f64,
+    omega: Option<f64>,
+    built: bool,
+    notes: &[String],
+) -> String {
     let mut text = String::from("# Written by `springfit init`: a starting point to fit as it is, then to refine.\n");
     for n in notes {
         text.push_str(&format!("# {n}\n"));
@@ -244,8 +279,65 @@ fn design_text(name: &str, robot: &str, q: &[f64], radius: f64, omega: Option<f6
         format!("{name}_catalog.toml"),
         angles.join(", ")
     ));
+    if omega.is_some() || built {
+        text.push_str("\n[fit]\n");
+    }
     if let Some(w) = omega {
-        text.push_str(&format!("\n[fit]\nfrequency = {w}   # rad/s\n"));
+        text.push_str(&format!("frequency = {w}   # rad/s\n"));
+    }
+    if built {
+        text.push_str(&format!(
+            "tolerance = {RATE_ERROR}   # ± rate error of every spring: the as-built figures over 1,000 builds, untrimmed and trimmed\n\
+             tolerance_weight = 0   # fit the drawing; the trim springs of the catalogue, set on each build, restore what the tolerance takes\n"
+        ));
+    }
+    text
+}
+
+/// The trim springs `init` adds to the catalogue: one per joint, then one per pair of joints
+/// turned together (adjacent pairs first), at most [`crate::limits::MAX_TRIMS`]. On up to three
+/// joints they span every entry of the Hessian, so a build's stiffness error can be set back
+/// in every direction; beyond, the joints and their neighbours' pairs.
+fn trim_couplings(n: usize) -> Vec<Vec<f64>> {
+    let unit = |i: usize| (0..n).map(|j| if j == i { 1.0 } else { 0.0 }).collect::<Vec<f64>>();
+    let mut couplings: Vec<Vec<f64>> = (0..n).map(unit).collect();
+    let mut pairs: Vec<(usize, usize)> = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect();
+    pairs.sort_by_key(|&(i, j)| j - i);
+    couplings.extend(pairs.into_iter().map(|(i, j)| {
+        let mut a = unit(i);
+        a[j] = 1.0;
+        a
+    }));
+    couplings.truncate(crate::limits::MAX_TRIMS);
+    couplings
+}
+
+/// The trim families' text: one family per coupling a (a family has one range), its rate
+/// from 0 to TRIM_SHARE·ω²/(aᵀM⁻¹a) at q_eq. That bound is the largest rate k with
+/// k·aaᵀ ≤ TRIM_SHARE·ω²M: a trim may stiffen no direction by more than that share of the
+/// target stiffness, however light the joints it turns (a range by ω²·aᵀMa instead lets a trim
+/// over the heavy and the light joints, at mid-range, stiffen the light wrist several times
+/// over, and the other springs' preloads must cancel it: measured, the drawn p99 of a
+/// human-like planar arm went from 1.5° to 33°).
+fn trim_text(m: &DMatrix<f64>, omega: f64) -> String {
+    let n = m.nrows();
+    let Some(chol) = m.clone().cholesky() else { return String::new() };
+    let mut text = String::from(
+        "\n# Trim springs written by `springfit init`: linear, relaxed at the equilibrium, rate set on each\n\
+         # build after assembly within trim_range (not fit candidates: the fit places them at mid-range).\n\
+         # Each range is TRIM_SHARE·ω²/(aᵀM⁻¹a) at q_eq: no trim stiffens a direction by more than that\n\
+         # share of the target stiffness ω²M.\n",
+    );
+    for a in trim_couplings(n) {
+        let v = DVector::from_column_slice(&a);
+        let dual = v.dot(&chol.solve(&v));
+        let hi = round_down(TRIM_SHARE * omega * omega / dual);
+        let numbers: Vec<String> = a.iter().map(|x| format!("{x}")).collect();
+        text.push_str(&format!(
+            "\n[[family]]\nname = \"trim spring ({})\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[{}]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, {hi}]\n",
+            numbers.join(", "),
+            numbers.join(", ")
+        ));
     }
     text
 }
@@ -279,25 +371,25 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
     let out = &request.out;
     let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "arm".into());
     let robot = robot_text(&request.arm, out);
-    let n = match &request.arm {
+    let (ranges, names) = match &request.arm {
         InitArm::Urdf { urdf, joints, locked, gravity } => {
-            let (_, ranges) = crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?;
-            ranges.len()
+            (crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?.1, joints.clone())
         }
-        InitArm::Planar { links, .. } => links.len(),
+        InitArm::Planar { links, .. } => (vec![crate::model::urdf::JointRange::Unlimited; links.len()], Vec::new()),
     };
-    let q = match (&request.q_eq, &request.arm) {
-        (Some(q), _) => q.clone(),
-        (None, InitArm::Urdf { urdf, joints, locked, gravity }) => {
-            equilibrium(&crate::model::urdf::load_with_ranges(urdf, joints, locked, *gravity)?.1)
+    let n = ranges.len();
+    let q = match &request.q_eq {
+        Some(q) => {
+            check_given_equilibrium(q, &ranges, &names)?;
+            q.clone()
         }
-        (None, InitArm::Planar { .. }) => vec![0.0; n],
+        None => equilibrium(&ranges),
     };
     // A first design to measure the arm with: a small ball, probed far.
-    let probe_text = design_text(&stem, &robot, &q, 1.0, None, &[]);
+    let probe_text = design_text(&stem, &robot, &q, 1.0, None, false, &[]);
     let mut design = Design::parse(out, &probe_text)?;
     let m = design.chain.mass_matrix(&design.q_eq);
-    let heavy = m.symmetric_eigen().eigenvalues.max().max(0.0).sqrt();
+    let heavy = m.clone().symmetric_eigen().eigenvalues.max().max(0.0).sqrt();
     design.region = crate::geodesic::Region::Ball { radius: PROBE_RADIUS * heavy };
     design.geodesics.probe_factor = PROBE_FACTOR;
     let report = design.region_report()?;
@@ -335,16 +427,26 @@ pub fn run(request: &InitRequest) -> Result<InitRun> {
             (None, InitArm::Planar { .. }) => "every joint at 0 (give --q for another pose)",
         }
     ));
-    let text = design_text(&stem, &robot, &q, radius, omega, &notes);
+    // A joint whose URDF states no range: the region check treats it as free, which a real
+    // joint rarely is; the assumption is written where the user reads the design.
+    for (name, range) in names.iter().zip(&ranges) {
+        if *range == crate::model::urdf::JointRange::Unstated {
+            notes.push(format!(
+                "assumed: joint `{name}` turns freely (its URDF <limit> gives no range); give it lower and upper limits in the URDF if it stops somewhere"
+            ));
+        }
+    }
+    let text = design_text(&stem, &robot, &q, radius, omega, true, &notes);
     // What is written must load and pass its region check as written.
     let check = Design::parse(out, &text)?;
     check.valid_region()?;
-    let catalog_text = if n >= 3 {
+    let mut catalog_text = if n >= 3 {
         CHAIN_CATALOG.to_string()
     } else {
         // The triple families are the file's last two; an arm of fewer joints has no triples.
         CHAIN_CATALOG.split("\n[[family]]\nname = \"triple crank\"").next().unwrap_or(CHAIN_CATALOG).to_string()
     };
+    catalog_text.push_str(&trim_text(&m, omega.unwrap_or(design.fit.frequency)));
     Ok(InitRun {
         design_path: out.clone(),
         design_text: text,
@@ -395,6 +497,20 @@ mod tests {
             JointRange::Unlimited,
         ]);
         assert_eq!(q, vec![0.0, -1.55, 1.495, 0.0]);
+    }
+
+    #[test]
+    fn trims_span_the_hessian_on_three_joints_and_stay_within_the_limit_beyond() {
+        let c = trim_couplings(3);
+        assert_eq!(c.len(), 6);
+        assert_eq!(c[3], vec![1.0, 1.0, 0.0]);
+        assert_eq!(c[5], vec![1.0, 0.0, 1.0]);
+        assert_eq!(trim_couplings(5).len(), crate::limits::MAX_TRIMS);
+        // A heavy joint and a light one: the pair's trim is bounded by the light joint.
+        let m = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 0.01]);
+        let text = trim_text(&m, 10.0);
+        let ranges: Vec<&str> = text.lines().filter(|l| l.starts_with("trim_range")).collect();
+        assert_eq!(ranges, ["trim_range = [0.0, 20]", "trim_range = [0.0, 0.2]", "trim_range = [0.0, 0.19]"]);
     }
 
     #[test]
