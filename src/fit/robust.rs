@@ -292,6 +292,7 @@ pub fn base_jacobian(
 ) -> Result<DMatrix<f64>> {
     let n = chain.dof();
     let q_eq = &training.q_eq;
+    let at_base = rows_of(chain, training, nominal, omega);
     let mut cols = Vec::with_capacity(n);
     for j in 0..n {
         let mut rows = Vec::with_capacity(2);
@@ -301,9 +302,42 @@ pub fn base_jacobian(
             let fan = retrace(chain, &base, training, spacing, ode)?;
             rows.push(rows_of(chain, &fan, nominal, omega));
         }
-        cols.push((&rows[0] - &rows[1]) / (2.0 * BASE_STEP));
+        cols.push(central_difference(&rows[0], &at_base, &rows[1]));
     }
     Ok(DMatrix::from_columns(&cols))
+}
+
+/// How many times the median row's change a row's two one-sided changes may differ by before
+/// the row counts as not smooth in the base point. A smooth row's one-sided changes differ by its
+/// curvature times [`BASE_STEP`]² (1e-8 of it), far below this; on `ur10_lift_elbow_wrist` the
+/// last sample of one training geodesic (the wrist 2.4 rad out at arc 0.28) changed by 4e7
+/// one way and 1e-2 the other, every shipped design's rows by less than 1e4 times the median.
+pub const ROUGH_ROW: f64 = 1e6;
+
+/// One column of J from the rows at the bases q_eq + h eⱼ (`plus`), q_eq and q_eq − h eⱼ
+/// (`minus`): the central difference (plus − minus) / 2h, except on rows whose two one-sided
+/// changes differ by more than [`ROUGH_ROW`] times the median row's |up| + |down|, which take
+/// the smaller one-sided difference. Such a row is not smooth in the base point (a retraced
+/// geodesic that leaves the smooth neighbourhood of the nominal one), and its central
+/// difference (4e7 / 2e-4 on the UR10's arm) made the build penalty 4e12 times a candidate's
+/// own column on every element that carries gravity: Clarabel then declared the tolerance-aware
+/// fit infeasible at any tolerance.
+fn central_difference(plus: &DVector<f64>, at: &DVector<f64>, minus: &DVector<f64>) -> DVector<f64> {
+    let (up, down) = (plus - at, at - minus);
+    let mut size: Vec<f64> = up.iter().zip(down.iter()).map(|(u, d)| u.abs() + d.abs()).collect();
+    size.sort_by(f64::total_cmp);
+    let median = size.get(size.len() / 2).copied().unwrap_or(0.0);
+    DVector::from_iterator(
+        up.len(),
+        (0..up.len()).map(|i| {
+            let (u, d) = (up[i], down[i]);
+            if median > 0.0 && (u - d).abs() > ROUGH_ROW * median {
+                if u.abs() < d.abs() { u / BASE_STEP } else { d / BASE_STEP }
+            } else {
+                (plus[i] - minus[i]) / (2.0 * BASE_STEP)
+            }
+        }),
+    )
 }
 
 /// The first-order spread of every candidate (see the module docs). `rows` are the fit's
@@ -516,4 +550,33 @@ pub fn trimmed_spread(
         (u, h)
     };
     Ok(assemble_spread((candidates, grouping), sigma2, &m_eq, column))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Smooth rows keep the central difference bit for bit; a row that jumps on one side only
+    /// (the UR10 arm's retraced geodesic, 4e7 one way) takes the other side's difference instead
+    /// of a slope 1e11 that made the tolerance-aware fit infeasible.
+    #[test]
+    fn a_row_that_jumps_on_one_side_takes_the_other_sides_difference() {
+        let h = BASE_STEP;
+        // Rows R(q) = a q + c q² at q = 0, ± h: one-sided changes differ by 2 c h².
+        let slopes = [0.3, -1.2, 0.0, 2.5, 1e-3];
+        let row = |q: f64| DVector::from_iterator(5, slopes.iter().map(|a| a * q + 40.0 * q * q));
+        let (plus, at, minus) = (row(h), row(0.0), row(-h));
+        let central = central_difference(&plus, &at, &minus);
+        assert_eq!(central, (&plus - &minus) / (2.0 * h));
+        for (j, a) in central.iter().zip(slopes) {
+            assert!((j - a).abs() < 1e-9, "{j} against {a}");
+        }
+        let mut jumped = plus.clone();
+        jumped[3] = -4.135e7;
+        let rough = central_difference(&jumped, &at, &minus);
+        assert!((rough[3] - 2.5).abs() < 1e-2, "{}", rough[3]);
+        for i in [0, 1, 2, 4] {
+            assert_eq!(rough[i], central[i]);
+        }
+    }
 }
