@@ -1,4 +1,5 @@
-//! `Controller::torque` on three and six joints with the fitted label and with the exact log map
+//! `Controller::torque` on three and six joints with the fitted label (one polynomial, or cells
+//! where one polynomial misses: `ur5_six`) and with the exact log map
 //! (issue 47: ≤ 20 µs per call). `cargo bench --bench controller`; figures in BENCHMARKS.md.
 //!
 //! Each design's controller follows a direction target (the first axis of the metric frame) with
@@ -19,7 +20,7 @@ use springfit::design::Design;
 use springfit::design::controllers::EnergyLaw;
 use springfit::design::simulate::LabelKind;
 use springfit::dynamics::control::{Controller, ElasticPotential, EnergyControl, ModeControl, ModeTarget};
-use springfit::dynamics::scenario::label_source;
+use springfit::dynamics::scenario::{LabelSource, label_source};
 use springfit::geodesic::{Fan, FanSpec, Stop};
 
 use common::{ms, time};
@@ -53,6 +54,18 @@ fn main() {
             let start = Instant::now();
             let (label, err) = label_source(&d, &settings).unwrap();
             let build = start.elapsed();
+            let scheme = match &label {
+                LabelSource::Fit(f) => match f.cells() {
+                    Some(t) => format!(
+                        "fitted by {} cells of degree {} ({:.1} MB)",
+                        t.cells(),
+                        t.degree(),
+                        t.bytes() as f64 / 1e6
+                    ),
+                    None => format!("fitted, one polynomial of degree {}", f.degree()),
+                },
+                _ => "table".to_string(),
+            };
             let mut c =
                 Controller::new(&d.chain, &d.q_eq, &potential, d.controllers.clone(), Some(label.field())).unwrap();
             let mut u = DVector::zeros(n);
@@ -73,7 +86,7 @@ fn main() {
             let per = |t: std::time::Duration| t.as_secs_f64() * 1e6 / calls as f64;
             match err {
                 Some((e, count)) => println!(
-                    "{name} ({n} joints), fitted label (built in {:.0} ms, largest label error {e:.2e}° on {count} held-out samples): {:.1} µs / {:.1} µs per call over {calls} points",
+                    "{name} ({n} joints), label {scheme} (built in {:.0} ms, largest label error {e:.2e}° on {count} held-out samples): {:.1} µs / {:.1} µs per call over {calls} points",
                     ms(build),
                     per(med),
                     per(min)

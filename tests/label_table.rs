@@ -97,13 +97,19 @@ fn six_joints_auto_keeps_the_exact_label_and_reports_the_rejected_fit() {
     let note = auto.note().unwrap();
     assert!(note.starts_with("fitted log map error ") && note.ends_with("° > 0.1°: exact log map used"), "{note}");
     assert!(note.contains(&format!("{err:.2}°")), "{note}");
-    // `exact` builds no fit, so it rejects none; `table` takes the fit and reports its error.
+    // `exact` builds no fit, so it rejects none; `table` takes the fit by cells, which misses
+    // by less than the one polynomial `auto` rejected (about 1° against 6.61°, still beyond
+    // `auto`'s bound), and reports its error on the same samples.
     let exact = choose_label(&d, &SimSettings { label: LabelKind::Exact, ..d.simulate }).unwrap();
     assert!(exact.rejected.is_none() && exact.note().is_none());
     let table = choose_label(&d, &SimSettings { label: LabelKind::Table, ..d.simulate }).unwrap();
-    assert!(matches!(table.source, LabelSource::Fit(_)) && table.rejected.is_none());
+    assert!(table.rejected.is_none());
     assert_eq!(table.name(), "table");
-    assert_eq!(table.error.unwrap().0, err, "the same fit, measured the same way");
+    let LabelSource::Fit(fit) = &table.source else { panic!("table: not a fitted label") };
+    let cells = fit.cells().expect("table on six joints: the cells");
+    let (table_err, table_count) = table.error.unwrap();
+    println!("ur5_six: one polynomial {err:.3}°, {} cells {table_err:.3}° on {table_count}", cells.cells());
+    assert!(table_err < 0.5 * err && table_count == count, "cells {table_err}° against {err}°");
 }
 
 #[test]

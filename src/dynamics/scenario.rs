@@ -838,16 +838,17 @@ pub fn label_source<'a>(
 }
 
 /// The label for a design. `[simulate] label`: `exact`, `table` (the grid for two joints, the
-/// fitted log map for more) or `auto` (the table, except for three or more joints when the fit's
-/// error exceeds [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact, with the
-/// fit's error kept in [`LabelChoice::rejected`]).
+/// fitted log map for more: one polynomial, or cells where it misses, whichever errs less) or
+/// `auto` (the table, except for three or more joints when the one polynomial's error exceeds
+/// [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact, with the fit's error kept
+/// in [`LabelChoice::rejected`]; see [`crate::geodesic::logfit::fit_label`]).
 pub fn choose_label<'a>(
     design: &'a Design,
     settings: &crate::design::simulate::SimSettings,
 ) -> Result<LabelChoice<'a>> {
     use crate::design::simulate::{AUTO_LABEL_MAX_ERROR_DEG, LabelKind};
     use crate::geodesic::label::{ExactLog, LogTable};
-    use crate::geodesic::logfit::{LogFit, LogFitSpec};
+    use crate::geodesic::logfit::fit_label;
     use crate::geodesic::{Fan, FanSpec};
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
     if settings.label == LabelKind::Exact {
@@ -864,10 +865,9 @@ pub fn choose_label<'a>(
         ode,
     )?;
     if n != 2 {
-        let spec = LogFitSpec::for_joints(n, region.extent);
-        let mut fit = LogFit::build(&design.chain, &design.q_eq, ode, spec)?;
-        let frame = MetricFrame::new(&design.chain.mass_matrix(&design.q_eq))?;
-        let err = fit.label_error(&frame, &check, 0.05 * region.extent)?;
+        let cells = settings.label == LabelKind::Table;
+        let (fit, err) =
+            fit_label(&design.chain, &design.q_eq, ode, region.extent, &check, AUTO_LABEL_MAX_ERROR_DEG, cells)?;
         if settings.label == LabelKind::Auto && err.0 > AUTO_LABEL_MAX_ERROR_DEG {
             return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: Some(err) });
         }

@@ -48,7 +48,12 @@
 //!   0.25 × by 0.096°, so sub-ball charts would need to be about a quarter of the radius across,
 //!   hundreds of them to cover a six-dimensional ball;
 //! - a Gauss–Newton correction needs exp and its Jacobian, 10 ms per call
-//!   ([`Shooter::exp_jacobian`]; `exp` alone 110 µs): beyond the 20 µs budget.
+//!   ([`Shooter::exp_jacobian`]; `exp` alone 110 µs): beyond the 20 µs budget (measured again
+//!   under heavy load: 0.7 ms, against 2.5 ms for `exp` in the same run; either way far beyond);
+//! - cells ([`crate::geodesic::logcells`]): local quadratic polynomials on a k-d tree fitted to
+//!   exact geodesic points, 1.76° with the default 72 000 geodesics (1.19° with 96 000), the
+//!   best of these but not 0.1°; `label = "table"` takes them where they beat the one
+//!   polynomial ([`fit_label`]), `auto` does not build them.
 //!
 //! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
 //! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log
@@ -61,6 +66,9 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::geodesic::label::{ExactLog, LogField, LogValue};
+use crate::geodesic::logcells::{CellSpec, CellTree, line_angle_deg};
+pub use crate::geodesic::polynomial::monomial_count;
+use crate::geodesic::polynomial::{fill_basis, monomials};
 use crate::geodesic::shoot::JacobiSamples;
 use crate::geodesic::{Fan, MetricFrame, Shooter, unit_vectors};
 use crate::model::Chain;
@@ -107,11 +115,6 @@ impl LogFitSpec {
 /// joints, 6 for four, 4 for five and six).
 pub const MAX_TERMS: usize = 220;
 
-/// Number of monomials of total degree ≤ d in n variables, C(n + d, d).
-pub fn monomial_count(n: usize, d: usize) -> usize {
-    (1..=d).fold(1usize, |acc, k| acc * (n + k) / k)
-}
-
 /// The log map of one equilibrium fitted by a polynomial in the scaled metric frame (see the
 /// module docs), with the exact log map beyond its ball.
 #[derive(Clone)]
@@ -122,12 +125,8 @@ pub struct LogFit<'a> {
     lt: Vec<f64>,
     /// R·L⁻ᵀ (row-major): v = lt_inv·w.
     lt_inv: Vec<f64>,
-    /// Monomials by increasing degree: (parent, variable), the monomial being parent·x[variable];
-    /// the first is the constant 1 (its entry unused).
-    monomials: Vec<(usize, usize)>,
-    /// Coefficients (monomials × n), zero on the rows of degree 0 and 1.
-    coef: DMatrix<f64>,
-    degree: usize,
+    /// What maps x to w.
+    model: Model,
     /// Scratch: monomials' values (column 0) and gradients (columns 1 … n).
     basis: DMatrix<f64>,
     /// Scratch: coefᵀ·basis (n × (n + 1)).
@@ -138,41 +137,54 @@ pub struct LogFit<'a> {
     fallback: ExactLog<'a>,
 }
 
-/// The monomials of degree ≤ d in n variables as (parent, variable), by increasing degree;
-/// each is listed once (variables non-decreasing along the chain of parents).
-fn monomials(n: usize, d: usize) -> Vec<(usize, usize)> {
-    // (parent, variable, last variable) with the constant first.
-    let mut list: Vec<(usize, usize, usize)> = vec![(0, 0, 0)];
-    let mut level = vec![0usize];
-    for deg in 1..=d {
-        let mut next = Vec::new();
-        for &p in &level {
-            let from = if deg == 1 { 0 } else { list[p].2 };
-            for var in from..n {
-                list.push((p, var, var));
-                next.push(list.len() - 1);
-            }
-        }
-        level = next;
-    }
-    list.into_iter().map(|(p, v, _)| (p, v)).collect()
+/// What a [`LogFit`] evaluates: one polynomial over the ball or a tree of cells.
+#[derive(Clone)]
+enum Model {
+    /// One polynomial w = x + P(x) over the whole ball.
+    Global {
+        /// Monomials by increasing degree: (parent, variable), the monomial being
+        /// parent·x[variable]; the first is the constant 1 (its entry unused).
+        monomials: Vec<(usize, usize)>,
+        /// Coefficients (monomials × n), zero on the rows of degree 0 and 1.
+        coef: DMatrix<f64>,
+        degree: usize,
+    },
+    /// Cells with their own polynomials ([`crate::geodesic::logcells`]), shared by the clones
+    /// each run takes.
+    Cells(std::sync::Arc<CellTree>),
 }
 
-/// Values (column 0) and gradients (columns 1 … n) of the monomials at x, into `basis`.
-fn fill_basis(monomials: &[(usize, usize)], x: &[f64], basis: &mut DMatrix<f64>) {
-    let n = x.len();
-    basis[(0, 0)] = 1.0;
-    for j in 0..n {
-        basis[(0, 1 + j)] = 0.0;
+/// The scaled metric frame of a fit over the ball of radius R: Lᵀ/R and R·L⁻ᵀ, row-major, with
+/// the metric frame the directions are drawn in.
+struct Scaling {
+    lt: Vec<f64>,
+    lt_inv: Vec<f64>,
+    frame: MetricFrame,
+}
+
+impl Scaling {
+    fn new(chain: &Chain, q_eq: &DVector<f64>, radius: f64) -> Result<Scaling> {
+        let n = chain.dof();
+        let m_eq = chain.mass_matrix(q_eq);
+        let frame = MetricFrame::new(&m_eq)?;
+        let l = m_eq
+            .cholesky()
+            .ok_or_else(|| {
+                Error::numerical("fitted label", "the mass matrix at the equilibrium is not positive definite")
+            })?
+            .l();
+        let lt_m = l.transpose() / radius;
+        let lt_inv_m = lt_m
+            .clone()
+            .try_inverse()
+            .ok_or_else(|| Error::numerical("fitted label", "singular mass matrix at the equilibrium"))?;
+        Ok(Scaling { lt: row_major(&lt_m, n), lt_inv: row_major(&lt_inv_m, n), frame })
     }
-    for (k, &(p, var)) in monomials.iter().enumerate().skip(1) {
-        let parent = basis[(p, 0)];
-        basis[(k, 0)] = parent * x[var];
-        for j in 0..n {
-            basis[(k, 1 + j)] = basis[(p, 1 + j)] * x[var];
-        }
-        basis[(k, 1 + var)] += parent;
-    }
+}
+
+/// An n × n matrix as a row-major slice.
+fn row_major(m: &DMatrix<f64>, n: usize) -> Vec<f64> {
+    (0..n * n).map(|k| m[(k / n, k % n)]).collect()
 }
 
 /// Row-major n × n product a·b.
@@ -200,22 +212,7 @@ impl<'a> LogFit<'a> {
             });
         }
         let radius = spec.extent * (1.0 + spec.margin);
-        let m_eq = chain.mass_matrix(q_eq);
-        let frame = MetricFrame::new(&m_eq)?;
-        let l = m_eq
-            .clone()
-            .cholesky()
-            .ok_or_else(|| {
-                Error::numerical("fitted label", "the mass matrix at the equilibrium is not positive definite")
-            })?
-            .l();
-        let lt_m = l.transpose() / radius;
-        let lt_inv_m = lt_m
-            .clone()
-            .try_inverse()
-            .ok_or_else(|| Error::numerical("fitted label", "singular mass matrix at the equilibrium"))?;
-        let row_major = |m: &DMatrix<f64>| (0..n * n).map(|k| m[(k / n, k % n)]).collect::<Vec<f64>>();
-        let (lt, lt_inv) = (row_major(&lt_m), row_major(&lt_inv_m));
+        let Scaling { lt, lt_inv, frame } = Scaling::new(chain, q_eq, radius)?;
         let monomials = monomials(n, spec.degree);
         let terms = monomials.len();
         let first = 1 + n;
@@ -252,7 +249,7 @@ impl<'a> LogFit<'a> {
                         format!("d exp is singular at arc length {s:.4} (a conjugate point inside the fitted ball)"),
                     )
                 })? * s;
-                let dvdq = row_major(&dvdq);
+                let dvdq = row_major(&dvdq, n);
                 mat_mul(&lt, &dvdq, n, &mut tmp);
                 mat_mul(&tmp, &lt_inv, n, &mut dwdx);
                 fill_basis(&monomials, &x, &mut basis);
@@ -307,9 +304,7 @@ impl<'a> LogFit<'a> {
             q_eq: q_eq.as_slice().to_vec(),
             lt,
             lt_inv,
-            monomials,
-            coef,
-            degree: spec.degree,
+            model: Model::Global { monomials, coef, degree: spec.degree },
             basis,
             product: DMatrix::zeros(n, n + 1),
             last: None,
@@ -317,14 +312,63 @@ impl<'a> LogFit<'a> {
         })
     }
 
-    /// The polynomial's total degree.
-    pub fn degree(&self) -> usize {
-        self.degree
+    /// Fits the log map of `q_eq` cell by cell ([`crate::geodesic::logcells`]) over the ball of
+    /// radius (1 + `margin`) × `extent`, with the exact log map beyond it as [`LogFit::build`].
+    pub fn build_cells(
+        chain: &'a Chain,
+        q_eq: &DVector<f64>,
+        ode: OdeSettings,
+        extent: f64,
+        margin: f64,
+        spec: CellSpec,
+    ) -> Result<LogFit<'a>> {
+        let n = chain.dof();
+        if !(extent.is_finite() && extent > 0.0 && margin >= 0.0) {
+            return Err(Error::Setting {
+                field: "label".into(),
+                reason: format!("a fitted label needs a region of positive extent, got extent {extent}"),
+            });
+        }
+        let radius = extent * (1.0 + margin);
+        let Scaling { lt, lt_inv, frame } = Scaling::new(chain, q_eq, radius)?;
+        let tree = CellTree::build(chain, q_eq, ode, &frame, &lt, radius, spec)?;
+        let terms = tree.terms();
+        Ok(LogFit {
+            n,
+            q_eq: q_eq.as_slice().to_vec(),
+            lt,
+            lt_inv,
+            model: Model::Cells(std::sync::Arc::new(tree)),
+            basis: DMatrix::zeros(terms, n + 1),
+            product: DMatrix::zeros(n, n + 1),
+            last: None,
+            fallback: ExactLog::new(chain, q_eq, ode),
+        })
     }
 
-    /// The number of monomials (of every degree, 0 and 1 included: their coefficients are 0).
+    /// The polynomial's total degree (each cell's, for a fit by cells).
+    pub fn degree(&self) -> usize {
+        match &self.model {
+            Model::Global { degree, .. } => *degree,
+            Model::Cells(tree) => tree.degree(),
+        }
+    }
+
+    /// The number of monomials (of every degree; for the global fit, 0 and 1 included: their
+    /// coefficients are 0; for cells, per cell).
     pub fn terms(&self) -> usize {
-        self.monomials.len()
+        match &self.model {
+            Model::Global { monomials, .. } => monomials.len(),
+            Model::Cells(tree) => tree.terms(),
+        }
+    }
+
+    /// The tree of cells, for a fit by cells.
+    pub fn cells(&self) -> Option<&CellTree> {
+        match &self.model {
+            Model::Global { .. } => None,
+            Model::Cells(tree) => Some(tree),
+        }
     }
 
     /// The fit's value at q, or None beyond its ball (|w| > 1, i.e. the fitted metric distance
@@ -339,13 +383,25 @@ impl<'a> LogFit<'a> {
         for i in 0..n {
             x[i] = (0..n).map(|j| self.lt[i * n + j] * (q[j] - self.q_eq[j])).sum();
         }
-        fill_basis(&self.monomials, x, &mut self.basis);
-        self.product.gemm_tr(1.0, &self.coef, &self.basis, 0.0);
-        // w = x + P, ∂w/∂x = I + ∂P/∂x.
+        // w and g = ∂w/∂x.
         let mut w = [0.0f64; 16];
         let w = &mut w[..n];
-        for i in 0..n {
-            w[i] = x[i] + self.product[(i, 0)];
+        let mut g = [0.0f64; 256];
+        let g = &mut g[..n * n];
+        match &self.model {
+            Model::Global { monomials, coef, .. } => {
+                fill_basis(monomials, x, &mut self.basis);
+                self.product.gemm_tr(1.0, coef, &self.basis, 0.0);
+                // w = x + P, ∂w/∂x = I + ∂P/∂x.
+                for i in 0..n {
+                    w[i] = x[i] + self.product[(i, 0)];
+                    for j in 0..n {
+                        let id = if i == j { 1.0 } else { 0.0 };
+                        g[i * n + j] = id + self.product[(i, 1 + j)];
+                    }
+                }
+            }
+            Model::Cells(tree) => tree.eval(x, &mut self.basis, &mut self.product, w, g),
         }
         if w.iter().map(|v| v * v).sum::<f64>() > 1.0 {
             return false;
@@ -353,15 +409,7 @@ impl<'a> LogFit<'a> {
         for i in 0..n {
             out.v[i] = (0..n).map(|k| self.lt_inv[i * n + k] * w[k]).sum();
         }
-        // ∂v/∂q = (R L⁻ᵀ)(I + ∂P/∂x)(Lᵀ/R).
-        let mut g = [0.0f64; 256];
-        let g = &mut g[..n * n];
-        for i in 0..n {
-            for j in 0..n {
-                let id = if i == j { 1.0 } else { 0.0 };
-                g[i * n + j] = id + self.product[(i, 1 + j)];
-            }
-        }
+        // ∂v/∂q = (R L⁻ᵀ)(∂w/∂x)(Lᵀ/R).
         let mut t = [0.0f64; 256];
         let t = &mut t[..n * n];
         mat_mul(&self.lt_inv, g, n, t);
@@ -387,16 +435,45 @@ impl<'a> LogFit<'a> {
                 if !self.fitted(g.q(i), &mut out) {
                     continue;
                 }
-                let w = frame.to_frame(&DVector::from_column_slice(&out.v)).normalize();
-                let u = u.normalize();
-                // atan2 keeps small angles accurate, where acos of a cosine near 1 would not.
-                let c = w.dot(&u);
-                let perp = (&w - &u * c).norm();
-                worst = worst.max(2.0 * perp.atan2(c.abs()).to_degrees());
+                let w = frame.to_frame(&DVector::from_column_slice(&out.v));
+                worst = worst.max(line_angle_deg(w.as_slice(), u.as_slice()));
             }
         }
         Ok((worst, count))
     }
+}
+
+/// The fitted label of three or more joints, with its error on the held-out fan `check`
+/// (samples farther than 5 % of `extent` from q_eq, as [`LogFit::label_error`]): the one
+/// polynomial of [`LogFitSpec::for_joints`] where its error is at most `accept_deg` (it costs a
+/// fraction of a second to build); else, if `cells`, the cells of [`CellSpec::for_joints`]
+/// ([`crate::geodesic::logcells`]) when they do better; else that polynomial.
+///
+/// `label = "table"` asks for the cells, `auto` does not: on `ur5_six` they reach about 1°
+/// (`BENCHMARKS.md`), beyond `auto`'s 0.1°, so under `auto` they would cost their build (tens of
+/// seconds) only to be rejected, and on `triple_pendulum` they would move its pinned simulation
+/// outputs.
+pub fn fit_label<'a>(
+    chain: &'a Chain,
+    q_eq: &DVector<f64>,
+    ode: OdeSettings,
+    extent: f64,
+    check: &Fan,
+    accept_deg: f64,
+    cells: bool,
+) -> Result<(LogFit<'a>, (f64, usize))> {
+    let n = chain.dof();
+    let frame = MetricFrame::new(&chain.mass_matrix(q_eq))?;
+    let min_r = 0.05 * extent;
+    let mut fit = LogFit::build(chain, q_eq, ode, LogFitSpec::for_joints(n, extent))?;
+    let err = fit.label_error(&frame, check, min_r)?;
+    if err.0 <= accept_deg || !cells {
+        return Ok((fit, err));
+    }
+    let margin = LogFitSpec::for_joints(n, extent).margin;
+    let mut cells = LogFit::build_cells(chain, q_eq, ode, extent, margin, CellSpec::for_joints(n))?;
+    let cells_err = cells.label_error(&frame, check, min_r)?;
+    Ok(if cells_err.0 < err.0 { (cells, cells_err) } else { (fit, err) })
 }
 
 impl LogField for LogFit<'_> {

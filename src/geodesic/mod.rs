@@ -8,8 +8,10 @@
 pub mod directions;
 pub mod fan;
 pub mod label;
+pub mod logcells;
 pub mod logfit;
 pub mod logmap;
+pub mod polynomial;
 pub mod region;
 pub mod shoot;
 
