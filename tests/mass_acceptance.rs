@@ -230,7 +230,7 @@ fn agreement(design: &Design, catalog: &Catalog) -> Option<Agreement> {
             continue;
         };
         if model.from_parts[i] && part.mass > 0.0 {
-            pairs.push((part.mass, model.per_stiffness[i] * r.stiffness));
+            pairs.push((part.mass, model.mass_at(i, r.stiffness)));
         }
     }
     if pairs.is_empty() {
@@ -258,14 +258,15 @@ fn agreement(design: &Design, catalog: &Catalog) -> Option<Agreement> {
 
 /// The mass model against the part chooser on every shipped design of fewer than five joints
 /// (from five, even a reduced fit takes most of a minute: `tests/cli_all_designs.rs`), on
-/// reduced fits, nominal only: per design the model's total Σ cᵢkᵢ over the chosen parts' total
+/// reduced fits, nominal only: per design the model's total Σ mᵢ(kᵢ) over the chosen parts' total
 /// (the elements both size: no trims, cams or cubics), the median ratio per part, the range, and
 /// the worst ratio among parts of 2 % of the bill's mass or more, printed as a table. Measured
-/// (one thread, 655 s under load): totals 0.70 (ur5_lift_elbow) to 1.34 (the paper's window,
-/// 64 parts), the model mostly under the parts by 10–25 % (the big cranks at 0.55–0.6: the
-/// envelope makes a crank heavier per unit stiffness as it grows); medians 0.92–1.26 except the
-/// window's 2.18 (its many small stops: the least wire and coils a maker winds are not linear in
-/// k); the default design 12 parts, 10.16 kg by the model against 12.58 kg, median 0.98. Held:
+/// with the mass curve (one thread, 1,050 s under load): totals 0.968 (triple_pendulum) to 1.088
+/// (ur10_lift_elbow_wrist), and 1.323 for double_pendulum_cams' one spring; medians 0.977–1.136
+/// (1.323); the default design 12 parts, 12.49 kg by the model against 12.58 kg, median 1.003.
+/// With a straight line through one part (before the curve) totals were 0.70–1.34 and the big
+/// cranks read 0.55–0.6 of their parts: the envelope makes a crank heavier per unit stiffness as
+/// it grows. Small parts are not smooth in k (the least wire and coils a maker winds). Held:
 /// every total within 0.6–1.5 and every median within 0.8–2.5 (the model steers the fit's mass
 /// term and budget; every mass a report gives is the parts').
 #[test]

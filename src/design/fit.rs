@@ -133,9 +133,9 @@ pub struct FitSettings {
     /// fit job.
     #[serde(deserialize_with = "mass_weight_or_auto")]
     pub mass_weight: f64,
-    /// Upper bound on the springs' mass cᵀk in kg by the part chooser's mass per unit stiffness
-    /// (0: none). Exact with `qp`; with `nnls` met by raising the mass weight. Below the floor it
-    /// is refused before any work.
+    /// Upper bound on the springs' mass Σ mᵢ(kᵢ) in kg by the part chooser's mass curves (0:
+    /// none), met by raising the mass weight with the selection redone at each weight, so that
+    /// the selection honours it (`fit::mass`). Below the floor it is refused before any work.
     pub max_spring_mass: f64,
     /// Most candidate fits the automatic choice of the weights may run (each a solve on the
     /// one preparation, its parts and its as-built builds): a count, not seconds, so the choice

@@ -4,16 +4,21 @@
 //!
 //! **The model.** For a mechanism of fixed geometry a spring's volume goes with the energy it
 //! stores, and the energy goes with its stiffness, so the mass of candidate i's part is close to
-//! cᵢ·kᵢ. cᵢ is read off the part [`crate::realise::mechanism::spring_element`] chooses at a
-//! reference stiffness over the candidate's own duty (its deflections over the held-out fan,
-//! preload included, and the scenarios' swing for fatigue): cᵢ = mass(k_ref)/k_ref. k_ref gives
-//! the element a peak torque over the region of a quarter of the potential's boundary torque
-//! (2U*/r), the size of the elements real fits choose; where no part exists there, k_ref is
-//! halved until one does. The wire comes in discrete sizes and the geometry is searched, so the
-//! mass is not exactly linear: `tests/mass.rs` measures how close on the shipped designs (the
-//! module's tests state it for the paper's arm). A candidate no spring realises at any tried
-//! stiffness, and a cubic (whose part is a disc cam), falls back to the floor's density:
-//! cᵢ = ρ·eᵢ/u with eᵢ its largest energy per unit stiffness over the region. A cam's basis
+//! aᵢ·kᵢ for small parts; bigger ones meet the envelope (lever, diameter, length) and grow faster
+//! than their stiffness, so the model is the curve mᵢ(k) = aᵢk + bᵢk². It is read off the parts
+//! [`crate::realise::mechanism::spring_element`] chooses over the candidate's own duty (its
+//! deflections over the held-out fan, preload included, and the scenarios' swing for fatigue):
+//! one at a reference stiffness k_ref and one at 4·k_ref (2·k_ref where 4× has no part), the
+//! curve through both (a straight line through the first where the second is lighter per unit
+//! stiffness, or has no part). k_ref gives the element a peak torque over the region of a
+//! quarter of the potential's boundary torque (2U*/r), the size of the elements real fits choose;
+//! where no part exists there, k_ref is halved until one does. The wire comes in discrete sizes
+//! and the geometry is searched, so the curve is not exact: `tests/mass.rs` measures how close on
+//! the shipped designs (the module's tests state it for the paper's arm). With the straight line
+//! alone (bᵢ = 0) the default design's big preloaded cranks weighed 0.58–0.79 of their parts, so
+//! a mass weight kept the big cranks and gave up small ones. A candidate no spring realises at any
+//! tried stiffness, and a cubic (whose part is a disc cam), falls back to the floor's density:
+//! aᵢ = ρ·eᵢ/u with eᵢ its largest energy per unit stiffness over the region. A cam's basis
 //! columns weigh nothing here: the follower's spring is sized by the cam's stroke, not by one
 //! coefficient.
 //!
@@ -21,15 +26,17 @@
 //! boundary, and spring steel stores at most u per unit volume
 //! ([`crate::realise::spring::usable_energy_density`]), so no bill weighs less than ρ·U*/u.
 //!
-//! **In the solvers.** λ·cᵀk is linear in k: in the Gram form ½kᵀGk − bᵀk every solver works on
-//! it moves b to b − λc (completing the square), so NNLS, the QP and the selection of at most K
-//! all minimise the same objective, which stays convex. λ = `mass_weight` · ½‖b‖² / floor: a
-//! bill of the floor's mass costs `mass_weight` times the residual of no springs at all, whatever
-//! the arm's size, so one weight means the same on every arm. The budget cᵀk ≤ M is one more
-//! linear inequality for the QP; NNLS, which takes no inequalities, meets it by raising λ (a
-//! bisection on the multiplier: the budget's KKT conditions).
+//! **In the solvers.** λ·Σ(aᵢkᵢ + bᵢkᵢ²) is a convex quadratic in k: in the Gram form
+//! ½kᵀGk − cᵀk every solver works on it moves c to c − λa and adds 2λbᵢ to G's diagonal, so
+//! NNLS, the QP and the selection of at most K all minimise the same objective, which stays
+//! convex. λ = `mass_weight` · ½‖b‖² / floor: a bill of the floor's mass costs `mass_weight`
+//! times the residual of no springs at all, whatever the arm's size, so one weight means the
+//! same on every arm. The budget Σ mᵢ(kᵢ) ≤ M is met by raising λ (a bisection on the
+//! multiplier: the budget's KKT conditions), which the selection sees too; with a straight-line
+//! model only (every bᵢ = 0) the QP holds it as one more linear inequality instead.
+//!
 
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use crate::design::Design;
@@ -45,6 +52,13 @@ use crate::realise::spring::usable_energy_density;
 /// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
 /// stiffness its mass per unit stiffness is read at.
 const REFERENCE_TORQUE: f64 = 0.25;
+
+/// Multiples of the reference stiffness (the first that has a part) at which a second part is
+/// read for the curvature of the candidate's mass: the bills fits choose carry up to about four
+/// times the reference torque on one part, and the envelope makes those parts heavier per unit
+/// stiffness (the default design's 17–85 N·m cranks weighed 0.58–0.79 of their parts by a
+/// straight line through the reference part).
+const CURVE_READS: [f64; 2] = [4.0, 2.0];
 
 /// Halvings of the reference stiffness tried before a candidate falls back to the floor density.
 const HALVINGS: usize = 8;
@@ -107,9 +121,12 @@ impl Floor {
 /// Every candidate's spring mass per unit stiffness, and the floor.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MassModel {
-    /// cᵢ, kg per unit of the candidate's stiffness.
+    /// aᵢ, kg per unit of the candidate's stiffness: the linear part of its mass curve.
     pub per_stiffness: Vec<f64>,
-    /// Whether cᵢ is the part chooser's (false: the floor density's fallback, or a cam's basis).
+    /// bᵢ, kg per unit of stiffness squared: the curve's bend, m(k) = aᵢk + bᵢk² (0 where one
+    /// part was read, and for cams and cubic elements).
+    pub per_stiffness_squared: Vec<f64>,
+    /// Whether the curve is the part chooser's (false: the floor density's fallback, or a cam's basis).
     pub from_parts: Vec<bool>,
     /// The floor.
     pub floor: Floor,
@@ -126,29 +143,54 @@ impl MassModel {
         let req = requirements(&design.parts, "");
         let extent = evaluation.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max).max(1e-9);
         let torque = REFERENCE_TORQUE * 2.0 * floor.energy / extent;
-        let (per_stiffness, from_parts) = candidates
+        let (coefficients, from_parts): (Vec<(f64, f64)>, Vec<bool>) = candidates
             .par_iter()
             .map(|c| {
                 let duty = duty(&spans, &c.element);
                 let profile = c.element.profile;
                 let by_density = || req.material.density * largest_energy(profile, &duty) / floor.density;
                 match profile {
-                    Profile::Spline(_) => (0.0, false),
-                    Profile::Cubic => (by_density(), false),
+                    Profile::Spline(_) => ((0.0, 0.0), false),
+                    Profile::Cubic => ((by_density(), 0.0), false),
                     _ => {
                         let mut k = torque / peak_slope(profile, &duty).max(1e-9);
                         for _ in 0..=HALVINGS {
                             if let Ok(part) = spring_element(profile, k, &duty, &req) {
-                                return (part.mass / k, true);
+                                let larger = CURVE_READS.iter().find_map(|&f| {
+                                    spring_element(profile, f * k, &duty, &req).ok().map(|p| (f * k, p.mass))
+                                });
+                                return (curve((k, part.mass), larger), true);
                             }
                             k *= 0.5;
                         }
-                        (by_density(), false)
+                        ((by_density(), 0.0), false)
                     }
                 }
             })
             .unzip();
-        MassModel { per_stiffness, from_parts, floor }
+        let (per_stiffness, per_stiffness_squared) = coefficients.into_iter().unzip();
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, floor }
+    }
+
+    /// Candidate `i`'s mass at stiffness `k` by the model, aᵢk + bᵢk², kg.
+    pub fn mass_at(&self, i: usize, k: f64) -> f64 {
+        self.per_stiffness[i] * k + self.per_stiffness_squared[i] * k * k
+    }
+}
+
+/// The mass curve m(k) = a·k + b·k² through the part read at `first` (k₁, m₁) and, where the
+/// chooser finds one, the larger part `larger` (k₂, m₂): (a, b). A curve that would bend down
+/// (b < 0: the larger part lighter per unit stiffness) is read as the secant of the first part,
+/// b = 0; one whose linear part would be negative goes through the larger part alone, a = 0.
+fn curve((k1, m1): (f64, f64), larger: Option<(f64, f64)>) -> (f64, f64) {
+    let Some((k2, m2)) = larger else { return (m1 / k1, 0.0) };
+    let b = (m2 / k2 - m1 / k1) / (k2 - k1);
+    if b <= 0.0 {
+        (m1 / k1, 0.0)
+    } else if m1 / k1 - b * k1 < 0.0 {
+        (0.0, m2 / (k2 * k2))
+    } else {
+        (m1 / k1 - b * k1, b)
     }
 }
 
@@ -172,8 +214,10 @@ fn sample(duty: &Duty) -> impl Iterator<Item = f64> + '_ {
 /// and the budget cᵀk ≤ M.
 #[derive(Debug, Clone, Copy)]
 pub struct MassTerm<'a> {
-    /// cᵢ, kg per unit stiffness.
+    /// aᵢ, kg per unit stiffness.
     pub per_stiffness: &'a [f64],
+    /// bᵢ, kg per unit stiffness squared (empty: none).
+    pub per_stiffness_squared: &'a [f64],
     /// λ, objective per kg (0: none).
     pub weight: f64,
     /// M, kg (0: none).
@@ -192,8 +236,22 @@ impl MassTerm<'_> {
         DVector::from_iterator(self.per_stiffness.len(), self.per_stiffness.iter().map(|c| weight * c))
     }
 
-    /// cᵀk, kg.
+    /// Whether any candidate's mass bends up with its stiffness (a quadratic term, which the
+    /// QP's linear budget row cannot hold).
+    pub fn curved(&self) -> bool {
+        self.per_stiffness_squared.iter().any(|&b| b > 0.0)
+    }
+
+    /// λ·Σ bᵢkᵢ² in the Gram form ½kᵀGk: 2λbᵢ on G's diagonal.
+    pub fn bend(&self, weight: f64, g: &mut DMatrix<f64>) {
+        for (j, b) in self.per_stiffness_squared.iter().enumerate() {
+            g[(j, j)] += 2.0 * weight * b;
+        }
+    }
+
+    /// Σ aᵢkᵢ + bᵢkᵢ², kg.
     pub fn mass(&self, k: &[f64]) -> f64 {
-        self.per_stiffness.iter().zip(k).map(|(c, k)| c * k).sum()
+        let linear: f64 = self.per_stiffness.iter().zip(k).map(|(c, k)| c * k).sum();
+        linear + self.per_stiffness_squared.iter().zip(k).map(|(b, k)| b * k * k).sum::<f64>()
     }
 }

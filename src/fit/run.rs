@@ -156,6 +156,7 @@ impl Prepared<'_> {
         let model = weighs_mass.then(|| self.mass_model(settings.frequency));
         let term = model.map(|m| MassTerm {
             per_stiffness: &m.per_stiffness,
+            per_stiffness_squared: &m.per_stiffness_squared,
             weight: MassTerm::weight(settings, self.gram.bb, &m.floor),
             budget: settings.max_spring_mass,
         });

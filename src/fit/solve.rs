@@ -45,10 +45,11 @@ const SCREEN_FROM: usize = 600;
 ///
 /// `extra` is added to the normal equations (the tolerance-aware fit's expected spread of the
 /// builds: a diagonal for the springs, a block per group): every solver and the selection
-/// minimise the same objective. `mass` adds the springs' mass (`fit::mass`): its weight λ·cᵀk
-/// moves the right-hand side, for every solver and the selection alike; its budget cᵀk ≤ M is
-/// an inequality of the QP, and NNLS meets it by raising λ (bisection on the multiplier, the
-/// least λ whose solution is within the budget). Without `mass` nothing changes, bit for bit.
+/// minimise the same objective. `mass` adds the springs' mass (`fit::mass`): its weight λ·Σ mᵢ(kᵢ)
+/// moves the right-hand side and G's diagonal, for every solver and the selection alike; its budget Σ mᵢ(kᵢ) ≤ M is
+/// an inequality of the QP when the model is a straight line, and otherwise (and always for NNLS)
+/// met by raising λ (bisection on the multiplier, the least λ whose solution, selection
+/// included, is within the budget). Without `mass` nothing changes, bit for bit.
 pub fn solve(
     problem: &FitProblem,
     gram: &Gram,
@@ -66,21 +67,24 @@ pub fn solve(
     let Some(m) = mass else {
         return solve_gram_with(problem, gram, columns, q_eq, settings, signed, None);
     };
-    let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp).then_some(m);
+    // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
+    let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
     let at = |weight: f64| {
         let mut shifted = gram.clone();
         if weight > 0.0 {
             shifted.c -= m.shift(weight);
+            m.bend(weight, &mut shifted.g);
         }
         solve_gram_with(problem, shifted, columns, q_eq, settings, signed, qp_budget)
     };
     let first = at(m.weight)?;
     let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
-    if m.budget <= 0.0 || settings.solver == SolverKind::Qp || within(&first.0) {
+    if m.budget <= 0.0 || qp_budget.is_some() || within(&first.0) {
         return Ok(first);
     }
-    // NNLS over the budget: the least λ′ ≥ λ whose solution is within it. Bracketed from λ per
-    // kg of the order of the residual of no springs over the budget, then bisected.
+    // Over the budget: the least λ′ ≥ λ whose solution (selection included) is within it.
+    // Bracketed from λ per kg of the order of the residual of no springs over the budget, then
+    // bisected.
     let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * gram.bb / m.budget));
     let mut best = None;
     for _ in 0..BUDGET_STEPS {
@@ -95,7 +99,8 @@ pub fn solve(
         return Err(Error::Infeasible {
             constraint: format!("max_spring_mass ({} kg)", m.budget),
             reason: format!(
-                "NNLS cannot bring the springs within it at any mass weight (the least it reached is {:.3} kg): the equalities need more steel than the budget; raise max_spring_mass",
+                "the {} solver cannot bring the springs within it at any mass weight (the least it reached is {:.3} kg): the equalities need more steel than the budget; raise max_spring_mass",
+                settings.solver.name(),
                 m.mass(&at(hi)?.0)
             ),
         });
@@ -115,7 +120,7 @@ pub fn solve(
     Ok(best)
 }
 
-/// Steps of NNLS's search for the mass weight that meets `max_spring_mass`: growth by 4× to
+/// Steps of the search for the mass weight that meets `max_spring_mass`: growth by 4× to
 /// bracket it, then bisection to 1e-6 relative.
 const BUDGET_STEPS: usize = 40;
 

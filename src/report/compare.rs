@@ -213,7 +213,7 @@ fn kg(x: Option<f64>) -> String {
 /// The mass section of `pareto.md`.
 fn mass_md(c: &MassCurve) -> String {
     let mut md = format!(
-        "\n## Best residual per spring mass (budget {})\n\nEach row fits the design with `max_spring_mass` set to the budget (the last: without one). *model* is the mass the fit bounds, Σ cᵢkᵢ over the fitted springs by the mass model (trims aside); *parts* the chosen parts' total, trims included, what the arm carries. The floor ρ·U*/u is {:.3} kg (U* = {:.2} J), the arm's moving mass {:.3} kg.\n\n| max_spring_mass | springs used | median | p95 | p99 | max | model | parts | parts / floor | parts / arm | stored energy / U* | total \\|preload\\| |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        "\n## Best residual per spring mass (budget {})\n\nEach row fits the design with `max_spring_mass` set to the budget (the last: without one). *model* is the mass the fit bounds, Σ mᵢ(kᵢ) over the fitted springs by the mass model (trims aside); *parts* the chosen parts' total, trims included, what the arm carries. The floor ρ·U*/u is {:.3} kg (U* = {:.2} J), the arm's moving mass {:.3} kg.\n\n| max_spring_mass | springs used | median | p95 | p99 | max | model | parts | parts / floor | parts / arm | stored energy / U* | total \\|preload\\| |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
         if c.max_elements == 0 { "none".to_string() } else { c.max_elements.to_string() },
         c.floor_kg,
         c.potential_energy_j,

@@ -375,7 +375,7 @@ pub struct MassPoint {
     pub used: usize,
     /// Residual statistics (NaN, null in JSON, when infeasible).
     pub stats: AngleStats,
-    /// The fit's own measure of the mass: Σ cᵢkᵢ over the fitted springs by the mass model
+    /// The fit's own measure of the mass: Σ mᵢ(kᵢ) over the fitted springs by the mass model
     /// (`fit::mass`; trims, which the fit does not weigh, left out), kg: what the budget bounds.
     pub model_mass_kg: Option<f64>,
     /// The parts chosen for the bill (None when infeasible).
@@ -424,7 +424,7 @@ pub fn default_masses(floor: f64, top: f64, n: usize) -> Vec<f64> {
     masses
 }
 
-/// The model mass Σ cᵢkᵢ of a fitted bill's springs (trims aside: the fit does not weigh them),
+/// The model mass Σ mᵢ(kᵢ) of a fitted bill's springs (trims aside: the fit does not weigh them),
 /// by the same mass model the fit's term and budget use (`fit::mass`: each candidate's mass per
 /// unit stiffness is read off its own coupling's duty, so the bill's rows alone give the same cᵢ
 /// as the preparation's candidates).
@@ -433,7 +433,7 @@ pub fn model_mass(design: &Design, o: &FitOutcome) -> f64 {
     let candidates: Vec<crate::elements::catalog::Candidate> =
         rows.iter().map(|r| crate::elements::catalog::Candidate::bare(r.element.clone())).collect();
     let model = crate::fit::mass::MassModel::new(design, &candidates, &o.evaluation, o.settings.frequency);
-    rows.iter().zip(&model.per_stiffness).map(|(r, c)| c * r.stiffness).sum()
+    rows.iter().enumerate().map(|(i, r)| model.mass_at(i, r.stiffness)).sum()
 }
 
 /// The best residual per spring mass: one preparation; the fit without a mass budget (the
