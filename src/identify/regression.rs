@@ -80,7 +80,59 @@ pub struct Model {
     pub unknowns: Vec<Unknown>,
     /// Every element of the bill at its design rate.
     designed: GroupedSet,
+    /// The bill's elements with their rates, and each part's one element, when the bill has
+    /// no cam (see [`Slopes`]).
+    slopes: Option<Slopes>,
     dof: usize,
+}
+
+/// A bill without cams, evaluated once per sample for both the designed torque and the parts'
+/// columns: each element's slope k u′(a·q − x₀) is the same number in both, so it is computed
+/// once (on the Panda's 141 springs the two evaluations, a sine each, were a fifth of
+/// `identify --plan`). The sums are [`GroupedSet::gradient_into`]'s, term by term in the bill's
+/// order, so the rows are the same bit for bit.
+#[derive(Debug, Clone)]
+struct Slopes {
+    /// Every row of the bill: its element and design rate, in order.
+    rows: Vec<(crate::elements::Element, f64)>,
+    /// Per part, its one row.
+    part_row: Vec<usize>,
+}
+
+impl Slopes {
+    /// The slopes of a bill whose parts are one row each and none of them a cam's coefficient.
+    fn of(bom: &[BomRow], parts: &[Part]) -> Option<Slopes> {
+        if bom.iter().any(|r| matches!(r.element.profile, crate::elements::Profile::Spline(_))) {
+            return None;
+        }
+        let part_row: Option<Vec<usize>> =
+            parts.iter().map(|p| if let [r] = p.rows[..] { Some(r) } else { None }).collect();
+        Some(Slopes { rows: bom.iter().map(|r| (r.element.clone(), r.stiffness)).collect(), part_row: part_row? })
+    }
+
+    /// Each row's k u′ at `q` into `slope` (0 where k = 0, which the sums skip), and the designed
+    /// gradient Σ k u′ a into `spring`.
+    fn eval(&self, q: &[f64], slope: &mut [f64], spring: &mut [f64]) {
+        spring.fill(0.0);
+        for ((e, k), s) in self.rows.iter().zip(slope.iter_mut()) {
+            if *k == 0.0 {
+                *s = 0.0;
+                continue;
+            }
+            *s = k * e.profile.slope(e.deflection(q));
+            for (o, a) in spring.iter_mut().zip(&e.coupling) {
+                *o += *s * a;
+            }
+        }
+    }
+
+    /// Part `part`'s gradient on joint `j` from the slopes: what its own set gives (a sum that
+    /// starts at 0, hence the `0.0 +`, which turns a −0 into +0 as the sum does).
+    fn part(&self, part: usize, j: usize, slope: &[f64]) -> f64 {
+        let r = self.part_row[part];
+        let (e, k) = &self.rows[r];
+        if *k == 0.0 { 0.0 } else { 0.0 + slope[r] * e.coupling[j] }
+    }
 }
 
 impl Model {
@@ -130,7 +182,8 @@ impl Model {
         if settings.friction {
             unknowns.extend((0..dof).map(Unknown::Friction));
         }
-        Model { parts, unknowns, designed: crate::fit::bill::spring_set(bom).grouped(), dof }
+        let slopes = Slopes::of(bom, &parts);
+        Model { parts, unknowns, designed: crate::fit::bill::spring_set(bom).grouped(), slopes, dof }
     }
 
     /// A short name of unknown `u`: the part's id, `D1`, `fc2`.
@@ -293,6 +346,7 @@ pub fn run_rows(design: &Design, model: &Model, run: &Run, index: usize, filters
     let mut qi = vec![0.0; n];
     let mut g = vec![0.0; n];
     let mut spring = vec![0.0; n];
+    let mut slope = vec![0.0; model.slopes.as_ref().map_or(0, |s| s.rows.len())];
     for (i, s) in keep.clone().enumerate() {
         for j in 0..n {
             qi[j] = q[j][s];
@@ -301,7 +355,10 @@ pub fn run_rows(design: &Design, model: &Model, run: &Run, index: usize, filters
         let v = nalgebra::DVector::from_iterator(n, (0..n).map(|j| qd[j][s]));
         let dm = chain.mass_matrix_derivatives(&qv);
         chain.gravity_gradient_into(&qi, &mut g);
-        model.designed.gradient_into(&qi, &mut spring);
+        match &model.slopes {
+            Some(slopes) => slopes.eval(&qi, &mut slope, &mut spring),
+            None => model.designed.gradient_into(&qi, &mut spring),
+        }
         for j in 0..n {
             let dt_dq = 0.5 * v.dot(&(&dm[j] * &v));
             let tau = run.tau.as_ref().map_or(0.0, |t| t[s * n + j]);
@@ -311,6 +368,12 @@ pub fn run_rows(design: &Design, model: &Model, run: &Run, index: usize, filters
             friction.data[j][i] = if v[j] == 0.0 { 0.0 } else { -v[j].signum() };
         }
         for (k, part) in model.parts.iter().enumerate() {
+            if let Some(slopes) = &model.slopes {
+                for j in 0..n {
+                    columns.data[k * n + j][i] = -slopes.part(k, j, &slope);
+                }
+                continue;
+            }
             part.set.gradient_into(&qi, &mut g);
             for j in 0..n {
                 columns.data[k * n + j][i] = -g[j];

@@ -324,13 +324,15 @@ pub fn choose(
     stock: &[StockPart],
     ideal: Option<AngleStats>,
 ) -> Result<Parts> {
-    let light = choose_with(design, bom, cams, evaluation, frequency, stock, ideal, None)?;
+    let (light, examined) = choose_with(design, bom, cams, evaluation, frequency, stock, ideal, None, None)?;
     let rollers = design.parts.pulley_radius_mm > 0.0 && bom.iter().any(|r| r.element.profile == Profile::Crank);
     if !rollers || light.realised.p99_abs <= light.ideal.p99_abs + ROLLER_SLACK_DEG {
         return Ok(light);
     }
+    // Only the cranks' parts depend on the bound: every other part is the first pass's.
     let bound = Some(mechanism::MAX_ROLLER_DEPARTURE);
-    let bounded = choose_with(design, bom, cams, evaluation, frequency, stock, Some(light.ideal), bound)?;
+    let first = Some((&light, &examined[..]));
+    let (bounded, _) = choose_with(design, bom, cams, evaluation, frequency, stock, Some(light.ideal), bound, first)?;
     Ok(if bounded.realised.p99_abs < light.realised.p99_abs { bounded } else { light })
 }
 
@@ -344,7 +346,7 @@ pub fn lightest_of_fit(
     stock: &[StockPart],
 ) -> Result<Parts> {
     let (o, ideal) = (outcome, Some(outcome.metrics.stats));
-    choose_with(design, &o.bom, &o.cams, &o.evaluation, frequency, stock, ideal, None)
+    Ok(choose_with(design, &o.bom, &o.cams, &o.evaluation, frequency, stock, ideal, None, None)?.0)
 }
 
 /// How far (degrees of p99) a realised design may depart from its ideal elements before
@@ -353,7 +355,15 @@ pub fn lightest_of_fit(
 pub const ROLLER_SLACK_DEG: f64 = 0.1;
 
 /// [`choose`] with the cranks' rollers bounded to `roller_departure` (a share of k; None: the
-/// lightest geometry).
+/// lightest geometry), and the stock rows each element's search examined (its part's index in
+/// [`Parts::elements`]).
+///
+/// `first`, a pass of the same bill with those counts, lends every part whose search does not
+/// read the bound: only a crank's (its geometries and a listed spring round them) does, so the
+/// other elements and the cams' followers are taken from it as they are, and the pass searches
+/// the cranks alone. The parts and the counts are the ones a full search gives. (On the Panda's
+/// bill, 76 cranks of 141 springs, this saves little: the cranks' searches and the realised
+/// design's residual angles, which both passes need, are most of the pass; BENCHMARKS.md.)
 #[allow(clippy::too_many_arguments)]
 fn choose_with(
     design: &Design,
@@ -364,7 +374,8 @@ fn choose_with(
     stock: &[StockPart],
     ideal: Option<AngleStats>,
     roller_departure: Option<f64>,
-) -> Result<Parts> {
+    first: Option<(&Parts, &[usize])>,
+) -> Result<(Parts, Vec<usize>)> {
     let s = &design.parts;
     s.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
     let q_eq = design.q_eq.as_slice();
@@ -376,9 +387,17 @@ fn choose_with(
     // The bill's largest peak torque, what `[fit] used_threshold` is a share of.
     let largest = bom.iter().map(|r| r.max_torque_nm).fold(0.0, f64::max);
     let index = StockIndex::new(stock);
+    // The first pass's part of the element at `i` (springs, then cams), when it may be reused.
+    let lent = |i: usize, reusable: bool| {
+        first.filter(|_| reusable).and_then(|(p, n)| Some((p.elements.get(i)?.clone(), *n.get(i)?)))
+    };
     let mut elements: Vec<(ElementPart, usize)> = springs
         .par_iter()
-        .map(|r| {
+        .enumerate()
+        .map(|(i, r)| {
+            if let Some(lent) = lent(i, r.element.profile != Profile::Crank) {
+                return lent;
+            }
             let req = mechanism::Requirements { roller_departure, ..requirements(s, &r.id) };
             let duty = duty(&spans, &r.element);
             let k = r.stiffness;
@@ -427,7 +446,11 @@ fn choose_with(
             (e, listed.examined + matched.examined)
         })
         .collect();
-    for cam in cams {
+    for (j, cam) in cams.iter().enumerate() {
+        if let Some(lent) = lent(springs.len() + j, true) {
+            elements.push(lent);
+            continue;
+        }
         let req = requirements(s, &cam.id);
         let b = cam.realisation.build;
         let stroke = cam.realisation.points.iter().map(|p| p.stroke).fold(0.0, f64::max);
@@ -448,7 +471,8 @@ fn choose_with(
         };
         elements.push((e, matched.examined));
     }
-    let stock_examined = elements.iter().map(|e| e.1).sum();
+    let examined: Vec<usize> = elements.iter().map(|e| e.1).collect();
+    let stock_examined = examined.iter().sum();
     let elements: Vec<ElementPart> = elements.into_iter().map(|e| e.0).collect();
     let realised = RealisedSet::new(bom, &elements);
     let residuals = fan_angles(&design.chain, evaluation, &realised)?;
@@ -456,7 +480,9 @@ fn choose_with(
         Some(s) => s,
         None => stats(&fan_angles(&design.chain, evaluation, &spring_set(bom).grouped())?),
     };
-    Ok(Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius), stock_examined })
+    let parts =
+        Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius), stock_examined };
+    Ok((parts, examined))
 }
 
 /// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working

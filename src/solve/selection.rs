@@ -507,15 +507,17 @@ where
                 let last = step == 1 || s.len() + 1 >= k_max;
                 let limit = if last { threshold } else { f64::INFINITY };
                 let lb = bound.map(|b| b(&s));
+                // Only the trials that may beat the limit are built (a support each).
                 let tries: Vec<Trial> = (0..p)
                     .filter(|j| !s.contains(j) && !removed.contains(j))
-                    .map(|j| {
+                    .map(|j| (j, lb.as_ref().map_or(f64::NEG_INFINITY, |b| b[j])))
+                    .filter(|&(_, bound)| may_beat(bound, limit))
+                    .map(|(j, bound)| {
                         let mut trial = s.clone();
                         trial.push(j);
                         trial.sort_unstable();
-                        Trial { index: j, bound: lb.as_ref().map_or(f64::NEG_INFINITY, |b| b[j]), support: trial }
+                        Trial { index: j, bound, support: trial }
                     })
-                    .filter(|t| may_beat(t.bound, limit))
                     .collect();
                 let (found, e) = best_trial(tries, limit, objective, bound.is_some())?;
                 evals += e;
