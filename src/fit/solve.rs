@@ -106,7 +106,7 @@ pub fn solve(
         });
     };
     for _ in 0..BUDGET_STEPS {
-        if hi - lo <= 1e-6 * hi {
+        if hi - lo <= BUDGET_PRECISION * hi {
             break;
         }
         let mid = 0.5 * (lo + hi);
@@ -121,8 +121,14 @@ pub fn solve(
 }
 
 /// Steps of the search for the mass weight that meets `max_spring_mass`: growth by 4× to
-/// bracket it, then bisection to 1e-6 relative.
+/// bracket it, then bisection to `BUDGET_PRECISION`.
 const BUDGET_STEPS: usize = 40;
+
+/// Relative width at which the bisection on the mass weight stops. The solution it returns is
+/// always within the budget (the bracket's upper end); 1e-3 of λ moves the mass by far less
+/// than the parts' own discreteness (wire sizes), and each step is a whole fit with its
+/// selection, so a tighter bisection costs fits for digits no part can show.
+const BUDGET_PRECISION: f64 = 1e-3;
 
 /// `gram` (of `rows` rows) with the equalities folded in at weight W per row: a violation δ of
 /// an equation costs as much as δ / equality_weight of residual on every tangentiality row.
