@@ -466,7 +466,7 @@ fn fit_cell(
 
 /// The doubled angle 2·∠(±a, b) between the lines of `a` and `b`, degrees (atan2 keeps small
 /// angles accurate, where acos of a cosine near 1 would not).
-pub(crate) fn line_angle_deg(a: &[f64], b: &[f64]) -> f64 {
+pub fn line_angle_deg(a: &[f64], b: &[f64]) -> f64 {
     let na = a.iter().map(|v| v * v).sum::<f64>().sqrt();
     let nb = b.iter().map(|v| v * v).sum::<f64>().sqrt();
     let c: f64 = a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>() / (na * nb);
