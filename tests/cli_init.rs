@@ -3,6 +3,8 @@
 //! them), a URDF joint without limits written with the assumption stated, and init plus fit on
 //! a planar three-link arm in gravity (the acceptance of issue 46).
 
+mod util;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -89,13 +91,7 @@ fn a_region_edited_past_a_joint_limit_is_refused_by_check_and_fit() {
 #[test]
 fn a_urdf_joint_without_limits_is_written_with_the_assumption_stated() {
     let dir = folder("unlimited");
-    let urdf = r#"<robot name="two">
-  <link name="base"/>
-  <link name="a"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="b"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/></joint>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="1 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-</robot>"#;
+    let urdf = util::UNLIMITED_J1_URDF;
     std::fs::write(dir.join("two.urdf"), urdf).unwrap();
     let out = springfit(&dir, &["init", "two.toml", "--urdf", "two.urdf", "--joints", "j1,j2"]);
     let stdout = String::from_utf8_lossy(&out.stdout);

@@ -2,6 +2,8 @@
 //! checked against them, a ball clipped at them on request, and `springfit init` writing a design
 //! that passes its own check.
 
+mod util;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -128,13 +130,7 @@ fn a_ball_past_a_limit_is_refused_and_clipped_on_request() {
 fn a_moving_joint_without_limits_is_assumed_free_with_a_warning() {
     let dir = std::env::temp_dir().join(format!("springfit-limits-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let urdf = r#"<robot name="two">
-  <link name="base"/>
-  <link name="a"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="b"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/></joint>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="1 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-</robot>"#;
+    let urdf = util::UNLIMITED_J1_URDF;
     std::fs::write(dir.join("two.urdf"), urdf).unwrap();
     let text = r#"
 name = "two"

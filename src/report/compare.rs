@@ -270,7 +270,7 @@ fn mass_figure(c: &MassCurve) -> Figure {
         Layer::Lines {
             lines: vec![model.clone()],
             style: Style::line(palette(1), 2).dashed(),
-            label: Some("mass model (Σ c·k)".into()),
+            label: Some("mass model (Σ mᵢ(kᵢ))".into()),
         },
         Layer::Points { points: model, style: Style::fill(palette(1), 1.0), size: 3, label: None },
     ];

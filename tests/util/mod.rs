@@ -191,3 +191,13 @@ pub fn design_variant(dir: &Path, name: &str, settings: &[(&str, toml::Value)]) 
 pub fn with_builds(dir: &Path, name: &str, builds: i64) -> PathBuf {
     design_variant(dir, name, &[("fit.builds", toml::Value::Integer(builds))])
 }
+
+/// A two-link URDF arm whose first joint `j1` states no limits (the second is ±1 rad): the
+/// assumption springfit states for it is what `init`'s and the model's tests check.
+pub const UNLIMITED_J1_URDF: &str = r#"<robot name="two">
+  <link name="base"/>
+  <link name="a"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="b"><inertial><mass value="1"/><origin xyz="0.5 0 0"/><inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="1 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"#;
