@@ -452,3 +452,35 @@ fn the_military_standard_stock_list() {
     let bad = springfit::files::stock::parse(&path, &edit(&format!("\"{source}\""), "")).unwrap_err().to_string();
     assert!(bad.contains(&format!("line {}", first + 1)) && bad.contains("source"), "{bad}");
 }
+
+/// Shigley's chrome-silicon wire (9th ed., Table 10-4: R_m = 1974/d^0.108 MPa, 1.6–9.5 mm;
+/// Table 10-5: G = 77.2 GPa, E = 203.4 GPa) winds the paper design's springs when `[parts]
+/// material` names it: every wound spring is of that wire, inside its range, with the table's
+/// R_m and a rate from its geometry at the table's moduli; nothing else about the choice changes
+/// (the default for 10⁶ swings stays EN 10270-1 DM, docs/parts.md says why).
+#[test]
+fn a_chrome_silicon_design_winds_every_spring_from_the_tables_wire() {
+    let mut design = quick_design("");
+    assert_eq!(springfit::design::parts::PartsSettings::default().material_key(), "EN10270-1-DM");
+    design.parts.material = Some("ASTM-A401".into());
+    let (_, parts) = parts_of(&design);
+    let mut wound = 0;
+    for e in parts.elements.iter().filter(|e| e.stock.is_none()) {
+        let Ok(p) = &e.part else { continue };
+        let (d, rm, own, rate) = match &p.spring {
+            Spring::Torsion(s) => {
+                (s.d, s.rm(), s.rate(), 203_400.0 * s.d.powi(4) / (64.0 * s.dm * s.effective_coils()))
+            }
+            Spring::Extension(s, _) | Spring::Compression(s, _) => {
+                (s.d, s.rm(), s.rate(), 77_200.0 * s.d.powi(4) / (8.0 * s.dm.powi(3) * s.n))
+            }
+            Spring::Leaf { .. } => continue,
+        };
+        wound += 1;
+        assert_eq!(p.spring.material(), "ASTM-A401", "{}", e.id);
+        assert!((1.6..=9.5).contains(&d), "{}: d = {d} mm outside A401's 1.6–9.5 mm", e.id);
+        assert!((rm - 1974.0 / d.powf(0.108)).abs() < 1e-9, "{}: R_m {rm} at {d} mm", e.id);
+        assert!((own / rate - 1.0).abs() < 1e-12, "{}: rate {own} against {rate} from Table 10-5's moduli", e.id);
+    }
+    assert!(wound >= 10, "the paper design winds most of its springs ({wound})");
+}

@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 
 /// The wire materials `material` may name: the keys of the material table in
 /// `realise::material` (a test there keeps the two lists equal).
-pub const MATERIALS: &[&str] = &["EN10270-1-SM", "EN10270-1-DM", "ASTM-A228", "ASTM-A313-302"];
+pub const MATERIALS: &[&str] =
+    &["EN10270-1-SM", "EN10270-1-DM", "ASTM-A228", "ASTM-A313-302", "ASTM-A229", "ASTM-A232", "ASTM-A401"];
 
 /// Fewest swings for which the default wire is a dynamic grade: below it (a spring loaded a few
 /// thousand times) EN 10270-1's static grade SM is enough.
@@ -37,8 +38,8 @@ pub struct ElementEnvelope {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PartsSettings {
-    /// Wire material, a key of the material table (`EN10270-1-SM`, `EN10270-1-DM`, `ASTM-A228`,
-    /// `ASTM-A313-302`); unset, it follows `cycles` ([`PartsSettings::material_key`]).
+    /// Wire material, a key of the material table ([`MATERIALS`]); unset, it follows `cycles`
+    /// ([`PartsSettings::material_key`]).
     pub material: Option<String>,
     /// Shot-peened springs (a higher endurance: Zimmerli's peened point, Table 10-10's peened row).
     pub shot_peened: bool,
@@ -102,7 +103,10 @@ impl Default for PartsSettings {
 
 impl PartsSettings {
     /// The wire every spring is wound from: `material` when set, else EN 10270-1's dynamic grade
-    /// DM for [`DYNAMIC_FROM_CYCLES`] swings or more and the static grade SM below.
+    /// DM for [`DYNAMIC_FROM_CYCLES`] swings or more and the static grade SM below. DM and not
+    /// the stronger chrome-silicon or chrome-vanadium wire: one wire serves the whole design and is
+    /// chosen before any spring is sized, and those are not drawn below 1.6 and 0.8 mm, which most
+    /// crank springs of the triple pendulum are (docs/parts.md, Materials, has the measurements).
     pub fn material_key(&self) -> &str {
         match &self.material {
             Some(m) => m,

@@ -191,8 +191,80 @@ const A228_MODULI: &[(f64, f64, f64)] = &[
 /// Shigley's fit of ASTM A313 type 302 by diameter range: (upper diameter mm, A MPa·mm^m, m).
 const A313_302_PIECES: &[(f64, f64, f64)] = &[(2.5, 1867.0, 0.146), (5.0, 2065.0, 0.263), (10.0, 2911.0, 0.478)];
 
+/// Oil-tempered wire sizes (mm) inside the range of Shigley's A229 fit (0.5–12.7 mm).
+const OIL_TEMPERED_SIZES: &[f64] = &[
+    0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0, 9.0, 10.0,
+    11.0, 12.0,
+];
+
+/// Chrome-vanadium wire sizes (mm) inside the range of Shigley's A232 fit (0.8–11.1 mm).
+const CHROME_VANADIUM_SIZES: &[f64] =
+    &[0.8, 0.9, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0];
+
+/// Chrome-silicon wire sizes (mm) inside the range of Shigley's A401 fit (1.6–9.5 mm).
+const CHROME_SILICON_SIZES: &[f64] = &[1.6, 1.8, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0, 9.0, 9.5];
+
+/// Where the constants of Shigley's Tables 10-4 and 10-5 for the oil-tempered and alloy wires
+/// were checked, value by value, besides the book's own Table 10-5 page: two public programs that
+/// encode the 9th edition's SI columns (read, not used as code). A macro, so that `concat!` can
+/// append it to each wire's `source`.
+macro_rules! shigley_alloy_checks {
+    () => {
+        "; every constant checked against github.com/the-faboratory/SpringSensorDesignTool \
+         (materialPropertySelector.m, Tables 10-4 and 10-5 combined: d range, A, m, E, G) and \
+         github.com/ahmedbma/clnew (spring-math.js, Table 10-4: A, m, largest d; G), and Table 10-5 against the \
+         book's p. 526 (the copy at digilib.universitaspertamina.ac.id, page552.html)"
+    };
+}
+
+/// Where `ASTM-A229`'s values come from (the EN 10270-2 oil-tempered table could not be read).
+const A229_SOURCE: &str = concat!(
+    "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
+     A = 1855 MPa·mm^m, m = 0.187 for OQ&T wire A229, 0.5–12.7 mm; Table 10-5 (p. 526): E = 196.5 GPa, \
+     G = 77.2 GPa; density of steel 7850 kg/m³. Shigley's values, not EN 10270-2's (whose R_m table \
+     for the oil-hardened and tempered grades could not be read in full)",
+    shigley_alloy_checks!()
+);
+
+/// Where `ASTM-A232`'s values come from.
+const A232_SOURCE: &str = concat!(
+    "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
+     A = 2005 MPa·mm^m, m = 0.168 for chrome-vanadium wire A232, 0.8–11.1 mm; Table 10-5 (p. 526): \
+     E = 203.4 GPa, G = 77.2 GPa; density of steel 7850 kg/m³",
+    shigley_alloy_checks!()
+);
+
+/// Where `ASTM-A401`'s values come from (EN 10270-2's VDSiCr rows could not be read in full).
+const A401_SOURCE: &str = concat!(
+    "Budynas & Nisbett, Shigley's Mechanical Engineering Design (9th ed.), Table 10-4: R_m = A/d^m, \
+     A = 1974 MPa·mm^m, m = 0.108 for chrome-silicon wire A401, 1.6–9.5 mm; Table 10-5 (p. 526): \
+     E = 203.4 GPa, G = 77.2 GPa; density of steel 7850 kg/m³. Shigley's values, not EN 10270-2's \
+     VDSiCr table (only its 0.5–0.7 mm rows could be read)",
+    shigley_alloy_checks!()
+);
+
 /// Strip thicknesses (mm) within the range EN 10132-4 states R_m for (0.3 ≤ t < 3 mm).
 const STRIP_SIZES: &[f64] = &[0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0, 2.5];
+
+/// A wire whose R_m is Shigley's Table 10-4 fit A/d^m over its diameter range and whose moduli
+/// are Table 10-5's one E and G: `(key, name)`, `(E, G, A, m, sizes)` (MPa, MPa, MPa·mm^m, –, mm) and
+/// the source.
+const fn shigley_wire(
+    (key, name): (&'static str, &'static str),
+    (e, g, a, m, sizes): (f64, f64, f64, f64, &'static [f64]),
+    source: &'static str,
+) -> Material {
+    Material {
+        key,
+        name,
+        e,
+        g,
+        density: 7850.0,
+        moduli_by_size: &[],
+        strength: Strength::Power { a, m, sizes },
+        source,
+    }
+}
 
 /// The material table.
 pub const MATERIALS: &[Material] = &[
@@ -253,6 +325,21 @@ pub const MATERIALS: &[Material] = &[
                  https://metalleschmidt.de/en/wire/stainless-steel). EN 10270-3's own R_m table is not reproduced: \
                  the A313 fit is what springfit designs with",
     },
+    shigley_wire(
+        ("ASTM-A229", "oil-quenched and tempered carbon spring wire ASTM A229 (OQ&T)"),
+        (196_500.0, 77_200.0, 1855.0, 0.187, OIL_TEMPERED_SIZES),
+        A229_SOURCE,
+    ),
+    shigley_wire(
+        ("ASTM-A232", "chrome-vanadium valve-spring-quality wire ASTM A232 (AISI 6150)"),
+        (203_400.0, 77_200.0, 2005.0, 0.168, CHROME_VANADIUM_SIZES),
+        A232_SOURCE,
+    ),
+    shigley_wire(
+        ("ASTM-A401", "chrome-silicon alloy spring wire ASTM A401 (AISI 9254, oil-tempered)"),
+        (203_400.0, 77_200.0, 1974.0, 0.108, CHROME_SILICON_SIZES),
+        A401_SOURCE,
+    ),
     Material {
         key: "EN10132-4-C67S",
         name: "spring steel strip EN 10132-4 C67S, hardened and tempered",
@@ -307,6 +394,22 @@ mod tests {
             assert!((a - b).abs() / a < 0.01, "pieces meet at {d} mm: {a} vs {b}");
         }
         assert_eq!(ss.tensile_strength(10.5), None);
+        // The oil-tempered and alloy wires of Shigley's Table 10-4: A at 1 mm where 1 mm is in the
+        // range, the formula at the range's ends, nothing outside it, the moduli of Table 10-5.
+        for (key, a, m, lo, hi, e) in [
+            ("ASTM-A229", 1855.0, 0.187, 0.5, 12.0, 196_500.0),
+            ("ASTM-A232", 2005.0, 0.168, 0.8, 11.0, 203_400.0),
+            ("ASTM-A401", 1974.0, 0.108, 1.6, 9.5, 203_400.0),
+        ] {
+            let w = by_key(key).unwrap();
+            assert_eq!((w.e_at(2.0), w.g_at(2.0)), (e, 77_200.0), "{key}: Table 10-5");
+            for d in [lo, hi] {
+                assert!((w.tensile_strength(d).unwrap() - a / f64::powf(d, m)).abs() < 1e-9, "{key} at {d} mm");
+            }
+            assert_eq!(w.tensile_strength(lo - 0.1), None, "{key}: below its range");
+            assert_eq!(w.tensile_strength(hi + 0.1), None, "{key}: above its range");
+            assert!(lo > 1.0 || w.tensile_strength(1.0) == Some(a), "{key}: A is R_m at 1 mm");
+        }
         assert_eq!(wire_keys(), crate::design::parts::MATERIALS, "the design file accepts exactly the table's wires");
     }
 }
