@@ -24,8 +24,8 @@ use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
 use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
 use crate::solve::screen::qp_screened;
 use crate::solve::selection::{
-    Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
-    subset_nnls_warm,
+    Items, SelectionSettings, SubsetBudget, backward_elimination, budget_multiplier, extension_bounds, search,
+    select_from, subset_nnls, subset_nnls_warm, subset_nnls_within,
 };
 
 /// Largest equality residual (scaled units: ω²·mean diag M(q_eq)) NNLS may leave before the fit
@@ -47,9 +47,11 @@ const SCREEN_FROM: usize = 600;
 /// builds: a diagonal for the springs, a block per group): every solver and the selection
 /// minimise the same objective. `mass` adds the springs' mass (`fit::mass`): its weight λ·Σ mᵢ(kᵢ)
 /// moves the right-hand side and G's diagonal, for every solver and the selection alike; its budget Σ mᵢ(kᵢ) ≤ M is
-/// an inequality of the QP when the model is a straight line, and otherwise (and always for NNLS)
-/// met by raising λ (bisection on the multiplier, the least λ whose solution, selection
-/// included, is within the budget). Without `mass` nothing changes, bit for bit.
+/// an inequality of the QP when the model is a straight line. Otherwise (and always for NNLS),
+/// when the fit at λ is over the budget, the selection chooses again with every support refitted
+/// within the budget (supports compared at equal mass, not at one trade of residual for mass)
+/// and the chosen support is solved at the least λ′ ≥ λ that brings it within (bisection on the
+/// multiplier). Without `mass` nothing changes, bit for bit.
 pub fn solve(
     problem: &FitProblem,
     gram: &Gram,
@@ -65,27 +67,58 @@ pub fn solve(
     }
     let signed = settings.solver == SolverKind::Qp;
     let Some(m) = mass else {
-        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, None);
+        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None));
     };
     // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
     let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
-    let at = |weight: f64| {
-        let mut shifted = gram.clone();
-        if weight > 0.0 {
-            shifted.c -= m.shift(weight);
-            m.bend(weight, &mut shifted.g);
-        }
-        solve_gram_with(problem, shifted, columns, q_eq, settings, signed, qp_budget)
-    };
-    let first = at(m.weight)?;
+    let first =
+        solve_gram_with(problem, weighed(&gram, m, m.weight), columns, q_eq, settings, signed, (qp_budget, None))?;
     let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
     if m.budget <= 0.0 || qp_budget.is_some() || within(&first.0) {
         return Ok(first);
     }
-    // Over the budget: the least λ′ ≥ λ whose solution (selection included) is within it.
-    // Bracketed from λ per kg of the order of the residual of no springs over the budget, then
-    // bisected.
-    let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * gram.bb / m.budget));
+    // Over the budget. The selection chooses again, comparing supports by their refits within
+    // the budget (`subset_nnls_within`: each its own multiplier), and the chosen support is then
+    // solved at the least λ′ ≥ λ that brings it within the budget. Raising one λ for the
+    // selection too (as before) compared every support at the multiplier of the chosen one, an
+    // even trade of residual for mass that passed over accurate supports near the budget.
+    let weighted = with_equalities(&weighed(&gram, m, m.weight), &problem.equalities, problem.row_count(), settings);
+    let limit = SubsetBudget { linear: m.per_stiffness, squared: m.per_stiffness_squared, max: m.budget };
+    let mut chosen_report = first.1.clone();
+    let support = select(&weighted, columns.1, settings, &mut chosen_report, Some(&limit))?;
+    let on_support = |weight: f64| {
+        solve_gram_with(problem, weighed(&gram, m, weight), columns, q_eq, settings, signed, (None, Some(&support)))
+    };
+    let (k, mut report) = least_weight_within(on_support, m, gram.bb, settings)?;
+    report.selection_evaluations = chosen_report.selection_evaluations;
+    report.selection_swaps = chosen_report.selection_swaps;
+    Ok((k, report))
+}
+
+/// `gram` with the mass term at weight λ = `weight`: c − λa, and 2λbᵢ on G's diagonal.
+fn weighed(gram: &Gram, m: &MassTerm<'_>, weight: f64) -> Gram {
+    let mut shifted = gram.clone();
+    if weight > 0.0 {
+        shifted.c -= m.shift(weight);
+        m.bend(weight, &mut shifted.g);
+    }
+    shifted
+}
+
+/// The solution at the least weight λ′ ≥ λ (`m.weight`) whose solution by `at` is within the
+/// budget: bracketed from λ per kg of the order of the residual of no springs (`bb`) over the
+/// budget, grown 4× a step, then bisected to [`BUDGET_PRECISION`]; the bracket's upper end is
+/// returned, so the answer is always within the budget.
+fn least_weight_within<F>(at: F, m: &MassTerm<'_>, bb: f64, settings: &FitSettings) -> Result<(Vec<f64>, SolveReport)>
+where
+    F: Fn(f64) -> Result<(Vec<f64>, SolveReport)>,
+{
+    let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
+    let first = at(m.weight)?;
+    if within(&first.0) {
+        return Ok(first);
+    }
+    let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * bb / m.budget));
     let mut best = None;
     for _ in 0..BUDGET_STEPS {
         let here = at(hi)?;
@@ -164,10 +197,11 @@ pub fn solve_gram(
     settings: &FitSettings,
     signed: bool,
 ) -> Result<(Vec<f64>, SolveReport)> {
-    solve_gram_with(problem, gram, columns, q_eq, settings, signed, None)
+    solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None))
 }
 
-/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M.
+/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M, and with the
+/// selection unless `chosen` gives the support (the columns a selection returned).
 fn solve_gram_with(
     problem: &FitProblem,
     gram: Gram,
@@ -175,7 +209,7 @@ fn solve_gram_with(
     q_eq: &[f64],
     settings: &FitSettings,
     signed: bool,
-    budget: Option<&MassTerm<'_>>,
+    (budget, chosen): (Option<&MassTerm<'_>>, Option<&[usize]>),
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
     let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
@@ -188,7 +222,10 @@ fn solve_gram_with(
         expected_build_spread: None,
         budget_met_at: None,
     };
-    let support = select(&weighted, grouping, settings, &mut report)?;
+    let support = match chosen {
+        Some(support) => support.to_vec(),
+        None => select(&weighted, grouping, settings, &mut report, None)?,
+    };
     // The QP sees one signed unknown per group coefficient instead of its ± column pair (see
     // `signed_unknowns`). NNLS keeps the pairs: its active set starts from zero and brings in
     // only the columns the fit needs, which keeps parts that could cancel each other small (four
@@ -211,20 +248,40 @@ fn solve_gram_with(
 
 /// The columns of the items a budget of `max_elements` keeps (every column without a budget):
 /// backward elimination from the dense NNLS solution, then exchange moves, pair swaps and
-/// restarts ([`crate::solve::selection`]). A group is one item.
+/// restarts ([`crate::solve::selection`]). A group is one item. With `budget` every support is
+/// refitted within it ([`subset_nnls_within`]), so supports are compared at equal mass.
 fn select(
     weighted: &Gram,
     grouping: &Grouping,
     settings: &FitSettings,
     report: &mut SolveReport,
+    budget: Option<&SubsetBudget<'_>>,
 ) -> Result<Vec<usize>> {
     let items = Items::from_groups(&grouping.of);
     if settings.max_elements == 0 || settings.max_elements >= items.len() {
         return Ok((0..grouping.of.len()).collect());
     }
     let dense = nnls(weighted, 0.0, &NnlsSettings::default())?;
-    let pool = items.touching(|j| dense.k[j] > 0.0);
-    let start = backward_elimination(weighted, &items, pool.clone(), settings.max_elements)?;
+    let mut pool = items.touching(|j| dense.k[j] > 0.0);
+    let start = match budget {
+        None => backward_elimination(weighted, &items, pool.clone(), settings.max_elements)?,
+        Some(b) => {
+            // Under a budget that binds, the unconstrained dense solution's elements are the heavy
+            // ones: the start is eliminated from the dense solution within the budget instead
+            // (at its multiplier), and the restarts draw from both supports.
+            let all: Vec<usize> = (0..items.len()).collect();
+            let every: Vec<usize> = (0..grouping.of.len()).collect();
+            let mu = budget_multiplier(weighted, &items, &all, b)?;
+            let light = if mu.is_finite() { b.weigh(weighted, &every, mu) } else { weighted.clone() };
+            let dense = nnls(&light, 0.0, &NnlsSettings::default())?;
+            let near = items.touching(|j| dense.k[j] > 0.0);
+            let start = backward_elimination(&light, &items, near.clone(), settings.max_elements)?;
+            pool.extend(near);
+            pool.sort_unstable();
+            pool.dedup();
+            start
+        }
+    };
     let sel_settings = SelectionSettings {
         max_elements: settings.max_elements,
         swap_passes: settings.swap_passes,
@@ -233,12 +290,19 @@ fn select(
         seed: settings.seed,
     };
     let n = items.len();
-    let sel = if settings.restarts == 0 && !settings.pair_swaps {
+    // Refitting within the budget can only raise a support's objective, so the bounds of the
+    // unconstrained refits stay lower bounds.
+    let bound = |s: &[usize]| extension_bounds(weighted, &items, s);
+    let sel = match budget {
+        Some(b) if settings.restarts == 0 && !settings.pair_swaps => {
+            select_from(n, sel_settings, start, |s| subset_nnls_within(weighted, &items, s, b))?
+        }
+        Some(b) => search(n, sel_settings, start, &pool, |s| subset_nnls_within(weighted, &items, s, b), Some(&bound))?,
         // The single exchange search, with cold-started refits as before restarts existed.
-        select_from(n, sel_settings, start, |s| subset_nnls(weighted, &items, s))?
-    } else {
-        let bound = |s: &[usize]| extension_bounds(weighted, &items, s);
-        search(n, sel_settings, start, &pool, |s| subset_nnls_warm(weighted, &items, s), Some(&bound))?
+        None if settings.restarts == 0 && !settings.pair_swaps => {
+            select_from(n, sel_settings, start, |s| subset_nnls(weighted, &items, s))?
+        }
+        None => search(n, sel_settings, start, &pool, |s| subset_nnls_warm(weighted, &items, s), Some(&bound))?,
     };
     report.selection_evaluations = sel.evaluations;
     report.selection_swaps = sel.swaps;

@@ -612,6 +612,139 @@ pub fn subset_nnls_warm(gram: &Gram, items: &Items, support: &[usize]) -> Result
     Ok((sol.objective, items.per_item(support, &cols, sol.k.as_slice())))
 }
 
+/// A budget on the refits of the selection: Σ aⱼkⱼ + bⱼkⱼ² ≤ `max` over the columns (the springs'
+/// mass by `fit::mass`'s curves, a and b per column of the Gram matrix).
+#[derive(Debug, Clone, Copy)]
+pub struct SubsetBudget<'a> {
+    /// aⱼ per column.
+    pub linear: &'a [f64],
+    /// bⱼ per column (empty: none).
+    pub squared: &'a [f64],
+    /// The budget.
+    pub max: f64,
+}
+
+impl SubsetBudget<'_> {
+    /// `sub` (the Gram matrix restricted to the columns `cols`) with the budget's term at
+    /// multiplier μ: c − μa, and 2μbⱼ on G's diagonal.
+    pub fn weigh(&self, sub: &Gram, cols: &[usize], mu: f64) -> Gram {
+        let mut shifted = sub.clone();
+        for (a, &j) in cols.iter().enumerate() {
+            shifted.c[a] -= mu * self.linear[j];
+            shifted.g[(a, a)] += 2.0 * mu * self.squared.get(j).copied().unwrap_or(0.0);
+        }
+        shifted
+    }
+
+    /// Σ aⱼkⱼ + bⱼkⱼ² over `cols`, `k` given per column of `cols`.
+    fn of(&self, cols: &[usize], k: &DVector<f64>) -> f64 {
+        cols.iter()
+            .zip(k.iter())
+            .map(|(&j, k)| self.linear[j] * k + self.squared.get(j).map_or(0.0, |b| b * k * k))
+            .sum()
+    }
+}
+
+/// Steps that bracket and then narrow the multiplier of a subset's budget.
+const BUDGET_ROOT_STEPS: usize = 60;
+
+/// [`subset_nnls_warm`] with the refit held within `budget`: the least objective over the
+/// support's columns with k ≥ 0 and Σ aⱼkⱼ + bⱼkⱼ² ≤ M, which is what the selection should
+/// compare when the budget binds. Comparing supports by the penalised objective ‖Ak − b‖² +
+/// 2μ·mass at one multiplier μ (the weight that brought the chosen support within the budget)
+/// trades residual for mass at one fixed rate on every support, so a support that is accurate
+/// near the budget but heavier unconstrained loses to one that is lighter and less accurate;
+/// here each support gets its own multiplier, the one that puts its refit at the budget (the
+/// budget's KKT conditions on that support), and supports are compared by objective at equal
+/// mass. The mass is convex in k and non-increasing in μ along the refits, so the multiplier is
+/// bracketed by growth and found by regula falsi (Illinois), its upper end kept: the refit
+/// returned is always within the budget. A support whose refit cannot come within it has an
+/// infinite objective. The objective returned is that of `gram` itself (the budget's term is
+/// not in it).
+pub fn subset_nnls_within(
+    gram: &Gram,
+    items: &Items,
+    support: &[usize],
+    budget: &SubsetBudget<'_>,
+) -> Result<(f64, Vec<f64>)> {
+    refit_within(gram, items, support, budget).map(|(objective, k, _)| (objective, k))
+}
+
+/// The multiplier μ ≥ 0 of the budget on the refit of `support` ([`subset_nnls_within`]): 0 where
+/// the budget does not bind, ∞ where no multiplier brings the refit within it.
+pub fn budget_multiplier(gram: &Gram, items: &Items, support: &[usize], budget: &SubsetBudget<'_>) -> Result<f64> {
+    refit_within(gram, items, support, budget).map(|(_, _, mu)| mu)
+}
+
+/// [`subset_nnls_within`] with the multiplier it found.
+fn refit_within(
+    gram: &Gram,
+    items: &Items,
+    support: &[usize],
+    budget: &SubsetBudget<'_>,
+) -> Result<(f64, Vec<f64>, f64)> {
+    let cols = items.columns(support);
+    let sub = gram.subset(&cols);
+    let all: Vec<usize> = (0..cols.len()).collect();
+    let settings = NnlsSettings::default();
+    let at = |mu: f64| -> Result<DVector<f64>> {
+        if mu == 0.0 {
+            return Ok(nnls_warm(&sub, 0.0, &settings, &all)?.k);
+        }
+        Ok(nnls_warm(&budget.weigh(&sub, &cols, mu), 0.0, &settings, &all)?.k)
+    };
+    let done = |k: DVector<f64>, mu: f64| (sub.objective(&k), items.per_item(support, &cols, k.as_slice()), mu);
+    let k0 = at(0.0)?;
+    let over = |k: &DVector<f64>| budget.of(&cols, k) - budget.max;
+    let (mut f_lo, mut lo) = (over(&k0), 0.0);
+    if f_lo <= 1e-9 * budget.max {
+        return Ok(done(k0, 0.0));
+    }
+    // Bracket: a multiplier of the order of the objective of no springs per unit of budget, grown
+    // 4× until the refit is within the budget.
+    let mut hi = 0.5 * sub.bb.max(f64::MIN_POSITIVE) / budget.max;
+    let mut k_hi = None;
+    for _ in 0..BUDGET_ROOT_STEPS {
+        let k = at(hi)?;
+        let f = over(&k);
+        if f <= 0.0 {
+            k_hi = Some((f, k));
+            break;
+        }
+        (lo, f_lo, hi) = (hi, f, 4.0 * hi);
+    }
+    let Some((mut f_hi, mut k_hi)) = k_hi else {
+        return Ok((f64::INFINITY, vec![0.0; support.len()], f64::INFINITY));
+    };
+    // Regula falsi with the Illinois halving (of the interpolation's end values only), to 1e-6
+    // of the budget or 1e-9 of the multiplier.
+    let mut slack = -f_hi;
+    let mut side = 0i8;
+    for _ in 0..BUDGET_ROOT_STEPS {
+        if slack <= 1e-6 * budget.max || hi - lo <= 1e-9 * hi {
+            break;
+        }
+        let mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        let mid = if mid > lo && mid < hi { mid } else { 0.5 * (lo + hi) };
+        let k = at(mid)?;
+        let f = over(&k);
+        if f <= 0.0 {
+            (hi, f_hi, k_hi, slack) = (mid, f, k, -f);
+            if side == -1 {
+                f_lo *= 0.5;
+            }
+            side = -1;
+        } else {
+            (lo, f_lo) = (mid, f);
+            if side == 1 {
+                f_hi *= 0.5;
+            }
+            side = 1;
+        }
+    }
+    Ok(done(k_hi, hi))
+}
+
 /// A [`Bound`] for the least-squares problem `gram`: for every item g outside `support`, a lower
 /// bound on the NNLS objective of the support with g added, the unconstrained minimum over the
 /// same columns, bᵀb − ‖y‖² − w_Gᵀ S_G⁻¹ w_G with L Lᵀ = G_RR (R the support's columns),

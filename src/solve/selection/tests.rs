@@ -208,3 +208,27 @@ fn groups_count_as_one_element() {
         assert!(m.iter().all(|j| cols.contains(j)) || m.iter().all(|j| !cols.contains(j)));
     }
 }
+
+/// A support refitted within a budget is the constrained optimum (worked by hand): G = I,
+/// c = (1, 1), bᵀb = 2, mass k₁ + 2k₂ ≤ 0.5. The KKT conditions give k = (1 − μ, 1 − 2μ)₊ with the
+/// mass at the budget: μ = 0.5, k = (0.5, 0), objective ‖k‖² − 2cᵀk + 2 = 1.25. A quadratic mass
+/// (k₁² + k₂² ≤ 0.5) gives k = (0.5, 0.5) by symmetry, objective 0.5. A budget that does not bind
+/// leaves the plain refit (k = (1, 1), objective 0) exactly.
+#[test]
+fn a_refit_within_the_budget_is_the_constrained_optimum() {
+    let gram = Gram { g: DMatrix::identity(2, 2), c: DVector::from_vec(vec![1.0, 1.0]), bb: 2.0 };
+    let items = Items::singletons(2);
+    let linear = SubsetBudget { linear: &[1.0, 2.0], squared: &[], max: 0.5 };
+    let (obj, k) = subset_nnls_within(&gram, &items, &[0, 1], &linear).unwrap();
+    assert!((obj - 1.25).abs() < 1e-5 && (k[0] - 0.5).abs() < 1e-5 && k[1] == 0.0, "{obj} {k:?}");
+    assert!(k[0] + 2.0 * k[1] <= 0.5, "over the budget: {k:?}");
+    let squared = SubsetBudget { linear: &[0.0, 0.0], squared: &[1.0, 1.0], max: 0.5 };
+    let (obj, k) = subset_nnls_within(&gram, &items, &[0, 1], &squared).unwrap();
+    assert!((obj - 0.5).abs() < 1e-5 && (k[0] - 0.5).abs() < 1e-5 && (k[1] - 0.5).abs() < 1e-5, "{obj} {k:?}");
+    assert!(k[0] * k[0] + k[1] * k[1] <= 0.5, "over the budget: {k:?}");
+    let loose = SubsetBudget { linear: &[1.0, 2.0], squared: &[], max: 10.0 };
+    assert_eq!(
+        subset_nnls_within(&gram, &items, &[0, 1], &loose).unwrap(),
+        subset_nnls_warm(&gram, &items, &[0, 1]).unwrap()
+    );
+}
