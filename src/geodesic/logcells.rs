@@ -24,7 +24,7 @@
 //! polynomial. The map is piecewise: across a cell face the label jumps by at most about the
 //! two cells' error (held below the target).
 //!
-//! **Derivatives as data** ([`CellSpec::derivatives`], off by default). The same geodesics can
+//! **Derivatives as data** ([`CellSpec::derivatives`], the default from six joints). The same geodesics can
 //! be traced with their Jacobi fields, which give ∂w/∂x at every sample exactly (∂v/∂q = s·Φ_q⁻¹,
 //! as in [`super::logfit`]): n more equations per sample and output, and what a cell's samples,
 //! strung along few geodesics, do not tell on their own, the map's slope across them. A cell's
@@ -37,8 +37,8 @@
 //! 100 samples a cell, 512 cells (2.2 MB), 1.00° on the fan and 0.46° at the random points,
 //! 51 s; on 12 000 × 8, 1.58° (32 s); quadratic on 48 000 × 3, 4096 cells (6.2 MB), 0.94° and
 //! 0.55° (89 s); quadratic on 24 000 × 6, 1.57°. More geodesics help more than more samples on
-//! each. So the derivatives buy about a factor 1.8 against the default (1.76°), far from the
-//! factor 18 that 0.1° asks: `auto` keeps its rule.
+//! each. So the derivatives buy about a factor 1.8 against the cells on values alone (1.76°),
+//! far from the factor 18 that 0.1° asks: `auto` keeps its rule.
 //!
 //! **Cost per call.** A descent of the tree (its depth, about log₂ of the cells) and one
 //! polynomial with its gradient: (n + 1)·n·m multiply–adds for m = C(n + d, d) monomials (28
@@ -93,41 +93,46 @@ pub struct CellSpec {
 }
 
 impl CellSpec {
-    /// The default for `n` joints: quadratic cells judged at half of `label = "auto"`'s 0.1°
-    /// (so that another held-out fan stays within it where the data suffice), three samples
-    /// per geodesic and many geodesics. Measured on `ur5_six` (`measure_cells_on_ur5_six`: the
-    /// largest error on `simulate`'s check fan of 3600 samples; CPU seconds of the whole
-    /// measurement, under load): cubic cells on 24 000 geodesics of 12 samples 15.9° (a cell's
-    /// samples lie on few geodesics, so its cubic is poorly determined across them), quadratic
-    /// 2.83°, linear 20°; quadratic on 96 000 geodesics of 3 samples 1.19° (30 s), on 72 000
-    /// (the default) 1.76° (26 s). The error falls slowly with the data (a cell's quadratic
-    /// misses by its size cubed, and the cells of a six-dimensional ball shrink as the sixth
-    /// root of their number): 0.1° would take some hundred times the samples, beyond the
-    /// build's budget of 30 s on one core and 100 MB. So `auto` keeps its 0.1° rule and only
-    /// `label = "table"` builds cells ([`super::logfit::fit_label`]). For six joints the
-    /// default traces 72 000 training and 18 000 held-out geodesics (270 000 samples, 26 MB of
-    /// coordinates while building) and keeps 2048 cells (3.1 MB); fewer joints cover their
-    /// sphere as densely with fewer directions.
+    /// The default for `n` joints: cells judged at half of `label = "auto"`'s 0.1° (so that
+    /// another held-out fan stays within it where the data suffice). Up to five joints,
+    /// quadratic cells fitted to values, three samples per geodesic and many geodesics; from six,
+    /// cubic cells fitted to values and derivatives (module docs) on 24 000 geodesics × 4, at
+    /// least 100 samples a cell.
+    ///
+    /// Measured on `ur5_six` (`measure_cells_on_ur5_six`: the largest error on `simulate`'s
+    /// check fan of 3600 samples; CPU seconds of the whole measurement, under load): on values
+    /// alone, cubic cells on 24 000 geodesics of 12 samples 15.9° (a cell's samples lie on few
+    /// geodesics, so its cubic is poorly determined across them), quadratic 2.83°, linear 20°;
+    /// quadratic on 96 000 geodesics of 3 samples 1.19° (30 s), on 72 000 (the default before)
+    /// 1.76° (26 s, 2048 cells, 3.1 MB). With derivatives, cubic on 24 000 × 4: 1.00° (51 s,
+    /// 512 cells, 2.2 MB; the Jacobi samples take 37 MB while building). The error falls slowly
+    /// with the data (a cell's polynomial misses by a power of its size, and the cells of a
+    /// six-dimensional ball shrink as the sixth root of their number): 0.1° would take some
+    /// hundred times the samples, beyond the build's budget of 60 s on one core and 200 MB. So
+    /// `auto` keeps its 0.1° rule and only `label = "table"` builds cells
+    /// ([`super::logfit::fit_label`]). Fewer joints cover their sphere as densely with fewer
+    /// directions; the derivatives were measured on six joints only.
     pub fn for_joints(n: usize) -> Self {
         let directions = match n {
             0..=3 => 4_000,
             4 => 16_000,
             5 => 40_000,
-            _ => 72_000,
+            _ => 24_000,
         };
-        let degree = 2;
+        let (degree, per_direction, min_samples, derivatives, split_above) =
+            if n >= 6 { (3, 4, 100, true, 2_000) } else { (2, 3, 3 * monomial_count(n, 2), false, usize::MAX) };
         CellSpec {
             degree,
             directions,
             held_out: directions / 4,
-            per_direction: 3,
+            per_direction,
             radial_power: (n as f64 / 2.0).max(1.0),
             target_deg: 0.05,
             min_r: 0.05,
-            min_samples: 3 * monomial_count(n, degree),
+            min_samples,
             ridge: 1e-10,
-            derivatives: false,
-            split_above: usize::MAX,
+            derivatives,
+            split_above,
         }
     }
 }

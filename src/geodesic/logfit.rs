@@ -49,12 +49,14 @@
 //!   hundreds of them to cover a six-dimensional ball;
 //! - a Gauss–Newton correction needs exp and its Jacobian, 10 ms per call
 //!   ([`Shooter::exp_jacobian`]; `exp` alone 110 µs): beyond the 20 µs budget (measured again
-//!   under heavy load: 0.7 ms, against 2.5 ms for `exp` in the same run; either way far beyond);
+//!   under heavy load: 0.7 ms, against 2.5 ms for `exp` in the same run; and at load 16: 1.5 ms,
+//!   `exp` 79 µs; either way far beyond);
 //! - cells ([`crate::geodesic::logcells`]): local quadratic polynomials on a k-d tree fitted to
-//!   exact geodesic points, 1.76° with the default 72 000 geodesics (1.19° with 96 000), the
+//!   exact geodesic points, 1.76° with 72 000 geodesics (1.19° with 96 000), the
 //!   best of these but not 0.1°; `label = "table"` takes them where they beat the one
 //!   polynomial ([`fit_label`]), `auto` does not build them; fitted to the Jacobi fields'
-//!   derivatives as well (cubic cells, 24 000 geodesics × 4), 1.00°, about twice the build.
+//!   derivatives as well (cubic cells, 24 000 geodesics × 4: the six-joint default), 1.00°,
+//!   about twice the build.
 //!
 //! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
 //! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log
