@@ -24,6 +24,22 @@
 //! polynomial. The map is piecewise: across a cell face the label jumps by at most about the
 //! two cells' error (held below the target).
 //!
+//! **Derivatives as data** ([`CellSpec::derivatives`], the default from six joints). The same geodesics can
+//! be traced with their Jacobi fields, which give ∂w/∂x at every sample exactly (∂v/∂q = s·Φ_q⁻¹,
+//! as in [`super::logfit`]): n more equations per sample and output, and what a cell's samples,
+//! strung along few geodesics, do not tell on their own, the map's slope across them. A cell's
+//! polynomial is then fitted to values and derivatives together (Hermite-type least squares,
+//! [`hermite_normal`]), which makes cubic cells usable where cubic cells on values alone extrapolate
+//! between their geodesics (15.9°). The Jacobi fields make a geodesic dearer (2n + 2n² states
+//! instead of 2n: 84 against 12 for six joints). Measured on `ur5_six` (`measure_cells_on_ur5_six`, the check fan's
+//! 3600 samples and 200 random interior points against Newton shooting; CPU of the whole
+//! measurement under load average 16): cubic cells on 24 000 geodesics × 4 samples, at least
+//! 100 samples a cell, 512 cells (2.2 MB), 1.00° on the fan and 0.46° at the random points,
+//! 51 s; on 12 000 × 8, 1.58° (32 s); quadratic on 48 000 × 3, 4096 cells (6.2 MB), 0.94° and
+//! 0.55° (89 s); quadratic on 24 000 × 6, 1.57°. More geodesics help more than more samples on
+//! each. So the derivatives buy about a factor 1.8 against the cells on values alone (1.76°),
+//! far from the factor 18 that 0.1° asks: `auto` keeps its rule.
+//!
 //! **Cost per call.** A descent of the tree (its depth, about log₂ of the cells) and one
 //! polynomial with its gradient: (n + 1)·n·m multiply–adds for m = C(n + d, d) monomials (28
 //! for six joints at degree 2), fewer than the global fit's. Build and memory are stated in
@@ -37,7 +53,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::geodesic::polynomial::{fill_basis, monomial_count, monomials};
+use crate::geodesic::polynomial::{fill_basis, mat_mul, monomial_count, monomials};
 use crate::geodesic::{MetricFrame, Shooter, Stop, unit_vectors};
 use crate::model::Chain;
 use crate::numerics::ode::OdeSettings;
@@ -67,50 +83,66 @@ pub struct CellSpec {
     /// Ridge added to the equilibrated normal equations (unit diagonal): damps the directions
     /// of a cell's polynomial its few samples leave undetermined.
     pub ridge: f64,
+    /// Fit each training sample's derivative ∂w/∂x as well as its value (Hermite-type least
+    /// squares, module docs): the training geodesics are traced with their Jacobi fields.
+    pub derivatives: bool,
+    /// A cell holding more training samples than this is split without being fitted (its
+    /// polynomial could not meet the target anyway; the fits of the top levels are the bulk of
+    /// the build when each sample brings n + 1 equations).
+    pub split_above: usize,
 }
 
 impl CellSpec {
-    /// The default for `n` joints: quadratic cells judged at half of `label = "auto"`'s 0.1°
-    /// (so that another held-out fan stays within it where the data suffice), three samples
-    /// per geodesic and many geodesics. Measured on `ur5_six` (`measure_cells_on_ur5_six`: the
-    /// largest error on `simulate`'s check fan of 3600 samples; CPU seconds of the whole
-    /// measurement, under load): cubic cells on 24 000 geodesics of 12 samples 15.9° (a cell's
-    /// samples lie on few geodesics, so its cubic is poorly determined across them), quadratic
-    /// 2.83°, linear 20°; quadratic on 96 000 geodesics of 3 samples 1.19° (30 s), on 72 000
-    /// (the default) 1.76° (26 s). The error falls slowly with the data (a cell's quadratic
-    /// misses by its size cubed, and the cells of a six-dimensional ball shrink as the sixth
-    /// root of their number): 0.1° would take some hundred times the samples, beyond the
-    /// build's budget of 30 s on one core and 100 MB. So `auto` keeps its 0.1° rule and only
-    /// `label = "table"` builds cells ([`super::logfit::fit_label`]). For six joints the
-    /// default traces 72 000 training and 18 000 held-out geodesics (270 000 samples, 26 MB of
-    /// coordinates while building) and keeps 2048 cells (3.1 MB); fewer joints cover their
-    /// sphere as densely with fewer directions.
+    /// The default for `n` joints: cells judged at half of `label = "auto"`'s 0.1° (so that
+    /// another held-out fan stays within it where the data suffice). Up to five joints,
+    /// quadratic cells fitted to values, three samples per geodesic and many geodesics; from six,
+    /// cubic cells fitted to values and derivatives (module docs) on 24 000 geodesics × 4, at
+    /// least 100 samples a cell.
+    ///
+    /// Measured on `ur5_six` (`measure_cells_on_ur5_six`: the largest error on `simulate`'s
+    /// check fan of 3600 samples; CPU seconds of the whole measurement, under load): on values
+    /// alone, cubic cells on 24 000 geodesics of 12 samples 15.9° (a cell's samples lie on few
+    /// geodesics, so its cubic is poorly determined across them), quadratic 2.83°, linear 20°;
+    /// quadratic on 96 000 geodesics of 3 samples 1.19° (30 s), on 72 000 (the default before)
+    /// 1.76° (26 s, 2048 cells, 3.1 MB). With derivatives, cubic on 24 000 × 4: 1.00° (51 s,
+    /// 512 cells, 2.2 MB; the Jacobi samples take 37 MB while building). The error falls slowly
+    /// with the data (a cell's polynomial misses by a power of its size, and the cells of a
+    /// six-dimensional ball shrink as the sixth root of their number): 0.1° would take some
+    /// hundred times the samples, beyond the build's budget of 60 s on one core and 200 MB. So
+    /// `auto` keeps its 0.1° rule and only `label = "table"` builds cells
+    /// ([`super::logfit::fit_label`]). Fewer joints cover their sphere as densely with fewer
+    /// directions; the derivatives were measured on six joints only.
     pub fn for_joints(n: usize) -> Self {
         let directions = match n {
             0..=3 => 4_000,
             4 => 16_000,
             5 => 40_000,
-            _ => 72_000,
+            _ => 24_000,
         };
-        let degree = 2;
+        let (degree, per_direction, min_samples, derivatives, split_above) =
+            if n >= 6 { (3, 4, 100, true, 2_000) } else { (2, 3, 3 * monomial_count(n, 2), false, usize::MAX) };
         CellSpec {
             degree,
             directions,
             held_out: directions / 4,
-            per_direction: 3,
+            per_direction,
             radial_power: (n as f64 / 2.0).max(1.0),
             target_deg: 0.05,
             min_r: 0.05,
-            min_samples: 3 * monomial_count(n, degree),
+            min_samples,
             ridge: 1e-10,
+            derivatives,
+            split_above,
         }
     }
 }
 
-/// Exact samples (x, w) of the scaled log map, n coordinates each, flat.
+/// Exact samples (x, w) of the scaled log map, n coordinates each, flat, with ∂w/∂x (row-major
+/// n × n each) when traced with Jacobi fields (else empty).
 struct Samples {
     x: Vec<f64>,
     w: Vec<f64>,
+    dw: Vec<f64>,
 }
 
 impl Samples {
@@ -163,13 +195,15 @@ struct Pending {
 
 impl CellTree {
     /// Traces the samples and grows the tree. `lt` is Lᵀ/R row-major (x = lt·(q − q_eq)),
-    /// `radius` R the ball's radius.
+    /// `lt_inv` its inverse, `radius` R the ball's radius.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn build(
         chain: &Chain,
         q_eq: &DVector<f64>,
         ode: OdeSettings,
         frame: &MetricFrame,
         lt: &[f64],
+        lt_inv: &[f64],
         radius: f64,
         spec: CellSpec,
     ) -> Result<CellTree> {
@@ -180,9 +214,13 @@ impl CellTree {
                 reason: format!("a cell-fitted label needs a degree ≥ 1, directions and samples, got {spec:?}"),
             });
         }
-        let trace = |dirs: Vec<DVector<f64>>| sample(chain, q_eq, ode, frame, lt, radius, &dirs, spec);
-        let train = trace(unit_vectors(n, spec.directions, 0.0))?;
-        let held = trace(unit_vectors(n, spec.held_out.max(1), 0.5))?;
+        let scaled = Scaled { frame, lt, lt_inv, radius };
+        let trace = |dirs: Vec<DVector<f64>>, derivatives: bool| {
+            sample(chain, q_eq, ode, &scaled, &dirs, CellSpec { derivatives, ..spec })
+        };
+        let train = trace(unit_vectors(n, spec.directions, 0.0), spec.derivatives)?;
+        // The held-out samples judge values only: no Jacobi fields.
+        let held = trace(unit_vectors(n, spec.held_out.max(1), 0.5), false)?;
         let monomials = monomials(n, spec.degree);
         let mut nodes = vec![Node::Leaf(0)];
         let mut leaves = Vec::new();
@@ -193,17 +231,20 @@ impl CellTree {
             held: (0..held.len(n) as u32).collect(),
         }];
         while !frontier.is_empty() {
-            let fits: Vec<(Leaf, f64)> =
-                frontier.par_iter().map(|p| fit_cell(&monomials, &train, &held, p, spec, n)).collect();
+            let fits: Vec<Option<(Leaf, f64)>> = frontier
+                .par_iter()
+                .map(|p| (p.train.len() <= spec.split_above).then(|| fit_cell(&monomials, &train, &held, p, spec, n)))
+                .collect();
             let mut next = Vec::new();
-            for (p, (leaf, err)) in frontier.into_iter().zip(fits) {
+            for (p, fit) in frontier.into_iter().zip(fits) {
+                let err = fit.as_ref().map_or(f64::INFINITY, |f| f.1);
                 if err > spec.target_deg && p.train.len() >= 2 * spec.min_samples {
                     let (axis, at) = median_split(&train.x, &p.train, n);
-                    let side = |x: &[f64], ids: Vec<u32>| -> (Vec<u32>, Vec<u32>) {
-                        ids.into_iter().partition(|&k| x[k as usize * n + axis] < at)
+                    let side = |x: &[f64], ids: &[u32]| -> (Vec<u32>, Vec<u32>) {
+                        ids.iter().partition(|&&k| x[k as usize * n + axis] < at)
                     };
-                    let (tl, tr) = side(&train.x, p.train);
-                    let (hl, hr) = side(&held.x, p.held);
+                    let (tl, tr) = side(&train.x, &p.train);
+                    let (hl, hr) = side(&held.x, &p.held);
                     if tl.len() >= spec.min_samples && tr.len() >= spec.min_samples {
                         let (left, right) = (nodes.len(), nodes.len() + 1);
                         nodes.push(Node::Leaf(0));
@@ -214,6 +255,10 @@ impl CellTree {
                         continue;
                     }
                 }
+                let (leaf, err) = match fit {
+                    Some(f) => f,
+                    None => fit_cell(&monomials, &train, &held, &p, spec, n),
+                };
                 worst = worst.max(err);
                 nodes[p.node] = Node::Leaf(leaves.len());
                 leaves.push(leaf);
@@ -289,59 +334,99 @@ impl CellTree {
     }
 }
 
-/// The samples of the geodesics of frame directions `dirs` (module docs), in direction order.
-#[allow(clippy::too_many_arguments)]
+/// The scaled metric frame the samples are taken in: the frame directions are drawn in, Lᵀ/R
+/// and R·L⁻ᵀ row-major, and R.
+struct Scaled<'f> {
+    frame: &'f MetricFrame,
+    lt: &'f [f64],
+    lt_inv: &'f [f64],
+    radius: f64,
+}
+
+/// The samples of the geodesics of frame directions `dirs` (module docs), in direction order;
+/// with ∂w/∂x if `spec.derivatives`.
 fn sample(
     chain: &Chain,
     q_eq: &DVector<f64>,
     ode: OdeSettings,
-    frame: &MetricFrame,
-    lt: &[f64],
-    radius: f64,
+    scaled: &Scaled<'_>,
     dirs: &[DVector<f64>],
     spec: CellSpec,
 ) -> Result<Samples> {
     let n = chain.dof();
+    let Scaled { frame, lt, lt_inv, radius } = *scaled;
     let k = spec.per_direction;
     // Trace samples 4 per target radius on average; each target takes the nearest.
     let fine = 4 * k;
     let spacing = radius / fine as f64;
     let golden = (5f64.sqrt() - 1.0) / 2.0;
+    let stride = 2 * n + if spec.derivatives { n * n } else { 0 };
+    let to_x = |q: &[f64], out: &mut Vec<f64>| {
+        for r in 0..n {
+            out.push((0..n).map(|c| lt[r * n + c] * (q[c] - q_eq[c])).sum());
+        }
+    };
     let per: Vec<Result<Vec<f64>>> = dirs
         .par_iter()
         .enumerate()
         .map_init(
             || Shooter::new(chain, q_eq, ode),
             |shooter, (i, u)| {
-                let g = shooter.trace(&frame.to_joint(u), Stop::Arc(radius), spacing)?;
                 let phase = (golden * i as f64).fract();
-                let mut out = Vec::with_capacity(2 * n * k);
+                let arcs: Vec<f64> =
+                    (0..k).map(|j| radius * ((j as f64 + phase) / k as f64).powf(1.0 / spec.radial_power)).collect();
+                let mut out = Vec::with_capacity(stride * k);
+                if spec.derivatives {
+                    // Exactly at the target radii, with Φ_q: ∂v/∂q = s Φ_q⁻¹ and
+                    // ∂w/∂x = (Lᵀ/R) ∂v/∂q (R L⁻ᵀ), as in [`super::logfit`].
+                    let arcs: Vec<f64> = arcs.into_iter().filter(|&s| s > 0.0).collect();
+                    let traced = shooter.jacobi_samples(&frame.to_joint(u), &arcs)?;
+                    let mut dvdq = vec![0.0; n * n];
+                    let mut tmp = vec![0.0; n * n];
+                    for ((q, phi), &s) in traced.iter().zip(&arcs) {
+                        let inv = DMatrix::from_column_slice(n, n, phi).try_inverse().ok_or_else(|| {
+                            Error::numerical(
+                                "fitted label",
+                                format!("d exp is singular at arc length {s:.4} (a conjugate point inside the ball)"),
+                            )
+                        })?;
+                        for r in 0..n {
+                            for c in 0..n {
+                                dvdq[r * n + c] = s * inv[(r, c)];
+                            }
+                        }
+                        to_x(q, &mut out);
+                        out.extend(u.iter().map(|ur| s / radius * ur));
+                        mat_mul(lt, &dvdq, n, &mut tmp);
+                        let at = out.len();
+                        out.resize(at + n * n, 0.0);
+                        mat_mul(&tmp, lt_inv, n, &mut out[at..]);
+                    }
+                    return Ok(out);
+                }
+                let g = shooter.trace(&frame.to_joint(u), Stop::Arc(radius), spacing)?;
                 let mut last = usize::MAX;
-                for j in 0..k {
-                    let s = radius * ((j as f64 + phase) / k as f64).powf(1.0 / spec.radial_power);
+                for &s in &arcs {
                     let idx = ((s / spacing).round() as usize).clamp(1, g.len()) - 1;
                     if idx == last {
                         continue;
                     }
                     last = idx;
                     let (q, s) = (g.q(idx), g.s(idx));
-                    for r in 0..n {
-                        out.push((0..n).map(|c| lt[r * n + c] * (q[c] - q_eq[c])).sum());
-                    }
+                    to_x(q, &mut out);
                     // w = (s/R)·u: log(q) = s·(joint direction of u), in the scaled frame.
-                    for r in 0..n {
-                        out.push(s / radius * u[r]);
-                    }
+                    out.extend(u.iter().map(|ur| s / radius * ur));
                 }
                 Ok(out)
             },
         )
         .collect();
-    let mut samples = Samples { x: Vec::new(), w: Vec::new() };
+    let mut samples = Samples { x: Vec::new(), w: Vec::new(), dw: Vec::new() };
     for p in per {
-        for pair in p?.chunks_exact(2 * n) {
-            samples.x.extend_from_slice(&pair[..n]);
-            samples.w.extend_from_slice(&pair[n..]);
+        for one in p?.chunks_exact(stride) {
+            samples.x.extend_from_slice(&one[..n]);
+            samples.w.extend_from_slice(&one[n..2 * n]);
+            samples.dw.extend_from_slice(&one[2 * n..]);
         }
     }
     Ok(samples)
@@ -374,6 +459,64 @@ fn monomial_values(monomials: &[(usize, usize)], z: &[f64], out: &mut [f64]) {
     }
 }
 
+/// Samples per block of the Hermite normal equations ([`hermite_normal`]).
+const BLOCK: usize = 64;
+
+/// The normal equations of one cell's Hermite-type least squares (module docs) into `normal`
+/// (its upper triangle and more: the caller symmetrises from the upper one) and `rhs`: per
+/// sample the value row, weight 1/|x|, and n derivative rows ∂P/∂z_j = (∂w/∂x − I)·half_j with
+/// the same weight (an error ε of ∂P/∂z moves the value by about ε across the cell, as an
+/// error ε of the value does). Accumulated by blocks of [`BLOCK`] samples through dense
+/// products, in sample order.
+#[allow(clippy::too_many_arguments)]
+fn hermite_normal(
+    monomials: &[(usize, usize)],
+    train: &Samples,
+    cell: &Pending,
+    centre: &[f64],
+    inv_half: &[f64],
+    spec: CellSpec,
+    n: usize,
+    normal: &mut DMatrix<f64>,
+    rhs: &mut DMatrix<f64>,
+) {
+    let terms = monomials.len();
+    let rows = n + 1;
+    let mut basis = DMatrix::<f64>::zeros(terms, rows);
+    let mut z = vec![0.0; n];
+    for block in cell.train.chunks(BLOCK) {
+        // Rows of the design matrix as columns of `at` (terms × rows), targets in `y`.
+        let mut at = DMatrix::<f64>::zeros(terms, block.len() * rows);
+        let mut y = DMatrix::<f64>::zeros(block.len() * rows, n);
+        for (b, &k) in block.iter().enumerate() {
+            let k = k as usize;
+            let (x, w, dw) = (&train.x[k * n..][..n], &train.w[k * n..][..n], &train.dw[k * n * n..][..n * n]);
+            for j in 0..n {
+                z[j] = (x[j] - centre[j]) * inv_half[j];
+            }
+            fill_basis(monomials, &z, &mut basis);
+            let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let wt = 1.0 / xn.max(spec.min_r);
+            for r in 0..rows {
+                let col = b * rows + r;
+                for a in 0..terms {
+                    at[(a, col)] = basis[(a, r)] * wt;
+                }
+            }
+            for i in 0..n {
+                y[(b * rows, i)] = (w[i] - x[i]) * wt;
+                for j in 0..n {
+                    let id = if i == j { 1.0 } else { 0.0 };
+                    y[(b * rows + 1 + j, i)] = (dw[i * n + j] - id) / inv_half[j] * wt;
+                }
+            }
+        }
+        let a = at.transpose();
+        normal.gemm(1.0, &at, &a, 1.0);
+        rhs.gemm(1.0, &at, &y, 1.0);
+    }
+}
+
 /// Fits one cell (module docs) and returns it with its largest held-out error, degrees (0 when
 /// no held-out sample is judged in it).
 fn fit_cell(
@@ -400,23 +543,27 @@ fn fit_cell(
     let mut rhs = DMatrix::<f64>::zeros(terms, n);
     let mut phi = vec![0.0; terms];
     let mut z = vec![0.0; n];
-    for &k in &cell.train {
-        let (x, w) = (&train.x[k as usize * n..][..n], &train.w[k as usize * n..][..n]);
-        for j in 0..n {
-            z[j] = (x[j] - centre[j]) * inv_half[j];
-        }
-        monomial_values(monomials, &z, &mut phi);
-        let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let wt2 = 1.0 / xn.max(spec.min_r).powi(2);
-        for a in 0..terms {
-            let pa = phi[a] * wt2;
-            for b in a..terms {
-                normal[(a, b)] += pa * phi[b];
+    if train.dw.is_empty() {
+        for &k in &cell.train {
+            let (x, w) = (&train.x[k as usize * n..][..n], &train.w[k as usize * n..][..n]);
+            for j in 0..n {
+                z[j] = (x[j] - centre[j]) * inv_half[j];
             }
-            for i in 0..n {
-                rhs[(a, i)] += pa * (w[i] - x[i]);
+            monomial_values(monomials, &z, &mut phi);
+            let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let wt2 = 1.0 / xn.max(spec.min_r).powi(2);
+            for a in 0..terms {
+                let pa = phi[a] * wt2;
+                for b in a..terms {
+                    normal[(a, b)] += pa * phi[b];
+                }
+                for i in 0..n {
+                    rhs[(a, i)] += pa * (w[i] - x[i]);
+                }
             }
         }
+    } else {
+        hermite_normal(monomials, train, cell, &centre, &inv_half, spec, n, &mut normal, &mut rhs);
     }
     // Symmetrise, equilibrate and solve with a tiny ridge: a cell of few samples in a thin
     // slab stays solvable (its error then decides whether it is split).

@@ -49,11 +49,14 @@
 //!   hundreds of them to cover a six-dimensional ball;
 //! - a Gauss–Newton correction needs exp and its Jacobian, 10 ms per call
 //!   ([`Shooter::exp_jacobian`]; `exp` alone 110 µs): beyond the 20 µs budget (measured again
-//!   under heavy load: 0.7 ms, against 2.5 ms for `exp` in the same run; either way far beyond);
+//!   under heavy load: 0.7 ms, against 2.5 ms for `exp` in the same run; and at load 16: 1.5 ms,
+//!   `exp` 79 µs; either way far beyond);
 //! - cells ([`crate::geodesic::logcells`]): local quadratic polynomials on a k-d tree fitted to
-//!   exact geodesic points, 1.76° with the default 72 000 geodesics (1.19° with 96 000), the
+//!   exact geodesic points, 1.76° with 72 000 geodesics (1.19° with 96 000), the
 //!   best of these but not 0.1°; `label = "table"` takes them where they beat the one
-//!   polynomial ([`fit_label`]), `auto` does not build them.
+//!   polynomial ([`fit_label`]), `auto` does not build them; fitted to the Jacobi fields'
+//!   derivatives as well (cubic cells, 24 000 geodesics × 4: the six-joint default), 1.00°,
+//!   about twice the build.
 //!
 //! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
 //! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log
@@ -68,7 +71,7 @@ use crate::error::{Error, Result};
 use crate::geodesic::label::{ExactLog, LogField, LogValue};
 use crate::geodesic::logcells::{CellSpec, CellTree, line_angle_deg};
 pub use crate::geodesic::polynomial::monomial_count;
-use crate::geodesic::polynomial::{fill_basis, monomials};
+use crate::geodesic::polynomial::{fill_basis, mat_mul, monomials};
 use crate::geodesic::shoot::JacobiSamples;
 use crate::geodesic::{Fan, MetricFrame, Shooter, unit_vectors};
 use crate::model::Chain;
@@ -185,15 +188,6 @@ impl Scaling {
 /// An n × n matrix as a row-major slice.
 fn row_major(m: &DMatrix<f64>, n: usize) -> Vec<f64> {
     (0..n * n).map(|k| m[(k / n, k % n)]).collect()
-}
-
-/// Row-major n × n product a·b.
-fn mat_mul(a: &[f64], b: &[f64], n: usize, out: &mut [f64]) {
-    for i in 0..n {
-        for j in 0..n {
-            out[i * n + j] = (0..n).map(|k| a[i * n + k] * b[k * n + j]).sum();
-        }
-    }
 }
 
 impl<'a> LogFit<'a> {
@@ -331,7 +325,7 @@ impl<'a> LogFit<'a> {
         }
         let radius = extent * (1.0 + margin);
         let Scaling { lt, lt_inv, frame } = Scaling::new(chain, q_eq, radius)?;
-        let tree = CellTree::build(chain, q_eq, ode, &frame, &lt, radius, spec)?;
+        let tree = CellTree::build(chain, q_eq, ode, &frame, &lt, &lt_inv, radius, spec)?;
         let terms = tree.terms();
         Ok(LogFit {
             n,

@@ -44,3 +44,12 @@ pub fn fill_basis(monomials: &[(usize, usize)], x: &[f64], basis: &mut DMatrix<f
         basis[(k, 1 + var)] += parent;
     }
 }
+
+/// Row-major n × n product a·b into `out` (the fits' changes of frame, ∂w/∂x from ∂v/∂q).
+pub fn mat_mul(a: &[f64], b: &[f64], n: usize, out: &mut [f64]) {
+    for i in 0..n {
+        for j in 0..n {
+            out[i * n + j] = (0..n).map(|k| a[i * n + k] * b[k * n + j]).sum();
+        }
+    }
+}
