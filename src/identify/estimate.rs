@@ -157,6 +157,13 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
 
 /// The Newey–West long-run covariance of the scores gₜ = Σ φₛ e over the rows of each step, with
 /// Bartlett weights up to `lag_seconds`, summed over runs.
+///
+/// Σₜ gₜgₜᵀ + Σₗ wₗ Σₜ (gₜgₜ₊ₗᵀ + gₜ₊ₗgₜᵀ) is SᵀWS, with S a run's scores (a row per step) and W
+/// the banded Toeplitz matrix of the weights (1 on the diagonal, wₗ on the l-th off-diagonals).
+/// It is formed as Sᵀ(WS): WS costs a few additions per score and lag, and Sᵀ(WS) one p × p
+/// product over the steps, where a product per lag cost about 60 of them (a swing period of lags)
+/// and most of `identify --plan`'s time on a bill of 141 parts. The two orders of summation agree
+/// to rounding; the result is made exactly symmetric.
 fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) -> DMatrix<f64> {
     let p = rows.width;
     let mut meat = DMatrix::zeros(p, p);
@@ -173,20 +180,26 @@ fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) ->
             }
         }
         let lags = ((lag_seconds / rows.step_seconds[run]).ceil() as usize).min(steps.saturating_sub(1));
-        meat += scores.transpose() * &scores;
-        for l in 1..=lags {
-            let w = 1.0 - l as f64 / (lags + 1) as f64;
-            let a = scores.rows(0, steps - l);
-            let b = scores.rows(l, steps - l);
-            let gamma = a.transpose() * b;
-            // meat += (γ + γᵀ) w, entry by entry without the temporaries.
-            for j in 0..p {
-                for i in 0..p {
-                    meat[(i, j)] += (gamma[(i, j)] + gamma[(j, i)]) * w;
+        // WS, a column (one unknown's scores over the steps) at a time.
+        let mut weighted = scores.clone();
+        for (g, h) in scores.as_slice().chunks_exact(steps).zip(weighted.as_mut_slice().chunks_exact_mut(steps)) {
+            for l in 1..=lags {
+                let w = 1.0 - l as f64 / (lags + 1) as f64;
+                for t in 0..steps - l {
+                    h[t] += w * g[t + l];
+                    h[t + l] += w * g[t];
                 }
             }
         }
+        meat.gemm_tr(1.0, &scores, &weighted, 1.0);
         start = end;
+    }
+    for j in 0..p {
+        for i in 0..j {
+            let m = 0.5 * (meat[(i, j)] + meat[(j, i)]);
+            meat[(i, j)] = m;
+            meat[(j, i)] = m;
+        }
     }
     meat
 }
