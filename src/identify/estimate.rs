@@ -125,6 +125,17 @@ impl Gram {
     pub fn add(&mut self, other: &Gram) {
         self.0 += &other.0;
     }
+
+    /// ΦᵀΦ, its lower triangle mirrored from the upper (xₐ x_b = x_b xₐ exactly).
+    pub fn full(self) -> DMatrix<f64> {
+        let mut g = self.0;
+        for b in 0..g.ncols() {
+            for a in b + 1..g.nrows() {
+                g[(a, b)] = g[(b, a)];
+            }
+        }
+        g
+    }
 }
 
 /// The eigendecomposition of ΦᵀΦ with unit columns, its largest eigenvalue, the eigenpairs

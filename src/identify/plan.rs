@@ -303,24 +303,7 @@ fn releases(candidates: &[Candidate], chosen: &[(usize, usize)], seconds: f64) -
 
 /// ΦᵀΦ of a candidate's rows.
 fn information(rows: &Rows) -> DMatrix<f64> {
-    let p = rows.width;
-    let mut g = DMatrix::zeros(p, p);
-    // The upper triangle column by column (unit stride), then mirrored: xₐ x_b = x_b xₐ exactly.
-    let upper = g.as_mut_slice();
-    for r in 0..rows.len() {
-        let x = rows.row(r);
-        for (b, &xb) in x.iter().enumerate() {
-            for (gab, xa) in upper[b * p..=b * p + b].iter_mut().zip(x) {
-                *gab += xa * xb;
-            }
-        }
-    }
-    for b in 0..p {
-        for a in b + 1..p {
-            g[(a, b)] = g[(b, a)];
-        }
-    }
-    g
+    super::estimate::Gram::of(rows).full()
 }
 
 /// log det of a symmetric positive definite matrix (−∞ if it is not).
