@@ -62,3 +62,64 @@ fn the_plan_predicts_the_default_designs_identified_count() {
 fn the_plan_predicts_a_three_joint_arms_identified_count() {
     check("designs/ur5_pan_lift_elbow.toml", "tests/data/ur5_pan_lift_elbow_bom.csv");
 }
+
+/// A rate the plan cannot reach is reported as unidentified, not as a figure: the default
+/// design's bill with its first crank split into two halves whose crank angles differ by
+/// 1e-4 rad. Their torques over any swing differ by about 1e-4 of themselves, so no release
+/// tells them apart: both are unidentified (not estimable, or a standard error beyond 100 %),
+/// with `null` δ and standard error in the plan's JSON and a reason, and every rate that is not
+/// unidentified has finite figures.
+#[test]
+fn a_rate_the_plan_cannot_reach_is_reported_as_unidentified() {
+    let text = std::fs::read_to_string(repo("tests/data/double_pendulum_bom.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let mut out = vec![header.join(",")];
+    for (k, line) in lines.enumerate() {
+        if k > 0 {
+            out.push(line.to_string());
+            continue;
+        }
+        // S01 as two halves, the second at a crank angle 1e-4 rad further.
+        let mut half: Vec<String> = line.split(',').map(str::to_string).collect();
+        for name in ["stiffness", "max_torque_nm", "preload_nm"] {
+            let x: f64 = half[col(name)].parse().unwrap();
+            half[col(name)] = format!("{}", x / 2.0);
+        }
+        out.push(half.join(","));
+        let offset: f64 = half[col("offset_rad")].parse().unwrap();
+        half[col("offset_rad")] = format!("{}", offset + 1e-4);
+        half[col("id")] = "S16".into();
+        out.push(half.join(","));
+    }
+    let dir = std::env::temp_dir().join(format!("springfit-plan-unreached-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bom.csv");
+    std::fs::write(&path, out.join("\n") + "\n").unwrap();
+    let design = Design::load(&repo("designs/double_pendulum.toml")).unwrap();
+    let bom = springfit::files::bom::read(&path).unwrap();
+    let plan = springfit::identify::plan::plan(&design, &path, &bom).unwrap();
+    let json = serde_json::to_value(&plan.predicted).unwrap();
+    for r in &plan.predicted.rates {
+        println!("{}: {:?}, δ {}, se {}, {:?}", r.id, r.status, r.delta, r.standard_error, r.unidentified);
+        let written = &json["rates"].as_array().unwrap().iter().find(|w| w["id"] == r.id.as_str()).unwrap();
+        match &r.unidentified {
+            Some(why) => {
+                assert!(r.delta.is_nan() && r.standard_error.is_infinite(), "{r:?}");
+                assert!(written["delta"].is_null() && written["standard_error"].is_null(), "{written}");
+                assert_eq!(written["unidentified"].as_str(), Some(why.as_str()));
+            }
+            None => {
+                assert!(r.delta.is_finite() && r.standard_error.is_finite(), "{r:?}");
+                assert!(written["unidentified"].is_null() && written["standard_error"].is_number(), "{written}");
+            }
+        }
+    }
+    for id in ["S01", "S16"] {
+        let r = plan.predicted.rates.iter().find(|r| r.id == id).unwrap();
+        let why = r.unidentified.as_deref().unwrap_or_else(|| panic!("{id} is reported as a figure: {r:?}"));
+        assert!(why.contains("null space") || why.contains("at least 100 % of the rate"), "{id}: {why}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -34,6 +34,12 @@ pub const RANK_TOLERANCE: f64 = 1e-12;
 /// A rate loads on a combination when its weight there is at least this (unit combination).
 pub const LOADING: f64 = 0.2;
 
+/// A rate that is not identified is reported as unidentified (no δ, no standard error) when
+/// its standard error is at least this fraction of the rate: the logs cannot tell the rate
+/// from no spring at all or from twice it, so its δ (the minimum-norm value) is no estimate and
+/// its standard error says only that.
+pub const UNIDENTIFIED_STANDARD_ERROR: f64 = 1.0;
+
 /// The least-squares estimate and its covariance.
 #[derive(Debug, Clone)]
 pub struct Estimate {
@@ -60,6 +66,11 @@ pub struct Estimate {
     pub residual: Vec<f64>,
     /// rms of Φ's columns (the torque each unknown's unit change makes), N·m per unit.
     pub column_rms: Vec<f64>,
+    /// (ΦᵀΦ)⁺ with unit columns, from the kept eigenpairs.
+    pub inverse: DMatrix<f64>,
+    /// The Newey–West meat with unit columns, times the small-sample correction: the
+    /// covariance with unit columns is `inverse · meat · inverse`.
+    pub meat: DMatrix<f64>,
 }
 
 impl Estimate {
@@ -67,6 +78,103 @@ impl Estimate {
     pub fn standard_error(&self, u: usize) -> f64 {
         if self.estimable[u] { self.covariance[(u, u)].max(0.0).sqrt() } else { f64::INFINITY }
     }
+
+    /// The standard error of the combination Σ cᵤ θᵤ (`c` in the unknowns' units), as
+    /// √(zᵀ S z) with z = (ΦᵀΦ)⁺ c̃ in unit columns (c̃ᵤ = cᵤ / scaleᵤ) and S the meat.
+    ///
+    /// Why not cᵀ C c with the covariance C: an identified combination of rates the logs
+    /// cannot tell apart has a variance of 1e-10 from entries of C up to 1e4, and the quadratic
+    /// form cancels fourteen digits of them; z stays of the combination's own size.
+    pub fn combination_standard_error(&self, c: &DVector<f64>) -> f64 {
+        let scaled = DVector::from_iterator(c.len(), c.iter().zip(&self.scale).map(|(x, s)| x / s));
+        let z = &self.inverse * scaled;
+        z.dot(&(&self.meat * &z)).max(0.0).sqrt()
+    }
+}
+
+/// ΦᵀΦ of some rows in the unknowns' units (its upper triangle kept). It adds over rows, so the
+/// plan's loop sums each simulated reading's once, when it is added, to test cheaply whether an
+/// identification of the readings so far could identify every rate ([`all_estimable`]).
+#[derive(Debug, Clone)]
+pub struct Gram(DMatrix<f64>);
+
+impl Gram {
+    /// ΦᵀΦ of `rows`.
+    pub fn of(rows: &Rows) -> Gram {
+        let p = rows.width;
+        let mut gram: DMatrix<f64> = DMatrix::zeros(p, p);
+        // The upper triangle column by column (column-major), at unit stride.
+        let upper = gram.as_mut_slice();
+        for r in 0..rows.len() {
+            let x = rows.row(r);
+            for (c, &xc) in x.iter().enumerate() {
+                for (gac, xa) in upper[c * p..=c * p + c].iter_mut().zip(x) {
+                    *gac += xa * xc;
+                }
+            }
+        }
+        Gram(gram)
+    }
+
+    /// No rows yet, for `p` unknowns.
+    pub fn zeros(p: usize) -> Gram {
+        Gram(DMatrix::zeros(p, p))
+    }
+
+    /// Adds ΦᵀΦ of further rows.
+    pub fn add(&mut self, other: &Gram) {
+        self.0 += &other.0;
+    }
+
+    /// ΦᵀΦ, its lower triangle mirrored from the upper (xₐ x_b = x_b xₐ exactly).
+    pub fn full(self) -> DMatrix<f64> {
+        let mut g = self.0;
+        for b in 0..g.ncols() {
+            for a in b + 1..g.nrows() {
+                g[(a, b)] = g[(b, a)];
+            }
+        }
+        g
+    }
+}
+
+/// The eigendecomposition of ΦᵀΦ with unit columns, its largest eigenvalue, the eigenpairs
+/// kept (above [`RANK_TOLERANCE`] of the largest) and whether each unknown is estimable (its
+/// unit vector in the span of the kept eigenvectors).
+type Spectrum = (nalgebra::SymmetricEigen<f64, nalgebra::Dyn>, f64, Vec<usize>, Vec<bool>);
+
+fn spectrum(g: DMatrix<f64>) -> Spectrum {
+    let p = g.nrows();
+    let eig = g.symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
+    let kept: Vec<usize> = (0..p).filter(|&k| eig.eigenvalues[k] > RANK_TOLERANCE * top).collect();
+    let estimable: Vec<bool> = (0..p)
+        .map(|u| {
+            let inside: f64 = kept.iter().map(|&k| eig.eigenvectors[(u, k)].powi(2)).sum();
+            inside > 1.0 - 1e-8
+        })
+        .collect();
+    (eig, top, kept, estimable)
+}
+
+/// Whether every one of `unknowns` is estimable from rows of ΦᵀΦ `gram`: the test
+/// [`least_squares`] makes, on ΦᵀΦ summed reading by reading instead of row by row with unit
+/// columns (equal to rounding), without the passes over every row (the normal equations, the
+/// residual, the Newey–West meat). A rate that is not estimable has an infinite standard error,
+/// so when this is false no identification of these rows identifies every rate; and a rate at
+/// the edge of estimability, where rounding could tip the test, has an information some 1e-12
+/// of the largest and a standard error far beyond any bound, so the test cannot skip an
+/// identification that would have found every rate identified.
+pub fn all_estimable(gram: &Gram, unknowns: &[usize]) -> bool {
+    let g = &gram.0;
+    let p = g.nrows();
+    let scale: Vec<f64> = (0..p).map(|k| g[(k, k)]).map(|s| if s > 0.0 { s.sqrt() } else { 1.0 }).collect();
+    let unit = DMatrix::from_fn(p, p, |a, c| {
+        let (i, j) = if a <= c { (a, c) } else { (c, a) };
+        g[(i, j)] / (scale[i] * scale[j])
+    });
+    let (_, _, _, estimable) = spectrum(unit);
+    unknowns.iter().all(|&u| estimable[u])
 }
 
 /// Solves y = Φθ in the least-squares sense. `lag_seconds` is the Newey–West window.
@@ -106,9 +214,7 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
             g[(a, c)] = g[(c, a)];
         }
     }
-    let eig = g.clone().symmetric_eigen();
-    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
-    let kept: Vec<usize> = (0..p).filter(|&k| eig.eigenvalues[k] > RANK_TOLERANCE * top).collect();
+    let (eig, top, kept, estimable) = spectrum(g.clone());
     let rank = kept.len();
     let null_space: Vec<DVector<f64>> =
         (0..p).filter(|k| !kept.contains(k)).map(|k| eig.eigenvectors.column(k).into_owned()).collect();
@@ -121,13 +227,6 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
         pinv += v * v.transpose() / eig.eigenvalues[k];
     }
     let theta_s = &pinv * &b;
-    // An unknown is estimable when its unit vector lies in the span of the kept eigenvectors.
-    let estimable: Vec<bool> = (0..p)
-        .map(|u| {
-            let inside: f64 = kept.iter().map(|&k| eig.eigenvectors[(u, k)].powi(2)).sum();
-            inside > 1.0 - 1e-8
-        })
-        .collect();
     let residual: Vec<f64> = (0..m)
         .map(|r| {
             rows.y[r]
@@ -136,7 +235,7 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
         .collect();
     let meat = newey_west(rows, &scale, &residual, lag_seconds);
     let correction = if m > rank { m as f64 / (m - rank) as f64 } else { 1.0 };
-    let cov_s = &pinv * meat * &pinv * correction;
+    let cov_s = &pinv * &meat * &pinv * correction;
     let s = DMatrix::from_diagonal(&DVector::from_iterator(p, scale.iter().map(|x| 1.0 / x)));
     let covariance = &s * cov_s * &s;
     let sinv = DMatrix::from_diagonal(&DVector::from_column_slice(&scale));
@@ -152,11 +251,20 @@ pub fn least_squares(rows: &Rows, lag_seconds: f64) -> Estimate {
         rank,
         residual,
         column_rms,
+        inverse: pinv,
+        meat: meat * correction,
     }
 }
 
 /// The Newey–West long-run covariance of the scores gₜ = Σ φₛ e over the rows of each step, with
 /// Bartlett weights up to `lag_seconds`, summed over runs.
+///
+/// Σₜ gₜgₜᵀ + Σₗ wₗ Σₜ (gₜgₜ₊ₗᵀ + gₜ₊ₗgₜᵀ) is SᵀWS, with S a run's scores (a row per step) and W
+/// the banded Toeplitz matrix of the weights (1 on the diagonal, wₗ on the l-th off-diagonals).
+/// It is formed as Sᵀ(WS): WS costs a few additions per score and lag, and Sᵀ(WS) one p × p
+/// product over the steps, where a product per lag cost about 60 of them (a swing period of lags)
+/// and most of `identify --plan`'s time on a bill of 141 parts. The two orders of summation agree
+/// to rounding; the result is made exactly symmetric.
 fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) -> DMatrix<f64> {
     let p = rows.width;
     let mut meat = DMatrix::zeros(p, p);
@@ -173,20 +281,26 @@ fn newey_west(rows: &Rows, scale: &[f64], residual: &[f64], lag_seconds: f64) ->
             }
         }
         let lags = ((lag_seconds / rows.step_seconds[run]).ceil() as usize).min(steps.saturating_sub(1));
-        meat += scores.transpose() * &scores;
-        for l in 1..=lags {
-            let w = 1.0 - l as f64 / (lags + 1) as f64;
-            let a = scores.rows(0, steps - l);
-            let b = scores.rows(l, steps - l);
-            let gamma = a.transpose() * b;
-            // meat += (γ + γᵀ) w, entry by entry without the temporaries.
-            for j in 0..p {
-                for i in 0..p {
-                    meat[(i, j)] += (gamma[(i, j)] + gamma[(j, i)]) * w;
+        // WS, a column (one unknown's scores over the steps) at a time.
+        let mut weighted = scores.clone();
+        for (g, h) in scores.as_slice().chunks_exact(steps).zip(weighted.as_mut_slice().chunks_exact_mut(steps)) {
+            for l in 1..=lags {
+                let w = 1.0 - l as f64 / (lags + 1) as f64;
+                for t in 0..steps - l {
+                    h[t] += w * g[t + l];
+                    h[t + l] += w * g[t];
                 }
             }
         }
+        meat.gemm_tr(1.0, &scores, &weighted, 1.0);
         start = end;
+    }
+    for j in 0..p {
+        for i in 0..j {
+            let m = 0.5 * (meat[(i, j)] + meat[(j, i)]);
+            meat[(i, j)] = m;
+            meat[(j, i)] = m;
+        }
     }
     meat
 }
@@ -297,7 +411,7 @@ fn reduce_to(fixed: &[&OpenCombination], n_open: usize) -> DVector<f64> {
 /// The combinations of the open unknowns: the eigenvectors of their information with every
 /// other unknown eliminated (the Schur complement, formed in unit-column coordinates where it
 /// is well scaled), each projected exactly onto the row space of Φ (off its null space), with
-/// its estimate and standard error.
+/// its estimate and standard error ([`Estimate::combination_standard_error`]).
 ///
 /// Why the projection: the logs fix Φθ and nothing else, so c·θ̂ is an unbiased estimate of
 /// c·θ only when c lies in the row space. An eigenvector of a nearly singular matrix is only
@@ -325,7 +439,6 @@ fn open_combinations(estimate: &Estimate, unknowns_open: &[usize]) -> Vec<OpenCo
     let schur = DMatrix::from_fn(n_open, n_open, |i, j| schur_s[(i, j)] * s[unknowns_open[i]] * s[unknowns_open[j]]);
     let eig = schur.symmetric_eigen();
     let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
-    let cov = DMatrix::from_fn(n_open, n_open, |i, j| estimate.covariance[(unknowns_open[i], unknowns_open[j])]);
     let theta = DVector::from_iterator(n_open, unknowns_open.iter().map(|&u| estimate.theta[u]));
     (0..n_open)
         .map(|k| {
@@ -335,7 +448,11 @@ fn open_combinations(estimate: &Estimate, unknowns_open: &[usize]) -> Vec<OpenCo
             }
             let v = row_space(estimate, unknowns_open, &v);
             let value = v.dot(&theta);
-            let se = v.dot(&(&cov * &v)).max(0.0).sqrt();
+            let mut c = DVector::zeros(p);
+            for (&u, x) in unknowns_open.iter().zip(v.iter()) {
+                c[u] = *x;
+            }
+            let se = estimate.combination_standard_error(&c);
             (v, value, se)
         })
         .collect()

@@ -127,6 +127,12 @@ impl LowPass {
         if n == 0 {
             return Vec::new();
         }
+        // A signal of zeros (a part's column on a joint its coupling leaves out: 158 of the 423
+        // columns of a bill of 141 parts on three joints) extends to zeros either way and passes
+        // as zeros: no sweep needed.
+        if x.iter().all(|v| *v == 0.0) {
+            return vec![0.0; n];
+        }
         let pad = self.settle.min(n - 1);
         let (a, b) = match extension {
             Extension::Odd => (2.0 * x[0], 2.0 * x[n - 1]),

@@ -85,11 +85,17 @@ pub struct RateEstimate {
     #[serde(skip)]
     pub rows: Vec<usize>,
     /// δ, the rate error as a fraction of the design rate (least squares; not meaningful when
-    /// not identified).
+    /// not identified; NaN, `null` in the JSON, when unidentified).
+    #[serde(serialize_with = "finite_or_null")]
     pub delta: f64,
-    /// Standard error of δ (infinite: the logs carry nothing about it alone).
+    /// Standard error of δ (infinite, `null` in the JSON: the logs carry nothing about it
+    /// alone, or it is unidentified).
     #[serde(serialize_with = "finite_or_null")]
     pub standard_error: f64,
+    /// Why the rate is unidentified, when it is (None: δ and its standard error are figures):
+    /// not estimable, or a standard error of at least
+    /// [`estimate::UNIDENTIFIED_STANDARD_ERROR`] of the rate.
+    pub unidentified: Option<String>,
     /// Identified, or in which group.
     pub status: Status,
     /// The δ `tune` gets (identified: as estimated; in a group: reduced to the group's
@@ -385,9 +391,10 @@ fn solve(
 /// Readings identified again and again as more are added, as the plan's D-optimal loop does
 /// after each release it adds: each reading is checked against the region and turned into its
 /// regression rows once, when it is added, instead of at every identification (those were
-/// nine tenths of the plan's time on three joints). A run's rows depend on that run alone and
-/// its index, so [`Readings::identify`] gives exactly what [`identify`] gives on a log of the
-/// same runs.
+/// nine tenths of the plan's time on three joints), and its ΦᵀΦ summed once (for
+/// [`Readings::may_identify_every_rate`]). A run's rows depend on that run alone and its
+/// index, so [`Readings::identify`] gives exactly what [`identify`] gives on a log of the same
+/// runs.
 pub struct Readings<'a> {
     design: &'a Design,
     bom: &'a [BomRow],
@@ -397,6 +404,8 @@ pub struct Readings<'a> {
     log: Log,
     filters: Vec<Filters>,
     rows: Rows,
+    /// ΦᵀΦ of `rows`, each reading's added when it is.
+    gram: estimate::Gram,
 }
 
 impl<'a> Readings<'a> {
@@ -412,6 +421,7 @@ impl<'a> Readings<'a> {
         check_bill(design, bom_path, bom)?;
         let model = Model::new(bom, design.dof(), settings);
         let rows = Rows { width: model.unknowns.len(), ..Rows::default() };
+        let gram = estimate::Gram::zeros(model.unknowns.len());
         Ok(Readings {
             design,
             bom,
@@ -421,6 +431,7 @@ impl<'a> Readings<'a> {
             log: Log { path: path.to_path_buf(), dof: design.dof(), runs: Vec::new() },
             filters: Vec::new(),
             rows,
+            gram,
         })
     }
 
@@ -429,7 +440,9 @@ impl<'a> Readings<'a> {
     pub fn add(&mut self, run: Run) -> Result<()> {
         let filters = checked_run(self.design, &self.log, &run, self.settings, &self.test)?;
         let index = self.log.runs.len();
-        self.rows.push_run(regression::run_rows(self.design, &self.model, &run, index, &filters), &run, &filters);
+        let rows = regression::run_rows(self.design, &self.model, &run, index, &filters);
+        self.gram.add(&estimate::Gram::of(&rows));
+        self.rows.push_run(rows, &run, &filters);
         self.log.runs.push(run);
         self.filters.push(filters);
         Ok(())
@@ -440,6 +453,17 @@ impl<'a> Readings<'a> {
         let runs: Vec<(&Log, &Run, Filters)> =
             self.log.runs.iter().zip(&self.filters).map(|(r, f)| (&self.log, r, f.clone())).collect();
         solve(self.design, self.bom, self.settings, &self.log.path, &self.model, runs, &self.rows)
+    }
+
+    /// Whether an identification of the readings so far could find every rate identified: false
+    /// when one of them is not estimable (an infinite standard error), decided from ΦᵀΦ summed
+    /// reading by reading ([`estimate::all_estimable`]), without the identification's passes over
+    /// every row. The plan skips the identifications this rules out: they could not end its
+    /// loop.
+    pub fn may_identify_every_rate(&self) -> bool {
+        let rates: Vec<usize> =
+            (0..self.model.unknowns.len()).filter(|&u| matches!(self.model.unknowns[u], Unknown::Rate(_))).collect();
+        estimate::all_estimable(&self.gram, &rates)
     }
 }
 
@@ -487,13 +511,17 @@ fn assemble(design: &Design, bom: &[BomRow], settings: &IdentifySettings, solved
                 Status::Group(g) if inferred(g) => Source::Combination,
                 Status::Group(_) => Source::AsDesigned,
             };
+            let unidentified =
+                if status[i] == Status::Identified { None } else { unidentified(estimate, u, residual_rms) };
+            let written = unidentified.is_none();
             RateEstimate {
                 id: part.id.clone(),
                 family: part.family.clone(),
                 trim: part.trim,
                 rows: part.rows.clone(),
-                delta: estimate.theta[u],
-                standard_error: estimate.standard_error(u),
+                delta: if written { estimate.theta[u] } else { f64::NAN },
+                standard_error: if written { estimate.standard_error(u) } else { f64::INFINITY },
+                unidentified,
                 status: status[i].clone(),
                 for_tuning: if source == Source::AsDesigned { 0.0 } else { verdict.for_tuning[i] },
                 source,
@@ -553,6 +581,8 @@ fn rate_group(
         let top = estimate.column_rms.iter().fold(0.0f64, |m, x| m.max(*x));
         if estimate.column_rms[u] <= 1e-9 * top.max(f64::MIN_POSITIVE) {
             "The logs never engage it: it exerts no torque anywhere along them".to_string()
+        } else if let Some(why) = unidentified(estimate, u, residual_rms) {
+            format!("Unidentified: {why}")
         } else {
             format!(
                 "Its torque over these logs (rms {:.3e} N·m for δ = 1, against a residual of {:.3e} N·m) leaves \
@@ -570,6 +600,32 @@ fn rate_group(
         standard_error: c.standard_error,
     };
     RateGroup { members: ids, reason, identified: group.identified.iter().map(combination).collect() }
+}
+
+/// Why the rate of unknown `u`, not identified, is unidentified (its δ and standard error not
+/// written as figures), or None when they are figures: not estimable, or a standard error of at
+/// least [`estimate::UNIDENTIFIED_STANDARD_ERROR`] of the rate, given to one digit
+/// (`residual_rms`, N·m, is the scale its torque is compared to).
+fn unidentified(estimate: &Estimate, u: usize, residual_rms: f64) -> Option<String> {
+    let torque = format!(
+        "its torque over these logs (rms {:.3e} N·m for δ = 1, against a residual of {residual_rms:.3e} N·m)",
+        estimate.column_rms[u]
+    );
+    if !estimate.estimable[u] {
+        return Some(format!(
+            "{torque} is a combination of the other unknowns' (the regression's null space): the logs carry nothing \
+             about it alone"
+        ));
+    }
+    let se = estimate.standard_error(u);
+    (se >= estimate::UNIDENTIFIED_STANDARD_ERROR).then(|| {
+        format!(
+            "{torque} leaves its δ a standard error of about {:.0e} %, at least {} % of the rate: the logs cannot \
+             tell it from no spring or from twice the spring, and its δ is no estimate",
+            100.0 * se,
+            100.0 * estimate::UNIDENTIFIED_STANDARD_ERROR
+        )
+    })
 }
 
 /// The measured rates: each estimated part's rows scaled by 1 + δ (for tuning); known trims and
