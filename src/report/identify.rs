@@ -66,8 +66,10 @@ fn pct(x: f64) -> String {
     if x.is_finite() { format!("{:+.3} %", 100.0 * x) } else { "–".into() }
 }
 
+/// A standard error in percent; one the logs do not bound (a rate they cannot see) is said in
+/// words: a report never prints ∞ or NaN.
 fn se_pct(x: f64) -> String {
-    if x.is_finite() { format!("{:.3} %", 100.0 * x) } else { "∞".into() }
+    if x.is_finite() { format!("{:.3} %", 100.0 * x) } else { "unbounded".into() }
 }
 
 /// The table of rate estimates and the groups, shared by `identify.md` and `plan.md`.
@@ -142,7 +144,7 @@ pub fn markdown(design: &str, id: &Identification, bom: &[BomRow]) -> String {
         id.rows,
         id.unknowns,
         id.rank,
-        if id.condition.is_finite() { format!("{:.3e}", id.condition) } else { "∞".into() },
+        if id.condition.is_finite() { format!("{:.3e}", id.condition) } else { "unbounded: rank-deficient".into() },
         id.cutoff_hz,
         id.smoothing_hz,
         100.0 * id.max_standard_error,
@@ -154,7 +156,7 @@ pub fn markdown(design: &str, id: &Identification, bom: &[BomRow]) -> String {
     s.push_str("\n![rate errors](identify_rates.svg)\n\n## Damping and friction\n\n| joint | damping (N·m·s/rad) | standard error | Coulomb friction (N·m) | standard error |\n| --- | ---: | ---: | ---: | ---: |\n");
     let cell = |v: Option<crate::identify::Value>| match v {
         Some(v) if v.standard_error.is_finite() => (format!("{:.5}", v.value), format!("{:.2e}", v.standard_error)),
-        Some(_) => ("not identified".into(), "∞".into()),
+        Some(_) => ("not identified".into(), "unbounded".into()),
         None => ("not estimated".into(), "–".into()),
     };
     for j in &id.joints {
