@@ -12,7 +12,7 @@ use super::mass::MassTerm;
 use super::outcome::{SolveReport, SolveStatus};
 use super::problem::FitProblem;
 use super::problem::unit_preloads;
-use super::robust::BuildPenalty;
+use super::robust::{BuildPenalty, ShiftCone};
 use crate::design::fit::{FitSettings, SolverKind};
 
 use crate::elements::group::{Columns, Grouping};
@@ -21,7 +21,7 @@ use crate::solve::LinearGroup;
 use crate::solve::lawson_hanson::nnls_equalities;
 use crate::solve::lsq::Gram;
 use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
-use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
+use crate::solve::qp::{NormBound, QpSettings, QpStatus, qp_cone, qp_signed};
 use crate::solve::screen::qp_screened;
 use crate::solve::selection::{
     Items, SelectionSettings, backward_elimination, extension_bounds, search, select_from, subset_nnls,
@@ -49,7 +49,9 @@ const SCREEN_FROM: usize = 600;
 /// moves the right-hand side and G's diagonal, for every solver and the selection alike; its budget Σ mᵢ(kᵢ) ≤ M is
 /// an inequality of the QP when the model is a straight line, and otherwise (and always for NNLS)
 /// met by raising λ (bisection on the multiplier, the least λ whose solution, selection
-/// included, is within the budget). Without `mass` nothing changes, bit for bit.
+/// included, is within the budget). Without `mass` nothing changes, bit for bit. A cone in
+/// `extra` (the bound on the builds' equilibrium shift) is held by the QP on the selected
+/// columns; the selection and NNLS do not see it (`fit::run` reports when it is not held).
 pub fn solve(
     problem: &FitProblem,
     gram: &Gram,
@@ -64,8 +66,9 @@ pub fn solve(
         d.add_to(&mut gram.g);
     }
     let signed = settings.solver == SolverKind::Qp;
+    let cone = extra.and_then(|e| e.cone.as_ref());
     let Some(m) = mass else {
-        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, None);
+        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, cone));
     };
     // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
     let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
@@ -75,7 +78,7 @@ pub fn solve(
             shifted.c -= m.shift(weight);
             m.bend(weight, &mut shifted.g);
         }
-        solve_gram_with(problem, shifted, columns, q_eq, settings, signed, qp_budget)
+        solve_gram_with(problem, shifted, columns, q_eq, settings, signed, (qp_budget, cone))
     };
     let first = at(m.weight)?;
     let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
@@ -164,10 +167,11 @@ pub fn solve_gram(
     settings: &FitSettings,
     signed: bool,
 ) -> Result<(Vec<f64>, SolveReport)> {
-    solve_gram_with(problem, gram, columns, q_eq, settings, signed, None)
+    solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None))
 }
 
-/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M.
+/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M and the
+/// builds' equilibrium shift by `cone`.
 fn solve_gram_with(
     problem: &FitProblem,
     gram: Gram,
@@ -175,7 +179,7 @@ fn solve_gram_with(
     q_eq: &[f64],
     settings: &FitSettings,
     signed: bool,
-    budget: Option<&MassTerm<'_>>,
+    (budget, cone): (Option<&MassTerm<'_>>, Option<&ShiftCone>),
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
     let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
@@ -187,6 +191,7 @@ fn solve_gram_with(
         cut_rounds: 0,
         expected_build_spread: None,
         budget_met_at: None,
+        shift_bound: None,
     };
     let support = select(&weighted, grouping, settings, &mut report)?;
     // The QP sees one signed unknown per group coefficient instead of its ± column pair (see
@@ -204,7 +209,7 @@ fn solve_gram_with(
     let unit = unit_preloads(candidates, q_eq);
     let k_sub = match settings.solver {
         SolverKind::Nnls => solve_nnls(problem, &weighted, &unknowns, &upper, &unit, settings)?,
-        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), settings, &mut report)?,
+        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), cone, settings, &mut report)?,
     };
     Ok((unknowns.stiffnesses(grouping, p, &k_sub), report))
 }
@@ -285,13 +290,14 @@ fn solve_nnls(
 }
 
 /// The Clarabel QP on the unknowns: equalities exact, monotonicity by cutting planes, the
-/// preload bound Σ|τᵢ(q_eq)| ≤ P as one more inequality.
+/// preload bound Σ|τᵢ(q_eq)| ≤ P as one more inequality, the shift bound ‖Lᵀk‖ ≤ s as a cone.
 #[allow(clippy::too_many_arguments)]
 fn solve_qp(
     problem: &FitProblem,
     gram: &Gram,
     unknowns: &Unknowns,
     (upper, unit, budget): (&[Option<f64>], &[f64], Option<&MassTerm<'_>>),
+    cone: Option<&ShiftCone>,
     settings: &FitSettings,
     report: &mut SolveReport,
 ) -> Result<DVector<f64>> {
@@ -338,7 +344,17 @@ fn solve_qp(
     }
     let (sub, equalities, inequalities) =
         (gram.subset(support), restrict(&problem.equalities), restrict(&inequalities));
-    let sol = if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
+    let sol = if let Some(c) = cone {
+        // The cone on the support's unknowns: Clarabel over all of them (the screened and
+        // active-set paths know linear rows only).
+        let bound = NormBound {
+            factor: c.form.factor_on(support),
+            bound: c.bound,
+            name: format!("max_shift (the builds' RMS metric equilibrium shift ≤ {:.4})", c.bound),
+        };
+        let (groups, l1) = ((&equalities[..], &inequalities[..]), settings.l1);
+        qp_cone(&sub, groups, upper, &unknowns.signed, l1, &QpSettings::default(), Some(&bound))?
+    } else if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
         // Many springs: started from the weighted NNLS support.
         let start = nnls_support(&sub, &equalities, problem.row_count(), settings)?;
         // Only k ≥ 0 and exact equalities: an active-set NNLS on an updated Cholesky factor is
