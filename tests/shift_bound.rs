@@ -1,26 +1,15 @@
 //! `[fit] max_shift`: the bound on the builds' RMS metric equilibrium shift, held as a
 //! second-order cone in the QP (`fit::robust::ShiftCone`), through the library on the paper's arm.
 
-use std::path::Path;
+mod util;
 
 use springfit::asbuilt::{BuildSettings, DIRECTIONS, SAMPLES, run_builds};
 use springfit::design::Design;
 use springfit::design::fit::{FitSettings, MaxShift};
 use springfit::design::tolerance::ToleranceSpec;
-use springfit::elements::catalog::Catalog;
 use springfit::fit::outcome::ShiftAction;
 use springfit::fit::run::fit;
 use springfit::progress::Progress;
-
-fn repo(p: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
-}
-
-fn load(name: &str) -> (Design, Catalog) {
-    let design = Design::load(&repo(&format!("designs/{name}.toml"))).unwrap();
-    let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
-    (design, catalog)
-}
 
 /// `double_pendulum` (±5 %, 12 elements) on small fans, without the trimmed term (the cone bounds
 /// the untrimmed builds' shift, which the builds below measure untrimmed).
@@ -41,7 +30,7 @@ fn quick(design: &Design, max_shift: MaxShift) -> FitSettings {
 /// solver's tolerance, and the builds' measured RMS metric shift agrees with √(kᵀSk).
 #[test]
 fn the_cone_holds_the_shift_and_an_inactive_bound_changes_nothing() {
-    let (design, catalog) = load("double_pendulum");
+    let (design, catalog) = util::shipped("double_pendulum");
     let off = fit(&design, &catalog, &quick(&design, MaxShift::None), Progress::none()).unwrap();
     assert!(off.solve.shift_bound.is_none());
     let wide = fit(&design, &catalog, &quick(&design, MaxShift::Metric(1e9)), Progress::none()).unwrap();
@@ -97,7 +86,7 @@ fn the_cone_holds_the_shift_and_an_inactive_bound_changes_nothing() {
 /// `fit.max_shift`; "none" and a positive number are read.
 #[test]
 fn bad_max_shift_values_are_refused_naming_the_key() {
-    let path = repo("designs/double_pendulum.toml");
+    let path = util::repo().join("designs/double_pendulum.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     let with = |value: &str| text.replacen("[fit]\n", &format!("[fit]\nmax_shift = {value}\n"), 1);
     for bad in ["-0.1", "0", "nan", "inf", "\"auto\""] {
