@@ -120,6 +120,13 @@ pub struct FitSettings {
     /// to the expected residual (m training rows; a metric shift of 1 costs as much as a residual
     /// of 1 ≈ sin(angle) on every row). 0: off (tuning after the build can restore q_eq).
     pub shift_weight: f64,
+    /// With a tolerance: a bound on the builds' RMS metric equilibrium shift √E‖Δq‖²_M(q_eq) at
+    /// the design's tolerance, held by the QP as a second-order cone (`fit::robust`,
+    /// [`MaxShift`]). On by default at [`MaxShift::DEFAULT_FRACTION`] of the region's extent:
+    /// a build whose rest position moves far loses its stable equilibrium or judges the whole
+    /// region from the wrong point. `"none"` switches it off.
+    #[serde(deserialize_with = "max_shift_or_none")]
+    pub max_shift: MaxShift,
     /// Upper bound on the total preload Σ|τᵢ(q_eq)| in N·m (0: none). Exact with `qp`; with
     /// `nnls` a fit exceeding it is reported infeasible.
     pub max_preload: f64,
@@ -181,6 +188,55 @@ impl AutoWeights {
     /// Whether any weight is left to springfit.
     pub fn any(self) -> bool {
         self.tolerance_weight || self.trimmed_weight || self.mass_weight || self.restarts
+    }
+}
+
+/// `[fit] max_shift`: the bound on the builds' RMS metric equilibrium shift (rad·√(kg·m²), the
+/// unit of the region's radius).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MaxShift {
+    /// [`MaxShift::DEFAULT_FRACTION`] of the region's extent (the default).
+    Default,
+    /// No bound (`"none"`).
+    None,
+    /// This RMS metric shift.
+    Metric(f64),
+}
+
+impl MaxShift {
+    /// The default bound as a fraction of the region's extent r: a guard against builds whose
+    /// rest position moves by a tenth of the region they are judged over (RMS, first order).
+    /// Measured at ±5 % (1,000 builds): `double_pendulum`, `double_pendulum_cams` and
+    /// `double_pendulum_trim` stay below 5 % of r and keep their bills; at 5 % the bound acted on
+    /// `panda_three` and `ur10_lift_elbow_wrist` given `tolerance = 0.05` (first-order shift
+    /// 8.7 % → 5 % of r, and 6.9 % → 5 %) and cost accuracy there for nothing (drawn p99
+    /// 1.60° → 2.28° and 0.43° → 0.52°, as built p95 11.2° → 12.1° and 3.89° → 4.00°; no
+    /// build lost its equilibrium either way).
+    /// The planar three-link arm of `springfit init` whose builds do lose it (19 of 1,000) has a
+    /// first-order shift of only 1.6 % of r: those builds fail beyond first order. Holding it
+    /// at 1.1 % of r made it worse (188 of 1,000 builds without an equilibrium; the cone's
+    /// interior-point answer spreads the stiffness over 377 of 387 candidates), and 0.6 % is
+    /// infeasible. So the default only guards against shifts well beyond those measured.
+    pub const DEFAULT_FRACTION: f64 = 0.10;
+
+    /// The bound for a region of extent `extent`; None when off.
+    pub fn bound(self, extent: f64) -> Option<f64> {
+        match self {
+            MaxShift::Default => Some(MaxShift::DEFAULT_FRACTION * extent),
+            MaxShift::None => None,
+            MaxShift::Metric(s) => Some(s),
+        }
+    }
+}
+
+fn max_shift_or_none<'de, D: serde::Deserializer<'de>>(d: D) -> Result<MaxShift, D::Error> {
+    match NumberOrAuto::<f64>::deserialize(d)? {
+        NumberOrAuto::Number(x) => Ok(MaxShift::Metric(x)),
+        NumberOrAuto::Word(w) if w == "none" => Ok(MaxShift::None),
+        NumberOrAuto::Word(w) => {
+            Err(serde::de::Error::custom(format!("\"{w}\": expected a positive metric shift or \"none\"")))
+        }
     }
 }
 
@@ -247,6 +303,7 @@ impl Default for FitSettings {
             trimmed_weight: 0.0,
             trim_rule: TrimRule::Residual,
             shift_weight: 0.0,
+            max_shift: MaxShift::Default,
             max_preload: 0.0,
             max_element_torque: 0.0,
             mass_weight: 0.0,
@@ -345,6 +402,14 @@ impl FitSettings {
         }
         if !(self.shift_weight.is_finite() && self.shift_weight >= 0.0) {
             return err("shift_weight", "must be ≥ 0");
+        }
+        if let MaxShift::Metric(s) = self.max_shift
+            && !(s.is_finite() && s > 0.0)
+        {
+            return err(
+                "max_shift",
+                "must be a positive RMS metric shift (rad·√(kg·m²), the unit of the region's radius) or \"none\"",
+            );
         }
         if !(self.max_preload.is_finite() && self.max_preload >= 0.0) {
             return err("max_preload", "must be ≥ 0 N·m (0: no bound)");

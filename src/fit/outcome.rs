@@ -113,6 +113,37 @@ pub struct SolveReport {
     /// at K itself found no set that does (then the best set of at most K found has fewer
     /// elements); None when the budget K was met as asked, or without a budget.
     pub budget_met_at: Option<usize>,
+    /// With a tolerance and `max_shift`: what the bound on the builds' equilibrium shift did.
+    pub shift_bound: Option<ShiftBound>,
+}
+
+/// What the fit's bound on the builds' RMS metric equilibrium shift (`[fit] max_shift`) did:
+/// the fit is solved as without it first, and the cone is added only when that fit breaks it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ShiftBound {
+    /// The bound s, rad·√(kg·m²) (the unit of the region's radius).
+    pub bound: f64,
+    /// √(kᵀSk) of the fit without the bound.
+    pub unbounded_rms: f64,
+    /// √(kᵀSk) of the fit returned.
+    pub rms: f64,
+    /// The expected squared residual over builds (the objective the fit minimises, equalities
+    /// aside) of the fit returned over that of the fit without the bound: 1 when inactive.
+    pub objective_ratio: f64,
+    /// What happened.
+    pub action: ShiftAction,
+}
+
+/// Whether the shift bound acted.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShiftAction {
+    /// The fit without the bound meets it: nothing changed.
+    Inactive,
+    /// The fit was solved again with the cone and holds it.
+    Held,
+    /// The bound could not be held (the reason): the fit without it is returned.
+    NotMet(String),
 }
 
 /// How well a potential does on the held-out evaluation fan.

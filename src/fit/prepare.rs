@@ -12,7 +12,7 @@ use super::mass::{Floor, MassModel};
 use super::problem::{
     FitProblem, Requirements, RowsOut, arm, assemble, assemble_factored, fold_fixed, mid_range, training_samples,
 };
-use super::robust::{BuildPenalty, base_jacobian, spread_with, trimmed_spread};
+use super::robust::{BuildPenalty, ShiftForm, base_jacobian, spread_with, trimmed_spread};
 use super::smoothing::{SmoothingInputs, append_rows, group_smoothing};
 use crate::design::Design;
 use crate::design::fit::FitSettings;
@@ -279,8 +279,9 @@ impl Prepared<'_> {
 
     /// What the tolerance-aware fit adds to the normal equations, from the nominal stiffnesses
     /// `k`: the diagonal Dᵢᵢ of the springs and one block per group (one deviation per part),
-    /// plus the optional shift penalty (see `fit::robust`).
-    pub(super) fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<BuildPenalty> {
+    /// plus the optional shift penalty (see `fit::robust`); and the builds' expected squared
+    /// equilibrium shift kᵀSk as a sum of squares, what `max_shift` bounds.
+    pub(super) fn build_penalty(&self, k: &[f64], settings: &FitSettings) -> Result<(BuildPenalty, ShiftForm)> {
         let design = self.design;
         // The nominal potential includes the trims at mid-range (H and J are the whole arm's);
         // the trims themselves spread nothing: they are set after the build.
@@ -298,8 +299,9 @@ impl Prepared<'_> {
         let sp = spread_with(chain, &self.training, (&self.candidates, grouping), rows, &nominal, &sigma2, &jac)?;
         let m = rows.nrows() as f64;
         let untrimmed = BuildPenalty::of(&sp, settings.tolerance_weight, settings.shift_weight * m);
+        let shift = ShiftForm::of(&sp);
         if settings.trimmed_weight == 0.0 {
-            return Ok(untrimmed);
+            return Ok((untrimmed, shift));
         }
         // Trimmed builds: the trims follow each build's equilibrium and are re-set there.
         let rest = arm(&self.candidates, k, &SpringSet { elements: Vec::new(), stiffness: Vec::new() });
@@ -317,7 +319,7 @@ impl Prepared<'_> {
             &jac,
             settings.trim_rule,
         )?;
-        Ok(untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)))
+        Ok((untrimmed.plus(BuildPenalty::of(&tsp, settings.trimmed_weight, 0.0)), shift))
     }
 }
 

@@ -21,7 +21,9 @@
 //! equilibrium instead (Dᵢᵢ = σᵢ² ‖Aᵢ‖²) penalises every preloaded element for a shift the
 //! build absorbs, and throws out the useful antagonistic pairs. The expected squared metric
 //! shift of the equilibrium, E‖Δq‖²_M = Σᵢ σᵢ² kᵢ² ‖H⁻¹ gᵢ‖²_M, can be penalised as well (an
-//! optional weight; tuning after the build can put the equilibrium back instead).
+//! optional weight; tuning after the build can put the equilibrium back instead), or bounded:
+//! `[fit] max_shift` holds √(kᵀSk) ≤ s as a second-order cone of the QP ([`ShiftCone`], on by
+//! default, added only when the fit without it breaks the bound; see `fit::run`).
 //!
 //! **Cams.** A cam's potential Σⱼ cⱼ Bⱼ is stored by one follower spring: its rate error scales
 //! the whole cam, so all the columns of cam g share one δ_g. With vᵢ = Aᵢ − J H⁻¹ gᵢ and V_g the
@@ -106,16 +108,103 @@ pub struct Block {
     pub rows: DMatrix<f64>,
     /// σ² (H⁻¹ G_g)ᵀ M(q_eq) (H⁻¹ G_g): the expected squared metric shift of the equilibrium.
     pub shift: DMatrix<f64>,
+    /// F = σ Cᵀ H⁻¹ G_g (n × columns, M(q_eq) = C Cᵀ): FᵀF = `shift`, the cam's rows of the
+    /// shift cone's factor ([`ShiftForm`]).
+    pub shift_factor: DMatrix<f64>,
+}
+
+/// The expected squared metric shift of a build's equilibrium as a sum of squares,
+/// E‖Δq‖²_M = kᵀSk = ‖Lᵀk‖²: one row √Sᵢᵢ eᵢᵀ per spring (its own deviation) and n rows
+/// σ_g Cᵀ H⁻¹ G_g per cam (one deviation per cam, M(q_eq) = C Cᵀ). Kept by part rather than as a
+/// dense p × p factor: the fits of thousands of candidates restrict it to the few columns the
+/// selection keeps ([`ShiftForm::factor_on`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShiftForm {
+    /// Sᵢᵢ of each spring (0 for a cam's columns).
+    pub diagonal: DVector<f64>,
+    /// (columns, F) per cam: FᵀF is its block of S.
+    pub blocks: Vec<(Vec<usize>, DMatrix<f64>)>,
+}
+
+impl ShiftForm {
+    /// The form of a spread's shift term.
+    pub fn of(sp: &Spread) -> ShiftForm {
+        ShiftForm {
+            diagonal: sp.shift.clone(),
+            blocks: sp.blocks.iter().map(|b| (b.columns.clone(), b.shift_factor.clone())).collect(),
+        }
+    }
+
+    /// √(kᵀSk): the builds' RMS metric shift of the equilibrium (first order) at the stiffnesses
+    /// `k` (all candidates).
+    pub fn rms(&self, k: &[f64]) -> f64 {
+        let diag: f64 = k.iter().zip(self.diagonal.iter()).map(|(k, d)| d * k * k).sum();
+        let blocks: f64 = self
+            .blocks
+            .iter()
+            .map(|(cols, f)| (f * DVector::from_iterator(cols.len(), cols.iter().map(|&j| k[j]))).norm_squared())
+            .sum();
+        (diag + blocks).max(0.0).sqrt()
+    }
+
+    /// Lᵀ restricted to the unknowns on `columns` (the solver's support: one unknown per entry,
+    /// a cam's signed coefficient on its + column, whose shift is the − column's negated): rows
+    /// that see none of them are left out.
+    pub fn factor_on(&self, columns: &[usize]) -> DMatrix<f64> {
+        let mut rows: Vec<DVector<f64>> = Vec::new();
+        for (a, &j) in columns.iter().enumerate() {
+            if self.diagonal[j] > 0.0 {
+                let mut r = DVector::zeros(columns.len());
+                r[a] = self.diagonal[j].sqrt();
+                rows.push(r);
+            }
+        }
+        for (cols, f) in &self.blocks {
+            let at: Vec<(usize, usize)> = columns
+                .iter()
+                .enumerate()
+                .filter_map(|(a, j)| cols.iter().position(|c| c == j).map(|c| (a, c)))
+                .collect();
+            if at.is_empty() {
+                continue;
+            }
+            for i in 0..f.nrows() {
+                let mut r = DVector::zeros(columns.len());
+                for &(a, c) in &at {
+                    r[a] = f[(i, c)];
+                }
+                rows.push(r);
+            }
+        }
+        let mut l = DMatrix::zeros(rows.len(), columns.len());
+        for (i, r) in rows.iter().enumerate() {
+            l.set_row(i, &r.transpose());
+        }
+        l
+    }
+}
+
+/// The bound the fit holds on the builds' RMS metric shift, ‖Lᵀk‖ ≤ `bound` (`[fit] max_shift`):
+/// a second-order cone of the QP, added only when the fit without it breaks the bound.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShiftCone {
+    /// The shift as a sum of squares.
+    pub form: ShiftForm,
+    /// The bound s on √(kᵀSk).
+    pub bound: f64,
 }
 
 /// What the tolerance-aware fit adds to the normal equations: a diagonal (springs, each with its
-/// own deviation) plus symmetric blocks over the columns of each cam (one deviation per cam).
+/// own deviation) plus symmetric blocks over the columns of each cam (one deviation per cam);
+/// and, where the fit bounds the builds' equilibrium shift, the cone the QP holds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BuildPenalty {
     /// Added to G's diagonal.
     pub diagonal: DVector<f64>,
     /// (columns, block) added to G over those columns.
     pub blocks: Vec<(Vec<usize>, DMatrix<f64>)>,
+    /// The bound on the shift the QP holds as a cone (None: no bound in this solve).
+    pub cone: Option<ShiftCone>,
 }
 
 impl BuildPenalty {
@@ -128,13 +217,15 @@ impl BuildPenalty {
                 .iter()
                 .map(|b| (b.columns.clone(), &b.rows * rows_weight + &b.shift * shift_weight))
                 .collect(),
+            cone: None,
         }
     }
 
-    /// The sum of two penalties over the same candidates.
+    /// The sum of two penalties over the same candidates (a cone from either).
     pub fn plus(mut self, other: BuildPenalty) -> BuildPenalty {
         self.diagonal += other.diagonal;
         self.blocks.extend(other.blocks);
+        self.cone = self.cone.or(other.cone);
         self
     }
 
@@ -427,6 +518,10 @@ fn assemble_spread(
         d_shift[i] = sigma2[i] * h.dot(&(m_eq * &h));
     }
     let mut blocks = Vec::new();
+    // C of M(q_eq) = C Cᵀ for the cams' shift factors (M is positive definite; the identity if
+    // rounding says otherwise, which only the factor's rows would see).
+    let chol_t =
+        m_eq.clone().cholesky().map_or_else(|| DMatrix::identity(m_eq.nrows(), m_eq.ncols()), |c| c.l().transpose());
     for group in &grouping.groups {
         let columns = group.columns.clone();
         let s2 = sigma2[columns[0]];
@@ -441,6 +536,7 @@ fn assemble_spread(
         blocks.push(Block {
             rows: crate::solve::dense::gram_of(&v) * s2,
             shift: h.transpose() * m_eq * &h * s2,
+            shift_factor: &chol_t * &h * s2.sqrt(),
             columns,
         });
     }

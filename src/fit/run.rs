@@ -8,7 +8,8 @@
 //!    training fan, solved around the trims at mid-range (`prepare`, `problem`, `smoothing`);
 //! 2. **solve** with the **selection** of at most K items (`solve`);
 //! 3. with a tolerance, the **robust refit**: the nominal solution fixes J and H, then the
-//!    expected residual over builds is minimised (`robust`);
+//!    expected residual over builds is minimised (`robust`), and solved once more with the
+//!    cone of `max_shift` when that fit's builds' equilibrium shift breaks the bound;
 //! 4. **evaluate** the fitted springs on the held-out fan only (`evaluate`);
 //! 5. the **bill** of materials: the used elements, the trims, the parts realised (`bill`).
 
@@ -18,8 +19,9 @@ use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
 use super::mass::{Floor, MassTerm};
-use super::outcome::{Evaluation, FitOutcome, SolveReport, SolveStatus, Solver, Timings};
+use super::outcome::{Evaluation, FitOutcome, ShiftAction, ShiftBound, SolveReport, SolveStatus, Solver, Timings};
 use super::prepare::{Prepared, fans};
+use super::robust::{BuildPenalty, ShiftCone};
 use super::solve::solve;
 use crate::design::Design;
 use crate::design::fit::{FitSettings, SolverKind};
@@ -28,6 +30,7 @@ use crate::error::{Error, Result};
 use crate::potential::{ExactPotential, Potential, SpringSet};
 use crate::progress::Progress;
 use crate::residual::{band_stats, fan_angles, stats};
+use nalgebra::DVector;
 
 /// Fits `design` with the elements of `catalog`. `progress` is told when each step starts (for
 /// progress bars); the library itself prints nothing.
@@ -169,13 +172,81 @@ impl Prepared<'_> {
         let first = FitSettings { restarts: 0, pair_swaps: false, ..*settings };
         let (k, nominal) = solve(&self.problem, &self.gram, columns, q_eq, &first, None, mass)?;
         progress.stage("fitting for the build tolerance");
-        let penalty = self.build_penalty(&k, settings)?;
+        let (penalty, shift) = self.build_penalty(&k, settings)?;
         let (k, mut report) = solve(&self.problem, &self.gram, columns, q_eq, settings, Some(&penalty), mass)?;
         report.selection_evaluations += nominal.selection_evaluations;
         report.selection_swaps += nominal.selection_swaps;
         report.cut_rounds += nominal.cut_rounds;
+        let (k, mut report) = match settings.max_shift.bound(self.region.extent) {
+            Some(bound) => {
+                let cone = ShiftCone { form: shift, bound };
+                self.bound_shift((k, report), (&penalty, cone, mass), settings, progress)?
+            }
+            None => (k, report),
+        };
         report.expected_build_spread = Some(penalty.value(&k));
         Ok((k, report))
+    }
+
+    /// The bound on the builds' RMS metric equilibrium shift (`max_shift`) on the tolerance-aware
+    /// fit `fitted` (solved with `penalty`, no cone): returned as it is when it meets the bound,
+    /// so every fit the bound does not touch stays what it was bit for bit; otherwise solved
+    /// again with the cone ‖Lᵀk‖ ≤ s in the QP, the same selection first (it does not see the
+    /// cone). When the cone cannot be held (NNLS, which holds no cone; the equalities need a
+    /// larger shift; a solver error) the fit without it is returned and the report says why:
+    /// the fit job warns, naming the softest direction's stiffness against its load.
+    fn bound_shift(
+        &self,
+        fitted: (Vec<f64>, SolveReport),
+        (penalty, cone, mass): (&BuildPenalty, ShiftCone, Option<&MassTerm<'_>>),
+        settings: &FitSettings,
+        progress: Progress<'_>,
+    ) -> Result<(Vec<f64>, SolveReport)> {
+        let (k, mut report) = fitted;
+        let unbounded_rms = cone.form.rms(&k);
+        let bound = cone.bound;
+        let record = |report: &mut SolveReport, rms: f64, objective_ratio: f64, action: ShiftAction| {
+            report.shift_bound = Some(ShiftBound { bound, unbounded_rms, rms, objective_ratio, action });
+        };
+        if unbounded_rms <= bound {
+            record(&mut report, unbounded_rms, 1.0, ShiftAction::Inactive);
+            return Ok((k, report));
+        }
+        if settings.solver == SolverKind::Nnls {
+            let reason = "NNLS holds no cone: set solver = \"qp\" to bound the shift".to_string();
+            record(&mut report, unbounded_rms, 1.0, ShiftAction::NotMet(reason));
+            return Ok((k, report));
+        }
+        progress.stage("bounding the builds' equilibrium shift");
+        let objective = |k: &[f64]| {
+            let kv = DVector::from_column_slice(k);
+            kv.dot(&(&self.gram.g * &kv)) + penalty.value(k) - 2.0 * self.gram.c.dot(&kv) + self.gram.bb
+        };
+        let coned = BuildPenalty { cone: Some(cone.clone()), ..penalty.clone() };
+        let columns = (&self.candidates[..], &self.grouping);
+        let q_eq = self.design.q_eq.as_slice();
+        match solve(&self.problem, &self.gram, columns, q_eq, settings, Some(&coned), mass) {
+            Ok((kb, mut again)) => {
+                let rms = cone.form.rms(&kb);
+                let ratio = objective(&kb) / objective(&k).max(f64::MIN_POSITIVE);
+                again.selection_evaluations += report.selection_evaluations;
+                again.selection_swaps += report.selection_swaps;
+                again.cut_rounds += report.cut_rounds;
+                // Clarabel's tolerance is 1e-8 on the scaled cone; 1e-6 of the bound is far beyond it.
+                let action = if rms <= bound * (1.0 + 1e-6) {
+                    ShiftAction::Held
+                } else {
+                    ShiftAction::NotMet(format!("the QP stopped at an RMS shift of {rms:.4}"))
+                };
+                record(&mut again, rms, ratio, action);
+                Ok((kb, again))
+            }
+            Err(e @ (Error::Infeasible { .. } | Error::Numerical { .. })) => {
+                record(&mut report, unbounded_rms, 1.0, ShiftAction::NotMet(e.to_string()));
+                Ok((k, report))
+            }
+            Err(e) => Err(e),
+        }
     }
 }
 
@@ -221,6 +292,7 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progre
             cut_rounds: 0,
             expected_build_spread: None,
             budget_met_at: None,
+            shift_bound: None,
         },
         timings: Timings {
             geodesics: t_geo,

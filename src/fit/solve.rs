@@ -12,7 +12,7 @@ use super::mass::MassTerm;
 use super::outcome::{SolveReport, SolveStatus};
 use super::problem::FitProblem;
 use super::problem::unit_preloads;
-use super::robust::BuildPenalty;
+use super::robust::{BuildPenalty, ShiftCone};
 use crate::design::fit::{FitSettings, SolverKind};
 
 use crate::elements::group::{Columns, Grouping};
@@ -21,7 +21,7 @@ use crate::solve::LinearGroup;
 use crate::solve::lawson_hanson::nnls_equalities;
 use crate::solve::lsq::Gram;
 use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
-use crate::solve::qp::{QpSettings, QpStatus, qp_signed};
+use crate::solve::qp::{NormBound, QpSettings, QpStatus, qp_cone, qp_signed};
 use crate::solve::screen::qp_screened;
 use crate::solve::selection::{
     Items, SelectionSettings, SubsetBudget, backward_elimination, budget_multiplier, extension_bounds, search,
@@ -51,7 +51,9 @@ const SCREEN_FROM: usize = 600;
 /// when the fit at λ is over the budget, the selection chooses again with every support refitted
 /// within the budget (supports compared at equal mass, not at one trade of residual for mass)
 /// and the chosen support is solved at the least λ′ ≥ λ that brings it within (bisection on the
-/// multiplier). Without `mass` nothing changes, bit for bit.
+/// multiplier). Without `mass` nothing changes, bit for bit. A cone in `extra` (the bound on the
+/// builds' equilibrium shift) is held by the QP on the selected columns; the selection and NNLS
+/// do not see it (`fit::run` reports when it is not held).
 pub fn solve(
     problem: &FitProblem,
     gram: &Gram,
@@ -66,13 +68,21 @@ pub fn solve(
         d.add_to(&mut gram.g);
     }
     let signed = settings.solver == SolverKind::Qp;
+    let cone = extra.and_then(|e| e.cone.as_ref());
     let Some(m) = mass else {
-        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None));
+        return solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None, cone));
     };
     // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
     let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
-    let first =
-        solve_gram_with(problem, weighed(&gram, m, m.weight), columns, q_eq, settings, signed, (qp_budget, None))?;
+    let first = solve_gram_with(
+        problem,
+        weighed(&gram, m, m.weight),
+        columns,
+        q_eq,
+        settings,
+        signed,
+        (qp_budget, None, cone),
+    )?;
     let within = |k: &[f64]| m.mass(k) <= m.budget * (1.0 + 1e-9);
     if m.budget <= 0.0 || qp_budget.is_some() || within(&first.0) {
         return Ok(first);
@@ -87,7 +97,15 @@ pub fn solve(
     let mut chosen_report = first.1.clone();
     let support = select(&weighted, columns.1, settings, &mut chosen_report, Some(&limit))?;
     let on_support = |weight: f64| {
-        solve_gram_with(problem, weighed(&gram, m, weight), columns, q_eq, settings, signed, (None, Some(&support)))
+        solve_gram_with(
+            problem,
+            weighed(&gram, m, weight),
+            columns,
+            q_eq,
+            settings,
+            signed,
+            (None, Some(&support), cone),
+        )
     };
     let (k, mut report) = least_weight_within(on_support, m, gram.bb, settings)?;
     report.selection_evaluations = chosen_report.selection_evaluations;
@@ -197,11 +215,12 @@ pub fn solve_gram(
     settings: &FitSettings,
     signed: bool,
 ) -> Result<(Vec<f64>, SolveReport)> {
-    solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None))
+    solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None, None))
 }
 
-/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M, and with the
-/// selection unless `chosen` gives the support (the columns a selection returned).
+/// [`solve_gram`] with the QP bounding the springs' mass by `budget`'s cᵀk ≤ M and the builds'
+/// equilibrium shift by `cone`, and with the selection unless `chosen` gives the support (the
+/// columns a selection returned).
 fn solve_gram_with(
     problem: &FitProblem,
     gram: Gram,
@@ -209,7 +228,7 @@ fn solve_gram_with(
     q_eq: &[f64],
     settings: &FitSettings,
     signed: bool,
-    (budget, chosen): (Option<&MassTerm<'_>>, Option<&[usize]>),
+    (budget, chosen, cone): (Option<&MassTerm<'_>>, Option<&[usize]>, Option<&ShiftCone>),
 ) -> Result<(Vec<f64>, SolveReport)> {
     let p = candidates.len();
     let weighted = with_equalities(&gram, &problem.equalities, problem.row_count(), settings);
@@ -221,6 +240,7 @@ fn solve_gram_with(
         cut_rounds: 0,
         expected_build_spread: None,
         budget_met_at: None,
+        shift_bound: None,
     };
     let support = match chosen {
         Some(support) => support.to_vec(),
@@ -241,7 +261,7 @@ fn solve_gram_with(
     let unit = unit_preloads(candidates, q_eq);
     let k_sub = match settings.solver {
         SolverKind::Nnls => solve_nnls(problem, &weighted, &unknowns, &upper, &unit, settings)?,
-        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), settings, &mut report)?,
+        SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), cone, settings, &mut report)?,
     };
     Ok((unknowns.stiffnesses(grouping, p, &k_sub), report))
 }
@@ -349,13 +369,14 @@ fn solve_nnls(
 }
 
 /// The Clarabel QP on the unknowns: equalities exact, monotonicity by cutting planes, the
-/// preload bound Σ|τᵢ(q_eq)| ≤ P as one more inequality.
+/// preload bound Σ|τᵢ(q_eq)| ≤ P as one more inequality, the shift bound ‖Lᵀk‖ ≤ s as a cone.
 #[allow(clippy::too_many_arguments)]
 fn solve_qp(
     problem: &FitProblem,
     gram: &Gram,
     unknowns: &Unknowns,
     (upper, unit, budget): (&[Option<f64>], &[f64], Option<&MassTerm<'_>>),
+    cone: Option<&ShiftCone>,
     settings: &FitSettings,
     report: &mut SolveReport,
 ) -> Result<DVector<f64>> {
@@ -402,7 +423,17 @@ fn solve_qp(
     }
     let (sub, equalities, inequalities) =
         (gram.subset(support), restrict(&problem.equalities), restrict(&inequalities));
-    let sol = if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
+    let sol = if let Some(c) = cone {
+        // The cone on the support's unknowns: Clarabel over all of them (the screened and
+        // active-set paths know linear rows only).
+        let bound = NormBound {
+            factor: c.form.factor_on(support),
+            bound: c.bound,
+            name: format!("max_shift (the builds' RMS metric equilibrium shift ≤ {:.4})", c.bound),
+        };
+        let (groups, l1) = ((&equalities[..], &inequalities[..]), settings.l1);
+        qp_cone(&sub, groups, upper, &unknowns.signed, l1, &QpSettings::default(), Some(&bound))?
+    } else if support.len() >= SCREEN_FROM && !unknowns.signed.iter().any(|&f| f) {
         // Many springs: started from the weighted NNLS support.
         let start = nnls_support(&sub, &equalities, problem.row_count(), settings)?;
         // Only k ≥ 0 and exact equalities: an active-set NNLS on an updated Cholesky factor is

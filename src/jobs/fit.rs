@@ -142,10 +142,37 @@ impl<'a> FitJob<'a> {
             }
         };
         let as_built_seconds = t.elapsed().as_secs_f64();
-        let warnings =
-            catalog.map(|(c, _)| warnings(design, settings, c, &outcome, parts.as_ref())).unwrap_or_default();
+        let warnings = catalog
+            .map(|(c, _)| warnings(design, settings, c, (&outcome, as_built.as_ref()), parts.as_ref()))
+            .unwrap_or_default();
         Ok(FitRun { outcome, parts, as_built, as_built_seconds, exact: self.exact, warnings })
     }
+}
+
+/// The warning of a bound on the builds' equilibrium shift that acted (it costs accuracy as
+/// drawn) or could not be held, with what the builds' shift model says of the softest direction
+/// (its net stiffness against the preload error and the gravity it carries) when there are
+/// builds; None when the bound was inactive.
+fn shift_warning(b: &crate::fit::outcome::ShiftBound, as_built: Option<&AsBuilt>) -> Option<String> {
+    use crate::fit::outcome::ShiftAction;
+    let what = match &b.action {
+        ShiftAction::Inactive => return None,
+        ShiftAction::Held => format!(
+            "fit.max_shift held the builds' RMS metric equilibrium shift at {:.4} (the fit without it: {:.4}), at {:.3}× the expected squared residual over builds",
+            b.rms, b.unbounded_rms, b.objective_ratio
+        ),
+        ShiftAction::NotMet(reason) => format!(
+            "fit.max_shift = {:.4} is not held: the builds' RMS metric equilibrium shift stays {:.4} ({reason})",
+            b.bound, b.rms
+        ),
+    };
+    let soft = as_built.and_then(|ab| ab.shift_model).map(|m| {
+        format!(
+            "; the softest direction (mostly joint {}) has {:.3} N·m/rad of net stiffness against a preload error of {:.3} N·m RMS, the springs carrying {:.3} N·m of gravity along it: raise fit.frequency, tighten the tolerance or move q_eq where gravity loads that direction less",
+            m.soft_joint, m.soft_stiffness_nm_per_rad, m.soft_preload_spread_nm, m.soft_gravity_nm
+        )
+    });
+    Some(what + &soft.unwrap_or_default())
 }
 
 /// The springs of `design` as `springfit fit` fits them, for the commands that fit a design
@@ -266,18 +293,22 @@ impl FitRun {
     }
 }
 
-/// The warnings of a fit of springs: its equalities as evaluated, its bill against the
-/// catalogue, each cam's drawing, the elements no part meets.
+/// The warnings of a fit of springs: its equalities as evaluated, the bound on the builds'
+/// equilibrium shift where it acted or could not be held, its bill against the catalogue, each
+/// cam's drawing, the elements no part meets.
 fn warnings(
     design: &Design,
     settings: &FitSettings,
     catalog: &Catalog,
-    outcome: &FitOutcome,
+    (outcome, as_built): (&FitOutcome, Option<&AsBuilt>),
     parts: Option<&Parts>,
 ) -> Vec<Warning> {
     let mut out = Vec::new();
     let mut push = |topic: Topic, message: String| out.push(Warning { topic, message });
     if let Some(w) = hints::fit_equality_warning(design, settings, &outcome.metrics) {
+        push(Topic::Equalities, w);
+    }
+    if let Some(w) = outcome.solve.shift_bound.as_ref().and_then(|b| shift_warning(b, as_built)) {
         push(Topic::Equalities, w);
     }
     for w in hints::bom_warnings(catalog, &outcome.bom) {

@@ -104,9 +104,58 @@ pub fn qp_signed(
     l1: f64,
     settings: &QpSettings,
 ) -> Result<QpSolution> {
+    qp_cone(gram, (equalities, inequalities), upper, free, l1, settings, None)
+}
+
+/// A second-order cone ‖F k‖ ≤ s on the unknowns: what [`qp_cone`] adds to the QP (the fit's
+/// bound on the builds' equilibrium shift, `fit::robust::ShiftCone`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormBound {
+    /// F (rows × unknowns).
+    pub factor: DMatrix<f64>,
+    /// s > 0.
+    pub bound: f64,
+    /// What the bound is, for the message of an infeasible problem (e.g. `max_shift (…)`).
+    pub name: String,
+}
+
+/// [`qp_signed`] with the cone ‖F k‖ ≤ s of `cone` held as well (None: [`qp_signed`] itself).
+/// With a cone the solve is Clarabel's interior point always, unpolished: the active-set
+/// methods know only linear rows, and the polished vertex of the linear rows would leave the
+/// cone whenever it is active (the reason it is there). An infeasible problem names the cone
+/// when dropping it restores feasibility.
+pub fn qp_cone(
+    gram: &Gram,
+    (equalities, inequalities): (&[LinearGroup], &[LinearGroup]),
+    upper: &[Option<f64>],
+    free: &[bool],
+    l1: f64,
+    settings: &QpSettings,
+    cone: Option<&NormBound>,
+) -> Result<QpSolution> {
     let problem = QpProblem { gram, equalities, inequalities, upper, l1 };
-    let qp = ScaledQp::new(&problem, free, settings);
+    let mut qp = ScaledQp::new(&problem, free, settings);
+    if let Some(c) = cone {
+        // ‖F D x‖ ≤ s as ‖(F D / s) x‖ ≤ 1 in the scaled unknowns.
+        let mut f = c.factor.clone();
+        for (j, dj) in qp.d.iter().enumerate() {
+            f.column_mut(j).scale_mut(*dj / c.bound);
+        }
+        qp.cone = Some((f, c.name.clone()));
+    }
     let (d, free) = (&qp.d, &qp.free);
+    if qp.cone.is_some() {
+        let (x, status, iterations, rounds, cuts) = interior_point_with_cuts(&qp)?;
+        let k = DVector::from_fn(gram.dim(), |j, _| if free[j] { x[j] * d[j] } else { (x[j] * d[j]).max(0.0) });
+        return Ok(QpSolution {
+            k,
+            status: if status == SolverStatus::Solved { QpStatus::Solved } else { QpStatus::AlmostSolved },
+            iterations,
+            cut_rounds: rounds,
+            cuts,
+            max_equality_residual: qp.max_equality_residual(&x),
+        });
+    }
     if free.iter().any(|&f| f) && qp.ub.iter().all(Option::is_none) {
         let x = active_set_with_cuts(&qp)?;
         let k = DVector::from_fn(gram.dim(), |j, _| if free[j] { x.0[j] * d[j] } else { (x.0[j] * d[j]).max(0.0) });
@@ -169,6 +218,8 @@ struct ScaledQp<'a> {
     ub: Vec<Option<f64>>,
     /// Which unknowns are free of sign.
     free: Vec<bool>,
+    /// A cone ‖F x‖ ≤ 1 on the scaled unknowns and its name ([`qp_cone`]).
+    cone: Option<(DMatrix<f64>, String)>,
 }
 
 impl<'a> ScaledQp<'a> {
@@ -196,6 +247,7 @@ impl<'a> ScaledQp<'a> {
             ineqs,
             ub,
             free,
+            cone: None,
         }
     }
 
@@ -256,7 +308,8 @@ fn interior_point_with_cuts(qp: &ScaledQp) -> Result<(DVector<f64>, SolverStatus
     let mut rounds = 0;
     loop {
         let cut_rows: Vec<(DVector<f64>, f64)> = active.iter().map(|&(g, r)| qp.cut_row(g, r)).collect();
-        let (status, x, iters) = solve_once(&qp.s, &qp.eqs, &cut_rows, &qp.ub, &qp.free, settings)?;
+        let cone = qp.cone.as_ref().map(|c| &c.0);
+        let (status, x, iters) = solve_once(&qp.s, &qp.eqs, &cut_rows, (&qp.ub, &qp.free, cone), settings)?;
         iterations += iters;
         match status {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {}
@@ -608,13 +661,13 @@ fn scale_cols(g: &LinearGroup, d: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
     (m, g.rhs.clone())
 }
 
-/// One Clarabel solve: equalities, the given inequality rows, bounds.
+/// One Clarabel solve: equalities, the given inequality rows, bounds, and a cone ‖F x‖ ≤ 1
+/// when given.
 fn solve_once(
     s: &Scaled,
     eqs: &[(DMatrix<f64>, DVector<f64>)],
     cuts: &[(DVector<f64>, f64)],
-    ub: &[Option<f64>],
-    free: &[bool],
+    (ub, free, cone): (&[Option<f64>], &[bool], Option<&DMatrix<f64>>),
     settings: &QpSettings,
 ) -> Result<(SolverStatus, DVector<f64>, u32)> {
     let n = s.n;
@@ -674,6 +727,21 @@ fn solve_once(
             r += 1;
         }
     }
+    let n_linear = r;
+    // (1, F x) in the second-order cone: s₀ = 1, sᵢ = (F x)ᵢ, ‖(s₁, …)‖ ≤ s₀.
+    if let Some(f) = cone {
+        b.push(1.0);
+        r += 1;
+        for i in 0..f.nrows() {
+            for j in 0..n {
+                if f[(i, j)] != 0.0 {
+                    rows[j].push((r, -f[(i, j)]));
+                }
+            }
+            b.push(0.0);
+            r += 1;
+        }
+    }
     let mut colptr = vec![0];
     let mut rowval = Vec::new();
     let mut nzval = Vec::new();
@@ -698,8 +766,11 @@ fn solve_once(
     if n_eq > 0 {
         cones.push(SupportedConeT::ZeroConeT(n_eq));
     }
-    if r > n_eq {
-        cones.push(SupportedConeT::NonnegativeConeT(r - n_eq));
+    if n_linear > n_eq {
+        cones.push(SupportedConeT::NonnegativeConeT(n_linear - n_eq));
+    }
+    if r > n_linear {
+        cones.push(SupportedConeT::SecondOrderConeT(r - n_linear));
     }
     let cs = DefaultSettings {
         verbose: false,
@@ -727,11 +798,16 @@ fn solve_once(
 fn diagnose(qp: &ScaledQp) -> Error {
     let (s, equalities, eqs, inequalities, ineqs) = (&qp.s, qp.equalities, &qp.eqs, qp.inequalities, &qp.ineqs);
     let (ub, free, settings) = (&qp.ub, &qp.free, qp.settings);
+    let cone = qp.cone.as_ref().map(|c| &c.0);
+    let feasible_with =
+        |eqs: &[(DMatrix<f64>, DVector<f64>)], cuts: &[(DVector<f64>, f64)], ub: &[Option<f64>], cone| {
+            matches!(
+                solve_once(s, eqs, cuts, (ub, free, cone), settings),
+                Ok((SolverStatus::Solved | SolverStatus::AlmostSolved, _, _))
+            )
+        };
     let feasible = |eqs: &[(DMatrix<f64>, DVector<f64>)], cuts: &[(DVector<f64>, f64)], ub: &[Option<f64>]| {
-        matches!(
-            solve_once(s, eqs, cuts, ub, free, settings),
-            Ok((SolverStatus::Solved | SolverStatus::AlmostSolved, _, _))
-        )
+        feasible_with(eqs, cuts, ub, cone)
     };
     let all_cuts: Vec<(DVector<f64>, f64)> =
         ineqs.iter().flat_map(|(m, h)| (0..m.nrows()).map(move |r| (m.row(r).transpose(), h[r]))).collect();
@@ -756,6 +832,11 @@ fn diagnose(qp: &ScaledQp) -> Error {
     }
     if ub.iter().any(Option::is_some) && feasible(eqs, &all_cuts, &no_ub) {
         culprits.push("max_stiffness (the catalogue's stiffness limits)".into());
+    }
+    if let Some((_, name)) = &qp.cone
+        && feasible_with(eqs, &all_cuts, ub, None)
+    {
+        culprits.push(name.clone());
     }
     let (constraint, reason) = match culprits.len() {
         0 => ("the constraints together".to_string(), "no single group can be dropped to restore feasibility; relax the requirements or widen the catalogue".to_string()),
