@@ -67,6 +67,18 @@ pub fn solve(
     let Some(m) = mass else {
         return solve_gram_with(problem, gram, columns, q_eq, settings, signed, None);
     };
+    // The QP's signed cam coefficients would be charged λ·a·cⱼ, not λ·a·|cⱼ|: there cams weigh
+    // nothing (fit::mass), in the term, the budget row and the budget's check alike.
+    let uncharged: Vec<f64>;
+    let cams_free;
+    let m = if signed && columns.1.any() {
+        uncharged =
+            m.per_stiffness.iter().zip(&columns.1.of).map(|(&a, g)| if g.is_some() { 0.0 } else { a }).collect();
+        cams_free = MassTerm { per_stiffness: &uncharged, ..*m };
+        &cams_free
+    } else {
+        m
+    };
     // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
     let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
     let at = |weight: f64| {
@@ -83,9 +95,11 @@ pub fn solve(
         return Ok(first);
     }
     // Over the budget: the least λ′ ≥ λ whose solution (selection included) is within it.
-    // Bracketed from λ per kg of the order of the residual of no springs over the budget, then
-    // bisected.
-    let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * gram.bb / m.budget));
+    // Bracketed from λ per kg of the order of the residual of no springs over the budget (where
+    // the rows have no right-hand side, an arm without gravity or trims, that of 1° on every row:
+    // `mass_weight`'s scale, fit::mass), then bisected.
+    let scale = if gram.bb > 0.0 { 0.5 * gram.bb } else { MassTerm::residual_scale(problem.row_count()) };
+    let (mut lo, mut hi) = (m.weight, m.weight.max(scale / m.budget));
     let mut best = None;
     for _ in 0..BUDGET_STEPS {
         let here = at(hi)?;
@@ -326,8 +340,8 @@ fn solve_qp(
         });
     }
     if let Some(m) = budget {
-        // cᵀk ≤ M, scaled by 1/M like the preload bound. A cam's coefficients weigh nothing
-        // (fit::mass), so the row is linear in signed unknowns too.
+        // cᵀk ≤ M, scaled by 1/M like the preload bound. Under the QP a cam's coefficients weigh
+        // nothing (`solve`), so the row is linear in signed unknowns too.
         let m_max = m.budget;
         inequalities.push(LinearGroup {
             name: "spring mass budget".into(),
