@@ -135,9 +135,9 @@ pub struct FitSettings {
     /// a part possible when `springfit parts` finds no spring for an element.
     pub max_element_torque: f64,
     /// Weight of the springs' mass in the objective (0: none): a bill of the floor's mass (the
-    /// least steel that stores U* = ½ω²r², docs/parts.md) costs this many times the residual of
-    /// no springs, so one weight means the same on every arm (`fit::mass`). `"auto"`: chosen by the
-    /// fit job.
+    /// least steel that stores U* = ½ω²r², docs/parts.md) costs this many times a residual of 1°
+    /// on every training row, so one weight means the same on every arm, gravity or none
+    /// (`fit::mass`). `"auto"`: chosen by the fit job.
     #[serde(deserialize_with = "mass_weight_or_auto")]
     pub mass_weight: f64,
     /// Upper bound on the springs' mass Σ mᵢ(kᵢ) in kg by the part chooser's mass curves (0:

@@ -43,9 +43,10 @@ pub const TRIMMED_START: f64 = 0.2;
 /// `trimmed_weight`s tried after the tolerance weight (with [`TRIMMED_START`] already measured).
 pub const TRIMMED_LADDER: [f64; 2] = [0.05, 0.5];
 
-/// `mass_weight`s tried, lightest bill last: at 0.001 the default design's springs weigh a third
-/// of the unweighted fit's.
-pub const MASS_LADDER: [f64; 3] = [0.0003, 0.001, 0.003];
+/// `mass_weight`s tried, lightest bill last: at 0.00582 the default design's springs weigh a third
+/// of the unweighted fit's. 0.0003, 0.001 and 0.003 on the weight's former scale (½‖b‖², issue
+/// 44), converted by the default design's ½‖b‖²/m = 5.816·(1°)² (`fit::mass`).
+pub const MASS_LADDER: [f64; 3] = [0.00174, 0.00582, 0.0174];
 
 /// Restarts of the selection during the search: 16 chose the same springs as 32–128 on the
 /// default design and cost a third of the solve (docs/designs.md).

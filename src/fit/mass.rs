@@ -17,10 +17,26 @@
 //! the shipped designs (the module's tests state it for the paper's arm). With the straight line
 //! alone (bᵢ = 0) the default design's big preloaded cranks weighed 0.58–0.79 of their parts, so
 //! a mass weight kept the big cranks and gave up small ones. A candidate no spring realises at any
-//! tried stiffness, and a cubic (whose part is a disc cam), falls back to the floor's density:
-//! aᵢ = ρ·eᵢ/u with eᵢ its largest energy per unit stiffness over the region. A cam's basis
-//! columns weigh nothing here: the follower's spring is sized by the cam's stroke, not by one
-//! coefficient.
+//! tried stiffness falls back to the floor's density: aᵢ = ρ·eᵢ/u with eᵢ its largest energy per
+//! unit stiffness over the region.
+//!
+//! **Cams and cubic elements** are disc cams on a roller follower's compression springs, and the
+//! follower is what weighs. It stores V − min V over a stroke S from a preload p₀ = f·S at the base
+//! circle (f the family's `preload_fraction`): the cam's work over its range is ΔV = ½k_f((p₀ + S)²
+//! − p₀²) = ½k_f S²(1 + 2f), while the spring, compressed p₀ + S from free at the top, holds
+//! ½k_f(p₀ + S)² = ΔV·(1 + f)²/(1 + 2f) (1.8× at f = 2): the preload that keeps contact costs
+//! steel. Its mass is therefore read off the part chooser's follower ([`follower`]) at the
+//! family's stroke and preload, for a reference range of a quarter of U* (halved until a follower
+//! exists), as kg per joule of the cam's range (the fatigue swing from p₀ to p₀ + S, the Goodman
+//! line, is in it; ρ(1 + f)²/((1 + 2f)u) is the fallback). A cubic's range over the region is
+//! its largest energy, so its charge is that times its energy per unit stiffness. A cam's range
+//! is not linear in its coefficients, but it is sub-additive: range(Σⱼ cⱼBⱼ) ≤ Σⱼ |cⱼ|·range(Bⱼ),
+//! so each basis column (a ± pair, one non-negative unknown each under NNLS) is charged the
+//! follower's kg per joule times its own range over the duty (2/3 for an interior cubic B-spline):
+//! exact for one bump, an upper bound for a wide profile, and Σ|cⱼ| under its free constant is
+//! what the term lowers (a flatter cam). The QP's signed coefficients would make it |cⱼ|, not
+//! linear, so the QP leaves cams uncharged (the cam designs fit with NNLS). `tests/mass.rs`
+//! states the ratio to the followers chosen on the cam designs.
 //!
 //! **The floor.** Any layout stores at least the potential's range, U* = ½ω²r² at the region's
 //! boundary, and spring steel stores at most u per unit volume
@@ -29,9 +45,17 @@
 //! **In the solvers.** λ·Σ(aᵢkᵢ + bᵢkᵢ²) is a convex quadratic in k: in the Gram form
 //! ½kᵀGk − cᵀk every solver works on it moves c to c − λa and adds 2λbᵢ to G's diagonal, so
 //! NNLS, the QP and the selection of at most K all minimise the same objective, which stays
-//! convex. λ = `mass_weight` · ½‖b‖² / floor: a bill of the floor's mass costs `mass_weight`
-//! times the residual of no springs at all, whatever the arm's size, so one weight means the
-//! same on every arm. The budget Σ mᵢ(kᵢ) ≤ M is met by raising λ (a bisection on the
+//! convex. λ = `mass_weight` · ½m·θ₁² / floor, m the training rows and θ₁ = 1° (in radians): a
+//! bill of the floor's mass costs what a residual of 1° on every row would (each row is the sine of
+//! its residual angle for the right gradient magnitude, docs/theory.md "Rows and their
+//! weighting"). Per row the objective is then ½·mean sin²θ + ½·`mass_weight`·(1°)²·(mass / floor):
+//! angles against mass in floors, both free of the arm's size and of its gravity, so one weight
+//! means the same on every arm; and every fit has rows. The scale was ½‖b‖², the residual of no
+//! springs: 0 on arms without gravity or fixed trims (the window designs), where the weight did
+//! nothing, and per row 1.8e-3 on the default design (its trims at mid-range) against 0.92 on the
+//! triple pendulum (gravity), 500× apart. 1° is the unit every residual is reported in; on the
+//! default design a weight is 5.82× its former number (½‖b‖²/m = 1.77e-3 = 5.82·(1°)²), by which
+//! [`crate::fit::auto::MASS_LADDER`] was converted. The budget Σ mᵢ(kᵢ) ≤ M is met by raising λ (a bisection on the
 //! multiplier: the budget's KKT conditions), which the selection sees too; with a straight-line
 //! model only (every bᵢ = 0) the QP holds it as one more linear inequality instead.
 //!
@@ -42,11 +66,12 @@ use rayon::prelude::*;
 use crate::design::Design;
 use crate::design::fit::FitSettings;
 use crate::elements::Profile;
-use crate::elements::catalog::Candidate;
+use crate::elements::catalog::{Candidate, Catalog};
 use crate::error::{Error, Result};
 use crate::geodesic::{Fan, Region};
+use crate::realise::cam::DEFAULT_REALISATION;
 use crate::realise::duty::{duty, requirements, spans, swing};
-use crate::realise::mechanism::{Duty, spring_element};
+use crate::realise::mechanism::{Duty, Requirements, follower, spring_element};
 use crate::realise::spring::usable_energy_density;
 
 /// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
@@ -62,6 +87,53 @@ const CURVE_READS: [f64; 2] = [4.0, 2.0];
 
 /// Halvings of the reference stiffness tried before a candidate falls back to the floor density.
 const HALVINGS: usize = 8;
+
+/// The residual angle per row a bill of the floor's mass costs at `mass_weight = 1`, degrees: the
+/// unit residuals are reported in (module documentation).
+pub const REFERENCE_ANGLE_DEG: f64 = 1.0;
+
+/// Fraction of U* a cam follower's range is read at for its kg per joule: the size a cam of a
+/// fit that shares the potential among a few of them carries.
+const REFERENCE_ENERGY: f64 = 0.25;
+
+/// A cam follower as a family builds it: largest stroke (mm) and preload at the base circle as a
+/// fraction of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FollowerSpec {
+    /// Largest stroke S, mm.
+    pub stroke: f64,
+    /// Preload p₀ = f·S at the base circle: f.
+    pub preload_fraction: f64,
+}
+
+impl FollowerSpec {
+    /// What a cubic element's disc cam and a cam outside any catalogue are built with
+    /// ([`DEFAULT_REALISATION`]).
+    pub const DEFAULT: FollowerSpec =
+        FollowerSpec { stroke: DEFAULT_REALISATION.1, preload_fraction: DEFAULT_REALISATION.2 };
+
+    /// The follower's mass per joule of the cam's range, kg/J, from the part chooser's follower
+    /// at a range of `energy` J (halved until one exists; None: none at any).
+    fn per_joule(self, energy: f64, req: &Requirements) -> Option<f64> {
+        let (s, f) = (self.stroke, self.preload_fraction);
+        let mut e = energy;
+        for _ in 0..=HALVINGS {
+            // ΔV = ½ k S² (1 + 2f), k in N/m and S in m; the follower takes N/mm and mm.
+            let rate = 2.0 * e / ((s * 1e-3).powi(2) * (1.0 + 2.0 * f)) * 1e-3;
+            if let Ok(part) = follower(rate, f * s, s, req) {
+                return Some(part.mass / e);
+            }
+            e *= 0.5;
+        }
+        None
+    }
+
+    /// ρ(1 + f)²/((1 + 2f)u), kg/J: the follower's least steel per joule of the cam's range.
+    fn by_density(self, req: &Requirements, floor: &Floor) -> f64 {
+        let f = self.preload_fraction;
+        req.material.density * (1.0 + f).powi(2) / ((1.0 + 2.0 * f) * floor.density)
+    }
+}
 
 /// The least spring mass that can store the potential.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -124,9 +196,9 @@ pub struct MassModel {
     /// aᵢ, kg per unit of the candidate's stiffness: the linear part of its mass curve.
     pub per_stiffness: Vec<f64>,
     /// bᵢ, kg per unit of stiffness squared: the curve's bend, m(k) = aᵢk + bᵢk² (0 where one
-    /// part was read, and for cams and cubic elements).
+    /// part was read, and for cams and cubic elements, which are charged by their range).
     pub per_stiffness_squared: Vec<f64>,
-    /// Whether the curve is the part chooser's (false: the floor density's fallback, or a cam's basis).
+    /// Whether the curve is the part chooser's (false: the floor density's fallback).
     pub from_parts: Vec<bool>,
     /// The floor.
     pub floor: Floor,
@@ -134,8 +206,38 @@ pub struct MassModel {
 
 impl MassModel {
     /// The model of `candidates` over the held-out fan `evaluation` at `frequency`, in parallel
-    /// (each candidate's part searched on its own, the results in the candidates' order).
+    /// (each candidate's part searched on its own, the results in the candidates' order), with
+    /// every cam's follower as [`FollowerSpec::DEFAULT`] builds it (candidates outside a catalogue,
+    /// such as a bill's rows read back: [`MassModel::of_catalog`] has the families').
     pub fn new(design: &Design, candidates: &[Candidate], evaluation: &Fan, frequency: f64) -> MassModel {
+        MassModel::with_followers(design, candidates, |_| FollowerSpec::DEFAULT, evaluation, frequency)
+    }
+
+    /// [`MassModel::new`] with each cam's follower as its family in `catalog` builds it (a
+    /// cubic element's is the default's, as the part chooser builds it).
+    pub fn of_catalog(
+        design: &Design,
+        catalog: &Catalog,
+        candidates: &[Candidate],
+        evaluation: &Fan,
+        frequency: f64,
+    ) -> MassModel {
+        let spec = |c: &Candidate| match (c.element.profile, catalog.families.get(c.family).and_then(|f| f.cam)) {
+            (Profile::Spline(_), Some(cam)) => {
+                FollowerSpec { stroke: cam.max_stroke, preload_fraction: cam.preload_fraction }
+            }
+            _ => FollowerSpec::DEFAULT,
+        };
+        MassModel::with_followers(design, candidates, spec, evaluation, frequency)
+    }
+
+    fn with_followers(
+        design: &Design,
+        candidates: &[Candidate],
+        spec: impl Fn(&Candidate) -> FollowerSpec + Sync,
+        evaluation: &Fan,
+        frequency: f64,
+    ) -> MassModel {
         let floor = Floor::on(design, frequency, evaluation);
         let (_, radius) = swing(design, evaluation, frequency);
         let spans =
@@ -143,15 +245,29 @@ impl MassModel {
         let req = requirements(&design.parts, "");
         let extent = evaluation.geodesics.iter().map(|g| g.length()).fold(0.0, f64::max).max(1e-9);
         let torque = REFERENCE_TORQUE * 2.0 * floor.energy / extent;
+        let energy = REFERENCE_ENERGY * floor.energy;
+        // Each follower spec's kg per joule, read once (a catalogue has a handful of cam families).
+        let mut specs: Vec<FollowerSpec> = Vec::new();
+        for c in candidates.iter().filter(|c| matches!(c.element.profile, Profile::Spline(_) | Profile::Cubic)) {
+            let s = spec(c);
+            if !specs.contains(&s) {
+                specs.push(s);
+            }
+        }
+        let per_joule: Vec<(FollowerSpec, Option<f64>)> =
+            specs.par_iter().map(|&s| (s, s.per_joule(energy, &req))).collect();
         let (coefficients, from_parts): (Vec<(f64, f64)>, Vec<bool>) = candidates
             .par_iter()
             .map(|c| {
                 let duty = duty(&spans, &c.element);
                 let profile = c.element.profile;
-                let by_density = || req.material.density * largest_energy(profile, &duty) / floor.density;
                 match profile {
-                    Profile::Spline(_) => ((0.0, 0.0), false),
-                    Profile::Cubic => ((by_density(), 0.0), false),
+                    Profile::Spline(_) | Profile::Cubic => {
+                        let s = spec(c);
+                        let read = per_joule.iter().find(|p| p.0 == s).and_then(|p| p.1);
+                        let kg_per_joule = read.unwrap_or_else(|| s.by_density(&req, &floor));
+                        ((kg_per_joule * energy_range(profile, &duty), 0.0), read.is_some())
+                    }
                     _ => {
                         let mut k = torque / peak_slope(profile, &duty).max(1e-9);
                         for _ in 0..=HALVINGS {
@@ -163,7 +279,8 @@ impl MassModel {
                             }
                             k *= 0.5;
                         }
-                        ((by_density(), 0.0), false)
+                        let by_density = req.material.density * largest_energy(profile, &duty) / floor.density;
+                        ((by_density, 0.0), false)
                     }
                 }
             })
@@ -205,6 +322,15 @@ fn largest_energy(profile: Profile, duty: &Duty) -> f64 {
     sample(duty).map(|d| profile.eval(d).0.abs()).fold(0.0, f64::max)
 }
 
+/// max u(d) − min u(d) over the duty's range: the range of the potential per unit stiffness (a
+/// cubic's largest energy, a cam basis function's own range).
+fn energy_range(profile: Profile, duty: &Duty) -> f64 {
+    let (lo, hi) = sample(duty)
+        .map(|d| profile.eval(d).0)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), u| (lo.min(u), hi.max(u)));
+    (hi - lo).max(0.0)
+}
+
 /// 201 deflections across the duty's range, both ends included.
 fn sample(duty: &Duty) -> impl Iterator<Item = f64> + '_ {
     (0..=200).map(move |i| duty.range[0] + (duty.range[1] - duty.range[0]) * f64::from(i) / 200.0)
@@ -225,10 +351,16 @@ pub struct MassTerm<'a> {
 }
 
 impl MassTerm<'_> {
-    /// λ from `[fit] mass_weight` for normal equations whose right-hand side has ‖b‖² = `bb`:
-    /// `mass_weight` · ½‖b‖² per floor mass.
-    pub fn weight(settings: &FitSettings, bb: f64, floor: &Floor) -> f64 {
-        settings.mass_weight * 0.5 * bb / floor.mass.max(f64::MIN_POSITIVE)
+    /// λ from `[fit] mass_weight` for a fit of `rows` training rows: `mass_weight` times the
+    /// objective of a residual of 1° on every row ([`MassTerm::residual_scale`]), per floor mass.
+    pub fn weight(settings: &FitSettings, rows: usize, floor: &Floor) -> f64 {
+        settings.mass_weight * MassTerm::residual_scale(rows) / floor.mass.max(f64::MIN_POSITIVE)
+    }
+
+    /// ½·rows·θ₁², θ₁ = [`REFERENCE_ANGLE_DEG`]: the objective ½‖A k − b‖² of a residual of θ₁ on
+    /// every one of `rows` rows (each row ≈ the sine of its residual angle).
+    pub fn residual_scale(rows: usize) -> f64 {
+        0.5 * rows as f64 * REFERENCE_ANGLE_DEG.to_radians().powi(2)
     }
 
     /// λ·c, what the linear term takes off the right-hand side c = Aᵀb of the normal equations.

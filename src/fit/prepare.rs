@@ -237,7 +237,9 @@ impl Prepared<'_> {
     /// the part chooser on first use, over the held-out fan at `frequency` (which every solve of
     /// one preparation shares).
     pub fn mass_model(&self, frequency: f64) -> &MassModel {
-        self.mass.get_or_init(|| MassModel::new(self.design, &self.candidates, &self.evaluation, frequency))
+        self.mass.get_or_init(|| {
+            MassModel::of_catalog(self.design, self.catalog, &self.candidates, &self.evaluation, frequency)
+        })
     }
 
     /// The problem's tangentiality rows: kept by the problem, or where a large fit did not keep

@@ -160,7 +160,7 @@ impl Prepared<'_> {
         let term = model.map(|m| MassTerm {
             per_stiffness: &m.per_stiffness,
             per_stiffness_squared: &m.per_stiffness_squared,
-            weight: MassTerm::weight(settings, self.gram.bb, &m.floor),
+            weight: MassTerm::weight(settings, self.problem.row_count(), &m.floor),
             budget: settings.max_spring_mass,
         });
         let mass = term.as_ref();

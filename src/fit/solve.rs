@@ -72,6 +72,18 @@ pub fn solve(
     let Some(m) = mass else {
         return solve_gram_with(problem, gram, columns, q_eq, settings, signed, (None, None, cone));
     };
+    // The QP's signed cam coefficients would be charged λ·a·cⱼ, not λ·a·|cⱼ|: there cams weigh
+    // nothing (fit::mass), in the term, the budget row and the budget's check alike.
+    let uncharged: Vec<f64>;
+    let cams_free;
+    let m = if signed && columns.1.any() {
+        uncharged =
+            m.per_stiffness.iter().zip(&columns.1.of).map(|(&a, g)| if g.is_some() { 0.0 } else { a }).collect();
+        cams_free = MassTerm { per_stiffness: &uncharged, ..*m };
+        &cams_free
+    } else {
+        m
+    };
     // The QP holds a straight-line budget as a row; a curved one, like NNLS, by raising λ.
     let qp_budget = (m.budget > 0.0 && settings.solver == SolverKind::Qp && !m.curved()).then_some(m);
     let first = solve_gram_with(
@@ -107,7 +119,11 @@ pub fn solve(
             (None, Some(&support), cone),
         )
     };
-    let (k, mut report) = least_weight_within(on_support, m, gram.bb, settings)?;
+    // The bisection's bracket starts from λ per kg of the order of the residual of no springs over
+    // the budget; where the rows have no right-hand side (an arm without gravity or trims), that
+    // of 1° on every row: `mass_weight`'s scale (fit::mass).
+    let scale = if gram.bb > 0.0 { 0.5 * gram.bb } else { MassTerm::residual_scale(problem.row_count()) };
+    let (k, mut report) = least_weight_within(on_support, m, scale, settings)?;
     report.selection_evaluations = chosen_report.selection_evaluations;
     report.selection_swaps = chosen_report.selection_swaps;
     Ok((k, report))
@@ -124,10 +140,14 @@ fn weighed(gram: &Gram, m: &MassTerm<'_>, weight: f64) -> Gram {
 }
 
 /// The solution at the least weight λ′ ≥ λ (`m.weight`) whose solution by `at` is within the
-/// budget: bracketed from λ per kg of the order of the residual of no springs (`bb`) over the
-/// budget, grown 4× a step, then bisected to [`BUDGET_PRECISION`]; the bracket's upper end is
+/// budget: bracketed from λ per kg of `scale` (an objective) over the budget, grown 4× a step, then bisected to [`BUDGET_PRECISION`]; the bracket's upper end is
 /// returned, so the answer is always within the budget.
-fn least_weight_within<F>(at: F, m: &MassTerm<'_>, bb: f64, settings: &FitSettings) -> Result<(Vec<f64>, SolveReport)>
+fn least_weight_within<F>(
+    at: F,
+    m: &MassTerm<'_>,
+    scale: f64,
+    settings: &FitSettings,
+) -> Result<(Vec<f64>, SolveReport)>
 where
     F: Fn(f64) -> Result<(Vec<f64>, SolveReport)>,
 {
@@ -136,7 +156,7 @@ where
     if within(&first.0) {
         return Ok(first);
     }
-    let (mut lo, mut hi) = (m.weight, m.weight.max(0.5 * bb / m.budget));
+    let (mut lo, mut hi) = (m.weight, m.weight.max(scale / m.budget));
     let mut best = None;
     for _ in 0..BUDGET_STEPS {
         let here = at(hi)?;
@@ -411,8 +431,8 @@ fn solve_qp(
         });
     }
     if let Some(m) = budget {
-        // cᵀk ≤ M, scaled by 1/M like the preload bound. A cam's coefficients weigh nothing
-        // (fit::mass), so the row is linear in signed unknowns too.
+        // cᵀk ≤ M, scaled by 1/M like the preload bound. Under the QP a cam's coefficients weigh
+        // nothing (`solve`), so the row is linear in signed unknowns too.
         let m_max = m.budget;
         inequalities.push(LinearGroup {
             name: "spring mass budget".into(),
