@@ -139,6 +139,7 @@ fn the_realised_crank_against_its_closed_form() {
     let material = by_key("EN10270-1-DM").unwrap();
     let req = |pulley: f64| Requirements {
         material,
+        also: mechanism::Wires::NONE,
         grade: 2,
         cycles: 1e6,
         safety: 1.1,
@@ -302,6 +303,17 @@ fn bad_parts_input_and_a_stock_part() {
             "material.toml",
             "[parts]\nmaterial = \"unobtainium\"\n",
             vec!["material.toml", "parts.material", "EN10270-1-SM"],
+        ),
+        ("empty.toml", "[parts]\nmaterial = []\n", vec!["empty.toml", "parts.material", "empty list"]),
+        (
+            "listed.toml",
+            "[parts]\nmaterial = [\"EN10270-1-DM\", \"unobtainium\"]\n",
+            vec!["listed.toml", "parts.material[1]", "`unobtainium`", "ASTM-A401"],
+        ),
+        (
+            "number.toml",
+            "[parts]\nmaterial = 3\n",
+            vec!["number.toml", "material", "a wire key or a list of wire keys"],
         ),
         ("grade.toml", "[parts]\ngrade = 4\n", vec!["grade.toml", "parts.grade", "1, 2 or 3"]),
         ("nostock.toml", "[parts]\nstock = \"missing.csv\"\n", vec!["nostock.toml", "parts.stock", "missing.csv"]),
@@ -483,4 +495,55 @@ fn a_chrome_silicon_design_winds_every_spring_from_the_tables_wire() {
         assert!((own / rate - 1.0).abs() < 1e-12, "{}: rate {own} against {rate} from Table 10-5's moduli", e.id);
     }
     assert!(wound >= 10, "the paper design winds most of its springs ({wound})");
+}
+
+/// `[parts] material` as a list (the wires a maker stocks): every spring's search runs over each
+/// listed wire's sizes and keeps the lightest part, so on one bill the list's springs weigh no
+/// more than either wire's alone and every element either wire alone gives a part has one; each
+/// wound spring is of a listed wire, and both wires wind some (DM the thin ones, below
+/// chrome-silicon's 1.6 mm, A401 thick ones where it is lighter). A one-item list is the string:
+/// the same parts.csv byte for byte.
+#[test]
+fn a_list_of_wires_winds_each_spring_from_the_lightest() {
+    use springfit::design::parts::MaterialSetting;
+    let design = quick_design("");
+    let (o, _) = parts_of(&design);
+    let with = |m: MaterialSetting| {
+        let mut d = design.clone();
+        d.parts.material = Some(m);
+        choose(&d, &o)
+    };
+    let list = |keys: &[&str]| MaterialSetting::List(keys.iter().map(|k| k.to_string()).collect());
+    let mass = |p: &springfit::parts::Parts| {
+        p.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum::<f64>()
+    };
+    let dm = with("EN10270-1-DM".into());
+    let a401 = with("ASTM-A401".into());
+    let both = with(list(&["EN10270-1-DM", "ASTM-A401"]));
+    let csv =
+        |p: &springfit::parts::Parts| springfit::files::parts::csv(p, design.parts.grade, design.parts.safety_factor);
+    assert_eq!(csv(&with(list(&["EN10270-1-DM"]))), csv(&dm), "a one-item list is the string");
+    assert!(
+        mass(&both) <= mass(&dm) && mass(&both) <= mass(&a401),
+        "{} against {} and {}",
+        mass(&both),
+        mass(&dm),
+        mass(&a401)
+    );
+    let mut used = std::collections::BTreeSet::new();
+    for (i, e) in both.elements.iter().enumerate() {
+        let alone = dm.elements[i].part.is_ok() || a401.elements[i].part.is_ok();
+        assert!(e.part.is_ok() || !alone, "{}: a part with one wire alone, none with the list", e.id);
+        if let Ok(p) = &e.part
+            && e.stock.is_none()
+            && !matches!(p.spring, Spring::Leaf { .. })
+        {
+            assert!(["EN10270-1-DM", "ASTM-A401"].contains(&p.spring.material()), "{}", e.id);
+            used.insert(p.spring.material());
+        }
+    }
+    assert_eq!(used.len(), 2, "both wires wind springs: {used:?}");
+    // The order breaks ties only: the other order winds springs of the same masses.
+    let back = with(list(&["ASTM-A401", "EN10270-1-DM"]));
+    assert_eq!(mass(&back).to_bits(), mass(&both).to_bits());
 }

@@ -20,6 +20,59 @@ pub const STOP_MECHANISMS: &[&str] = &["lightest", "torsion", "drum"];
 /// one forced.
 pub const TRIM_MECHANISMS: &[&str] = &["lightest", "leaf", "crank"];
 
+/// `[parts] material`: one wire key, or the list of wires the maker stocks (each spring is then
+/// wound from the lightest listed wire that passes every check; `realise::mechanism::Wires`).
+/// A string and a one-item list wind the same springs; the string stays a string when written.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum MaterialSetting {
+    /// One wire for every spring.
+    One(String),
+    /// The wires a maker stocks, in its order (which breaks ties between equally light springs).
+    List(Vec<String>),
+}
+
+impl MaterialSetting {
+    /// The keys, in the order given.
+    pub fn keys(&self) -> Vec<&str> {
+        match self {
+            MaterialSetting::One(k) => vec![k.as_str()],
+            MaterialSetting::List(l) => l.iter().map(String::as_str).collect(),
+        }
+    }
+}
+
+impl From<&str> for MaterialSetting {
+    fn from(key: &str) -> Self {
+        MaterialSetting::One(key.into())
+    }
+}
+
+/// By hand rather than `untagged`, so that a value of the wrong kind is refused naming what the
+/// key takes instead of "did not match any variant".
+impl<'de> Deserialize<'de> for MaterialSetting {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = MaterialSetting;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "a wire key or a list of wire keys ({})", MATERIALS.join(", "))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<MaterialSetting, E> {
+                Ok(MaterialSetting::One(v.into()))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<MaterialSetting, A::Error> {
+                let mut list = Vec::new();
+                while let Some(k) = seq.next_element::<String>()? {
+                    list.push(k);
+                }
+                Ok(MaterialSetting::List(list))
+            }
+        }
+        d.deserialize_any(Visit)
+    }
+}
+
 /// `[[parts.element]]`: the room one element has, overriding the defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -38,9 +91,9 @@ pub struct ElementEnvelope {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PartsSettings {
-    /// Wire material, a key of the material table ([`MATERIALS`]); unset, it follows `cycles`
-    /// ([`PartsSettings::material_key`]).
-    pub material: Option<String>,
+    /// Wire material, a key of the material table ([`MATERIALS`]) or a list of them (the wires
+    /// the maker stocks); unset, it follows `cycles` ([`PartsSettings::material_keys`]).
+    pub material: Option<MaterialSetting>,
     /// Shot-peened springs (a higher endurance: Zimmerli's peened point, Table 10-10's peened row).
     pub shot_peened: bool,
     /// EN 15800 quality grade 1, 2 or 3 (1 the tightest): each spring's rate tolerance.
@@ -102,23 +155,42 @@ impl Default for PartsSettings {
 }
 
 impl PartsSettings {
-    /// The wire every spring is wound from: `material` when set, else EN 10270-1's dynamic grade
-    /// DM for [`DYNAMIC_FROM_CYCLES`] swings or more and the static grade SM below. DM and not
-    /// the stronger chrome-silicon or chrome-vanadium wire: one wire serves the whole design and is
-    /// chosen before any spring is sized, and those are not drawn below 1.6 and 0.8 mm, which most
-    /// crank springs of the triple pendulum are (docs/parts.md, Materials, has the measurements).
-    pub fn material_key(&self) -> &str {
+    /// The wires springs are wound from, each spring from the lightest of them that passes every
+    /// check (ties: this order): `material` when set, else EN 10270-1's dynamic grade DM for
+    /// [`DYNAMIC_FROM_CYCLES`] swings or more and the static grade SM below. DM alone by default
+    /// and not with the stronger chrome-silicon or chrome-vanadium wire: whether a maker stocks
+    /// those is the design's to say, and they are not drawn below 1.6 and 0.8 mm, which most crank
+    /// springs of the triple pendulum are (docs/parts.md, Materials, has the measurements).
+    pub fn material_keys(&self) -> Vec<&str> {
         match &self.material {
-            Some(m) => m,
-            None if self.cycles >= DYNAMIC_FROM_CYCLES => "EN10270-1-DM",
-            None => "EN10270-1-SM",
+            Some(m) => m.keys(),
+            None if self.cycles >= DYNAMIC_FROM_CYCLES => vec!["EN10270-1-DM"],
+            None => vec!["EN10270-1-SM"],
         }
+    }
+
+    /// The wires of [`PartsSettings::material_keys`] as printed: the key, or the keys joined by
+    /// `, `.
+    pub fn material_key(&self) -> String {
+        self.material_keys().join(", ")
     }
 
     /// Why the wire is what it is, in words (printed with the parts).
     pub fn material_choice(&self) -> String {
+        let static_grade = self.cycles >= DYNAMIC_FROM_CYCLES && self.material_keys().contains(&"EN10270-1-SM");
         match &self.material {
-            Some(_) if self.cycles >= DYNAMIC_FROM_CYCLES && self.material_key() == "EN10270-1-SM" => format!(
+            Some(MaterialSetting::List(l)) if l.len() > 1 => {
+                let rule = "set in [parts] material: each spring wound from the lightest listed wire that passes every check, the earlier listed on a tie";
+                if static_grade {
+                    format!(
+                        "{rule}; EN10270-1-SM a static grade for {} swings: EN 10270-1 DM is the dynamic grade",
+                        self.cycles
+                    )
+                } else {
+                    rule.into()
+                }
+            }
+            Some(_) if static_grade => format!(
                 "set in [parts] material; a static grade for {} swings: EN 10270-1 DM is the dynamic grade",
                 self.cycles
             ),
@@ -133,11 +205,30 @@ impl PartsSettings {
     /// Checks the settings, naming the bad field.
     pub fn validate(&self) -> Result<(), (String, String)> {
         let err = |f: &str, r: String| Err((format!("parts.{f}"), r));
-        if !MATERIALS.contains(&self.material_key()) {
-            return err(
-                "material",
-                format!("unknown material `{}`: expected one of {}", self.material_key(), MATERIALS.join(", ")),
-            );
+        match &self.material {
+            Some(MaterialSetting::One(k)) if !MATERIALS.contains(&k.as_str()) => {
+                return err("material", format!("unknown material `{k}`: expected one of {}", MATERIALS.join(", ")));
+            }
+            Some(MaterialSetting::List(l)) if l.is_empty() => {
+                return err(
+                    "material",
+                    format!("an empty list of wires: name at least one of {}", MATERIALS.join(", ")),
+                );
+            }
+            Some(MaterialSetting::List(l)) => {
+                for (i, k) in l.iter().enumerate() {
+                    if !MATERIALS.contains(&k.as_str()) {
+                        return err(
+                            &format!("material[{i}]"),
+                            format!("unknown material `{k}`: expected one of {}", MATERIALS.join(", ")),
+                        );
+                    }
+                    if let Some(j) = l[..i].iter().position(|e| e == k) {
+                        return err(&format!("material[{i}]"), format!("`{k}` is listed twice (also item {j})"));
+                    }
+                }
+            }
+            _ => {}
         }
         if !(1..=3).contains(&self.grade) {
             return err("grade", format!("must be the EN 15800 quality grade 1, 2 or 3, got {}", self.grade));
@@ -191,6 +282,24 @@ impl PartsSettings {
 mod tests {
     use super::*;
 
+    /// A string and a list both read, a string is written back as a string, and a value of
+    /// another kind is refused naming what the key takes.
+    #[test]
+    fn material_is_a_key_or_a_list() {
+        let read = |t: &str| toml::from_str::<PartsSettings>(t);
+        let one = read("material = \"ASTM-A401\"").unwrap();
+        assert_eq!(one.material, Some(MaterialSetting::One("ASTM-A401".into())));
+        assert_eq!(one.material_keys(), ["ASTM-A401"]);
+        assert!(toml::to_string(&one).unwrap().contains("material = \"ASTM-A401\""));
+        let list = read("material = [\"EN10270-1-DM\", \"ASTM-A401\"]").unwrap();
+        assert_eq!(list.material_keys(), ["EN10270-1-DM", "ASTM-A401"]);
+        assert_eq!(list.material_key(), "EN10270-1-DM, ASTM-A401");
+        assert!(list.material_choice().contains("lightest listed wire"), "{}", list.material_choice());
+        assert_eq!(PartsSettings { cycles: 1e3, ..Default::default() }.material_keys(), ["EN10270-1-SM"]);
+        let bad = read("material = 3").unwrap_err().to_string();
+        assert!(bad.contains("a wire key or a list of wire keys"), "{bad}");
+    }
+
     #[test]
     fn bad_settings_name_their_field() {
         assert!(PartsSettings::default().validate().is_ok());
@@ -204,6 +313,14 @@ mod tests {
             "parts.material",
             "EN10270-1-SM",
         );
+        let list = |keys: &[&str]| PartsSettings {
+            material: Some(MaterialSetting::List(keys.iter().map(|k| k.to_string()).collect())),
+            ..Default::default()
+        };
+        assert!(list(&["EN10270-1-DM", "ASTM-A401"]).validate().is_ok());
+        bad(list(&[]), "parts.material", "empty list");
+        bad(list(&["EN10270-1-DM", "unobtainium"]), "parts.material[1]", "`unobtainium`");
+        bad(list(&["ASTM-A401", "EN10270-1-DM", "ASTM-A401"]), "parts.material[2]", "listed twice (also item 0)");
         bad(PartsSettings { grade: 4, ..Default::default() }, "parts.grade", "1, 2 or 3");
         bad(PartsSettings { safety_factor: 0.5, ..Default::default() }, "parts.safety_factor", "from 1");
         bad(PartsSettings { stop_mechanism: "spiral".into(), ..Default::default() }, "parts.stop_mechanism", "drum");

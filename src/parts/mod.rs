@@ -924,6 +924,7 @@ mod tests {
     fn requirements() -> Requirements {
         Requirements {
             material: by_key("EN10270-1-DM").unwrap(),
+            also: mechanism::Wires::NONE,
             grade: 2,
             cycles: 1e6,
             safety: 1.1,

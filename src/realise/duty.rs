@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::material::by_key;
-use super::mechanism::{Duty, Requirements, StopMechanism, TrimMechanism};
+use super::mechanism::{Duty, Requirements, StopMechanism, TrimMechanism, Wires};
 use super::spring::Surface;
 use crate::design::Design;
 use crate::design::parts::PartsSettings;
@@ -22,8 +22,12 @@ pub fn surface(s: &PartsSettings) -> Surface {
 /// The requirements of element `id` from `[parts]` (its `[[parts.element]]` overrides).
 pub fn requirements(s: &PartsSettings, id: &str) -> Requirements {
     let over = s.element.iter().find(|e| e.id == id);
+    let wires: Vec<_> =
+        s.material_keys().into_iter().map(|k| by_key(k).expect("validated: a material of the table")).collect();
+    let (first, rest) = wires.split_first().expect("validated: at least one wire");
     Requirements {
-        material: by_key(s.material_key()).expect("validated: a material of the table"),
+        material: first,
+        also: Wires::new(rest).expect("validated: each wire once"),
         grade: s.grade,
         cycles: s.cycles,
         safety: s.safety_factor,

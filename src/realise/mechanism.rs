@@ -9,9 +9,9 @@
 //! | trim | a leaf spring in a sliding clamp, loaded at its tip by a lever geared to x: the clamp position sets the rate; or an extension spring on a crank geared to x whose pin radius (a screw in a slot) sets the rate: the lighter that passes, unless `[parts] trim_mechanism` forces one |
 //! | cam follower | a compression spring with the follower's rate, preload and stroke |
 //!
-//! Every design function searches the material's wire sizes and spring indices for the lightest
-//! spring that meets the rate, the static and fatigue limits and the envelope, or returns the
-//! [`Limit`] that the best candidate misses and by how much.
+//! Every design function searches the sizes of each wire the maker stocks ([`Requirements::wires`])
+//! and spring indices for the lightest spring that meets the rate, the static and fatigue limits
+//! and the envelope, or returns the [`Limit`] that the best candidate misses and by how much.
 
 use std::f64::consts::PI;
 
@@ -27,14 +27,17 @@ fn indices() -> impl Iterator<Item = f64> {
     (0..=48).map(|i| INDEX_RANGE.0 + 0.25 * i as f64)
 }
 
-/// The helical springs of rate `rate` (N/mm) the search tries: every wire size of the material and
-/// spring index of [`indices`], the active coils following from the rate (0.5 to 400 of them).
+/// The helical springs of rate `rate` (N/mm) the search tries: every size of every wire of
+/// [`Requirements::wires`], in their order, and spring index of [`indices`], the active coils
+/// following from the rate (0.5 to 400 of them).
 fn helical(rate: f64, req: &Requirements) -> impl Iterator<Item = HelicalSpring> + '_ {
-    req.material.sizes().into_iter().flat_map(move |d| {
-        indices().filter_map(move |w| {
-            let dm = w * d;
-            let n = req.material.g_at(d) * d.powi(4) / (8.0 * dm.powi(3) * rate);
-            (0.5..=400.0).contains(&n).then_some(HelicalSpring { material: req.material, d, dm, n })
+    req.wires().flat_map(move |m| {
+        m.sizes().into_iter().flat_map(move |d| {
+            indices().filter_map(move |w| {
+                let dm = w * d;
+                let n = m.g_at(d) * d.powi(4) / (8.0 * dm.powi(3) * rate);
+                (0.5..=400.0).contains(&n).then_some(HelicalSpring { material: m, d, dm, n })
+            })
         })
     })
 }
@@ -81,11 +84,41 @@ pub enum TrimMechanism {
     Crank,
 }
 
+/// Most wires [`Wires`] holds: every wire of the material table once.
+const MAX_WIRES: usize = crate::design::parts::MATERIALS.len();
+
+/// The wires a maker stocks besides [`Requirements::material`], in its order (a fixed array, so
+/// that [`Requirements`] stays `Copy`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wires([Option<&'static Material>; MAX_WIRES]);
+
+impl Wires {
+    /// No other wire: every spring from [`Requirements::material`].
+    pub const NONE: Wires = Wires([None; MAX_WIRES]);
+
+    /// The wires `list`, in its order; None when they are more than the table holds (a list
+    /// checked by `PartsSettings::validate` names each wire once, so never).
+    pub fn new(list: &[&'static Material]) -> Option<Wires> {
+        let mut w = Wires::NONE;
+        if list.len() > MAX_WIRES {
+            return None;
+        }
+        for (slot, m) in w.0.iter_mut().zip(list) {
+            *slot = Some(*m);
+        }
+        Some(w)
+    }
+}
+
 /// What a part must meet: the `[parts]` settings resolved for one element.
 #[derive(Debug, Clone, Copy)]
 pub struct Requirements {
-    /// The wire's material.
+    /// The wire's material: the first wire the maker stocks, the one the fit's mass floor is
+    /// judged in (`fit::mass::Floor`).
     pub material: &'static Material,
+    /// The other wires the maker stocks (`[parts] material` a list), in its order: every spring's
+    /// search runs over the sizes of `material` and of these, and keeps the lightest part.
+    pub also: Wires,
     /// EN 15800 quality grade, 1–3.
     pub grade: u8,
     /// Swings the part must survive.
@@ -114,6 +147,16 @@ pub struct Requirements {
     /// (`crate::parts::choose`): the bound costs steel, and only bills whose cranks' preloads
     /// cancel on a small net torque lose accuracy without it.
     pub roller_departure: Option<f64>,
+}
+
+impl Requirements {
+    /// The wires a spring may be wound from: [`Requirements::material`], then
+    /// [`Requirements::also`]. The searches try them in this order and replace their best part
+    /// only by a strictly lighter one, so of two equally light springs the earlier wire's is
+    /// kept, whatever the thread count.
+    pub fn wires(&self) -> impl Iterator<Item = &'static Material> + '_ {
+        std::iter::once(self.material).chain(self.also.0.iter().flatten().copied())
+    }
 }
 
 /// The deflections an element sees, x − x₀ in rad: at the equilibrium, over the region, and over
@@ -597,23 +640,25 @@ fn torsion(
     build: impl Fn(TorsionSpring, Vec<Check>, f64) -> Part,
 ) -> Search {
     let mut search = Search::new();
-    for d in req.material.sizes() {
-        for w in indices() {
-            let dm = w * d;
-            // Legs as long as the coil's mean diameter, their bending in the rate (EN 13906-3).
-            let n = TorsionSpring::coils_for(req.material, d, dm, dm, rate);
-            if !(0.5..=400.0).contains(&n) {
-                continue;
+    for m in req.wires() {
+        for d in m.sizes() {
+            for w in indices() {
+                let dm = w * d;
+                // Legs as long as the coil's mean diameter, their bending in the rate (EN 13906-3).
+                let n = TorsionSpring::coils_for(m, d, dm, dm, rate);
+                if !(0.5..=400.0).contains(&n) {
+                    continue;
+                }
+                let s = TorsionSpring { material: m, d, dm, n, leg: dm };
+                search.consider(
+                    quantity * s.mass(),
+                    || {
+                        let (checks, life) = torsion_checks(&s, s.rate(), wind, swing, req);
+                        build(s, checks, life)
+                    },
+                    || format!("d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
+                );
             }
-            let s = TorsionSpring { material: req.material, d, dm, n, leg: dm };
-            search.consider(
-                quantity * s.mass(),
-                || {
-                    let (checks, life) = torsion_checks(&s, s.rate(), wind, swing, req);
-                    build(s, checks, life)
-                },
-                || format!("d = {d} mm, D = {dm:.1} mm, n = {n:.2}"),
-            );
         }
     }
     search
@@ -1504,6 +1549,7 @@ mod tests {
     fn req() -> Requirements {
         Requirements {
             material: by_key("EN10270-1-DM").unwrap(),
+            also: Wires::NONE,
             grade: 2,
             cycles: 1e6,
             safety: 1.1,
