@@ -71,6 +71,7 @@ use crate::error::{Error, Result};
 use crate::geodesic::{Fan, Region};
 use crate::realise::cam::DEFAULT_REALISATION;
 use crate::realise::duty::{duty, requirements, spans, swing};
+use crate::realise::material::Material;
 use crate::realise::mechanism::{Duty, Requirements, follower, spring_element};
 use crate::realise::spring::usable_energy_density;
 
@@ -152,8 +153,12 @@ impl Floor {
     pub fn new(design: &Design, frequency: f64, radius: f64) -> Floor {
         let req = requirements(&design.parts, "");
         let energy = 0.5 * frequency * frequency * radius * radius;
-        let density = usable_energy_density(req.material, req.cycles, req.safety, req.surface);
-        Floor { energy, density, mass: req.material.density * energy / density }
+        // With a list of wires (`[parts] material`) any spring may be wound from any of them, so
+        // the floor is that of the wire storing a joule in the least mass.
+        let per_joule = |m: &Material| m.density / usable_energy_density(m, req.cycles, req.safety, req.surface);
+        let material = req.wires().min_by(|a, b| per_joule(a).total_cmp(&per_joule(b))).unwrap_or(req.material);
+        let density = usable_energy_density(material, req.cycles, req.safety, req.surface);
+        Floor { energy, density, mass: material.density * energy / density }
     }
 
     /// The floor before any work: a ball's radius is in the design (a box's farthest point is

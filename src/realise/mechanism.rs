@@ -113,8 +113,8 @@ impl Wires {
 /// What a part must meet: the `[parts]` settings resolved for one element.
 #[derive(Debug, Clone, Copy)]
 pub struct Requirements {
-    /// The wire's material: the first wire the maker stocks, the one the fit's mass floor is
-    /// judged in (`fit::mass::Floor`).
+    /// The wire's material: the first wire the maker stocks (the fit's mass floor takes the
+    /// lightest per joule of all of them, `fit::mass::Floor`).
     pub material: &'static Material,
     /// The other wires the maker stocks (`[parts] material` a list), in its order: every spring's
     /// search runs over the sizes of `material` and of these, and keeps the lightest part.
