@@ -29,7 +29,7 @@
 //! as in [`super::logfit`]): n more equations per sample and output, and what a cell's samples,
 //! strung along few geodesics, do not tell on their own, the map's slope across them. A cell's
 //! polynomial is then fitted to values and derivatives together (Hermite-type least squares,
-//! [`hermite_normal`]), which makes cubic cells usable where cubic cells on values alone extrapolate
+//! `hermite_normal`), which makes cubic cells usable where cubic cells on values alone extrapolate
 //! between their geodesics (15.9°). The Jacobi fields make a geodesic dearer (2n + 2n² states
 //! instead of 2n: 84 against 12 for six joints). Measured on `ur5_six` (`measure_cells_on_ur5_six`, the check fan's
 //! 3600 samples and 200 random interior points against Newton shooting; CPU of the whole
