@@ -51,6 +51,9 @@ pub struct Summary {
     /// The smaller budget whose selection met every constraint when the search at
     /// `max_elements` found no set that does (null: met as asked).
     pub budget_met_at: Option<usize>,
+    /// What the bound on the builds' equilibrium shift (`[fit] max_shift`) did (null: no bound,
+    /// or no tolerance to bound).
+    pub shift_bound: Option<crate::fit::outcome::ShiftBound>,
     /// Subset refits the sparse selection performed (0 without a budget).
     pub selection_evaluations: usize,
     /// Exchange moves the selection accepted.
@@ -180,6 +183,7 @@ impl Summary {
             status: o.solve.status,
             max_elements: o.settings.max_elements,
             budget_met_at: o.solve.budget_met_at,
+            shift_bound: o.solve.shift_bound.clone(),
             selection_evaluations: o.solve.selection_evaluations,
             selection_swaps: o.solve.selection_swaps,
             bands: o.metrics.bands.clone(),

@@ -492,6 +492,17 @@ pub fn mass_curve(
                     crate::fit::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
                 )),
             },
+            // So is a budget whose refits the solver cannot finish (Clarabel stopping at its
+            // iteration limit on the within-budget refits): a lighter budget's set, when there is
+            // one, is within this budget too and is reported for it, as for an infeasible one.
+            Err(e @ Error::Numerical { .. }) => MassPoint {
+                max_spring_mass_kg: Some(m),
+                used: 0,
+                stats: no_stats(),
+                model_mass_kg: None,
+                realised: None,
+                infeasible: Some(format!("{}: the solver failed within {m} kg: {e}", design.path.display())),
+            },
             Err(e) => return Err(e),
         };
         let chosen = match &best {
