@@ -384,6 +384,18 @@ pub struct MassPoint {
     pub infeasible: Option<String>,
 }
 
+/// The point of budget `m` (kg) where no set was fitted, and `why`.
+fn no_set(m: f64, why: String) -> MassPoint {
+    MassPoint {
+        max_spring_mass_kg: Some(m),
+        used: 0,
+        stats: no_stats(),
+        model_mass_kg: None,
+        realised: None,
+        infeasible: Some(why),
+    }
+}
+
 /// The best residual per spring mass, from the floor to the mass of the fit without a budget.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MassCurve {
@@ -480,29 +492,20 @@ pub fn mass_curve(
         let here = match prepared.solve(&FitSettings { max_spring_mass: m, ..*settings }, Progress::none()) {
             Ok(o) => point(&o, Some(m))?,
             // An infeasible budget is a point of the curve, not the end of it.
-            Err(e @ Error::Infeasible { .. }) => MassPoint {
-                max_spring_mass_kg: Some(m),
-                used: 0,
-                stats: no_stats(),
-                model_mass_kg: None,
-                realised: None,
-                infeasible: Some(format!(
+            Err(e @ Error::Infeasible { .. }) => no_set(
+                m,
+                format!(
                     "{}: no set within {m} kg: {}",
                     design.path.display(),
                     crate::fit::hints::explain_infeasible(design, settings, catalog, settings.max_elements, e)
-                )),
-            },
+                ),
+            ),
             // So is a budget whose refits the solver cannot finish (Clarabel stopping at its
             // iteration limit on the within-budget refits): a lighter budget's set, when there is
             // one, is within this budget too and is reported for it, as for an infeasible one.
-            Err(e @ Error::Numerical { .. }) => MassPoint {
-                max_spring_mass_kg: Some(m),
-                used: 0,
-                stats: no_stats(),
-                model_mass_kg: None,
-                realised: None,
-                infeasible: Some(format!("{}: the solver failed within {m} kg: {e}", design.path.display())),
-            },
+            Err(e @ Error::Numerical { .. }) => {
+                no_set(m, format!("{}: the solver failed within {m} kg: {e}", design.path.display()))
+            }
             Err(e) => return Err(e),
         };
         let chosen = match &best {
