@@ -113,6 +113,13 @@ pub struct PartsSettings {
     pub shaft_diameter_mm: f64,
     /// Radius of the rollers a crank's cable runs over, mm (0: an ideal eyelet).
     pub pulley_radius_mm: f64,
+    /// Smallest pulley radius of a tendon (a cable over a pulley at each joint it crosses), mm.
+    pub min_pulley_radius_mm: f64,
+    /// Largest pulley radius of a tendon, mm: a tendon's radii are in proportion to its coupling
+    /// with the largest at this one (`realise::transmission`).
+    pub max_pulley_radius_mm: f64,
+    /// Most joints one tendon crosses.
+    pub max_joints_crossed: usize,
     /// A stock list (CSV, relative to the design file) to order parts from before winding any;
     /// unset, the list springfit ships (`files::stock::SHIPPED`) when `prefer_stock` is on.
     pub stock: Option<String>,
@@ -145,6 +152,18 @@ impl Default for PartsSettings {
             max_lever_mm: 100.0,
             shaft_diameter_mm: 12.0,
             pulley_radius_mm: 5.0,
+            // 10 mm: a pulley of 20 mm diameter is 25 times the 0.8 mm cable that carries up to
+            // about 100 N at a safety factor of 5 (a cable bent round a pulley much smaller than
+            // 20–40 of its diameters wears out), and the 14–19 mm pulleys of built biarticular
+            // arms sit between the two limits.
+            min_pulley_radius_mm: 10.0,
+            // 40 mm: an 80 mm pulley fits inside the joint housing of a UR5-sized arm (about
+            // 90 mm across); the limits allow radii 1 : 4 on one tendon.
+            max_pulley_radius_mm: 40.0,
+            // 5: the longest run of joints the shipped catalogues turn together (the five-link
+            // pendulum's runs, one cable on equal pulleys); each joint crossed adds pulleys whose
+            // friction and the cable's stretch the realised design does not model yet.
+            max_joints_crossed: 5,
             stock: None,
             prefer_stock: true,
             stop_mechanism: "lightest".into(),
@@ -253,6 +272,28 @@ impl PartsSettings {
         if !(self.pulley_radius_mm.is_finite() && (0.0..=1000.0).contains(&self.pulley_radius_mm)) {
             return err("pulley_radius_mm", format!("must be from 0 to 1000 mm, got {}", self.pulley_radius_mm));
         }
+        for (f, v) in
+            [("min_pulley_radius_mm", self.min_pulley_radius_mm), ("max_pulley_radius_mm", self.max_pulley_radius_mm)]
+        {
+            if !(v.is_finite() && v > 0.0 && v <= 1000.0) {
+                return err(f, format!("must be a radius above 0 and up to 1000 mm, got {v}"));
+            }
+        }
+        if self.min_pulley_radius_mm > self.max_pulley_radius_mm {
+            return err(
+                "min_pulley_radius_mm",
+                format!(
+                    "{} mm is above max_pulley_radius_mm = {} mm",
+                    self.min_pulley_radius_mm, self.max_pulley_radius_mm
+                ),
+            );
+        }
+        if !(2..=crate::limits::MAX_LINKS).contains(&self.max_joints_crossed) {
+            return err(
+                "max_joints_crossed",
+                format!("must be from 2 to {}, got {}", crate::limits::MAX_LINKS, self.max_joints_crossed),
+            );
+        }
         for (f, v, allowed) in [
             ("stop_mechanism", &self.stop_mechanism, STOP_MECHANISMS),
             ("trim_mechanism", &self.trim_mechanism, TRIM_MECHANISMS),
@@ -325,6 +366,13 @@ mod tests {
         bad(PartsSettings { safety_factor: 0.5, ..Default::default() }, "parts.safety_factor", "from 1");
         bad(PartsSettings { stop_mechanism: "spiral".into(), ..Default::default() }, "parts.stop_mechanism", "drum");
         bad(PartsSettings { trim_mechanism: "screw".into(), ..Default::default() }, "parts.trim_mechanism", "crank");
+        bad(PartsSettings { min_pulley_radius_mm: 0.0, ..Default::default() }, "parts.min_pulley_radius_mm", "above 0");
+        bad(
+            PartsSettings { min_pulley_radius_mm: 50.0, ..Default::default() },
+            "parts.min_pulley_radius_mm",
+            "above max_pulley_radius_mm",
+        );
+        bad(PartsSettings { max_joints_crossed: 1, ..Default::default() }, "parts.max_joints_crossed", "from 2");
         let e = ElementEnvelope {
             id: "S01".into(),
             max_outer_diameter_mm: Some(-1.0),

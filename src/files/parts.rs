@@ -10,7 +10,7 @@ use crate::realise::mechanism::{Mechanism, Part, Spring};
 use crate::realise::sketch::{lengths, units};
 
 /// The header of `parts.csv`.
-pub const HEADER: &str = "id,family,profile,coupling,offset_rad,mechanism,spring,quantity,material,grade,wire_d_mm,mean_D_mm,outer_D_mm,active_coils,free_length_mm,leg_mm,rate_maker,rate_maker_unit,fitted_stiffness,realised_rate,fit_unit,rate_tolerance,initial_tension_n,position_unit,load_unit,eq_position,eq_load,low_position,low_load,high_position,high_load,base_circle_position,base_circle_load,largest_stroke_position,largest_stroke_load,max_stress_mpa,allowed_stress_mpa,static_utilisation,fatigue_utilisation,life_cycles,mass_kg,vendor,part_number,source,geometry,limit";
+pub const HEADER: &str = "id,family,profile,coupling,offset_rad,transmission,pulley_radii_mm,mechanism,spring,quantity,material,grade,wire_d_mm,mean_D_mm,outer_D_mm,active_coils,free_length_mm,leg_mm,rate_maker,rate_maker_unit,fitted_stiffness,realised_rate,fit_unit,rate_tolerance,initial_tension_n,position_unit,load_unit,eq_position,eq_load,low_position,low_load,high_position,high_load,base_circle_position,base_circle_load,largest_stroke_position,largest_stroke_load,max_stress_mpa,allowed_stress_mpa,static_utilisation,fatigue_utilisation,life_cycles,mass_kg,vendor,part_number,source,geometry,limit";
 
 /// The working points of `parts.csv`'s columns, in order: the element's (`eq_`, `low_`,
 /// `high_`), then a cam follower's (`base_circle_`, `largest_stroke_`), as
@@ -56,6 +56,10 @@ pub fn csv(parts: &Parts, grade: u8, safety: f64) -> String {
             format!("{}{}", e.element.profile.name(), e.element.profile.side()),
             e.element.coupling_text(),
             format!("{}", e.element.offset),
+            // What turns the joints into x, and a tendon's signed pulley radii (empty for a joint
+            // or a differential, and for a coupling no transmission makes: its `limit` says why).
+            e.transmission.as_ref().map(|t| t.kind.name().to_string()).unwrap_or_default(),
+            e.transmission.as_ref().map(|t| t.radii_text()).unwrap_or_default(),
         ];
         let mut f: Vec<String> = head.to_vec();
         match &e.part {

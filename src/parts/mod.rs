@@ -22,6 +22,7 @@ use crate::realise::duty::{duty, spans, swing};
 pub use crate::realise::duty::{requirements, scenario_energy, surface};
 use crate::realise::material::by_key;
 use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring, TorqueBound};
+use crate::realise::transmission::{self, Transmission};
 use crate::residual::{AngleStats, fan_angles, stats};
 
 /// One row of a stock list: a spring a vendor sells, as the vendor publishes it.
@@ -142,6 +143,10 @@ pub struct ElementPart {
     /// A cam's follower: its rate (N/mm), preload and largest stroke (mm) as the cam's family
     /// sets them (None for springs).
     pub follower: Option<[f64; 3]>,
+    /// What turns the joints into the element's x (a joint, a bevel differential, a tendon with
+    /// its pulleys and cable); None when no transmission makes the coupling (the part is then the
+    /// limit that names why).
+    pub transmission: Option<Transmission>,
 }
 
 impl ElementPart {
@@ -149,6 +154,12 @@ impl ElementPart {
     pub fn geometry(&self) -> String {
         let on = on_axis(&self.element.coupling);
         let Ok(p) = &self.part else { return on };
+        let tendon = self.transmission.as_ref().and_then(|t| t.tendon.as_ref()).map(tendon_words).unwrap_or_default();
+        self.mechanism_words(on, p) + &tendon
+    }
+
+    /// The mechanism's mounting in words, `on` where it sits.
+    fn mechanism_words(&self, on: String, p: &Part) -> String {
         match p.mechanism {
             mechanism::Mechanism::TorsionPair { preload } => format!(
                 "{on}: two torsion springs wound against each other, each preloaded {:.1}° at x₀ = {:.4} rad; the preload screw turns both stops together",
@@ -210,21 +221,52 @@ impl ElementPart {
     }
 }
 
-/// Where an element's coordinate x = a·q is: a joint axis, or a bevel-gear differential's output.
+/// Where an element's coordinate x = a·q is: a joint axis, a bevel-gear differential's output
+/// (two neighbouring joints at a gear pair's ratio), or a tendon's drum (any other coupling:
+/// [`transmission::kind`]).
 pub fn on_axis(a: &[f64]) -> String {
     let used: Vec<(usize, f64)> = a.iter().copied().enumerate().filter(|(_, c)| *c != 0.0).collect();
-    match used.as_slice() {
-        [(i, c)] if *c == 1.0 => format!("on joint {}'s axis", i + 1),
-        [(i, c)] => format!("on joint {}'s axis, geared {} : 1", i + 1, crate::elements::fmt_number(*c)),
-        _ => format!(
-            "on the output of a bevel-gear differential, x = {}",
-            used.iter()
-                .map(|(i, c)| format!("{}·q{}", crate::elements::fmt_number(*c), i + 1))
-                .collect::<Vec<_>>()
-                .join(" + ")
-                .replace("+ -", "− ")
-        ),
+    let sum = || {
+        used.iter()
+            .map(|(i, c)| format!("{}·q{}", crate::elements::fmt_number(*c), i + 1))
+            .collect::<Vec<_>>()
+            .join(" + ")
+            .replace("+ -", "− ")
+    };
+    match (used.as_slice(), transmission::kind(a)) {
+        ([(i, c)], _) if *c == 1.0 => format!("on joint {}'s axis", i + 1),
+        ([(i, c)], _) => format!("on joint {}'s axis, geared {} : 1", i + 1, crate::elements::fmt_number(*c)),
+        (_, transmission::Kind::Tendon) => format!("on the drum of a tendon, x = {}", sum()),
+        _ => format!("on the output of a bevel-gear differential, x = {}", sum()),
     }
+}
+
+/// A tendon's dimensions in words, for the geometry of its element's part.
+fn tendon_words(t: &transmission::Tendon) -> String {
+    let pulleys: Vec<String> = t
+        .radii_mm
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| **r != 0.0)
+        .map(|(i, r)| format!("{:.2} mm at joint {} ({} side)", r.abs(), i + 1, if *r > 0.0 { "+" } else { "−" }))
+        .collect();
+    let cables = if t.pair {
+        format!(
+            "an antagonistic pair of cables on opposite sides of every pulley, each preloaded to {:.1} N",
+            t.preload_n
+        )
+    } else {
+        "one cable (the torque keeps one sign over the region)".into()
+    };
+    format!(
+        "; the tendon runs over pulleys of {} to a drum of radius {:.2} mm on x: {cables}, peak tension {:.1} N, cable {} ({:.2} mm, breaking strength {:.0} N)",
+        pulleys.join(", "),
+        t.scale_mm,
+        t.peak_tension_n,
+        t.cable.name,
+        t.cable.diameter_mm,
+        t.cable.breaking_n
+    )
 }
 
 /// The parts of a bill and what the realised mechanisms cost.
@@ -422,6 +464,7 @@ fn choose_with(
                     stock: Some(row.clone()),
                     stock_note: None,
                     follower: None,
+                    transmission: None,
                 };
                 return (e, listed.examined);
             }
@@ -442,6 +485,7 @@ fn choose_with(
                 stock: matched.found.map(|(_, row)| row.clone()),
                 stock_note: listed.note.or(matched.note),
                 follower: None,
+                transmission: None,
             };
             (e, listed.examined + matched.examined)
         })
@@ -468,12 +512,14 @@ fn choose_with(
             stock: matched.found.map(|(_, row)| row.clone()),
             stock_note: matched.note,
             follower: Some([b.follower_rate, b.preload, stroke]),
+            transmission: None,
         };
         elements.push((e, matched.examined));
     }
     let examined: Vec<usize> = elements.iter().map(|e| e.1).collect();
     let stock_examined = examined.iter().sum();
-    let elements: Vec<ElementPart> = elements.into_iter().map(|e| e.0).collect();
+    let limits = transmission::Limits::of(s);
+    let elements: Vec<ElementPart> = elements.into_iter().map(|e| with_transmission(e.0, bom, &limits)).collect();
     let realised = RealisedSet::new(bom, &elements);
     let residuals = fan_angles(&design.chain, evaluation, &realised)?;
     let ideal = match ideal {
@@ -483,6 +529,31 @@ fn choose_with(
     let parts =
         Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius), stock_examined };
     Ok((parts, examined))
+}
+
+/// `e` with the transmission of its coupling for the torque its bill rows (a spring's one row, a
+/// cam's coefficient rows `C01.07+`) put on x over its deflections `e.duty.range`; a coupling no
+/// transmission makes ([`transmission::transmission`]) gets no part, its limit naming why.
+fn with_transmission(mut e: ElementPart, bom: &[BomRow], limits: &transmission::Limits) -> ElementPart {
+    let rows: Vec<&BomRow> = bom
+        .iter()
+        .filter(|r| r.id == e.id || r.id.strip_prefix(e.id.as_str()).is_some_and(|t| t.starts_with('.')))
+        .collect();
+    let [lo, hi] = e.duty.range;
+    let torque = (0..=200)
+        .map(|i| {
+            let x = e.element.offset + lo + (hi - lo) * f64::from(i) / 200.0;
+            rows.iter().map(|r| r.stiffness * r.element.profile.slope(x - r.element.offset)).sum::<f64>()
+        })
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], t| [a.min(t), b.max(t)]);
+    match transmission::transmission(&e.element.coupling, torque, limits) {
+        Ok(t) => e.transmission = Some(t),
+        Err(l) => {
+            e.transmission = None;
+            e.part = Err(l);
+        }
+    }
+    e
 }
 
 /// Mass (kg) of the lightest part for an element of `profile` at stiffness `k` over its working
@@ -972,6 +1043,7 @@ mod tests {
             stock: None,
             stock_note: None,
             follower: None,
+            transmission: None,
         };
         let Err(l) = &ep.part else { unreachable!() };
         let m = limit_message(&ep, l);

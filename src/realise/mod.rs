@@ -8,3 +8,4 @@ pub mod material;
 pub mod mechanism;
 pub mod sketch;
 pub mod spring;
+pub mod transmission;
