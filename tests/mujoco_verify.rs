@@ -163,6 +163,22 @@ X5,extra,crank,,1;0,-1,0.5,N*m,0,0,,0,,,,,,\n";
 }
 
 #[test]
+fn mujoco_reproduces_tendon_couplings() {
+    // Couplings only a tendon makes (1 : 0.7 and 0.3 : 1 are no bevel ratios): fixed tendons whose
+    // coefficients are the pulley radii, linear, cubic and both dead bands, added to the fitted
+    // springs, replayed to 1e-9 rad like every exact element.
+    let extra = "T1,extra,linear,,1;0.7,0.3,0.5,N*m/rad,0,0,,0,,,,,,\n\
+T2,extra,cubic,,0.3;-1,0.2,0.5,N*m/rad^3,0,0,,0,,,,,,\n\
+T3,extra,compression,+,1;0.7,-0.1,0.5,N*m/rad,0,0,,0,,,,,,\n\
+T4,extra,compression,-,0.3;-1,0.2,0.5,N*m/rad,0,0,,0,,,,,,\n";
+    let Some((_, md)) = fit_export_verify_with("double_pendulum.toml", extra) else { return };
+    for id in ["T1", "T2", "T3", "T4"] {
+        let line = md.lines().find(|l| l.starts_with(&format!("| {id} |"))).unwrap_or_else(|| panic!("{id}: {md}"));
+        assert!(line.contains("tendon over pulleys") && line.contains("ρ = 40 mm"), "{line}");
+    }
+}
+
+#[test]
 fn the_script_fails_when_the_callbacks_are_left_out() {
     if let Some(why) = mujoco_missing() {
         eprintln!("SKIPPED: {why}");

@@ -19,6 +19,7 @@
 //! | linear on one joint (a = eᵢ) | joint `stiffness` + `springref` | yes |
 //! | cubic on one joint | joint `stiffness="0 0 k"` (polynomial, MuJoCo ≥ 3.7) | yes |
 //! | linear or cubic on a coupling | fixed tendon, `coef` = a, `stiffness`, `springlength` = x₀ | yes |
+//! | linear, cubic or compression on a tendon's coupling | fixed tendon, `coef` = the pulley radii ρaᵢ (m), `stiffness` k/ρ² (cubic k/ρ⁴), `springlength` ρx₀ | yes |
 //! | compression, side ± | fixed tendon with a dead band `springlength="lo hi"` | yes |
 //! | crank on one joint (a = ±eᵢ) | zero-length spatial tendon between two sites | yes |
 //! | crank on a coupling | passive-force callback (`mjcb_passive`) | no |
@@ -87,6 +88,19 @@ pub enum Representation {
     },
     /// A fixed tendon with a two-value `springlength` dead band.
     DeadBand,
+    /// A tendon's cable (`realise::transmission`): a fixed tendon whose coefficients are its
+    /// pulley radii ρ·aᵢ in m, so its length is the cable's, ρ·x; the stiffness k/ρ² (cubic
+    /// k/ρ⁴) and `springlength` ρ·x₀ (a dead band ρ·x₀ and the far end) give the element's force
+    /// law on x.
+    PulleyTendon {
+        /// The drum radius ρ, mm.
+        scale_mm: f64,
+        /// A dead band (a compression element).
+        dead_band: bool,
+        /// Written with the radii negated and the length −ρx₀ (ρx₀ exactly −1 would read as
+        /// MuJoCo's "length at qpos_spring").
+        negated: bool,
+    },
     /// A zero-rest-length spatial tendon between two sites (a crank on one joint).
     SpatialCrank {
         /// The joint the tendon spans (a site on the link either side of it), 0-based.
@@ -114,6 +128,12 @@ impl Representation {
                 "fixed tendon, coef = −a, springlength = −x₀ (x₀ = −1 would read as MuJoCo's default)".into()
             }
             Representation::DeadBand => "fixed tendon, dead band springlength=\"lo hi\"".into(),
+            Representation::PulleyTendon { scale_mm, dead_band, negated } => format!(
+                "tendon over pulleys: fixed tendon, coef = the pulley radii {}ρ·a (ρ = {scale_mm} mm), stiffness k/ρ{}, {}",
+                if *negated { "−" } else { "" },
+                if *dead_band { "²" } else { "² (cubic: ⁴)" },
+                if *dead_band { "dead band springlength=\"lo hi\" at ρ·x₀" } else { "springlength = ρ·x₀" }
+            ),
             Representation::SpatialCrank { joint } => {
                 format!("zero-length spatial tendon between two sites across joint `q{}`", joint + 1)
             }
@@ -345,7 +365,7 @@ pub fn export(design: &Design, rows: &[BomRow], timestep: f64) -> Result<MujocoM
             reason: format!("element {} acts on {} joints but the design has {n}", r.id, r.element.coupling.len()),
         });
     }
-    let mut parts = Parts::new(n);
+    let mut parts = Parts::new(n, crate::realise::transmission::Limits::of(&design.parts));
     let mut elements = Vec::with_capacity(rows.len());
     let cams = crate::fit::bill::grouped(rows);
     let mut cams_done = vec![false; cams.len()];
@@ -374,11 +394,14 @@ struct Parts {
     tendons: String,
     customs: String,
     used_names: std::collections::BTreeSet<String>,
+    /// The design's `[parts]` tendon limits, which give a tendon coupling its pulley radii.
+    limits: crate::realise::transmission::Limits,
 }
 
 impl Parts {
-    fn new(n: usize) -> Parts {
+    fn new(n: usize, limits: crate::realise::transmission::Limits) -> Parts {
         Parts {
+            limits,
             joint_attrs: vec![None; n],
             sites: vec![Vec::new(); n + 1],
             tendons: String::new(),
@@ -430,10 +453,17 @@ impl Parts {
         let name = self.name(&row.id, format!("spring_{}", i + 1));
         let nonzero: Vec<usize> = (0..e.coupling.len()).filter(|&j| e.coupling[j] != 0.0).collect();
         let single = if nonzero.len() == 1 { Some(nonzero[0]) } else { None };
-        let representation = match (e.profile, single) {
-            (Profile::Linear | Profile::Cubic, _) => self.linear_or_cubic(&name, e, k, &nonzero, single),
-            (Profile::Compression(side), _) if !nonzero.is_empty() => self.dead_band(&name, e, k, side, &nonzero),
-            (Profile::Crank, Some(j)) if e.coupling[j].abs() == 1.0 => self.crank(chain, &name, e, k, j),
+        // A coupling a tendon makes: its cable's length ρ·x is the tendon's (no transmission: the
+        // coupling as it is, as for a differential).
+        use crate::realise::transmission::{Kind, kind, scale};
+        let tendon = if kind(&e.coupling) == Kind::Tendon { scale(&e.coupling, &self.limits).ok() } else { None };
+        let representation = match (e.profile, single, tendon) {
+            (Profile::Linear | Profile::Cubic | Profile::Compression(_), _, Some(rho)) => {
+                self.pulley_tendon(&name, e, k, &nonzero, rho)
+            }
+            (Profile::Linear | Profile::Cubic, _, _) => self.linear_or_cubic(&name, e, k, &nonzero, single),
+            (Profile::Compression(side), _, _) if !nonzero.is_empty() => self.dead_band(&name, e, k, side, &nonzero),
+            (Profile::Crank, Some(j), _) if e.coupling[j].abs() == 1.0 => self.crank(chain, &name, e, k, j),
             _ => self.callback(&name, e, k, nonzero.is_empty()),
         };
         ExportedElement {
@@ -477,6 +507,36 @@ impl Parts {
                 Representation::FixedTendon { negated }
             }
         }
+    }
+
+    /// A linear, cubic or compression element on a tendon's coupling with drum radius `rho_mm`:
+    /// a fixed tendon whose coefficients are the pulley radii ρ·aᵢ (m), so its length is ρ·x,
+    /// with the stiffness scaled so that the force law on x is the element's: ½ k (x − x₀)² =
+    /// ½ (k/ρ²) (L − ρx₀)², ¼ k (x − x₀)⁴ = ¼ (k/ρ⁴) (L − ρx₀)⁴.
+    fn pulley_tendon(&mut self, name: &str, e: &Element, k: f64, nonzero: &[usize], rho_mm: f64) -> Representation {
+        let rho = rho_mm * 1e-3;
+        let x0 = rho * e.offset;
+        let (stiffness, length, dead_band) = match e.profile {
+            Profile::Cubic => (format!("0 0 {}", num(k / rho.powi(4))), num(x0), false),
+            Profile::Compression(Side::Plus) => {
+                (num(k / (rho * rho)), format!("{} {}", num(-DEAD_BAND_FAR), num(x0)), true)
+            }
+            Profile::Compression(Side::Minus) => {
+                (num(k / (rho * rho)), format!("{} {}", num(x0), num(DEAD_BAND_FAR)), true)
+            }
+            _ => (num(k / (rho * rho)), num(x0), false),
+        };
+        // A single springlength of exactly −1 is MuJoCo's "length at qpos_spring": negate the
+        // tendon (L' = −L, L₀' = 1), which leaves the odd force laws of linear and cubic springs
+        // unchanged.
+        let negated = !dead_band && x0 == -1.0;
+        let (sign, length) = if negated { (-1.0, num(1.0)) } else { (1.0, length) };
+        let _ = write!(
+            self.tendons,
+            "    <fixed name=\"{name}\" stiffness=\"{stiffness}\" springlength=\"{length}\">\n{}    </fixed>\n",
+            coefs(e, nonzero, sign * rho)
+        );
+        Representation::PulleyTendon { scale_mm: rho_mm, dead_band, negated }
     }
 
     /// A compression spring: a fixed tendon with no force inside its dead band.
@@ -598,11 +658,12 @@ impl Parts {
     }
 }
 
-/// A fixed tendon's joints and coefficients: `sign` × the coupling's non-zero entries.
-fn coefs(e: &Element, nonzero: &[usize], sign: f64) -> String {
+/// A fixed tendon's joints and coefficients: `factor` × the coupling's non-zero entries (±1, or a
+/// tendon's drum radius in m, which makes them its pulley radii).
+fn coefs(e: &Element, nonzero: &[usize], factor: f64) -> String {
     let mut s = String::new();
     for &j in nonzero {
-        let _ = writeln!(s, "      <joint joint=\"q{}\" coef=\"{}\"/>", j + 1, num(sign * e.coupling[j]));
+        let _ = writeln!(s, "      <joint joint=\"q{}\" coef=\"{}\"/>", j + 1, num(factor * e.coupling[j]));
     }
     s
 }
@@ -802,6 +863,39 @@ mod tests {
         assert!(x.contains("<numeric name=\"springfit_callback_S08\" data=\"3.0 7.0 0.1 1.0 2.0\"/>"), "{x}");
         let md = elements_md(&design(), &m, "a test", "t.xml");
         assert!(md.contains("| S08 |") && md.contains("callback |") && md.contains("7 exact"), "{md}");
+    }
+
+    /// A coupling only a tendon makes (1 : 0.7 is no bevel ratio) becomes a fixed tendon whose
+    /// coefficients are its pulley radii in m (ρ = 40 mm at the default `[parts]` limits), its
+    /// stiffness scaled so that the torque on every joint is the element's.
+    #[test]
+    fn a_tendon_coupling_is_a_fixed_tendon_on_its_pulley_radii() {
+        let rows = vec![
+            row("T1", Profile::Linear, &[1.0, 0.7], 0.3, 2.0),
+            row("T2", Profile::Compression(Side::Minus), &[0.3, -1.0], 0.1, 3.0),
+            row("T3", Profile::Crank, &[1.0, 0.7], 0.3, 2.0),
+        ];
+        let m = export(&design(), &rows, 0.001).unwrap();
+        let reps: Vec<_> = m.elements.iter().map(|e| e.representation.clone()).collect();
+        assert_eq!(reps[0], Representation::PulleyTendon { scale_mm: 40.0, dead_band: false, negated: false });
+        assert_eq!(reps[1], Representation::PulleyTendon { scale_mm: 40.0, dead_band: true, negated: false });
+        assert!(matches!(reps[2], Representation::Callback { .. }), "{:?}", reps[2]);
+        let x = &m.xml;
+        let (rho, k) = (0.04, 2.0);
+        assert!(
+            x.contains(&format!(
+                "<fixed name=\"T1\" stiffness=\"{:?}\" springlength=\"{:?}\">",
+                k / (rho * rho),
+                rho * 0.3
+            )),
+            "{x}"
+        );
+        assert!(x.contains(&format!("coef=\"{:?}\"", rho * 0.7)), "{x}");
+        // The torque on joint j: coefⱼ · (−k/ρ²)(L − ρx₀) with L = Σ coefᵢ qᵢ is −k aⱼ (a·q − x₀).
+        let q = [0.4, -0.9];
+        let l: f64 = rho * q[0] + rho * 0.7 * q[1];
+        let tau = rho * 0.7 * (-k / (rho * rho)) * (l - rho * 0.3);
+        assert!((tau - (-k * 0.7 * (q[0] + 0.7 * q[1] - 0.3))).abs() < 1e-12);
     }
 
     #[test]
