@@ -57,10 +57,12 @@ fn main() {
             let scheme = match &label {
                 LabelSource::Fit(f) => match f.cells() {
                     Some(t) => format!(
-                        "fitted by {} cells of degree {} ({:.1} MB)",
+                        "fitted by {} cells of degree {}{} ({:.1} MB)",
                         t.cells(),
                         t.degree(),
-                        t.bytes() as f64 / 1e6
+                        f.inner_radius()
+                            .map_or(String::new(), |r| format!(", one polynomial inside {r} of the ball's radius")),
+                        f.bytes() as f64 / 1e6
                     ),
                     None => format!("fitted, one polynomial of degree {}", f.degree()),
                 },

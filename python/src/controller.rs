@@ -466,7 +466,7 @@ impl PyController {
     /// 0.1°: exact log map used" (None otherwise).
     #[getter]
     fn label_note(&self) -> Option<String> {
-        self.label_rejected_error_deg.map(springfit::dynamics::scenario::rejected_label_note)
+        self.label_rejected_error_deg.map(|e| springfit::dynamics::scenario::rejected_label_note(e, self.n))
     }
 
     /// The `[controllers]` gains in use, as a dict.

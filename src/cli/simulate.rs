@@ -100,7 +100,7 @@ fn say_setup(design: &Design, run: &SimulateRun, progress: &Progress) {
     if let Some((err, count)) = run.label_rejected {
         progress.say(format!(
             "mode label: {} (measured on {count} held-out samples)",
-            springfit::dynamics::scenario::rejected_label_note(err)
+            springfit::dynamics::scenario::rejected_label_note(err, design.dof())
         ));
     }
 }

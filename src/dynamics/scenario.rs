@@ -803,6 +803,8 @@ pub struct LabelChoice<'a> {
     /// The fitted log map `auto` built and rejected: its largest error, degrees, and the number
     /// of samples compared (None when no fit was rejected).
     pub rejected: Option<(f64, usize)>,
+    /// The arm's joints (what `auto`'s bound depends on).
+    pub joints: usize,
 }
 
 impl LabelChoice<'_> {
@@ -814,15 +816,16 @@ impl LabelChoice<'_> {
     /// Why `auto` took the exact log map, e.g. "fitted log map error 6.61° > 0.1°: exact log map
     /// used" (None when it did not reject a fit).
     pub fn note(&self) -> Option<String> {
-        self.rejected.map(|(deg, _)| rejected_label_note(deg))
+        self.rejected.map(|(deg, _)| rejected_label_note(deg, self.joints))
     }
 }
 
-/// The note of a fitted log map of error `deg` (degrees) that `label = "auto"` rejected.
-pub fn rejected_label_note(deg: f64) -> String {
+/// The note of a fitted log map of error `deg` (degrees) that `label = "auto"` rejected on an
+/// arm of `joints` joints (the bound depends on them: [`crate::design::simulate::auto_label_bound`]).
+pub fn rejected_label_note(deg: f64, joints: usize) -> String {
     format!(
         "fitted log map error {deg:.2}° > {}°: exact log map used",
-        crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG
+        crate::design::simulate::auto_label_bound(joints)
     )
 }
 
@@ -839,20 +842,23 @@ pub fn label_source<'a>(
 
 /// The label for a design. `[simulate] label`: `exact`, `table` (the grid for two joints, the
 /// fitted log map for more: one polynomial, or cells where it misses, whichever errs less) or
-/// `auto` (the table, except for three or more joints when the one polynomial's error exceeds
-/// [`crate::design::simulate::AUTO_LABEL_MAX_ERROR_DEG`]: then exact, with the fit's error kept
-/// in [`LabelChoice::rejected`]; see [`crate::geodesic::logfit::fit_label`]).
+/// `auto` (the table, except for three or more joints when the fit's error exceeds
+/// [`crate::design::simulate::auto_label_bound`]: 0.1° for the one polynomial of three to five
+/// joints; from six, where `auto` also builds the cells, 1.5°, half the settling band: then
+/// exact, with the fit's error kept in [`LabelChoice::rejected`]; see
+/// [`crate::geodesic::logfit::fit_label`]).
 pub fn choose_label<'a>(
     design: &'a Design,
     settings: &crate::design::simulate::SimSettings,
 ) -> Result<LabelChoice<'a>> {
-    use crate::design::simulate::{AUTO_LABEL_MAX_ERROR_DEG, LabelKind};
+    use crate::design::simulate::{AUTO_CELLS_FROM_JOINTS, LabelKind, auto_label_bound};
     use crate::geodesic::label::{ExactLog, LogTable};
     use crate::geodesic::logfit::fit_label;
     use crate::geodesic::{Fan, FanSpec};
     let exact = ExactLog::new(&design.chain, &design.q_eq, design.geodesics.ode);
+    let joints = design.dof();
     if settings.label == LabelKind::Exact {
-        return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: None });
+        return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: None, joints });
     }
     let region = design.valid_region()?;
     let stop = Stop::Region { region: &design.region, max_arc: design.geodesics.max_arc };
@@ -865,13 +871,13 @@ pub fn choose_label<'a>(
         ode,
     )?;
     if n != 2 {
-        let cells = settings.label == LabelKind::Table;
-        let (fit, err) =
-            fit_label(&design.chain, &design.q_eq, ode, region.extent, &check, AUTO_LABEL_MAX_ERROR_DEG, cells)?;
-        if settings.label == LabelKind::Auto && err.0 > AUTO_LABEL_MAX_ERROR_DEG {
-            return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: Some(err) });
+        let cells = settings.label == LabelKind::Table || n >= AUTO_CELLS_FROM_JOINTS;
+        let bound = auto_label_bound(n);
+        let (fit, err) = fit_label(&design.chain, &design.q_eq, ode, region.extent, &check, bound, cells)?;
+        if settings.label == LabelKind::Auto && err.0 > bound {
+            return Ok(LabelChoice { source: LabelSource::Exact(exact), error: None, rejected: Some(err), joints });
         }
-        return Ok(LabelChoice { source: LabelSource::Fit(Box::new(fit)), error: Some(err), rejected: None });
+        return Ok(LabelChoice { source: LabelSource::Fit(Box::new(fit)), error: Some(err), rejected: None, joints });
     }
     let fan = Fan::trace(
         &design.chain,
@@ -882,7 +888,7 @@ pub fn choose_label<'a>(
     let nodes = settings.table_nodes;
     let mut table = LogTable::build(&design.chain, &design.q_eq, &fan, ode, nodes, nodes, 0.25)?;
     let err = table.label_error(&design.chain, &design.q_eq, &check, ode, 0.05 * region.extent)?;
-    Ok(LabelChoice { source: LabelSource::Table(table), error: Some(err), rejected: None })
+    Ok(LabelChoice { source: LabelSource::Table(table), error: Some(err), rejected: None, joints })
 }
 
 /// One scenario's results.

@@ -38,7 +38,19 @@
 //! 51 s; on 12 000 × 8, 1.58° (32 s); quadratic on 48 000 × 3, 4096 cells (6.2 MB), 0.94° and
 //! 0.55° (89 s); quadratic on 24 000 × 6, 1.57°. More geodesics help more than more samples on
 //! each. So the derivatives buy about a factor 1.8 against the cells on values alone (1.76°),
-//! far from the factor 18 that 0.1° asks: `auto` keeps its rule.
+//! far from the factor 18 that 0.1° asks.
+//!
+//! **The inner ball** ([`CellSpec::inner`], six joints: a quarter of the radius). Where |w| is
+//! small a cell's absolute error is a large angle, and few samples lie there: with the cells
+//! alone the inner quarter of the extent missed by 0.3–1°. One polynomial w = x + P(x) through
+//! q_eq with the identity slope there ([`super::logfit`]'s form, fitted over the small ball)
+//! answers there instead: 0.025° in the inner quarter (`measure_cells_on_ur5_six`). The largest
+//! error is then in the outer three quarters (0.58°, 0.68°, 1.00° by quarter on the check fan;
+//! 0.46° at the random points), which only more samples would lower: spreading the same samples
+//! evenly over the volume (radial power 6) made the second quarter worse (2.26°), 4.5 too
+//! (1.03°). The loop needs less than 0.1°: a five-mode switch on `ur5_six` with these cells settles
+//! every step by the exact label, so `auto` takes them within 1.5° from six joints
+//! ([`crate::design::simulate::AUTO_LOOP_LABEL_MAX_ERROR_DEG`]).
 //!
 //! **Cost per call.** A descent of the tree (its depth, about log₂ of the cells) and one
 //! polynomial with its gradient: (n + 1)·n·m multiply–adds for m = C(n + d, d) monomials (28
@@ -90,6 +102,13 @@ pub struct CellSpec {
     /// polynomial could not meet the target anyway; the fits of the top levels are the bulk of
     /// the build when each sample brings n + 1 equations).
     pub split_above: usize,
+    /// Radius of the inner ball, as a fraction of the fitted ball's, served by one polynomial
+    /// w = x + P(x) through q_eq with the identity slope there ([`super::logfit`]'s global form
+    /// over the small ball) instead of the cells (0: cells everywhere). Why: a cell that holds
+    /// q_eq or lies near it misses by a small absolute error, which is a large angle where |w|
+    /// is small, and few samples fall there; the one polynomial is exact in value and slope at
+    /// q_eq and converges fast over a small ball (0.096° over a quarter of the radius).
+    pub inner: f64,
 }
 
 impl CellSpec {
@@ -108,8 +127,10 @@ impl CellSpec {
     /// 512 cells, 2.2 MB; the Jacobi samples take 37 MB while building). The error falls slowly
     /// with the data (a cell's polynomial misses by a power of its size, and the cells of a
     /// six-dimensional ball shrink as the sixth root of their number): 0.1° would take some
-    /// hundred times the samples, beyond the build's budget of 60 s on one core and 200 MB. So
-    /// `auto` keeps its 0.1° rule and only `label = "table"` builds cells
+    /// hundred times the samples, beyond the build's budget of 60 s on one core and 200 MB. From
+    /// six joints the inner quarter of the radius is one polynomial ([`CellSpec::inner`]: 0.025°
+    /// there instead of 0.3–1°; 51.5 CPU s, peak 269 MB resident for the whole measurement).
+    /// `label = "table"` builds cells for any number of joints, `auto` from six
     /// ([`super::logfit::fit_label`]). Fewer joints cover their sphere as densely with fewer
     /// directions; the derivatives were measured on six joints only.
     pub fn for_joints(n: usize) -> Self {
@@ -133,6 +154,7 @@ impl CellSpec {
             ridge: 1e-10,
             derivatives,
             split_above,
+            inner: if n >= 6 { 0.25 } else { 0.0 },
         }
     }
 }
@@ -208,10 +230,17 @@ impl CellTree {
         spec: CellSpec,
     ) -> Result<CellTree> {
         let n = chain.dof();
-        if spec.degree < 1 || spec.directions == 0 || spec.per_direction == 0 || spec.radial_power <= 0.0 {
+        if spec.degree < 1
+            || spec.directions == 0
+            || spec.per_direction == 0
+            || spec.radial_power <= 0.0
+            || !(0.0..1.0).contains(&spec.inner)
+        {
             return Err(Error::Setting {
                 field: "label".into(),
-                reason: format!("a cell-fitted label needs a degree ≥ 1, directions and samples, got {spec:?}"),
+                reason: format!(
+                    "a cell-fitted label needs a degree ≥ 1, directions and samples and an inner ball in [0, 1), got {spec:?}"
+                ),
             });
         }
         let scaled = Scaled { frame, lt, lt_inv, radius };
@@ -593,7 +622,9 @@ fn fit_cell(
     for &k in &cell.held {
         let (x, w) = (&held.x[k as usize * n..][..n], &held.w[k as usize * n..][..n]);
         let wn = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if wn < spec.min_r {
+        // The inner ball's polynomial answers there (`CellSpec::inner`): not the cell's error.
+        let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if wn < spec.min_r || xn < spec.inner {
             continue;
         }
         for j in 0..n {

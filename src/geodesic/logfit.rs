@@ -56,7 +56,8 @@
 //!   best of these but not 0.1°; `label = "table"` takes them where they beat the one
 //!   polynomial ([`fit_label`]), `auto` does not build them; fitted to the Jacobi fields'
 //!   derivatives as well (cubic cells, 24 000 geodesics × 4: the six-joint default), 1.00°,
-//!   about twice the build.
+//!   about twice the build; with this polynomial's form over the inner quarter of the radius
+//!   (through q_eq with slope I), 0.025° there, 1.00° still at the edge.
 //!
 //! **Domain.** The fit covers the geodesic ball of radius R = (1 + margin) × the region's
 //! extent. A query whose fitted metric distance |Lᵀv| is beyond R falls back to the exact log
@@ -153,8 +154,58 @@ enum Model {
         degree: usize,
     },
     /// Cells with their own polynomials ([`crate::geodesic::logcells`]), shared by the clones
-    /// each run takes.
-    Cells(std::sync::Arc<CellTree>),
+    /// each run takes, and the one polynomial of the inner ball where it answers instead
+    /// ([`CellSpec::inner`]).
+    Cells { tree: std::sync::Arc<CellTree>, inner: Option<Inner> },
+}
+
+/// The polynomial of the inner ball |x| < ρ of a fit by cells: w = x + ρ·P(x/ρ), P of degree
+/// 2 … d ([`LogFit::build`]'s form over the ball of radius ρ·R), so exact in value and slope
+/// at q_eq.
+#[derive(Clone)]
+struct Inner {
+    /// ρ, a fraction of the fitted ball's radius.
+    rho: f64,
+    monomials: Vec<(usize, usize)>,
+    /// Coefficients (monomials × n), zero on the rows of degree 0 and 1.
+    coef: DMatrix<f64>,
+    /// Scratch: the monomials' values and gradients at x/ρ.
+    basis: DMatrix<f64>,
+}
+
+/// Directions of the inner ball's fit per direction of [`LogFitSpec::for_joints`]: its
+/// geodesics are short (a quarter of the radius), so four times the default costs well under a
+/// second and makes the fit's error the polynomial's, not the sampling's.
+const INNER_DIRECTIONS: usize = 4;
+
+/// w = x + ρ·P(x/ρ) and ∂w/∂x = I + ∂P/∂z at z = x/ρ, for P = Σ coef·monomial, with `basis`
+/// (monomials × (n + 1)) and `product` (n × (n + 1)) as scratch.
+#[allow(clippy::too_many_arguments)]
+fn eval_polynomial(
+    monomials: &[(usize, usize)],
+    coef: &DMatrix<f64>,
+    rho: f64,
+    x: &[f64],
+    basis: &mut DMatrix<f64>,
+    product: &mut DMatrix<f64>,
+    w: &mut [f64],
+    g: &mut [f64],
+) {
+    let n = x.len();
+    let mut z = [0.0f64; 16];
+    let z = &mut z[..n];
+    for (zi, xi) in z.iter_mut().zip(x) {
+        *zi = xi / rho;
+    }
+    fill_basis(monomials, z, basis);
+    product.gemm_tr(1.0, coef, basis, 0.0);
+    for i in 0..n {
+        w[i] = x[i] + rho * product[(i, 0)];
+        for j in 0..n {
+            let id = if i == j { 1.0 } else { 0.0 };
+            g[i * n + j] = id + product[(i, 1 + j)];
+        }
+    }
 }
 
 /// The scaled metric frame of a fit over the ball of radius R: Lᵀ/R and R·L⁻ᵀ, row-major, with
@@ -327,12 +378,22 @@ impl<'a> LogFit<'a> {
         let Scaling { lt, lt_inv, frame } = Scaling::new(chain, q_eq, radius)?;
         let tree = CellTree::build(chain, q_eq, ode, &frame, &lt, &lt_inv, radius, spec)?;
         let terms = tree.terms();
+        let inner = if spec.inner > 0.0 {
+            let base = LogFitSpec::for_joints(n, spec.inner * radius);
+            let inner_spec = LogFitSpec { margin: 0.0, directions: INNER_DIRECTIONS * base.directions, ..base };
+            let Model::Global { monomials, coef, .. } = LogFit::build(chain, q_eq, ode, inner_spec)?.model else {
+                return Err(Error::numerical("fitted label", "the inner ball's fit is not one polynomial"));
+            };
+            Some(Inner { rho: spec.inner, basis: DMatrix::zeros(monomials.len(), n + 1), monomials, coef })
+        } else {
+            None
+        };
         Ok(LogFit {
             n,
             q_eq: q_eq.as_slice().to_vec(),
             lt,
             lt_inv,
-            model: Model::Cells(std::sync::Arc::new(tree)),
+            model: Model::Cells { tree: std::sync::Arc::new(tree), inner },
             basis: DMatrix::zeros(terms, n + 1),
             product: DMatrix::zeros(n, n + 1),
             last: None,
@@ -344,7 +405,7 @@ impl<'a> LogFit<'a> {
     pub fn degree(&self) -> usize {
         match &self.model {
             Model::Global { degree, .. } => *degree,
-            Model::Cells(tree) => tree.degree(),
+            Model::Cells { tree, .. } => tree.degree(),
         }
     }
 
@@ -353,7 +414,7 @@ impl<'a> LogFit<'a> {
     pub fn terms(&self) -> usize {
         match &self.model {
             Model::Global { monomials, .. } => monomials.len(),
-            Model::Cells(tree) => tree.terms(),
+            Model::Cells { tree, .. } => tree.terms(),
         }
     }
 
@@ -361,7 +422,26 @@ impl<'a> LogFit<'a> {
     pub fn cells(&self) -> Option<&CellTree> {
         match &self.model {
             Model::Global { .. } => None,
-            Model::Cells(tree) => Some(tree),
+            Model::Cells { tree, .. } => Some(tree),
+        }
+    }
+
+    /// The radius of the inner ball one polynomial serves in a fit by cells, as a fraction of
+    /// the fitted ball's ([`CellSpec::inner`]); None without one.
+    pub fn inner_radius(&self) -> Option<f64> {
+        match &self.model {
+            Model::Cells { inner: Some(inner), .. } => Some(inner.rho),
+            _ => None,
+        }
+    }
+
+    /// Bytes the fitted model holds: the coefficients, and for cells their centres, scales and
+    /// nodes ([`CellTree::bytes`]) with the inner ball's coefficients.
+    pub fn bytes(&self) -> usize {
+        let f = std::mem::size_of::<f64>();
+        match &self.model {
+            Model::Global { coef, .. } => coef.len() * f,
+            Model::Cells { tree, inner } => tree.bytes() + inner.as_ref().map_or(0, |i| i.coef.len() * f),
         }
     }
 
@@ -382,20 +462,14 @@ impl<'a> LogFit<'a> {
         let w = &mut w[..n];
         let mut g = [0.0f64; 256];
         let g = &mut g[..n * n];
-        match &self.model {
+        match &mut self.model {
             Model::Global { monomials, coef, .. } => {
-                fill_basis(monomials, x, &mut self.basis);
-                self.product.gemm_tr(1.0, coef, &self.basis, 0.0);
-                // w = x + P, ∂w/∂x = I + ∂P/∂x.
-                for i in 0..n {
-                    w[i] = x[i] + self.product[(i, 0)];
-                    for j in 0..n {
-                        let id = if i == j { 1.0 } else { 0.0 };
-                        g[i * n + j] = id + self.product[(i, 1 + j)];
-                    }
-                }
+                eval_polynomial(monomials, coef, 1.0, x, &mut self.basis, &mut self.product, w, g)
             }
-            Model::Cells(tree) => tree.eval(x, &mut self.basis, &mut self.product, w, g),
+            Model::Cells { inner: Some(inner), .. } if x.iter().map(|v| v * v).sum::<f64>() < inner.rho * inner.rho => {
+                eval_polynomial(&inner.monomials, &inner.coef, inner.rho, x, &mut inner.basis, &mut self.product, w, g)
+            }
+            Model::Cells { tree, .. } => tree.eval(x, &mut self.basis, &mut self.product, w, g),
         }
         if w.iter().map(|v| v * v).sum::<f64>() > 1.0 {
             return false;
@@ -443,10 +517,11 @@ impl<'a> LogFit<'a> {
 /// fraction of a second to build); else, if `cells`, the cells of [`CellSpec::for_joints`]
 /// ([`crate::geodesic::logcells`]) when they do better; else that polynomial.
 ///
-/// `label = "table"` asks for the cells, `auto` does not: on `ur5_six` they reach about 1°
-/// (`BENCHMARKS.md`), beyond `auto`'s 0.1°, so under `auto` they would cost their build (tens of
-/// seconds) only to be rejected, and on `triple_pendulum` they would move its pinned simulation
-/// outputs.
+/// `label = "table"` asks for the cells, `auto` only from six joints
+/// ([`crate::design::simulate::AUTO_CELLS_FROM_JOINTS`]): on `ur5_six` they reach about 1°
+/// (`BENCHMARKS.md`), within the 1.5° the loop allows there, while on fewer joints `auto` holds
+/// fits to 0.1° (cells would cost their build only to be rejected, and on `triple_pendulum` they
+/// would move its pinned simulation outputs).
 pub fn fit_label<'a>(
     chain: &'a Chain,
     q_eq: &DVector<f64>,

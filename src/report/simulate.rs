@@ -282,7 +282,7 @@ pub fn summary(
         label: label_name.into(),
         label_error_deg,
         label_rejected_error_deg,
-        label_note: label_rejected_error_deg.map(crate::dynamics::scenario::rejected_label_note),
+        label_note: label_rejected_error_deg.map(|e| crate::dynamics::scenario::rejected_label_note(e, design.dof())),
         blend: design.controllers.blend,
         gains: GainsReport::of(&design.controllers),
         energy_handling: outcome.scenario.energy_handling.clone(),

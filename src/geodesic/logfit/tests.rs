@@ -103,7 +103,7 @@ fn the_build_does_not_depend_on_the_thread_count() {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| match LogFit::build(&chain, &q_eq, OdeSettings::default(), spec).unwrap().model {
             Model::Global { coef, .. } => coef,
-            Model::Cells(_) => unreachable!("LogFit::build fits one polynomial"),
+            Model::Cells { .. } => unreachable!("LogFit::build fits one polynomial"),
         })
     };
     assert_eq!(build(1), build(2));
