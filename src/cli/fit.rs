@@ -137,6 +137,9 @@ fn say_fit(run: &FitRun, settings: &FitSettings, progress: &Progress) {
         Some(parts) => parts.verdict(settings.accept_p99_deg),
         None => springfit::fit::outcome::Verdict::ideal(st.p99_abs, settings.accept_p99_deg),
     };
+    if let Some(d) = &outcome.dropped_without_part {
+        progress.say(d.sentence());
+    }
     progress.say(if verdict.acceptable() {
         format!("verdict: acceptable ({})", verdict.reason())
     } else if !verdict.ideal_passes() {

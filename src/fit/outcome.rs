@@ -204,6 +204,53 @@ pub struct FitOutcome {
     /// What would lower the residual most, for a poor fit (set by the fit job; None for an
     /// acceptable fit, the exact reference and fits run outside the job).
     pub diagnosis: Option<crate::fit::diagnosis::Diagnosis>,
+    /// The elements left out of the bill because no part realises them, and what that cost
+    /// ([`crate::fit::Prepared::drop_unbuildable`]); None when every element of the first bill
+    /// has a part, when no parts were chosen, and for the exact reference.
+    pub dropped_without_part: Option<DroppedWithoutPart>,
+}
+
+/// An element of a fit's first bill that no part realises and that the fit left out.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DroppedElement {
+    /// Its id in the bill it was missing a part in (`S140`): the refit's bill numbers its
+    /// elements afresh.
+    pub id: String,
+    /// The element in words (`linear on q2 at x₀ = 0.1`).
+    pub element: String,
+    /// Its catalogue family.
+    pub family: String,
+    /// Its peak torque over the region in that bill, N·m.
+    pub max_torque_nm: f64,
+    /// The limit no spring meets, by how much, and what keeps a part possible (the verdict's
+    /// words, [`WithoutPart::reason`]).
+    pub reason: String,
+}
+
+/// What became of the elements no part realises: an element that cannot be built has no place
+/// in the bill (its ideal potential would be judged as if it were built), so the fit is solved
+/// again without it, on the same preparation and settings, and the parts chosen again. The
+/// figures before and after say what the drop cost.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DroppedWithoutPart {
+    /// The elements left out, in the order they were found (empty when `kept` says why none
+    /// could be).
+    pub elements: Vec<DroppedElement>,
+    /// Refits solved (each drops the elements the previous bill's parts could not realise).
+    pub rounds: usize,
+    /// The ideal elements' p99 |residual angle| before the drop, degrees (as drawn).
+    pub p99_deg_before: f64,
+    /// The same after, degrees: the bill's.
+    pub p99_deg_after: f64,
+    /// The realised design's p99 before the drop, degrees (the missing elements counted at
+    /// their ideal potential, as the parts stage evaluates them).
+    pub realised_p99_deg_before: f64,
+    /// The realised design's p99 after, degrees: what the verdict judges.
+    pub realised_p99_deg_after: f64,
+    /// Why the elements without a part were kept in the bill after all (the refit without them
+    /// cannot hold the equilibrium equalities, or found no solution): then the bill is the
+    /// first one and the verdict names them as before. None when they were dropped.
+    pub kept: Option<String>,
 }
 
 impl FitOutcome {
@@ -217,6 +264,44 @@ impl FitOutcome {
     /// What [`FitOutcome::used`] counts, in words: `springs`, or `elements (N cams)` with cams.
     pub fn used_noun(&self) -> String {
         if self.cams.is_empty() { "springs".into() } else { format!("elements ({} cams)", self.cams.len()) }
+    }
+}
+
+impl DroppedWithoutPart {
+    /// What happened, in one sentence (what `springfit fit` prints and `report.md` says): the
+    /// elements dropped with their limits and peak torques, the p99 as drawn and realised
+    /// before and after; or why they were kept.
+    pub fn sentence(&self) -> String {
+        let n = self.elements.len();
+        let mut r = String::new();
+        if n > 0 {
+            let named: Vec<String> = self
+                .elements
+                .iter()
+                .map(|e| {
+                    // The limit only: the remedy it carries is moot once the element is gone.
+                    let limit = e.reason.split("; ").next().unwrap_or(&e.reason);
+                    format!("{} ({}, peak {:.4} N·m: {limit})", e.id, e.element, e.max_torque_nm)
+                })
+                .collect();
+            r = format!(
+                "{n} element{} without a part left out of the bill and the fit solved again without {} ({} refit{}): {}; p99 as drawn {:.4}° → {:.4}°, realised {:.4}° → {:.4}°",
+                if n == 1 { "" } else { "s" },
+                if n == 1 { "it" } else { "them" },
+                self.rounds,
+                if self.rounds == 1 { "" } else { "s" },
+                named.join(", "),
+                self.p99_deg_before,
+                self.p99_deg_after,
+                self.realised_p99_deg_before,
+                self.realised_p99_deg_after
+            );
+        }
+        if let Some(why) = &self.kept {
+            let kept = format!("the elements without a part stay in the bill: {why}");
+            r = if r.is_empty() { kept } else { format!("{r}; {kept}") };
+        }
+        r
     }
 }
 

@@ -19,13 +19,17 @@ use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
 use super::mass::{Floor, MassTerm};
-use super::outcome::{Evaluation, FitOutcome, ShiftAction, ShiftBound, SolveReport, SolveStatus, Solver, Timings};
+use super::outcome::{
+    DroppedElement, DroppedWithoutPart, Evaluation, FitOutcome, ShiftAction, ShiftBound, SolveReport, SolveStatus,
+    Solver, Timings, Verdict, WithoutPart,
+};
 use super::prepare::{Prepared, fans};
 use super::robust::{BuildPenalty, ShiftCone};
-use super::solve::solve;
+use super::solve::{DROPPED, solve};
 use crate::design::Design;
 use crate::design::fit::{FitSettings, SolverKind};
 use crate::elements::catalog::Catalog;
+use crate::elements::{Element, Profile};
 use crate::error::{Error, Result};
 use crate::potential::{ExactPotential, Potential, SpringSet};
 use crate::progress::Progress;
@@ -104,7 +108,117 @@ impl Prepared<'_> {
             evaluation: self.evaluation.clone(),
             auto: None,
             diagnosis: None,
+            dropped_without_part: None,
         })
+    }
+
+    /// Leaves out of the bill the elements no part realises, and returns the fit of the rest
+    /// with its parts. `fitted` is a fit of this preparation with `settings` and its parts;
+    /// `choose` chooses the parts of a fit, `verdict` judges them (the elements without a part,
+    /// the realised p99). An element without a part cannot be built: left in the bill, the
+    /// realised design would count its ideal potential as built, and the verdict would judge a
+    /// design that does not exist (or call poor one that builds well without it, as the Panda's
+    /// S140 of 0.0003 N·m peak torque did). So each such spring is left out of the candidates,
+    /// the fit solved again (same solver, selection and weights), its parts chosen again, and so
+    /// on while a refit's parts leave new ones out, at most [`DROP_ROUNDS`] refits. The solve
+    /// leaves a dropped candidate out of its unknowns ([`super::solve::is_dropped`]), so the
+    /// refit takes the path of the first fit (an unlimited QP's exact NNLS with equalities keeps
+    /// its sparse support). With a budget (`max_elements`) the selection still sees a dropped
+    /// candidate: when it picks one, the bill has one element fewer than the budget. The bill,
+    /// parts and figures are then the buildable elements', and
+    /// [`FitOutcome::dropped_without_part`] names the elements dropped, their limits and the
+    /// figures before and after.
+    ///
+    /// A refit that fails (infeasible, a numerical error) or misses the equalities the fit held
+    /// is not taken: the previous bill stands, its elements without a part stay in it and the
+    /// verdict names them as before (`kept` says why). A cam's follower and a trim are not
+    /// candidates of the solve and are never dropped. The candidates are restored
+    /// before returning: the preparation serves further solves unchanged. A fit whose every
+    /// element has a part is returned as it is, bit for bit.
+    pub fn drop_unbuildable<P>(
+        &mut self,
+        settings: &FitSettings,
+        progress: Progress<'_>,
+        fitted: (FitOutcome, P),
+        choose: impl Fn(&FitOutcome) -> Result<P>,
+        verdict: impl Fn(&P) -> Verdict,
+    ) -> Result<(FitOutcome, P)> {
+        let (mut outcome, mut parts) = fitted;
+        let first = verdict(&parts);
+        if first.without_part.is_empty() {
+            return Ok((outcome, parts));
+        }
+        let held = hints::fit_equality_warning(self.design, settings, &outcome.metrics).is_none();
+        let bounds: Vec<Option<f64>> = self.candidates.iter().map(|c| c.max_stiffness).collect();
+        let mut record = DroppedWithoutPart {
+            elements: Vec::new(),
+            rounds: 0,
+            p99_deg_before: outcome.metrics.stats.p99_abs,
+            p99_deg_after: outcome.metrics.stats.p99_abs,
+            realised_p99_deg_before: first.p99_deg,
+            realised_p99_deg_after: first.p99_deg,
+            kept: None,
+        };
+        let mut missing = first.without_part;
+        let result = loop {
+            if record.rounds == DROP_ROUNDS {
+                break Ok(());
+            }
+            let droppable = droppable(&outcome.bom, &missing);
+            if droppable.is_empty() {
+                break Ok(());
+            }
+            let before: Vec<Option<f64>> = self.candidates.iter().map(|c| c.max_stiffness).collect();
+            for c in &mut self.candidates {
+                if droppable.iter().any(|(_, e)| *e == c.element) {
+                    c.max_stiffness = Some(DROPPED);
+                }
+            }
+            let n = droppable.len();
+            progress.stage(&format!("refitting without the {n} element{} no part realises", plural(n)));
+            let refit = match self.solve(settings, progress) {
+                Ok(o) => match hints::fit_equality_warning(self.design, settings, &o.metrics).filter(|_| held) {
+                    None => Ok(o),
+                    Some(w) => Err(format!("the refit without them misses the equalities: {w}")),
+                },
+                Err(e @ (Error::Infeasible { .. } | Error::Numerical { .. })) => {
+                    Err(format!("the refit without them has no solution: {e}"))
+                }
+                Err(e) => break Err(e),
+            };
+            let mut refit = match refit {
+                Ok(o) => o,
+                Err(why) => {
+                    for (c, b) in self.candidates.iter_mut().zip(&before) {
+                        c.max_stiffness = *b;
+                    }
+                    record.kept = Some(why);
+                    break Ok(());
+                }
+            };
+            progress.stage("choosing parts");
+            let chosen = match choose(&refit) {
+                Ok(p) => p,
+                Err(e) => break Err(e),
+            };
+            // The refit's own solve and evaluation, and the fits before it.
+            refit.timings.solve += outcome.timings.solve;
+            refit.timings.evaluate += outcome.timings.evaluate;
+            refit.timings.total += outcome.timings.solve + outcome.timings.evaluate;
+            (outcome, parts) = (refit, chosen);
+            let v = verdict(&parts);
+            record.rounds += 1;
+            record.elements.extend(droppable.into_iter().map(|(d, _)| d));
+            record.p99_deg_after = outcome.metrics.stats.p99_abs;
+            record.realised_p99_deg_after = v.p99_deg;
+            missing = v.without_part;
+        };
+        for (c, b) in self.candidates.iter_mut().zip(bounds) {
+            c.max_stiffness = b;
+        }
+        result?;
+        outcome.dropped_without_part = Some(record);
+        Ok((outcome, parts))
     }
 
     /// Whether the bill of `k` left out elements whose share of the equalities spoils them: a
@@ -250,6 +364,39 @@ impl Prepared<'_> {
     }
 }
 
+/// The most refits [`Prepared::drop_unbuildable`] solves: each drops the springs the previous
+/// bill's parts could not realise; one is the rule (a refit's remaining springs keep their
+/// parts), the bound keeps a design whose refits keep losing parts to a known time.
+pub const DROP_ROUNDS: usize = 3;
+
+/// The elements of `missing` that can be left out of the bill `bom`, with their elements: the
+/// fitted springs (not a trim, which the solve does not choose, nor a cam, whose part is its
+/// follower), each described as the verdict names it.
+fn droppable(bom: &[BomRow], missing: &[WithoutPart]) -> Vec<(DroppedElement, Element)> {
+    missing
+        .iter()
+        .filter_map(|w| {
+            let r = bom.iter().find(|r| r.id == w.id)?;
+            let spring = r.adjust.trim_range.is_none() && !matches!(r.element.profile, Profile::Spline(_));
+            spring.then(|| {
+                let d = DroppedElement {
+                    id: w.id.clone(),
+                    element: r.element.label(),
+                    family: r.family.clone(),
+                    max_torque_nm: r.max_torque_nm,
+                    reason: w.reason.clone(),
+                };
+                (d, r.element.clone())
+            })
+        })
+        .collect()
+}
+
+/// `s` for a plural count.
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
 /// The exact reference U* = ½ω²r² evaluated like a fit (no springs, no bill of materials).
 pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progress<'_>) -> Result<FitOutcome> {
     settings.validate().map_err(|(f, r)| Error::invalid(&design.path, f, r))?;
@@ -305,5 +452,6 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progre
         evaluation,
         auto: None,
         diagnosis: None,
+        dropped_without_part: None,
     })
 }

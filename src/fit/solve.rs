@@ -15,6 +15,7 @@ use super::problem::unit_preloads;
 use super::robust::{BuildPenalty, ShiftCone};
 use crate::design::fit::{FitSettings, SolverKind};
 
+use crate::elements::catalog::Candidate;
 use crate::elements::group::{Columns, Grouping};
 use crate::error::{Error, Result};
 use crate::solve::LinearGroup;
@@ -266,6 +267,9 @@ fn solve_gram_with(
         Some(support) => support.to_vec(),
         None => select(&weighted, grouping, settings, &mut report, None)?,
     };
+    // A candidate left out of the bill (no part realises it) is no unknown: the rest is solved
+    // as if the catalogue lacked it, on the same path as any fit.
+    let support: Vec<usize> = support.into_iter().filter(|&j| !is_dropped(&candidates[j])).collect();
     // The QP sees one signed unknown per group coefficient instead of its ± column pair (see
     // `signed_unknowns`). NNLS keeps the pairs: its active set starts from zero and brings in
     // only the columns the fit needs, which keeps parts that could cancel each other small (four
@@ -284,6 +288,16 @@ fn solve_gram_with(
         SolverKind::Qp => solve_qp(problem, &gram, &unknowns, (&upper, &unit, budget), cone, settings, &mut report)?,
     };
     Ok((unknowns.stiffnesses(grouping, p, &k_sub), report))
+}
+
+/// The `max_stiffness` of a candidate left out of the bill because no part realises it
+/// ([`crate::fit::Prepared::drop_unbuildable`]): a catalogue's `max_stiffness` must be positive,
+/// so no family gives it.
+pub const DROPPED: f64 = 0.0;
+
+/// Whether `c` was left out of the bill ([`DROPPED`]): the solve leaves it at zero.
+pub fn is_dropped(c: &Candidate) -> bool {
+    c.max_stiffness == Some(DROPPED)
 }
 
 /// The columns of the items a budget of `max_elements` keeps (every column without a budget):

@@ -209,7 +209,7 @@ fn choose_weights(
     progress: Progress<'_>,
 ) -> Result<(FitOutcome, Parts, Option<AsBuilt>)> {
     let t0 = Instant::now();
-    let prepared = Prepared::new(design, catalog, settings, progress)?;
+    let mut prepared = Prepared::new(design, catalog, settings, progress)?;
     let trims = catalog.families.iter().any(|f| f.trim_range.is_some());
     let mut search = Search::new(settings, trims);
     let mut measured = Vec::new();
@@ -224,6 +224,10 @@ fn choose_weights(
         let fitted = match prepared.solve(&here, progress) {
             Ok(outcome) => {
                 let parts = crate::parts::of_fit(design, &outcome, here.frequency, stock)?;
+                // Each candidate is judged on the elements that can be built.
+                let choose = |o: &FitOutcome| crate::parts::of_fit(design, o, here.frequency, stock);
+                let verdict = |p: &Parts| p.verdict(here.accept_p99_deg);
+                let (outcome, parts) = prepared.drop_unbuildable(&here, progress, (outcome, parts), choose, verdict)?;
                 let as_built = crate::asbuilt::of_fit(design, &outcome)?;
                 Some((outcome, parts, as_built))
             }

@@ -311,7 +311,9 @@ pub fn part_tolerance(parts: &Parts, row: &BomRow) -> Option<f64> {
 /// once more on the same preparation with those tolerances, its parts are chosen again, and the
 /// bill carries each part's tolerance, which the as-built figures then draw at. An element no
 /// spring meets keeps its catalogue tolerance; a trim's leaf is set on the built arm (tolerance
-/// 0). Other tolerance settings: one fit, then its parts.
+/// 0). Other tolerance settings: one fit, then its parts. Last, the springs no part realises are
+/// left out of the bill and the fit solved again without them
+/// ([`crate::fit::Prepared::drop_unbuildable`]).
 pub fn fit_with_parts(
     design: &Design,
     catalog: &crate::elements::catalog::Catalog,
@@ -335,6 +337,15 @@ pub fn fit_with_parts(
         total += t1.elapsed().as_secs_f64();
         progress.stage("choosing parts");
         parts = of_fit(design, &outcome, settings.frequency, stock)?;
+    }
+    // An element no part realises leaves the bill: the fit is solved again without it (its
+    // solves and evaluations add to the fit's time; the parts chosen again do not, as above).
+    let fitted = outcome.timings;
+    let choose = |o: &crate::fit::FitOutcome| of_fit(design, o, settings.frequency, stock);
+    let verdict = |p: &Parts| p.verdict(settings.accept_p99_deg);
+    (outcome, parts) = prepared.drop_unbuildable(settings, progress, (outcome, parts), choose, verdict)?;
+    total += (outcome.timings.solve - fitted.solve) + (outcome.timings.evaluate - fitted.evaluate);
+    if settings.tolerance == crate::design::tolerance::ToleranceSpec::Parts {
         for r in &mut outcome.bom {
             if let Some(t) = part_tolerance(&parts, r) {
                 r.tolerance = t;

@@ -99,6 +99,12 @@ pub struct Summary {
     /// check (absent for an acceptable fit; see `fit::diagnosis`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub diagnosis: Option<crate::fit::diagnosis::Diagnosis>,
+    /// The elements of the first bill no part realises, left out of the bill with the fit
+    /// solved again without them: each with its id in that bill, its limit and peak torque, and
+    /// the p99 as drawn and realised before and after (or why they were kept); absent when
+    /// every element had a part.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dropped_without_part: Option<crate::fit::outcome::DroppedWithoutPart>,
 }
 
 /// The region part of the summary.
@@ -210,6 +216,7 @@ impl Summary {
             realised: None,
             mass: None,
             auto_weights: o.auto.clone(),
+            dropped_without_part: o.dropped_without_part.clone(),
             diagnosis: o.diagnosis.clone(),
         }
     }
@@ -517,6 +524,9 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
             crate::fit::outcome::Judged::Ideal => String::new(),
         }
     ));
+    if let Some(d) = &s.dropped_without_part {
+        r.push_str(&format!("Built without what cannot be built: {}.\n\n", d.sentence()));
+    }
     if let Some(d) = &s.diagnosis {
         r.push_str(&diagnosis_md(d));
     }
