@@ -327,6 +327,12 @@ pub struct WithoutPart {
     /// The limit no spring meets, by how much, and the bound that keeps a part possible, in
     /// words (the parts stage's sentence, shortened).
     pub reason: String,
+    /// Whether only a stronger element would get a part (the limit bounds the element's torque
+    /// from below: arbor clearance, initial tension, no wire that winds so soft a rate). Such
+    /// an element carries less torque than any part can, so the fit can leave it out at a cost
+    /// it measures; a strong element without a part is a design problem named to the user.
+    #[serde(skip)]
+    pub too_weak: bool,
 }
 
 /// The plain verdict on a fit: `acceptable` when the judged design's p99 residual angle on the
@@ -420,7 +426,11 @@ mod tests {
         let missing = Verdict {
             judged: Judged::Realised,
             p99_deg: 1.0,
-            without_part: vec![WithoutPart { id: "S57".into(), reason: "`initial tension` 1.29× the limit".into() }],
+            without_part: vec![WithoutPart {
+                id: "S57".into(),
+                reason: "`initial tension` 1.29× the limit".into(),
+                too_weak: true,
+            }],
             ..ideal
         };
         assert!(missing.residual_passes() && !missing.acceptable());

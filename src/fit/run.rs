@@ -145,7 +145,7 @@ impl Prepared<'_> {
     ) -> Result<(FitOutcome, P)> {
         let (mut outcome, mut parts) = fitted;
         let first = verdict(&parts);
-        if first.without_part.is_empty() {
+        if !first.without_part.iter().any(|w| w.too_weak) {
             return Ok((outcome, parts));
         }
         let held = hints::fit_equality_warning(self.design, settings, &outcome.metrics).is_none();
@@ -217,7 +217,9 @@ impl Prepared<'_> {
             c.max_stiffness = b;
         }
         result?;
-        outcome.dropped_without_part = Some(record);
+        if !record.elements.is_empty() || record.kept.is_some() {
+            outcome.dropped_without_part = Some(record);
+        }
         Ok((outcome, parts))
     }
 
@@ -370,11 +372,17 @@ impl Prepared<'_> {
 pub const DROP_ROUNDS: usize = 3;
 
 /// The elements of `missing` that can be left out of the bill `bom`, with their elements: the
-/// fitted springs (not a trim, which the solve does not choose, nor a cam, whose part is its
-/// follower), each described as the verdict names it.
+/// fitted springs too weak for any part (not a trim, which the solve does not choose, nor a
+/// cam, whose part is its follower), each described as the verdict names it. A spring too
+/// strong for its parts stays: it carries real torque, and neither leaving it out nor capping
+/// it is a small change (on the UR10 a crank of 80 N·m peak, dropped, made the springs 1.7×
+/// heavier; capped at the 46 N·m its part carries, the refit moved the torque to two other
+/// cranks of 420 and 790 N·m and the springs to 35.6 kg). Its remedy is the user's
+/// (`max_element_torque`, a wider envelope), and the verdict names it.
 fn droppable(bom: &[BomRow], missing: &[WithoutPart]) -> Vec<(DroppedElement, Element)> {
     missing
         .iter()
+        .filter(|w| w.too_weak)
         .filter_map(|w| {
             let r = bom.iter().find(|r| r.id == w.id)?;
             let spring = r.adjust.trim_range.is_none() && !matches!(r.element.profile, Profile::Spline(_));

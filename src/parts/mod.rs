@@ -984,6 +984,7 @@ impl Parts {
                 } else {
                     format!("`{}` {:.2}× the limit; {}", l.check.name, l.check.ratio(), remedy(e, l))
                 },
+                too_weak: matches!(l.torque_bound, Some(TorqueBound::AtLeast { .. })),
             })
             .collect();
         crate::fit::outcome::Verdict {
