@@ -98,5 +98,7 @@ fn bad_max_shift_values_are_refused_naming_the_key() {
     assert_eq!(none.fit.max_shift, MaxShift::None);
     let set = Design::parse(&path, &with("0.02")).unwrap();
     assert_eq!(set.fit.max_shift, MaxShift::Metric(0.02));
-    assert_eq!(Design::parse(&path, &text).unwrap().fit.max_shift, MaxShift::Default);
+    let default = Design::parse(&path, &with("\"default\"")).unwrap();
+    assert_eq!(default.fit.max_shift, MaxShift::Default);
+    assert_eq!(Design::parse(&path, &text).unwrap().fit.max_shift, MaxShift::None);
 }
