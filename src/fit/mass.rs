@@ -9,7 +9,7 @@
 //! [`crate::realise::mechanism::spring_element`] chooses over the candidate's own duty (its
 //! deflections over the held-out fan, preload included, and the scenarios' swing for fatigue):
 //! at a reference stiffness k_ref, at 4·k_ref (2·k_ref where 4× has no part) and at 16·k_ref
-//! (8·k_ref), the curve fitted to them in relative terms with aᵢ, bᵢ ≥ 0 ([`curve`]: a straight
+//! (8·k_ref), the curve fitted to them in relative terms with aᵢ, bᵢ ≥ 0 (`curve`: a straight
 //! line where the larger parts are lighter per unit stiffness). The third read is where the fits
 //! go: a curve through k_ref and 4·k_ref alone was extrapolated beyond, and a mass budget's
 //! selection found the supports it under-read (`tests/mass_range.rs` measures the model against
