@@ -168,7 +168,6 @@ impl Prepared<'_> {
             if droppable.is_empty() {
                 break Ok(());
             }
-            let before: Vec<Option<f64>> = self.candidates.iter().map(|c| c.max_stiffness).collect();
             for c in &mut self.candidates {
                 if droppable.iter().any(|(_, e)| *e == c.element) {
                     c.max_stiffness = Some(DROPPED);
@@ -189,9 +188,7 @@ impl Prepared<'_> {
             let mut refit = match refit {
                 Ok(o) => o,
                 Err(why) => {
-                    for (c, b) in self.candidates.iter_mut().zip(&before) {
-                        c.max_stiffness = *b;
-                    }
+                    // The candidates' bounds are restored once, after the loop.
                     record.kept = Some(why);
                     break Ok(());
                 }
