@@ -58,3 +58,50 @@ N1,beyond,linear,,1;0.1,0.2,5,N*m/rad,0,0,,0,,,,,,\n";
     let limit = at("N1", "limit");
     assert!(limit.contains("`[parts] min_pulley_radius_mm` = 10 mm") && limit.contains("4.000 mm"), "{limit}");
 }
+
+/// A coupling a tendon family generated carries its pulleys: `springfit parts` reports exactly the
+/// radii the catalogue stocks (10 mm and 30 mm), not the chooser's rescaling of the same coupling
+/// (13.33 mm and 40 mm), and a design whose `[parts]` does not allow a stocked pulley is refused
+/// naming the catalogue's field and the `[parts]` key.
+#[test]
+fn a_tendon_familys_coupling_is_built_over_exactly_its_pulleys() {
+    let dir = temp_dir("tendon_family");
+    let design = design_variant(
+        &dir,
+        "double_pendulum",
+        &[
+            ("equilibrium.bill_tolerance", toml::Value::Float(1e3)),
+            ("fit.evaluation_directions", toml::Value::Integer(12)),
+            ("fit.evaluation_samples", toml::Value::Integer(10)),
+        ],
+    );
+    write(
+        &dir,
+        "tendons.toml",
+        "[[family]]\nname = \"t\"\nprofile = \"linear\"\noffsets = \"equilibrium\"\n\
+         couplings = { tendons = { radii_mm = [10, 30], max_crossed = 2 } }\n",
+    );
+    let mut table: toml::Table = toml::from_str(&std::fs::read_to_string(&design).unwrap()).unwrap();
+    table.insert("catalog".into(), toml::Value::String("tendons.toml".into()));
+    std::fs::write(&design, toml::to_string(&table).unwrap()).unwrap();
+    // (10, 30) and (10, −30): the couplings (1/3, ±1) as the bill writes them.
+    let third = 1.0_f64 / 3.0;
+    let rows = format!(
+        "T1,t,linear,,{third};1,0.2,5,N*m/rad,0,0,,0,,,,,,\nT2,t,linear,,{third};-1,0.2,5,N*m/rad,0,0,,0,,,,,,\n"
+    );
+    write(&dir, "bom.csv", &format!("{}\n{rows}", springfit::files::bom::HEADER));
+    springfit(&dir, &["parts", design.to_str().unwrap(), "--bom", "bom.csv", "--out", "parts"]).ok();
+    let csv = std::fs::read_to_string(dir.join("parts/parts.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let rows: Vec<Vec<String>> = csv.lines().skip(1).map(|l| springfit::files::split_csv_line(l).unwrap()).collect();
+    let at = |id: &str, c: &str| rows.iter().find(|r| r[0] == id).unwrap()[col(c)].clone();
+    assert_eq!((at("T1", "transmission"), at("T1", "pulley_radii_mm")), ("tendon".into(), "10;30".into()));
+    assert_eq!((at("T2", "transmission"), at("T2", "pulley_radii_mm")), ("tendon".into(), "10;-30".into()));
+    // A design allowing pulleys of 12 mm and up: the stocked 10 mm one is refused.
+    let parts = table.get_mut("parts").and_then(|p| p.as_table_mut()).unwrap();
+    parts.insert("min_pulley_radius_mm".into(), toml::Value::Float(12.0));
+    std::fs::write(&design, toml::to_string(&table).unwrap()).unwrap();
+    springfit(&dir, &["check", design.to_str().unwrap()])
+        .fails(2, &["family[0].couplings.tendons.radii_mm[0]", "`[parts] min_pulley_radius_mm` = 12 mm"]);
+}

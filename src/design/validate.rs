@@ -195,7 +195,11 @@ fn load_catalog(design: &Design, path: &Path) -> Result<Catalog> {
             ),
         ));
     }
-    Catalog::load_for(path, &design.chain.joint_names())
+    let catalog = Catalog::load_for(path, &design.chain.joint_names())?;
+    // A tendon family's stocked pulleys must be ones the design's `[parts]` allows.
+    let p = &design.parts;
+    catalog.check_pulleys(p.min_pulley_radius_mm, p.max_pulley_radius_mm, p.max_joints_crossed)?;
+    Ok(catalog)
 }
 
 /// A link heavier than this per metre of its length is heavier than a solid steel bar 0.18 m

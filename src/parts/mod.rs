@@ -152,7 +152,9 @@ pub struct ElementPart {
 impl ElementPart {
     /// The mounting in words: where the spring sits and its geometry.
     pub fn geometry(&self) -> String {
-        let on = on_axis(&self.element.coupling);
+        // A tendon family's coupling is a tendon even at a bevel ratio: its transmission says.
+        let kind = self.transmission.as_ref().map_or_else(|| transmission::kind(&self.element.coupling), |t| t.kind);
+        let on = axis_words(&self.element.coupling, kind);
         let Ok(p) = &self.part else { return on };
         let tendon = self.transmission.as_ref().and_then(|t| t.tendon.as_ref()).map(tendon_words).unwrap_or_default();
         self.mechanism_words(on, p) + &tendon
@@ -225,6 +227,11 @@ impl ElementPart {
 /// (two neighbouring joints at a gear pair's ratio), or a tendon's drum (any other coupling:
 /// [`transmission::kind`]).
 pub fn on_axis(a: &[f64]) -> String {
+    axis_words(a, transmission::kind(a))
+}
+
+/// [`on_axis`] for a coupling whose transmission is `kind`.
+fn axis_words(a: &[f64], kind: transmission::Kind) -> String {
     let used: Vec<(usize, f64)> = a.iter().copied().enumerate().filter(|(_, c)| *c != 0.0).collect();
     let sum = || {
         used.iter()
@@ -233,7 +240,7 @@ pub fn on_axis(a: &[f64]) -> String {
             .join(" + ")
             .replace("+ -", "− ")
     };
-    match (used.as_slice(), transmission::kind(a)) {
+    match (used.as_slice(), kind) {
         ([(i, c)], _) if *c == 1.0 => format!("on joint {}'s axis", i + 1),
         ([(i, c)], _) => format!("on joint {}'s axis, geared {} : 1", i + 1, crate::elements::fmt_number(*c)),
         (_, transmission::Kind::Tendon) => format!("on the drum of a tendon, x = {}", sum()),
@@ -530,7 +537,9 @@ fn choose_with(
     let examined: Vec<usize> = elements.iter().map(|e| e.1).collect();
     let stock_examined = examined.iter().sum();
     let limits = transmission::Limits::of(s);
-    let elements: Vec<ElementPart> = elements.into_iter().map(|e| with_transmission(e.0, bom, &limits)).collect();
+    let catalog = pulley_catalog(design)?;
+    let elements: Vec<ElementPart> =
+        elements.into_iter().map(|e| with_transmission(e.0, bom, &limits, catalog.as_ref())).collect();
     let realised = RealisedSet::new(bom, &elements);
     let residuals = fan_angles(&design.chain, evaluation, &realised)?;
     let ideal = match ideal {
@@ -542,10 +551,25 @@ fn choose_with(
     Ok((parts, examined))
 }
 
+/// The design's catalogue when one of its families is a tendon family (whose couplings carry
+/// their pulley radii, [`crate::elements::catalog::Catalog::pulleys`]); None otherwise, and when
+/// the design names no catalogue.
+fn pulley_catalog(design: &Design) -> Result<Option<crate::elements::catalog::Catalog>> {
+    let Some(path) = &design.catalog else { return Ok(None) };
+    let catalog = crate::elements::catalog::Catalog::load_for(path, &design.chain.joint_names())?;
+    Ok(catalog.families.iter().any(|f| f.tendons.is_some()).then_some(catalog))
+}
+
 /// `e` with the transmission of its coupling for the torque its bill rows (a spring's one row, a
 /// cam's coefficient rows `C01.07+`) put on x over its deflections `e.duty.range`; a coupling no
-/// transmission makes ([`transmission::transmission`]) gets no part, its limit naming why.
-fn with_transmission(mut e: ElementPart, bom: &[BomRow], limits: &transmission::Limits) -> ElementPart {
+/// transmission makes ([`transmission::transmission`]) gets no part, its limit naming why. A
+/// coupling a tendon family of `catalog` generated is a tendon over exactly the radii it carries.
+fn with_transmission(
+    mut e: ElementPart,
+    bom: &[BomRow],
+    limits: &transmission::Limits,
+    catalog: Option<&crate::elements::catalog::Catalog>,
+) -> ElementPart {
     let rows: Vec<&BomRow> = bom
         .iter()
         .filter(|r| r.id == e.id || r.id.strip_prefix(e.id.as_str()).is_some_and(|t| t.starts_with('.')))
@@ -557,7 +581,8 @@ fn with_transmission(mut e: ElementPart, bom: &[BomRow], limits: &transmission::
             rows.iter().map(|r| r.stiffness * r.element.profile.slope(x - r.element.offset)).sum::<f64>()
         })
         .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], t| [a.min(t), b.max(t)]);
-    match transmission::transmission(&e.element.coupling, torque, limits) {
+    let pulleys = catalog.and_then(|c| c.pulleys(&e.family, &e.element.coupling));
+    match transmission::transmission(&e.element.coupling, pulleys, torque, limits) {
         Ok(t) => e.transmission = Some(t),
         Err(l) => {
             e.transmission = None;

@@ -29,10 +29,9 @@
 
 use crate::realise::mechanism::{Check, Limit};
 
-/// Ratios (larger over smaller, in magnitude) at which two neighbouring joints drive one bevel-gear
-/// differential: those one bevel-gear pair makes from whole tooth counts, from 1 : 1 (mitre gears)
-/// to 1 : 5, beyond which a bevel pair needs a second stage. Any other ratio is a tendon's.
-pub const BEVEL_RATIOS: [f64; 7] = [1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0];
+/// The ratios at which two neighbouring joints drive one bevel-gear differential (defined with
+/// the catalogues, whose tendon families list them too).
+pub use crate::elements::catalog::BEVEL_RATIOS;
 
 /// Share added to the least preload max|τ|/(2ρ) that keeps an antagonistic pair taut: the cables'
 /// stretch and the springs' rate tolerance move the tensions by a few percent, and a cable that
@@ -73,6 +72,22 @@ pub const CABLES: [Cable; 9] = [
     Cable { name: "7x19, 7/32 in", diameter_mm: 5.556_25, breaking_n: 5000.0 * LBF },
     Cable { name: "7x19, 1/4 in", diameter_mm: 6.35, breaking_n: 6400.0 * LBF },
 ];
+
+/// The cable makers' stretch factor G of 7x19 corrosion-resistant steel cable: elastic stretch in
+/// % of length = W·G/D² (W the load in lbf, D the nominal diameter in inches), G = 0.0000162 for
+/// "7X19SS" (Aero Assemblies' elastic stretch calculator, which derives it from the modulus of the
+/// rope; the same formula and table as Loos & Co.'s). So EA = 100·D²/G lbf: 429 kN for 1/8 in, an
+/// effective modulus of 54 GPa on the nominal section. Taken for every listed size: 7x7 and 3x7,
+/// with fewer and thicker wires, stretch less, so their stretch is overestimated, never missed.
+pub const STRETCH_FACTOR_G: f64 = 1.62e-5;
+
+impl Cable {
+    /// Axial stiffness EA, N (per unit strain): 100·D²/G lbf ([`STRETCH_FACTOR_G`]).
+    pub fn axial_stiffness_n(&self) -> f64 {
+        let d_in = self.diameter_mm / 25.4;
+        100.0 * d_in * d_in / STRETCH_FACTOR_G * LBF
+    }
+}
 
 /// The `[parts]` limits on a tendon.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -135,6 +150,25 @@ pub struct Tendon {
     /// The thinnest cable of [`CABLES`] whose breaking strength carries the peak with
     /// [`CABLE_SAFETY_FACTOR`] (when none does, the coupling has no transmission).
     pub cable: Cable,
+}
+
+impl Tendon {
+    /// The cables' stiffness on x for one metre of cable, N·m²/rad: a cable of length L stretches
+    /// by δ = ρ(x − θ) between the joints' side (x) and the drum (θ), so it pulls with
+    /// (EA/L)·ρ·δ and holds x with (EA/L)·ρ² N·m/rad; a pair's two taut cables hold it twice.
+    /// Divide by the cable's length (m) for k_c; the element's spring k on the drum then acts on
+    /// x in series: k·k_c/(k + k_c) ([`series_rate`]).
+    pub fn stretch_rate_per_m(&self) -> f64 {
+        let cables = if self.pair { 2.0 } else { 1.0 };
+        let rho = self.scale_mm * 1e-3;
+        cables * self.cable.axial_stiffness_n() * rho * rho
+    }
+}
+
+/// A rate `k` in series with a cable's `k_c` (both N·m/rad on x): k·k_c/(k + k_c), what the joints
+/// feel of the element's spring through a stretching cable.
+pub fn series_rate(k: f64, k_c: f64) -> f64 {
+    k * k_c / (k + k_c)
 }
 
 /// An element's transmission.
@@ -220,14 +254,25 @@ pub fn scale(a: &[f64], limits: &Limits) -> std::result::Result<f64, Limit> {
 }
 
 /// The transmission for coupling `a` of an element whose torque on x (N·m) spans `torque` =
-/// [least, largest] over the region, within `limits`. Err: no transmission makes it (a tendon
-/// beyond the pulley or joint limits, or one whose peak tension no listed cable carries).
-pub fn transmission(a: &[f64], torque: [f64; 2], limits: &Limits) -> std::result::Result<Transmission, Limit> {
-    let kind = kind(a);
+/// [least, largest] over the region, within `limits`. `pulleys`: the signed radii (mm) a tendon
+/// family gave the coupling (`elements::catalog::Family::pulleys`), which the tendon then has
+/// exactly (its drum ρ = max|rᵢ| / max|aᵢ|, so ρ·a = r) instead of the chooser's scale; None:
+/// the kind and scale follow from `a` alone. Err: no transmission makes it (a tendon beyond the
+/// pulley or joint limits, or one whose peak tension no listed cable carries).
+pub fn transmission(
+    a: &[f64],
+    pulleys: Option<&[f64]>,
+    torque: [f64; 2],
+    limits: &Limits,
+) -> std::result::Result<Transmission, Limit> {
+    let kind = if pulleys.is_some() { Kind::Tendon } else { kind(a) };
     if kind != Kind::Tendon {
         return Ok(Transmission { kind, tendon: None });
     }
-    let rho = scale(a, limits)?;
+    let rho = match pulleys {
+        Some(r) => given_scale(a, r, limits)?,
+        None => scale(a, limits)?,
+    };
     let rho_m = rho * 1e-3;
     let pair = torque[0] < 0.0 && torque[1] > 0.0;
     let peak_torque = torque[0].abs().max(torque[1].abs());
@@ -250,11 +295,62 @@ pub fn transmission(a: &[f64], torque: [f64; 2], limits: &Limits) -> std::result
             torque_bound: None,
         });
     };
-    let radii_mm = a.iter().map(|c| if *c == 0.0 { 0.0 } else { rho * c }).collect();
+    let radii_mm = match pulleys {
+        Some(r) => r.to_vec(),
+        None => a.iter().map(|c| if *c == 0.0 { 0.0 } else { rho * c }).collect(),
+    };
     Ok(Transmission {
         kind,
         tendon: Some(Tendon { radii_mm, scale_mm: rho, pair, preload_n: preload, peak_tension_n: peak, cable }),
     })
+}
+
+/// The drum radius ρ (mm) of a tendon over the given signed pulley radii `r` for coupling `a`:
+/// max|rᵢ| / max|aᵢ|. Err: the radii are not ρ·a (to 1e-9 of the largest), or one lies outside
+/// the `[parts]` pulley limits, or the cable crosses more joints than `max_joints_crossed` (a
+/// catalogue checked against the design's `[parts]` never gives those; a bill read with another
+/// design's `[parts]` may).
+fn given_scale(a: &[f64], r: &[f64], limits: &Limits) -> std::result::Result<f64, Limit> {
+    let big_a = a.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    let big_r = r.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    let rho = big_r / big_a;
+    let fail = |check: Check, best: String| Err(Limit { check, best, torque_bound: None });
+    let off = a.len() != r.len() || a.iter().zip(r).any(|(a, r)| (rho * a - r).abs() > 1e-9 * big_r);
+    if big_a == 0.0 || off {
+        let check = Check { name: "mechanism", value: 0.0, limit: 0.0, unit: "mm", upper: true };
+        return fail(check, "no transmission: the tendon's pulley radii are not in proportion to its coupling".into());
+    }
+    let crossed = r.iter().filter(|x| **x != 0.0).count();
+    if crossed > limits.max_joints {
+        return fail(
+            Check {
+                name: "mechanism",
+                value: crossed as f64,
+                limit: limits.max_joints as f64,
+                unit: "joints",
+                upper: true,
+            },
+            format!(
+                "no transmission: the tendon crosses {crossed} joints, more than `[parts] max_joints_crossed` = {}",
+                limits.max_joints
+            ),
+        );
+    }
+    for x in r.iter().map(|x| x.abs()).filter(|x| *x != 0.0) {
+        let below = x < limits.min_radius_mm * (1.0 - 1e-12);
+        if below || x > limits.max_radius_mm * (1.0 + 1e-12) {
+            let (key, limit) = if below {
+                ("min_pulley_radius_mm", limits.min_radius_mm)
+            } else {
+                ("max_pulley_radius_mm", limits.max_radius_mm)
+            };
+            return fail(
+                Check { name: "mechanism", value: x, limit, unit: "mm", upper: !below },
+                format!("no transmission: the tendon's pulley of {x} mm is outside `[parts] {key}` = {limit} mm"),
+            );
+        }
+    }
+    Ok(rho)
 }
 
 /// How much a cable over pulleys of signed radii `radii_mm` lengthens (mm) when the joints turn
@@ -284,7 +380,7 @@ mod tests {
         assert_eq!(kind(&[1.0, 0.0, 1.0]), Kind::Tendon, "not neighbours");
         assert_eq!(kind(&[1.0, 0.7, 0.0]), Kind::Tendon, "no bevel ratio");
         assert_eq!(kind(&[1.0, 1.0, 1.0]), Kind::Tendon);
-        let t = transmission(&[0.0, 1.0, -1.0], [-1.0, 1.0], &LIMITS).unwrap();
+        let t = transmission(&[0.0, 1.0, -1.0], None, [-1.0, 1.0], &LIMITS).unwrap();
         assert_eq!((t.kind.name(), t.radii_text()), ("bevel differential", String::new()));
     }
 
@@ -292,7 +388,7 @@ mod tests {
     #[test]
     fn a_tendons_length_change_follows_its_pulley_radii() {
         let a = [0.5, 0.0, -1.0, 0.25];
-        let t = transmission(&a, [0.2, 3.0], &LIMITS).unwrap().tendon.unwrap();
+        let t = transmission(&a, None, [0.2, 3.0], &LIMITS).unwrap().tendon.unwrap();
         assert_eq!(t.scale_mm, 40.0);
         assert_eq!(t.radii_mm, [20.0, 0.0, -40.0, 10.0]);
         for q in [[0.1, -0.4, 0.3, 1.2], [-1.0, 2.0, 0.7, -0.2], [0.0, 0.0, 0.0, 0.0]] {
@@ -313,7 +409,7 @@ mod tests {
     #[test]
     fn an_antagonistic_pairs_tensions_stay_positive_over_the_region() {
         let torque = [-12.0, 7.5];
-        let t = transmission(&[1.0, 1.0, 1.0], torque, &LIMITS).unwrap().tendon.unwrap();
+        let t = transmission(&[1.0, 1.0, 1.0], None, torque, &LIMITS).unwrap().tendon.unwrap();
         assert!(t.pair);
         assert!((t.preload_n - 1.25 * 12.0 / (2.0 * 0.04)).abs() < 1e-9);
         let mut peak = 0.0f64;
@@ -331,18 +427,74 @@ mod tests {
         assert!(thinner.breaking_n < CABLE_SAFETY_FACTOR * t.peak_tension_n, "the thinnest that carries it");
     }
 
+    /// Every coupling a tendon family generates gets a transmission part: a tendon over exactly
+    /// the radii it carries (within the limits the design's `[parts]` checked), or for the
+    /// family's bevel couplings a bevel differential.
+    #[test]
+    fn every_coupling_of_a_tendon_family_gets_a_transmission() {
+        let text = "[[family]]\nname = \"t\"\nprofile = \"linear\"\noffsets = \"equilibrium\"\n\
+                    couplings = { tendons = { radii_mm = [10, 20, 30, 40], max_crossed = 3, bevel = true } }\n";
+        let path = std::path::Path::new("catalogs/test.toml");
+        let c = crate::elements::catalog::Catalog::parse(path, text, 6).unwrap();
+        c.check_pulleys(LIMITS.min_radius_mm, LIMITS.max_radius_mm, LIMITS.max_joints).unwrap();
+        let f = &c.families[0];
+        let (mut tendons, mut bevels) = (0, 0);
+        for (a, r) in f.couplings.iter().zip(&f.pulleys) {
+            let t = transmission(a, r.as_deref(), [-2.0, 3.0], &LIMITS).unwrap();
+            match (t.kind, r, &t.tendon) {
+                (Kind::Tendon, Some(r), Some(t)) => {
+                    assert_eq!(&t.radii_mm, r);
+                    assert!(t.pair, "the torque changes sign: an antagonistic pair");
+                    tendons += 1;
+                }
+                (Kind::BevelDifferential, None, None) => bevels += 1,
+                other => panic!("{a:?}: {other:?}"),
+            }
+        }
+        assert_eq!(tendons + bevels, f.couplings.len());
+        assert!(tendons > 0 && bevels > 0, "{tendons} tendons, {bevels} differentials");
+    }
+
+    /// The cable's stretch: EA from the stretch factor (1/8 in 7x19: 100·0.125²/G lbf), and a
+    /// pair's stiffness on x per metre twice one cable's.
+    #[test]
+    fn cable_stretch_is_a_series_compliance() {
+        let eighth = CABLES[4];
+        assert!((eighth.axial_stiffness_n() - 100.0 * 0.015625 / 1.62e-5 * LBF).abs() < 1e-6);
+        assert!((eighth.axial_stiffness_n() / 1e3 - 429.0).abs() < 1.0);
+        let mut t = transmission(&[1.0, 1.0, 1.0], None, [-12.0, 7.5], &LIMITS).unwrap().tendon.unwrap();
+        let pair = t.stretch_rate_per_m();
+        assert!((pair - 2.0 * t.cable.axial_stiffness_n() * 0.04 * 0.04).abs() < 1e-9);
+        t.pair = false;
+        assert!((t.stretch_rate_per_m() - pair / 2.0).abs() < 1e-9);
+        assert!((series_rate(10.0, 90.0) - 9.0).abs() < 1e-12);
+    }
+
     /// A coupling whose pulleys would fall outside the limits, or that crosses too many joints,
     /// has no transmission, and the reason names the `[parts]` key.
     #[test]
     fn a_coupling_beyond_the_pulley_limits_has_no_transmission() {
-        let e = transmission(&[0.08, 1.0, 0.0, -0.29], [-1.0, 1.0], &LIMITS).unwrap_err();
+        let e = transmission(&[0.08, 1.0, 0.0, -0.29], None, [-1.0, 1.0], &LIMITS).unwrap_err();
         assert!(e.best.contains("`[parts] min_pulley_radius_mm` = 10 mm"), "{}", e.best);
         assert!(e.best.contains("3.200 mm"), "{}", e.best);
-        let e = transmission(&[1.0; 6], [-1.0, 1.0], &LIMITS).unwrap_err();
+        let e = transmission(&[1.0; 6], None, [-1.0, 1.0], &LIMITS).unwrap_err();
         assert!(e.best.contains("`[parts] max_joints_crossed` = 5"), "{}", e.best);
-        let e = transmission(&[1.0, 0.0, 1.0], [-1e5, 1e5], &LIMITS).unwrap_err();
+        let e = transmission(&[1.0, 0.0, 1.0], None, [-1e5, 1e5], &LIMITS).unwrap_err();
         assert!(e.best.contains("strongest listed cable"), "{}", e.best);
         // Within the limits at the edge: 1 : 4 is what 10–40 mm allows.
-        assert!(transmission(&[0.25, 0.0, 1.0], [-1.0, 1.0], &LIMITS).is_ok());
+        assert!(transmission(&[0.25, 0.0, 1.0], None, [-1.0, 1.0], &LIMITS).is_ok());
+        // Given radii are kept exactly (the chooser would scale (10, 30) to (13.33, 40)), and a
+        // given pulley beyond the limits names it.
+        let t = transmission(&[1.0 / 3.0, -1.0, 0.0], Some(&[10.0, -30.0, 0.0]), [-1.0, 1.0], &LIMITS).unwrap();
+        let t = t.tendon.unwrap();
+        assert_eq!((t.radii_mm.clone(), t.scale_mm), (vec![10.0, -30.0, 0.0], 30.0));
+        let t = transmission(&[1.0, 0.5, 0.0], Some(&[40.0, 20.0, 0.0]), [-1.0, 1.0], &LIMITS).unwrap();
+        assert_eq!(t.kind, Kind::Tendon, "a tendon family's coupling stays a tendon at a bevel ratio");
+        let e = transmission(&[1.0, 0.1, 0.0], Some(&[50.0, 5.0, 0.0]), [-1.0, 1.0], &LIMITS).unwrap_err();
+        assert!(
+            e.best.contains("`[parts] min_pulley_radius_mm` = 10 mm") || e.best.contains("max_pulley"),
+            "{}",
+            e.best
+        );
     }
 }

@@ -140,8 +140,30 @@ pub enum CouplingSpec {
         /// Joint names the runs are taken among, as for [`CouplingSpec::Groups`].
         on: Option<Vec<String>>,
     },
+    /// Every coupling a tendon over pulleys of the listed radii makes, plus bevel-gear
+    /// differentials of neighbouring joints at the gear ratios (see [`TendonSpec`]).
+    Tendons(TendonSpec),
     /// Explicit coupling vectors, one entry per joint.
     List(Vec<Vec<f64>>),
+}
+
+/// `couplings = { tendons = { radii_mm = [10, 20, 30, 40], max_crossed = 3, bevel = true } }`:
+/// the couplings a workshop can build from the pulleys it stocks, expanded at load
+/// (`resolve::tendon_couplings`). A tendon crosses a run of 2 to `max_crossed` consecutive
+/// joints (a cable passes every joint between its ends), over a pulley of one of `radii_mm` at
+/// each, on either side; its coupling is the radii over the largest, so it carries its radii to
+/// `parts`. `bevel = true` adds every pair of neighbouring joints at a ratio a bevel-gear pair has.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TendonSpec {
+    /// The pulley radii stocked, mm; within the design's `[parts]` pulley limits.
+    pub radii_mm: Vec<f64>,
+    /// Most joints one tendon crosses (2 to the arm's joints).
+    pub max_crossed: usize,
+    /// Also the bevel-gear differentials of neighbouring joints at every ratio of
+    /// [`super::BEVEL_RATIOS`] (default false).
+    #[serde(default)]
+    pub bevel: bool,
 }
 
 /// The groups of joints a [`CouplingSpec::Groups`] family is put on; "adjacent" is among the
@@ -189,6 +211,7 @@ impl<'de> Deserialize<'de> for CouplingSpec {
             all_pairs: Option<Vec<[f64; 2]>>,
             triples: Option<Vec<[f64; 3]>>,
             runs: Option<Vec<usize>>,
+            tendons: Option<TendonSpec>,
             on: Option<Vec<String>>,
         }
         #[derive(Deserialize)]
@@ -202,7 +225,8 @@ impl<'de> Deserialize<'de> for CouplingSpec {
                    { pairs = [[r1, r2], ...] } (adjacent joints), { all_pairs = [[r1, r2], ...] } (every pair), \
                    { triples = [[r1, r2, r3], ...] } (adjacent triples), { runs = [length, ...] } (adjacent \
                    joints turned together), each of the last four optionally with on = [\"name\", ...], \
-                   or a list of coupling vectors such as [[1, 0], [1, -1]]";
+                   { tendons = { radii_mm = [r, ...], max_crossed = N, bevel = true } } (what tendons over those \
+                   pulleys make), or a list of coupling vectors such as [[1, 0], [1, -1]]";
         let bad = || serde::de::Error::custom(msg);
         let wide = |r: Vec<[f64; 2]>| r.into_iter().map(|r| r.to_vec()).collect::<Vec<_>>();
         match Raw::deserialize(d).map_err(|_| bad())? {
@@ -211,6 +235,13 @@ impl<'de> Deserialize<'de> for CouplingSpec {
             }
             Raw::Word(_) => Err(bad()),
             Raw::Table(t) => {
+                if let Some(spec) = t.tendons {
+                    let others = t.joints.is_some() || t.pairs.is_some() || t.all_pairs.is_some();
+                    if others || t.triples.is_some() || t.runs.is_some() || t.on.is_some() {
+                        return Err(bad());
+                    }
+                    return Ok(CouplingSpec::Tendons(spec));
+                }
                 if let Some(lengths) = t.runs {
                     if t.joints.is_some() || t.pairs.is_some() || t.all_pairs.is_some() || t.triples.is_some() {
                         return Err(bad());

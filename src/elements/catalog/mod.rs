@@ -40,7 +40,7 @@ use crate::elements::{Element, Profile, Side};
 mod file;
 mod resolve;
 
-pub use file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing};
+pub use file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing, TendonSpec};
 pub use resolve::numbered_joints;
 
 /// A validated cam family's settings (see [`crate::elements::spline`]).
@@ -70,6 +70,13 @@ pub struct CamSpec {
 /// it states none.
 pub const DEFAULT_PRELOAD_FRACTION: f64 = 0.5;
 
+/// Ratios (larger over smaller, in magnitude) at which two neighbouring joints drive one bevel-gear
+/// differential: those one bevel-gear pair makes from whole tooth counts, from 1 : 1 (mitre gears)
+/// to 1 : 5, beyond which a bevel pair needs a second stage. Any other ratio is a tendon's. Here,
+/// below the transmissions (`realise::transmission`), so that a tendon family's `bevel = true`
+/// lists the same ratios the parts stage recognises.
+pub const BEVEL_RATIOS: [f64; 7] = [1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0];
+
 /// A validated family.
 #[derive(Debug, Clone)]
 pub struct Family {
@@ -79,6 +86,13 @@ pub struct Family {
     pub profiles: Vec<Profile>,
     /// Coupling vectors, resolved for the robot.
     pub couplings: Vec<Vec<f64>>,
+    /// Each coupling's signed pulley radii (mm, one per joint, 0 where the cable does not cross)
+    /// when a tendon family generated it, parallel to `couplings`; None for every other coupling
+    /// (a bevel differential's, any other family's): `parts` reports these radii.
+    pub pulleys: Vec<Option<Vec<f64>>>,
+    /// A tendon family's `couplings.tendons` as written (validated), for the check against a
+    /// design's `[parts]` limits ([`Catalog::check_pulleys`]).
+    pub tendons: Option<TendonSpec>,
     /// Offsets.
     pub offsets: OffsetSpec,
     /// Largest stiffness.
@@ -259,6 +273,50 @@ impl Catalog {
     pub fn family(&self, name: &str) -> Option<&Family> {
         self.families.iter().find(|f| f.name == name)
     }
+
+    /// The pulley radii (mm) of the tendon family `family`'s coupling `coupling`, if that family
+    /// generated it (to 1e-12 in each entry): what `parts` reports as the tendon's radii.
+    pub fn pulleys(&self, family: &str, coupling: &[f64]) -> Option<&[f64]> {
+        let f = self.family(family)?;
+        let same = |a: &[f64]| a.len() == coupling.len() && a.iter().zip(coupling).all(|(x, y)| (x - y).abs() <= 1e-12);
+        f.couplings.iter().zip(&f.pulleys).find(|(a, _)| same(a)).and_then(|(_, r)| r.as_deref())
+    }
+
+    /// Checks every tendon family against a design's `[parts]` pulley limits: each stocked
+    /// radius within [`min_mm`, `max_mm`] and `max_crossed` at most `max_joints`. Err: the field
+    /// of the catalogue (`family[i].couplings.tendons.radii_mm[k]`) and the `[parts]` key it
+    /// breaks, with both values.
+    pub fn check_pulleys(&self, min_mm: f64, max_mm: f64, max_joints: usize) -> crate::error::Result<()> {
+        for (i, f) in self.families.iter().enumerate() {
+            let Some(t) = &f.tendons else { continue };
+            let field = |key: &str| format!("family[{i}].couplings.tendons.{key}");
+            for (k, r) in t.radii_mm.iter().enumerate() {
+                let (key, limit, beyond) = if *r < min_mm * (1.0 - 1e-12) {
+                    ("min_pulley_radius_mm", min_mm, "below")
+                } else if *r > max_mm * (1.0 + 1e-12) {
+                    ("max_pulley_radius_mm", max_mm, "above")
+                } else {
+                    continue;
+                };
+                return Err(crate::error::Error::invalid(
+                    &self.path,
+                    field(&format!("radii_mm[{k}]")),
+                    format!("a pulley of {r} mm is {beyond} the design's `[parts] {key}` = {limit} mm"),
+                ));
+            }
+            if t.max_crossed > max_joints {
+                return Err(crate::error::Error::invalid(
+                    &self.path,
+                    field("max_crossed"),
+                    format!(
+                        "a tendon crossing {} joints is more than the design's `[parts] max_joints_crossed` = {max_joints}",
+                        t.max_crossed
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Whether a new offset `b` repeats a kept offset `a` (of the same profile and coupling).
@@ -391,6 +449,76 @@ offsets = { phases = 4 }
             let err = couplings(spec, joints).unwrap_err().to_string();
             assert!(err.contains(field) && err.contains(reason), "{spec}: expected {field} / {reason} in {err}");
         }
+    }
+
+    /// A tendon family over radii {10, 20} on three joints: per run of two, the directions
+    /// (1, 1), (½, 1), (1, ½) on both sides (6; (10, 10) and (20, 20) are one, kept at 20 mm);
+    /// per run of three, 7 directions × 4 sides (28); with `bevel`, each neighbour pair adds
+    /// the 20 ratio couplings no tendon makes (1.5, 2.5, 3, 4, 5 both ways and sides).
+    #[test]
+    fn tendon_families_expand_into_what_their_pulleys_make() {
+        let text = |spec: &str| {
+            format!("[[family]]\nname = \"t\"\nprofile = \"linear\"\ncouplings = {spec}\noffsets = \"equilibrium\"\n")
+        };
+        let two = load(&text("{ tendons = { radii_mm = [20, 10], max_crossed = 2 } }"), 3).unwrap();
+        let f = &two.families[0];
+        assert_eq!((f.couplings.len(), f.pulleys.len()), (12, 12));
+        assert_eq!(f.couplings[0], vec![1.0, 1.0, 0.0]);
+        assert_eq!(f.pulleys[0].as_deref(), Some(&[20.0, 20.0, 0.0][..]), "the larger of (10, 10) and (20, 20)");
+        assert_eq!(f.couplings[1], vec![1.0, -1.0, 0.0]);
+        assert_eq!((f.couplings[2].clone(), f.pulleys[2].clone()), (vec![0.5, 1.0, 0.0], Some(vec![10.0, 20.0, 0.0])));
+        assert_eq!(f.couplings[6], vec![0.0, 1.0, 1.0], "the second run after the first");
+        // Every coupling carries radii ρ·a, its largest entry 1, the first crossing on the + side.
+        for (a, r) in f.couplings.iter().zip(&f.pulleys) {
+            let r = r.as_ref().unwrap();
+            let rho = r.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+            assert!(a.iter().zip(r).all(|(a, r)| (rho * a - r).abs() < 1e-12), "{a:?} {r:?}");
+            assert!(a.iter().find(|x| **x != 0.0).is_some_and(|x| *x > 0.0));
+        }
+        assert_eq!(two.pulleys("t", &[0.5, 1.0, 0.0]), Some(&[10.0, 20.0, 0.0][..]));
+        assert_eq!(two.pulleys("t", &[0.5, -1.0, 0.0]), Some(&[10.0, -20.0, 0.0][..]));
+        assert_eq!(two.pulleys("t", &[1.0, 0.0, 1.0]), None, "not one of its couplings");
+        let three = load(&text("{ tendons = { radii_mm = [10, 20], max_crossed = 3 } }"), 3).unwrap();
+        assert_eq!(three.families[0].couplings.len(), 12 + 28);
+        let bevel = load(&text("{ tendons = { radii_mm = [10, 20], max_crossed = 2, bevel = true } }"), 3).unwrap();
+        let f = &bevel.families[0];
+        assert_eq!(f.couplings.len(), 12 + 2 * 20);
+        assert_eq!((f.couplings[12].clone(), f.pulleys[12].clone()), (vec![1.0, 1.0 / 1.5, 0.0], None));
+        // The same file loads into the same couplings in the same order.
+        let again = load(&text("{ tendons = { radii_mm = [10, 20], max_crossed = 2, bevel = true } }"), 3).unwrap();
+        assert_eq!(again.families[0].couplings, f.couplings);
+        // Refused, naming the field: no radius, a bad radius, more joints than the arm, one joint,
+        // a tendon family with `on`, and the design's [parts] limits.
+        let cases = [
+            ("{ tendons = { radii_mm = [], max_crossed = 2 } }", "couplings.tendons.radii_mm", "no pulley"),
+            ("{ tendons = { radii_mm = [10, -5], max_crossed = 2 } }", "couplings.tendons.radii_mm[1]", "positive"),
+            ("{ tendons = { radii_mm = [10], max_crossed = 4 } }", "couplings.tendons.max_crossed", "2 to 3 joints"),
+            ("{ tendons = { radii_mm = [10], max_crossed = 1 } }", "couplings.tendons.max_crossed", "got 1"),
+            ("{ tendons = { radii_mm = [10], max_crossed = 2 }, on = [\"q1\"] }", "test.toml", "couplings must be"),
+            ("{ tendons = { radii_mm = [10], max_crossed = 2, side = 1 } }", "test.toml", "couplings must be"),
+        ];
+        for (spec, field, reason) in cases {
+            let err = load(&text(spec), 3).unwrap_err().to_string();
+            assert!(err.contains(field) && err.contains(reason), "{spec}: expected {field} / {reason} in {err}");
+        }
+        let wide = load(&text("{ tendons = { radii_mm = [10, 50], max_crossed = 3 } }"), 3).unwrap();
+        let err = wide.check_pulleys(10.0, 40.0, 5).unwrap_err().to_string();
+        assert!(
+            err.contains("family[0].couplings.tendons.radii_mm[1]")
+                && err.contains("`[parts] max_pulley_radius_mm` = 40"),
+            "{err}"
+        );
+        let err = wide.check_pulleys(10.0, 60.0, 2).unwrap_err().to_string();
+        assert!(
+            err.contains("family[0].couplings.tendons.max_crossed") && err.contains("max_joints_crossed` = 2"),
+            "{err}"
+        );
+        assert!(wide.check_pulleys(5.0, 60.0, 3).is_ok());
+        // Too many tendons before the repeats are removed: refused before any is built.
+        let many: Vec<String> = (1..=40).map(|r| format!("{}", 10 + r)).collect();
+        let spec = format!("{{ tendons = {{ radii_mm = [{}], max_crossed = 5 }} }}", many.join(", "));
+        let err = load(&text(&spec), 6).unwrap_err().to_string();
+        assert!(err.contains("family[0].couplings.tendons") && err.contains("more than 20000"), "{err}");
     }
 
     /// Inputs run through the fuzz target fuzz/fuzz_targets/catalog.rs by hand: a phase count

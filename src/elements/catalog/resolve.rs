@@ -7,7 +7,7 @@ use crate::limits::{
 };
 use std::path::Path;
 
-use super::file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing};
+use super::file::{CatalogFile, CouplingSpec, FamilySpec, GroupKind, OffsetSpec, Smoothing, TendonSpec};
 use super::*;
 use crate::error::{Error, Result};
 use crate::input::{parse_toml, read_text};
@@ -160,7 +160,7 @@ fn family(at: &At, f: &FamilySpec, earlier: &[FamilySpec], totals: &mut Totals) 
     let cam = cam_spec(at.path, f, &|name| at.field(name))?;
     let profiles = profiles(at, f, cam.is_some())?;
     check_unit(at, f, &profiles)?;
-    let couplings = couplings(at, &f.couplings)?;
+    let (couplings, pulleys) = couplings(at, &f.couplings)?;
     let (offset_spec, offsets) = offsets(at, f, cam.is_some())?;
     totals.add_candidates(at, couplings.len(), offsets, profiles.len(), cam)?;
     let stock_rates = stock_rates(at, f)?;
@@ -174,6 +174,11 @@ fn family(at: &At, f: &FamilySpec, earlier: &[FamilySpec], totals: &mut Totals) 
         name: f.name.clone(),
         profiles,
         couplings,
+        pulleys,
+        tendons: match &f.couplings {
+            CouplingSpec::Tendons(t) => Some(t.clone()),
+            _ => None,
+        },
         offsets: offset_spec,
         max_stiffness: f.max_stiffness,
         stock_rates,
@@ -220,15 +225,136 @@ fn check_unit(at: &At, f: &FamilySpec, profiles: &[Profile]) -> Result<()> {
     Ok(())
 }
 
-/// The family's coupling vectors resolved for the robot, at least one.
-fn couplings(at: &At, spec: &CouplingSpec) -> Result<Vec<Vec<f64>>> {
+/// A coupling's signed pulley radii, mm, when a tendon family generated it
+/// ([`Family::pulleys`]).
+type Pulleys = Option<Vec<f64>>;
+
+/// The family's coupling vectors resolved for the robot, at least one, and each one's pulley
+/// radii when a tendon family generated it.
+fn couplings(at: &At, spec: &CouplingSpec) -> Result<(Vec<Vec<f64>>, Vec<Pulleys>)> {
     let out = match spec {
         CouplingSpec::Groups { kind, ratios, on } => grouped_couplings(at, *kind, ratios, on.as_deref())?,
         CouplingSpec::Runs { lengths, on } => run_couplings(at, lengths, on.as_deref())?,
         CouplingSpec::List(list) => listed_couplings(at, list)?,
+        CouplingSpec::Tendons(t) => return Ok(tendon_couplings(at, t)?.into_iter().unzip()),
     };
     if out.is_empty() {
         return Err(at.invalid("couplings", "lists no coupling"));
+    }
+    let none = vec![None; out.len()];
+    Ok((out, none))
+}
+
+/// Largest stocked pulley radius a tendon family may list, mm: a sanity bound (a pulley of a metre
+/// is a typing error), the design's `[parts]` limits being checked when a design loads the
+/// catalogue ([`Catalog::check_pulleys`]).
+const MAX_PULLEY_MM: f64 = 1000.0;
+
+/// `tendons`: every coupling a cable over pulleys of the stocked radii makes, with its signed
+/// radii, then the bevel differentials of neighbours when asked (radii None).
+///
+/// A tendon crosses a run of m consecutive joints (2 ≤ m ≤ `max_crossed`), base first, over one
+/// stocked radius rᵢ at each, on side sᵢ: its length changes by Σ sᵢ rᵢ qᵢ, so its coupling is
+/// a = (sᵢ rᵢ) / maxᵢ rᵢ (largest entry 1, the scale of a joint's spring). A coupling and its
+/// negative are one element (x and −x; the offsets, sides and cam coefficients cover both), so the
+/// first crossing is on the + side. Radii sets in proportion ((10, 20) and (20, 40)) make one
+/// coupling: kept once, at its first place in the order, with the largest radii (the least cable
+/// tension for the element's torque). The order: runs by length, then by first joint; within a
+/// run the radii as an odometer over `radii_mm` sorted (the last joint fastest), then the sides.
+/// `bevel = true` then adds, for every pair of neighbours, (1, ±1/r) and (1/r, ±1) at each ratio r
+/// of [`BEVEL_RATIOS`], unless a tendon already makes that coupling.
+fn tendon_couplings(at: &At, t: &TendonSpec) -> Result<Vec<(Vec<f64>, Pulleys)>> {
+    let n = at.joints.len();
+    if t.radii_mm.is_empty() {
+        return Err(at.invalid("couplings.tendons.radii_mm", "lists no pulley radius"));
+    }
+    for (k, r) in t.radii_mm.iter().enumerate() {
+        if !(r.is_finite() && *r > 0.0 && *r <= MAX_PULLEY_MM) {
+            return Err(at.invalid(
+                &format!("couplings.tendons.radii_mm[{k}]"),
+                format!("a pulley radius must be positive and at most {} mm, got {}", show(MAX_PULLEY_MM), show(*r)),
+            ));
+        }
+    }
+    if !(2..=n).contains(&t.max_crossed) {
+        return Err(at.invalid(
+            "couplings.tendons.max_crossed",
+            format!("a tendon crosses 2 to {n} joints (the arm's), got {}", t.max_crossed),
+        ));
+    }
+    let mut radii = t.radii_mm.clone();
+    radii.sort_by(f64::total_cmp);
+    radii.dedup();
+    // Tendons before removing the repeats, bounded before any is built.
+    let total = (2..=t.max_crossed).try_fold(0usize, |sum, m| {
+        let per_run = radii.len().checked_pow(m as u32)?.checked_mul(1usize << (m - 1))?;
+        sum.checked_add(per_run.checked_mul(n + 1 - m)?)
+    });
+    if total.is_none_or(|t| t > MAX_CANDIDATES) {
+        return Err(at.invalid(
+            "couplings.tendons",
+            format!(
+                "the tendons over {} radii crossing up to {} of {n} joints number more than {MAX_CANDIDATES}: list fewer radii or lower max_crossed",
+                radii.len(),
+                t.max_crossed
+            ),
+        ));
+    }
+    let mut out: Vec<(Vec<f64>, Pulleys)> = Vec::new();
+    let mut seen: HashMap<Vec<i64>, usize> = HashMap::new();
+    // The direction of a coupling, up to scale: its entries over the largest, rounded to 1e-9.
+    let key = |a: &[f64]| -> Vec<i64> { a.iter().map(|x| (x * 1e9).round() as i64).collect() };
+    for m in 2..=t.max_crossed {
+        for first in 0..=n - m {
+            let mut pick = vec![0usize; m];
+            loop {
+                let big = pick.iter().map(|&p| radii[p]).fold(0.0, f64::max);
+                for sides in 0..1usize << (m - 1) {
+                    let mut r = vec![0.0; n];
+                    for (k, &p) in pick.iter().enumerate() {
+                        let minus = k > 0 && sides >> (k - 1) & 1 == 1;
+                        r[first + k] = if minus { -radii[p] } else { radii[p] };
+                    }
+                    let a: Vec<f64> = r.iter().map(|x| x / big).collect();
+                    match seen.get(&key(&a)) {
+                        Some(&i) => {
+                            let kept =
+                                out[i].1.as_ref().map_or(0.0, |r| r.iter().fold(0.0, |m: f64, x| m.max(x.abs())));
+                            if big > kept {
+                                out[i].1 = Some(r);
+                            }
+                        }
+                        None => {
+                            seen.insert(key(&a), out.len());
+                            out.push((a, Some(r)));
+                        }
+                    }
+                }
+                // The next radii, the last joint's fastest.
+                let Some(k) = (0..m).rev().find(|&k| pick[k] + 1 < radii.len()) else { break };
+                pick[k] += 1;
+                pick[k + 1..].iter_mut().for_each(|p| *p = 0);
+            }
+        }
+    }
+    if t.bevel {
+        for first in 0..n - 1 {
+            for ratio in BEVEL_RATIOS {
+                let orders: &[[f64; 2]] =
+                    if ratio == 1.0 { &[[1.0, 1.0]] } else { &[[1.0, 1.0 / ratio], [1.0 / ratio, 1.0]] };
+                for [c1, c2] in orders {
+                    for sign in [1.0, -1.0] {
+                        let mut a = vec![0.0; n];
+                        a[first] = *c1;
+                        a[first + 1] = sign * c2;
+                        if let std::collections::hash_map::Entry::Vacant(v) = seen.entry(key(&a)) {
+                            v.insert(out.len());
+                            out.push((a, None));
+                        }
+                    }
+                }
+            }
+        }
     }
     Ok(out)
 }
