@@ -70,6 +70,7 @@ fn a_tendon_familys_coupling_is_built_over_exactly_its_pulleys() {
         &dir,
         "double_pendulum",
         &[
+            ("fit.trimmed_weight", toml::Value::Float(0.0)),
             ("equilibrium.bill_tolerance", toml::Value::Float(1e3)),
             ("fit.evaluation_directions", toml::Value::Integer(12)),
             ("fit.evaluation_samples", toml::Value::Integer(10)),
