@@ -1,7 +1,8 @@
 //! Benchmarks of the fit: the library call per design and `springfit fit` end to end.
 //!
 //! `cargo bench --bench fit`. Figures are recorded in BENCHMARKS.md. `FIT_BENCH_ONLY=word` runs
-//! only the cases whose label contains the word (`selection`, `end to end`, a design name).
+//! only the cases whose label contains the word (`selection`, `end to end`, `parts ur10`, a design
+//! name).
 
 mod common;
 
@@ -78,6 +79,32 @@ fn main() {
             ab.p99_deg.p95_interval(3),
             t.p95,
             t.p95_interval(3)
+        );
+    }
+    // The part chooser on a user's arm: the UR10's fit with its parts at `mass_weight = 0.003`
+    // (issue 46), where the mass model (every candidate's part searched at three rates, more
+    // where one fails) and the bill's parts are most of the fit's CPU.
+    if want("parts ur10") {
+        let design = Design::load(&root.join("designs/ur10_lift_elbow_wrist.toml")).unwrap();
+        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let stock = springfit::files::stock::of_design(&design).unwrap();
+        let settings = springfit::design::fit::FitSettings { mass_weight: 0.003, ..design.fit };
+        let mut last = None;
+        let (med, min) = time(1, || {
+            let none = springfit::progress::Progress::none();
+            last =
+                Some(black_box(springfit::parts::fit_with_parts(&design, &catalog, &settings, &stock, none).unwrap()));
+        });
+        let (o, parts) = last.unwrap();
+        let kg: f64 = parts.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum();
+        println!(
+            "parts ur10_lift_elbow_wrist (mass_weight 0.003, fit with its parts): {:.0} ms / {:.0} ms (solve {:.0} ms); {} springs, p99 {:.4}°, springs {:.3} kg",
+            ms(med),
+            ms(min),
+            o.timings.solve * 1e3,
+            o.used(),
+            o.metrics.stats.p99_abs,
+            kg
         );
     }
     // The sparse selection on the nominal objective (tolerance "none"): restarts (the default

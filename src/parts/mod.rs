@@ -287,7 +287,8 @@ pub struct Parts {
     pub ideal: AngleStats,
     /// Largest energy of the design's scenarios, J, and the swing radius it gives.
     pub swing: (f64, f64),
-    /// Stock rows examined (a part built round each and checked) over all elements: the index
+    /// Stock rows examined (a part built round each and checked, unless a lighter listed crank
+    /// already passes) over all elements: the index
     /// by type and rate ([`StockIndex`]) keeps it to the rows near each element's rate.
     pub stock_examined: usize,
 }
@@ -796,6 +797,12 @@ fn stock_crank<'a>(k: f64, duty: &Duty, req: &Requirements, index: &StockIndex<'
         let (Some(wire), Some(f0)) = (row.wire(), row.initial_tension) else { continue };
         m.examined += 1;
         let spring = crate::realise::spring::HelicalSpring { material: wire, d: row.d, dm: row.dm, n: row.n };
+        // A crank's mass is its spring's, whatever the radius: once a row passes, a row no
+        // lighter can neither replace it nor matter as the nearest, so its cranks (each radius's
+        // rollers compensated five times) are not built. The part found is the same.
+        if m.found.as_ref().is_some_and(|b| spring.mass() >= b.0.mass) {
+            continue;
+        }
         let Some(part) = mechanism::crank_round(k, duty, req, spring, f0, row.rate, row.cap()) else { continue };
         let worst = part.worst();
         if worst <= 1.0 {

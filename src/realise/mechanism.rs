@@ -557,6 +557,31 @@ impl Search {
         self.offer(build(), describe);
     }
 
+    /// [`Search::consider`] for a candidate whose part's worst utilisation is at least `floor()`
+    /// (the largest ratio of some of its checks, computed as the part computes them), which is
+    /// cheap where the part is not: skipped unbuilt also when that floor already fails and
+    /// cannot beat what the search holds (a part that passes, or a failing one as close). So the
+    /// result is [`Search::consider`]'s, bit for bit: a skipped part could neither pass nor
+    /// replace the best failing one (which only a strictly smaller worst ratio does). Most of a
+    /// crank's search fails its static checks (too few coils, a stress or an envelope broken),
+    /// and its fatigue checks and working points are most of the cost of a part.
+    fn consider_above(
+        &mut self,
+        mass: f64,
+        floor: impl FnOnce() -> f64,
+        build: impl FnOnce() -> Part,
+        describe: impl FnOnce() -> String,
+    ) {
+        if self.best_pass.as_ref().is_some_and(|b| mass >= b.mass) {
+            return;
+        }
+        let floor = floor();
+        if floor > 1.0 && (self.best_pass.is_some() || self.best_fail.as_ref().is_some_and(|b| floor >= b.0)) {
+            return;
+        }
+        self.offer(build(), describe);
+    }
+
     fn offer(&mut self, part: Part, describe: impl FnOnce() -> String) {
         let worst = part.worst();
         if worst <= 1.0 {
@@ -926,17 +951,30 @@ fn crank_search(
     for &CrankSetting { r, big_r, phase, scale, departure } in geometries {
         let ks = k_s(scale * k, r, big_r);
         let path = |d: f64| cable_path(r, big_r, pulley, d - phase);
-        let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
-        let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+        // The cable path's extremes, traced when a spring of this geometry is first checked (a
+        // geometry whose every spring is heavier than a part that passes needs none).
+        let traced = std::cell::Cell::new(None);
+        let geometry = || {
+            let paths = traced.get().unwrap_or_else(|| {
+                let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
+                let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
+                traced.set(Some([lmin, lmax, smin, smax]));
+                [lmin, lmax, smin, smax]
+            });
+            CrankGeometry { r, big_r, pulley, phase, ks, paths }
+        };
+        // The rollers' check, where the search bounds them.
+        let rollers = || allowed.is_finite().then(|| departure_check(departure, allowed));
         for s in helical(ks, req) {
-            search.consider(
+            search.consider_above(
                 s.mass(),
                 || {
-                    let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
-                    let mut part = crank_part(&geometry, duty, req, s, s.initial_tension(), &path);
-                    if allowed.is_finite() {
-                        part.checks.push(departure_check(departure, allowed));
-                    }
+                    let fixed = crank_static_checks(&geometry(), req, s, s.initial_tension());
+                    fixed.iter().chain(&rollers()).map(Check::ratio).fold(0.0, f64::max)
+                },
+                || {
+                    let mut part = crank_part(&geometry(), duty, req, s, s.initial_tension(), &path);
+                    part.checks.extend(rollers());
                     part
                 },
                 || format!("r = {r} mm, R = {big_r} mm, d = {} mm, D = {:.1} mm, n = {:.2}", s.d, s.dm, s.n),
@@ -959,6 +997,28 @@ struct CrankGeometry {
     paths: [f64; 4],
 }
 
+/// The checks of [`crank_part`] that need neither its fatigue lines nor its working points
+/// (coils, initial tension, static stresses, envelope), each as the part states it: what
+/// [`crank_search`] screens a spring with before building its part.
+fn crank_static_checks(g: &CrankGeometry, req: &Requirements, s: HelicalSpring, f0: f64) -> [Check; 8] {
+    let CrankGeometry { r, ks, paths: [lmin, lmax, _, _], .. } = *g;
+    let (d, dm, n) = (s.d, s.dm, s.n);
+    // Extension beyond the free length: the cable path less F₀/k_s.
+    let extension = lmax - f0 / ks;
+    let rm = s.rm();
+    let fmax = ks * lmax;
+    [
+        lower("active coils", n, MIN_COILS + 1.0, "coils"),
+        upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
+        upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
+        upper("hook torsion at B (Shigley Eq. 10-36)", hook_torsion_stress(d, dm, fmax) * req.safety, 0.40 * rm, "MPa"),
+        upper("hook bending at A (Shigley Eq. 10-34)", hook_bending_stress(d, dm, fmax) * req.safety, 0.75 * rm, "MPa"),
+        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
+        upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
+        upper("crank radius", r, req.max_lever, "mm"),
+    ]
+}
+
 /// The crank part of spring `s` (initial tension `f0`, N) at `g`, with every check: the body's
 /// and the loops' stresses, static and in fatigue, the envelope. `path` is the cable path at a
 /// deflection.
@@ -970,10 +1030,8 @@ fn crank_part(
     f0: f64,
     path: &dyn Fn(f64) -> f64,
 ) -> Part {
-    let CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] } = *g;
+    let CrankGeometry { r, big_r, pulley, phase, ks, paths: [_, lmax, smin, smax] } = *g;
     let (d, dm, n) = (s.d, s.dm, s.n);
-    // Extension beyond the free length: the cable path less F₀/k_s.
-    let extension = lmax - f0 / ks;
     let rm = s.rm();
     let fmax = ks * lmax;
     let (fa, fb) = (ks * smin, ks * smax);
@@ -1004,23 +1062,24 @@ fn crank_part(
         let u = loading.goodman(rm, stress(d, dm, fa), stress(d, dm, fb), cycles, surface);
         upper(name, u * req.safety, 1.0, "utilisation")
     };
+    let [coils, tension, stress, torsion, bending, outer, length, radius] = crank_static_checks(g, req, s, f0);
     let checks = vec![
-        lower("active coils", n, MIN_COILS + 1.0, "coils"),
-        upper("initial tension: F0 / (k_s · shortest cable path)", f0, ks * lmin, "N"),
-        upper("static stress", s.stress(fmax) * req.safety, 0.45 * rm, "MPa"),
+        coils,
+        tension,
+        stress,
         upper(
             "fatigue (Zimmerli-Goodman)",
             Loading::Shear.goodman(rm, s.stress(fa), s.stress(fb), cycles, surface) * req.safety,
             1.0,
             "utilisation",
         ),
-        upper("hook torsion at B (Shigley Eq. 10-36)", hook_torsion_stress(d, dm, fmax) * req.safety, 0.40 * rm, "MPa"),
-        upper("hook bending at A (Shigley Eq. 10-34)", hook_bending_stress(d, dm, fmax) * req.safety, 0.75 * rm, "MPa"),
+        torsion,
+        bending,
         hook_fatigue("hook fatigue, torsion at B (Zimmerli-Goodman)", Loading::Shear, hook_torsion_stress),
         hook_fatigue("hook fatigue, bending at A (Zimmerli-Goodman)", Loading::HookBending, hook_bending_stress),
-        upper("outer diameter", s.outer_diameter(), req.max_outer_diameter, "mm"),
-        upper("length extended", s.extension_free_length() + extension, req.max_length, "mm"),
-        upper("crank radius", r, req.max_lever, "mm"),
+        outer,
+        length,
+        radius,
     ];
     let points = [("q_eq", duty.at_eq), ("range low", duty.range[0]), ("range high", duty.range[1])]
         .into_iter()
