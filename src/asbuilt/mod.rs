@@ -9,7 +9,9 @@
 //!
 //! With trim springs in the design (see [`crate::elements::trim`]) each build is also trimmed as a builder
 //! would: the trims are re-relaxed at the equilibrium of the other built springs and their rates
-//! set so that ∇²U = w² M holds there again; the trimmed build is judged the same way.
+//! set by `[fit] trim_rule` there, or (residual rule) clamped with the preload that puts the
+//! equilibrium back at q_eq and their rates set there ([`clamp_at_design`]), whichever the
+//! builder measures best; the trimmed build is judged the same way.
 //!
 //! A cam's basis columns are one part, a cam on one follower spring: they share one δ per build
 //! ([`factors`]). Designs with cams are also built *preload-trimmed* ([`preload`]): each
@@ -382,7 +384,9 @@ pub type TrimmedBuild = (SpringSet, DVector<f64>, crate::elements::trim::TrimSol
 /// untrimmed. With the residual rule (the default) a builder therefore also tries the trims
 /// where they were assembled (relaxed at q_eq, rates unchanged: the untrimmed build) and with
 /// their rates re-set at the build's own equilibrium, the arm then settling where they hold it,
-/// and keeps whichever of the three leaves the smallest residual rows on the trim fan traced
+/// and clamped with the preload that puts the equilibrium back at q_eq, their rates set there
+/// ([`clamp_at_design`]: the one way that undoes the shift a light wrist's builds suffer), and
+/// keeps whichever of the four leaves the smallest residual rows on the trim fan traced
 /// from its own equilibrium ([`trim_fan`]: what a builder measures, not the held-out figures).
 /// Trimming so never makes a build worse by what the builder measures, and every build with an
 /// equilibrium has a trimmed figure.
@@ -440,7 +444,90 @@ pub fn trim_build(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<
             }
         }
     }
+    // Clamped so the arm rests at q_eq again, the rates set there.
+    if let Some((measured, clamped)) = clamp_at_design(design, bom, built, &trims) {
+        offer(Some(measured), clamped);
+    }
     best.map(|b| b.1)
+}
+
+/// The trims clamped so that the built arm rests at q_eq again, their rates set by the residual
+/// rule there; None if the trims cannot carry the torque the build lost at q_eq (a joint no trim
+/// with a positive rate turns) or the arm so trimmed is not stable at q_eq.
+///
+/// A build's rate errors leave a torque g = ∇U_built(q_eq) that moves its equilibrium by
+/// H⁻¹g: on a light wrist by a good part of the region (0.13 rad of a 0.26 ball on the Panda),
+/// and no rate of a trim relaxed where the build rests brings it back, so the trimmed build was
+/// still judged about a point the design was not made for. A trim clamped a deflection dᵢ away
+/// from relaxed at q_eq carries the preload pᵢ = kᵢ dᵢ there: trims whose preloads sum to
+/// Σ pᵢ aᵢ = −g put the equilibrium back at q_eq, and their rates, relaxed-at-q_eq rows plus the
+/// preloads' constant torque, are then set by the rows of a fan from q_eq. The preloads' rows
+/// depend only on their sum −g, so the rates are solved with the least-norm preloads and the
+/// preloads then split over the trims the rates leave positive with the smallest deflections
+/// (least Σ dᵢ², dᵢ = pᵢ/kᵢ): p = K² Aᵀ (A K² Aᵀ)⁻¹ (−g), A the couplings as columns.
+///
+/// Returns, with the trimmed build, the norm of its rows on that fan: what the builder measures
+/// (the fan is traced from q_eq, where the trimmed arm rests).
+pub fn clamp_at_design(
+    design: &Design,
+    bom: &[BomRow],
+    built: &SpringSet,
+    trims: &[usize],
+) -> Option<(f64, TrimmedBuild)> {
+    let q_eq = &design.q_eq;
+    let n = design.dof();
+    let rest = without(built, trims);
+    let g = rest.gradient(q_eq.as_slice()).ok()? + design.chain.gravity_gradient(q_eq.as_slice());
+    let a = DMatrix::from_fn(n, trims.len(), |i, c| built.elements[trims[c]].coupling[i]);
+    // The least-norm preloads, for the rates' rows.
+    let (p0, _) = crate::elements::trim::min_residual(&a, &(-&g))?;
+    if (&a * &p0 + &g).amax() > 1e-9 * (1.0 + g.amax()) {
+        return None;
+    }
+    // The trims relaxed at q_eq, and the same clamped one radian further (rate 1): the
+    // difference of their rows is a unit preload's.
+    let mut relaxed = built.clone();
+    for &j in trims {
+        let e = &mut relaxed.elements[j];
+        e.offset = e.coupling.iter().zip(q_eq.iter()).map(|(a, q)| a * q).sum();
+    }
+    let fan = trim_fan(design, q_eq).ok()?;
+    let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
+    let columns = frame.columns(trims.iter().map(|&j| &relaxed.elements[j]));
+    let shifted: Vec<crate::elements::Element> = trims
+        .iter()
+        .map(|&j| {
+            let mut e = relaxed.elements[j].clone();
+            e.offset -= 1.0;
+            e
+        })
+        .collect();
+    let preload_rows = (frame.columns(shifted.iter()) - &columns) * &p0;
+    let r0 = rows_without_trims(&frame, &relaxed, trims) + preload_rows;
+    let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
+    let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
+    let nominal: Vec<f64> = trims.iter().map(|&j| built.stiffness[j]).collect();
+    let h_rest = rest.hessian(q_eq.as_slice()).ok()? + design.chain.gravity_hessian(q_eq.as_slice());
+    let m = design.chain.mass_matrix(q_eq);
+    let sol = crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &ranges, &nominal);
+    // The preloads split over the trims by their rates: least Σ (pᵢ/kᵢ)².
+    let k2 = DMatrix::from_diagonal(&DVector::from_iterator(trims.len(), sol.rates.iter().map(|k| k * k)));
+    let gram = &a * &k2 * a.transpose();
+    let y = gram.lu().solve(&(-&g))?;
+    let p = &k2 * a.transpose() * y;
+    if (&a * &p + &g).amax() > 1e-9 * (1.0 + g.amax()) {
+        return None;
+    }
+    let mut set = relaxed;
+    for (i, &j) in trims.iter().enumerate() {
+        set.stiffness[j] = sol.rates[i];
+        if sol.rates[i] > 0.0 {
+            set.elements[j].offset -= p[i] / sol.rates[i];
+        }
+    }
+    let q = equilibrium(design, &set)?;
+    let measured = frame.rows(&set).norm();
+    ((&q - q_eq).amax() < 1e-6).then_some((measured, (set, q, sol)))
 }
 
 /// The springs of `set` but its rows `trims`.
@@ -814,4 +901,90 @@ pub fn of_fit(design: &Design, fit: &crate::fit::FitOutcome) -> Result<Option<As
         });
     }
     Ok(Some(ab))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::elements::{Element, Profile};
+
+    /// The default design's bill (three trims on (1, 0), (0, 1), (1, 1)), fitted on a small fan,
+    /// its trims' ranges opened wide so that no range binds.
+    fn bill(design: &Design) -> Vec<BomRow> {
+        let catalog = crate::elements::catalog::Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let settings = crate::design::fit::FitSettings {
+            training_directions: 24,
+            training_samples: 12,
+            evaluation_directions: 12,
+            evaluation_samples: 8,
+            builds: 0,
+            ..design.fit
+        };
+        let mut bom = crate::fit::run::fit(design, &catalog, &settings, crate::progress::Progress::none()).unwrap().bom;
+        for r in &mut bom {
+            if r.adjust.trim_range.is_some() {
+                r.adjust.trim_range = Some([-1e3, 1e3]);
+            }
+        }
+        bom
+    }
+
+    /// A known case the trims restore exactly: a two-joint arm whose build differs from the
+    /// drawing by a linear spring on joint 1 relaxed away from q_eq (a rate error ε of such a
+    /// spring: a rate ε on (1, 0) and a preload ε (q_eq,1 − x₀) at q_eq). Clamped at the design,
+    /// the (1, 0) trim takes back the rate ε and the preload, so the trimmed arm rests at q_eq
+    /// and its potential's gradient is the drawing's everywhere, the other trims unmoved.
+    #[test]
+    fn trims_clamped_at_the_design_restore_a_build_they_can_reach() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
+        let bom = bill(&design);
+        let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
+        assert_eq!(trims.len(), 3);
+        let joint1 = trims.iter().position(|&j| bom[j].element.coupling == [1.0, 0.0]).unwrap();
+        // The drawing with its trims where the rule sets them at q_eq (the reference).
+        let drawn = crate::fit::bill::spring_set(&bom);
+        let (_, (drawn, q0, _)) = clamp_at_design(&design, &bom, &drawn, &trims).unwrap();
+        assert!((&q0 - &design.q_eq).amax() < 1e-9);
+        // The build: one linear spring more, rate ε on joint 1, relaxed 0.3 rad from q_eq.
+        let eps = 0.7;
+        let mut built = drawn.clone();
+        built.elements.push(Element {
+            profile: Profile::Linear,
+            coupling: vec![1.0, 0.0],
+            offset: design.q_eq[0] + 0.3,
+        });
+        built.stiffness.push(eps);
+        let g = built.gradient(design.q_eq.as_slice()).unwrap() + design.chain.gravity_gradient(design.q_eq.as_slice());
+        assert!(g.amax() > 0.1, "the build rests elsewhere: |∇U(q_eq)| = {}", g.amax());
+        let untrimmed = equilibrium(&design, &built).unwrap();
+        assert!((&untrimmed - &design.q_eq).amax() > 1e-3);
+        let (measured, (trimmed, q, sol)) = clamp_at_design(&design, &bom, &built, &trims).unwrap();
+        assert!((&q - &design.q_eq).amax() < 1e-9, "rests at {q} instead of q_eq");
+        assert!(sol.binding.is_empty());
+        for (i, &j) in trims.iter().enumerate() {
+            let expected = drawn.stiffness[j] - if i == joint1 { eps } else { 0.0 };
+            assert!(
+                (trimmed.stiffness[j] - expected).abs() < 1e-6 * (1.0 + expected.abs()),
+                "trim {i}: {} against {expected}",
+                trimmed.stiffness[j]
+            );
+        }
+        // The trimmed potential's gradient is the drawing's, over the region.
+        let scale = 1.0 + drawn.stiffness.iter().fold(0.0f64, |a, k| a.max(k.abs()));
+        for s in 0..20 {
+            let t = s as f64;
+            let p = [design.q_eq[0] + 0.6 * (0.7 * t).sin(), design.q_eq[1] + 0.6 * (1.3 * t).cos()];
+            let d = trimmed.gradient(&p).unwrap() - drawn.gradient(&p).unwrap();
+            assert!(d.amax() < 1e-9 * scale, "at {p:?}: gradients differ by {:e}", d.amax());
+        }
+        // What the builder measures is the drawing's rows again.
+        let fan = trim_fan(&design, &design.q_eq).unwrap();
+        let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
+        let drawn_rows = frame.rows(&drawn).norm();
+        assert!((measured - drawn_rows).abs() < 1e-9 * (1.0 + drawn_rows), "{measured} against {drawn_rows}");
+        // trim_build keeps it: no other way of trimming measures smaller.
+        let (_, q_kept, _) = trim_build(&design, &bom, &built).unwrap();
+        assert!((&q_kept - &design.q_eq).amax() < 1e-9);
+    }
 }
