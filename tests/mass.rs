@@ -15,7 +15,7 @@ use springfit::design::fit::{FitSettings, SolverKind};
 use springfit::elements::Profile;
 use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::fit::FitOutcome;
-use springfit::fit::mass::{Floor, MassModel, MassTerm};
+use springfit::fit::mass::{Floor, MassModel, MassTerm, trims_mass};
 use springfit::fit::run::fit;
 use springfit::parts::{lightest_of_fit, of_fit, requirements};
 use springfit::progress::Progress;
@@ -196,7 +196,10 @@ fn the_mass_model_agrees_with_the_part_chooser() {
 
 /// The weight and the budget on the paper's arm: a positive `mass_weight` gives a lighter bill
 /// (by the model) than none (0.0582: 0.01 on the weight's former scale, ½‖b‖², on this arm), and
-/// `max_spring_mass` at half the unweighted bill's mass is held by the QP and by NNLS.
+/// `max_spring_mass` at half the unweighted bill's mass is held by the QP and by NNLS, the trims
+/// included: the fitted springs by the model plus the trims' parts, which the model reads as the
+/// part chooser builds them (the same figure as the bill's trims). A budget the trims alone fill
+/// (above the floor) is infeasible, naming the key and the trims' mass.
 #[test]
 fn the_mass_weight_lightens_and_the_budget_holds() {
     let (design, catalog) = shipped("double_pendulum");
@@ -223,9 +226,31 @@ fn the_mass_weight_lightens_and_the_budget_holds() {
         let budget = 0.5 * heavy;
         let bounded = fitted(&design, &catalog, &FitSettings { max_spring_mass: budget, ..settings });
         let held = mass_of(&bounded);
-        eprintln!("{solver:?}: budget {budget:.3} kg: {held:.3} kg at p99 {:.3}°", bounded.metrics.stats.p99_abs);
-        assert!(held <= budget * 1.02, "{solver:?}: {held} over {budget}");
+        let trims = trims_mass(&design, &catalog, &bounded.evaluation, base.frequency);
+        let parts = of_fit(&design, &bounded, base.frequency, &[]).unwrap();
+        let trim_parts: f64 = parts
+            .elements
+            .iter()
+            .filter(|e| bounded.bom.iter().any(|r| r.id == e.id && r.adjust.trim_range.is_some()))
+            .filter_map(|e| e.part.as_ref().ok().map(|p| p.mass))
+            .sum();
+        eprintln!(
+            "{solver:?}: budget {budget:.3} kg: {held:.3} kg and {trims:.4} kg of trims (their parts {trim_parts:.4} kg) at p99 {:.3}°",
+            bounded.metrics.stats.p99_abs
+        );
+        assert!((trims - trim_parts).abs() <= 1e-9 * trim_parts.max(1.0), "{trims} against {trim_parts}");
+        assert!(trims > 0.0, "the paper's trims have parts");
+        assert!(held + trims <= budget * 1.02, "{solver:?}: {held} + {trims} over {budget}");
     }
+    let evaluation = fitted(&design, &catalog, &base).evaluation;
+    let trims = trims_mass(&design, &catalog, &evaluation, base.frequency);
+    let floor = Floor::on(&design, base.frequency, &evaluation).mass;
+    assert!(floor < trims, "the paper's trims ({trims} kg) weigh more than its floor ({floor} kg)");
+    let budget = 0.5 * (floor + trims);
+    let refused = fit(&design, &catalog, &FitSettings { max_spring_mass: budget, ..base }, Progress::none());
+    let message = refused.err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(message.contains("fit.max_spring_mass") && message.contains("nothing is left"), "{message}");
+    assert!(message.contains(&format!("{trims:.3} kg")), "{message}");
 }
 
 /// The stops' and trims' steel against their energy on the paper's arm: each part's mass over

@@ -60,7 +60,11 @@
 //! default design a weight is 5.82× its former number (½‖b‖²/m = 1.77e-3 = 5.82·(1°)²), by which
 //! [`crate::fit::auto::MASS_LADDER`] was converted. The budget Σ mᵢ(kᵢ) ≤ M is met by raising λ (a bisection on the
 //! multiplier: the budget's KKT conditions), which the selection sees too; with a straight-line
-//! model only (every bᵢ = 0) the QP holds it as one more linear inequality instead.
+//! model only (every bᵢ = 0) the QP holds it as one more linear inequality instead. M is
+//! `max_spring_mass` less the trims' parts ([`trims_mass`]): the trims are not fitted (held at
+//! mid-range) but weigh like any spring, so the budget holds every spring the arm carries, as
+//! `fit` reports them (the default design's three trims weigh 0.222 kg, which a budget on the
+//! fitted springs alone left over: 2.375 kg of parts at `max_spring_mass = 2.12`).
 //!
 
 use nalgebra::{DMatrix, DVector};
@@ -75,7 +79,7 @@ use crate::geodesic::{Fan, Region};
 use crate::realise::cam::DEFAULT_REALISATION;
 use crate::realise::duty::{duty, requirements, spans, swing};
 use crate::realise::material::Material;
-use crate::realise::mechanism::{Duty, Requirements, follower, spring_element};
+use crate::realise::mechanism::{Duty, Requirements, follower, spring_element, trim};
 use crate::realise::spring::usable_energy_density;
 
 /// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
@@ -212,6 +216,10 @@ pub struct MassModel {
     pub from_parts: Vec<bool>,
     /// The floor.
     pub floor: Floor,
+    /// The trims' parts, kg: each trim's part as the part chooser builds it at mid-range over its
+    /// duty ([`trims_mass`]), fixed whatever the fit chooses (0 without a catalogue: a bill's rows
+    /// read back).
+    pub trims: f64,
 }
 
 impl MassModel {
@@ -221,6 +229,28 @@ impl MassModel {
     /// such as a bill's rows read back: [`MassModel::of_catalog`] has the families').
     pub fn new(design: &Design, candidates: &[Candidate], evaluation: &Fan, frequency: f64) -> MassModel {
         MassModel::with_followers(design, candidates, |_| FollowerSpec::DEFAULT, evaluation, frequency)
+    }
+
+    /// The budget `max_spring_mass` leaves the fitted springs, kg: the trims are springs the arm
+    /// carries too, so their parts' mass ([`MassModel::trims`]) is taken off it (0: no budget).
+    /// A budget the trims alone fill is infeasible (a point of `pareto`'s mass curve, as a budget
+    /// no set meets), naming the key and the trims' mass.
+    pub fn budget(&self, settings: &FitSettings) -> Result<f64> {
+        let budget = settings.max_spring_mass;
+        if budget <= 0.0 {
+            return Ok(0.0);
+        }
+        let left = budget - self.trims;
+        if left <= 0.0 {
+            return Err(Error::Infeasible {
+                constraint: format!("fit.max_spring_mass ({budget} kg, the trims included)"),
+                reason: format!(
+                    "the catalogue's trims weigh {:.3} kg by their parts at mid-range, so nothing is left for the fitted springs; raise max_spring_mass above that",
+                    self.trims
+                ),
+            });
+        }
+        Ok(left)
     }
 
     /// [`MassModel::new`] with each cam's follower as its family in `catalog` builds it (a
@@ -238,7 +268,8 @@ impl MassModel {
             }
             _ => FollowerSpec::DEFAULT,
         };
-        MassModel::with_followers(design, candidates, spec, evaluation, frequency)
+        let trims = trims_mass(design, catalog, evaluation, frequency);
+        MassModel { trims, ..MassModel::with_followers(design, candidates, spec, evaluation, frequency) }
     }
 
     fn with_followers(
@@ -299,13 +330,32 @@ impl MassModel {
             })
             .unzip();
         let (per_stiffness, per_stiffness_squared) = coefficients.into_iter().unzip();
-        MassModel { per_stiffness, per_stiffness_squared, from_parts, floor }
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, floor, trims: 0.0 }
     }
 
     /// Candidate `i`'s mass at stiffness `k` by the model, aᵢk + bᵢk², kg.
     pub fn mass_at(&self, i: usize, k: f64) -> f64 {
         self.per_stiffness[i] * k + self.per_stiffness_squared[i] * k * k
     }
+}
+
+/// The mass of the catalogue's trims by their parts, kg: each trim's bill row as the fit writes
+/// it (at mid-range, [`crate::fit::bill::append`]) and its part as the part chooser builds it
+/// ([`trim`], over the same duty: the held-out fan and the scenarios' swing), so the figure is the
+/// parts' `fit` reports unless a trim snaps to a listed stock spring. A trim no part realises
+/// weighs nothing here, as in the bill's total.
+pub fn trims_mass(design: &Design, catalog: &Catalog, evaluation: &Fan, frequency: f64) -> f64 {
+    let mut rows = Vec::new();
+    crate::fit::bill::append(design, catalog, &mut rows, evaluation);
+    let (_, radius) = swing(design, evaluation, frequency);
+    let spans = spans(rows.iter().map(|r| &r.element.coupling[..]), design.q_eq.as_slice(), evaluation, radius);
+    rows.iter()
+        .filter_map(|r| {
+            let range = r.adjust.trim_range?;
+            let req = requirements(&design.parts, &r.id);
+            trim(range, r.stiffness, &duty(&spans, &r.element), &req).ok().map(|p| p.mass)
+        })
+        .sum()
 }
 
 /// The mass curve m(k) = a·k + b·k², a, b ≥ 0, fitted to the parts `reads` (kᵢ, mᵢ) in relative

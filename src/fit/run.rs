@@ -270,11 +270,12 @@ impl Prepared<'_> {
         // today's, bit for bit, and no part is searched.
         let weighs_mass = settings.mass_weight > 0.0 || settings.max_spring_mass > 0.0;
         let model = weighs_mass.then(|| self.mass_model(settings.frequency));
+        let budget = model.map(|m| m.budget(settings)).transpose()?.unwrap_or(0.0);
         let term = model.map(|m| MassTerm {
             per_stiffness: &m.per_stiffness,
             per_stiffness_squared: &m.per_stiffness_squared,
             weight: MassTerm::weight(settings, self.problem.row_count(), &m.floor),
-            budget: settings.max_spring_mass,
+            budget,
         });
         let mass = term.as_ref();
         if settings.tolerance.is_none() {

@@ -169,7 +169,10 @@ where
     }
     let Some(mut best) = best else {
         return Err(Error::Infeasible {
-            constraint: format!("max_spring_mass ({} kg)", m.budget),
+            constraint: format!(
+                "max_spring_mass ({} kg left for the fitted springs, the trims' parts taken off)",
+                m.budget
+            ),
             reason: format!(
                 "the {} solver cannot bring the springs within it at any mass weight (the least it reached is {:.3} kg): the equalities need more steel than the budget; raise max_spring_mass",
                 settings.solver.name(),
@@ -450,7 +453,7 @@ fn solve_qp(
         let m_max = m.budget;
         inequalities.push(LinearGroup {
             name: "spring mass budget".into(),
-            description: format!("Σ cᵢ kᵢ ≤ {m_max} kg (max_spring_mass)"),
+            description: format!("Σ cᵢ kᵢ ≤ {m_max} kg (max_spring_mass less the trims' parts)"),
             matrix: DMatrix::from_fn(1, p, |_, j| -m.per_stiffness[j] / m_max),
             rhs: DVector::from_element(1, -1.0),
         });
