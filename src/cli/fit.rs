@@ -140,6 +140,9 @@ fn say_fit(run: &FitRun, settings: &FitSettings, progress: &Progress) {
     if let Some(d) = &outcome.dropped_without_part {
         progress.say(d.sentence());
     }
+    if let Some(r) = run.parts.as_ref().and_then(|p| p.placement.rounds.as_ref()) {
+        progress.say(r.sentence());
+    }
     progress.say(if verdict.acceptable() {
         format!("verdict: acceptable ({})", verdict.reason())
     } else if !verdict.ideal_passes() {

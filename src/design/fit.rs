@@ -150,6 +150,13 @@ pub struct FitSettings {
     /// one preparation, its parts and its as-built builds): a count, not seconds, so the choice
     /// is the same on any machine and thread count. Default 8.
     pub auto_budget: usize,
+    /// Most fits on the arm carrying its parts (0, the default: none): after the parts are
+    /// chosen, their masses on moving links ([`crate::realise::placement`]) are added to the
+    /// arm's links, the metric rebuilt and the design fitted again, until the springs' mass
+    /// changes by less than 1 % or this many rounds. Off by default: each round is a whole fit
+    /// (the geodesics, the solve, the parts), and on the shipped designs the parts on moving links
+    /// move the bill little (docs/parts.md, "Where the parts sit").
+    pub placement_rounds: usize,
     /// Which of the weights the design left to the fit job (`"auto"`): set from the
     /// file by [`crate::design::Design::parse`]; none in [`FitSettings::default`], so a fit
     /// called from code runs with exactly the numbers it is given.
@@ -316,6 +323,7 @@ impl Default for FitSettings {
             mass_weight: 0.0,
             max_spring_mass: 0.0,
             auto_budget: 8,
+            placement_rounds: 0,
             auto: AutoWeights::default(),
         }
     }
@@ -429,6 +437,9 @@ impl FitSettings {
         }
         if !(self.max_spring_mass.is_finite() && self.max_spring_mass >= 0.0) {
             return err("max_spring_mass", "must be ≥ 0 kg (0: no bound)");
+        }
+        if self.placement_rounds > 3 {
+            return err("placement_rounds", "must be 0 to 3 fits on the arm carrying its parts (0: none)");
         }
         if !(1..=64).contains(&self.auto_budget) {
             return err("auto_budget", "must be 1 to 64 candidate fits");

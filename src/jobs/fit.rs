@@ -21,6 +21,7 @@ use crate::fit::auto::{Figures, Search};
 use crate::fit::hints;
 use crate::parts::Parts;
 use crate::progress::Progress;
+use crate::realise::placement;
 use crate::report::output::Claim;
 use crate::studies::compare::FitRecord;
 
@@ -98,17 +99,18 @@ impl<'a> FitJob<'a> {
                 Some((catalog, stock))
             }
         };
-        let (mut outcome, parts, chosen) = match &catalog {
-            None => (crate::fit::run::exact_reference(design, settings, progress)?, None, None),
-            Some((catalog, stock)) if Search::wanted(settings) => {
-                choose_weights(design, catalog, settings, stock, progress)
-                    .map(|(o, p, ab)| (o, Some(p), Some(ab)))
-                    .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?
+        let (mut outcome, parts, chosen, placed) = match &catalog {
+            None => (crate::fit::run::exact_reference(design, settings, progress)?, None, None, None),
+            Some((catalog, stock)) => {
+                let fitted = fit_springs(design, catalog, settings, stock, progress)?;
+                let ((o, p, c), placed) =
+                    placement_rounds(design, (*catalog, stock.as_slice()), settings, progress, fitted)?;
+                (o, Some(p), c, placed)
             }
-            Some((catalog, stock)) => crate::parts::fit_with_parts(design, catalog, settings, stock, progress)
-                .map(|(o, p)| (o, Some(p), None))
-                .map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))?,
         };
+        // With placement rounds, the arm that carries its parts is the design from here on: the
+        // fit was made for it, and its builds and diagnosis are of it.
+        let design = placed.as_ref().unwrap_or(design);
         if let Some((catalog, _)) = &catalog
             && !crate::fit::outcome::Verdict::ideal(outcome.metrics.stats.p99_abs, settings.accept_p99_deg)
                 .residual_passes()
@@ -147,6 +149,96 @@ impl<'a> FitJob<'a> {
             .unwrap_or_default();
         Ok(FitRun { outcome, parts, as_built, as_built_seconds, exact: self.exact, warnings })
     }
+}
+
+/// A fit and its parts, and the as-built builds when the weights were chosen (they were drawn
+/// while choosing).
+type Fitted = (FitOutcome, Parts, Option<Option<AsBuilt>>);
+
+/// The fit of springs with its parts: with weights set to `"auto"` the choice over candidates
+/// ([`choose_weights`]), else [`crate::parts::fit_with_parts`]. An infeasible fit's error
+/// names the key to change ([`hints::explain`]).
+fn fit_springs(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    stock: &[crate::parts::StockPart],
+    progress: Progress<'_>,
+) -> Result<Fitted> {
+    let fitted = if Search::wanted(settings) {
+        choose_weights(design, catalog, settings, stock, progress).map(|(o, p, ab)| (o, p, Some(ab)))
+    } else {
+        crate::parts::fit_with_parts(design, catalog, settings, stock, progress).map(|(o, p)| (o, p, None))
+    };
+    fitted.map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))
+}
+
+/// The placed masses' rounds (`[fit] placement_rounds`, docs/parts.md "Where the parts sit"): the
+/// parts' masses on moving links ([`crate::realise::placement`]) are added to the design's arm,
+/// whose metric and gravity change with them, and the design fitted again on that arm with its
+/// parts chosen again, until the springs' mass changes by less than
+/// [`placement::CONVERGED`] or `placement_rounds` fits. Each round places the previous fit's
+/// parts on the bare arm (the masses are not added twice). The first fit is also judged on the
+/// arm carrying its own parts (the error a builder of the fit without placement meets). Returns
+/// the last fit, its parts with the rounds in [`crate::parts::Parts::placement`], and the arm
+/// it was fitted for (None without rounds, or when no part rides on a moving link).
+fn placement_rounds(
+    design: &Design,
+    (catalog, stock): (&Catalog, &[crate::parts::StockPart]),
+    settings: &FitSettings,
+    progress: Progress<'_>,
+    fitted: Fitted,
+) -> Result<(Fitted, Option<Design>)> {
+    let (mut outcome, mut parts, mut chosen) = fitted;
+    if settings.placement_rounds == 0 {
+        return Ok(((outcome, parts, chosen), None));
+    }
+    let mass = |p: &Parts| p.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum::<f64>();
+    let mut rounds = placement::Rounds {
+        rounds: 0,
+        converged: false,
+        spring_mass_kg: vec![mass(&parts)],
+        placed_mass_kg: Vec::new(),
+        unplaced_on_placed: None,
+    };
+    let mut arm = None;
+    for round in 1..=settings.placement_rounds {
+        let masses = parts.placement.point_masses();
+        if masses.is_empty() {
+            rounds.converged = true;
+            break;
+        }
+        let moving = parts.placement.moving_mass();
+        let mut placed = design.clone();
+        placed.chain = design.chain.with_point_masses(&masses);
+        progress.stage(&format!("placement round {round}: the fit on the arm carrying {moving:.3} kg of its parts"));
+        let (o, p, c) = fit_springs(&placed, catalog, settings, stock, progress)?;
+        if round == 1 {
+            let judged = crate::parts::choose(
+                &placed,
+                &outcome.bom,
+                &outcome.cams,
+                &o.evaluation,
+                settings.frequency,
+                stock,
+                None,
+            )?;
+            rounds.unplaced_on_placed = Some((judged.ideal, judged.realised));
+        }
+        let before = mass(&parts);
+        (outcome, parts, chosen) = (o, p, c);
+        let after = mass(&parts);
+        rounds.rounds = round;
+        rounds.placed_mass_kg.push(moving);
+        rounds.spring_mass_kg.push(after);
+        arm = Some(placed);
+        if (after - before).abs() < placement::CONVERGED * before {
+            rounds.converged = true;
+            break;
+        }
+    }
+    parts.placement.rounds = Some(rounds);
+    Ok(((outcome, parts, chosen), arm))
 }
 
 /// The warning of a bound on the builds' equilibrium shift that acted (it costs accuracy as

@@ -25,6 +25,21 @@ pub use spatial::{Body, MAX_BODIES, SpatialChain};
 
 use crate::numerics::linalg;
 
+/// A mass carried by a moving link: a part of the springs' hardware (a spring, a pulley, a
+/// length of cable) that moves with the link and so adds to the arm's inertia and gravity load.
+/// It is a point: its own inertia about its centre is left out (for a spring or a pulley of a
+/// few centimetres on links of decimetres that is below a percent of its share).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointMass {
+    /// The link it rides on: 0 is the first moving link (joint 1's), n − 1 the last.
+    pub link: usize,
+    /// Where it sits in that link's frame, m: a planar link's frame has x along the link from its
+    /// joint (only x is used); a spatial body's is its joint frame, as the URDF gives it.
+    pub position: [f64; 3],
+    /// Its mass, kg.
+    pub mass: f64,
+}
+
 /// A serial chain of revolute joints: the robot springfit designs for.
 #[derive(Debug, Clone)]
 pub enum Chain {
@@ -136,6 +151,43 @@ impl Chain {
     /// Number of joints n.
     pub fn dof(&self) -> usize {
         each!(self, c => c.dof())
+    }
+
+    /// Where joint `i` (0-based) sits: on the link before it (its index) at that link's frame's
+    /// point (m), or None for joint 1, which sits on the base. What a part mounted on a joint's
+    /// axis rides on: every joint before it moves it, the joint itself does not.
+    pub fn joint_mount(&self, i: usize) -> Option<(usize, [f64; 3])> {
+        if i == 0 || i >= self.dof() {
+            return None;
+        }
+        Some((
+            i - 1,
+            match self {
+                Chain::Planar(c) => [c.links()[i - 1].length, 0.0, 0.0],
+                Chain::Spatial(c) => c.bodies()[i].translation.into(),
+            },
+        ))
+    }
+
+    /// The point where link `t` ends (the next joint's mount, or for the last link its length
+    /// or the drawn tip), in its frame, m: what a cable along the link runs to.
+    pub fn link_end(&self, t: usize) -> [f64; 3] {
+        match (self.joint_mount(t + 1), self) {
+            (Some((_, p)), _) => p,
+            (None, Chain::Planar(c)) => [c.links().get(t).map_or(0.0, |l| l.length), 0.0, 0.0],
+            (None, Chain::Spatial(c)) => c.tip(),
+        }
+    }
+
+    /// The same chain with `masses` added to its links: each link's mass, centre of mass and
+    /// inertia (parallel-axis theorem) updated, so that M(q), its derivatives and gravity are
+    /// those of the arm carrying them. A mass on a link beyond the chain is ignored (the caller
+    /// places on links `0..dof`); masses on the base are not passed at all.
+    pub fn with_point_masses(&self, masses: &[PointMass]) -> Chain {
+        match self {
+            Chain::Planar(c) => Chain::Planar(c.with_point_masses(masses)),
+            Chain::Spatial(c) => Chain::Spatial(c.with_point_masses(masses)),
+        }
     }
 
     /// Whether gravity acts.

@@ -110,6 +110,32 @@ impl PlanarChain {
         &self.links
     }
 
+    /// The chain with `masses` added to its links ([`super::Chain::with_point_masses`]), each
+    /// at its distance along the link (`position[0]`): m' = m + Σ m_p, c' = (m c + Σ m_p x_p)/m',
+    /// I' = I + m (c − c')² + Σ m_p (x_p − c')² (parallel-axis theorem), the closed forms
+    /// rebuilt from them.
+    pub fn with_point_masses(&self, masses: &[super::PointMass]) -> PlanarChain {
+        let links = self
+            .links
+            .iter()
+            .enumerate()
+            .map(|(t, l)| {
+                let here: Vec<(f64, f64)> =
+                    masses.iter().filter(|p| p.link == t).map(|p| (p.mass, p.position[0])).collect();
+                if here.is_empty() {
+                    return *l;
+                }
+                let mass = l.mass + here.iter().map(|(m, _)| m).sum::<f64>();
+                let com = (l.mass * l.com + here.iter().map(|(m, x)| m * x).sum::<f64>()) / mass;
+                let inertia = l.inertia
+                    + l.mass * (l.com - com).powi(2)
+                    + here.iter().map(|(m, x)| m * (x - com).powi(2)).sum::<f64>();
+                Link { mass, length: l.length, com, inertia }
+            })
+            .collect();
+        PlanarChain::new(links, self.gravity)
+    }
+
     /// The gravity vector in m/s².
     pub fn gravity(&self) -> [f64; 2] {
         self.gravity

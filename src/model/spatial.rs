@@ -257,6 +257,36 @@ impl SpatialChain {
         &self.bodies
     }
 
+    /// The point of the last body drawn as the arm's tip (its frame), m.
+    pub fn tip(&self) -> [f64; 3] {
+        self.tip.into()
+    }
+
+    /// The chain with `masses` added to its bodies ([`super::Chain::with_point_masses`]): each
+    /// body's mass, centre of mass and inertia about it (parallel-axis theorem,
+    /// I' = I + m S(c − c') + Σ m_p S(p − c'), S(d) = |d|² 1 − d dᵀ) updated.
+    pub fn with_point_masses(&self, masses: &[super::PointMass]) -> SpatialChain {
+        let mut chain = self.clone();
+        for (t, body) in chain.bodies.iter_mut().enumerate() {
+            let here: Vec<(f64, Vector3<f64>)> =
+                masses.iter().filter(|p| p.link == t).map(|p| (p.mass, Vector3::from(p.position))).collect();
+            if here.is_empty() {
+                continue;
+            }
+            let total = body.mass + here.iter().map(|(m, _)| m).sum::<f64>();
+            let com = (body.com * body.mass + here.iter().map(|(m, p)| p * *m).sum::<Vector3<f64>>()) / total;
+            let shift = |d: Vector3<f64>| Matrix3::identity() * d.norm_squared() - d * d.transpose();
+            let mut inertia = body.inertia + shift(body.com - com) * body.mass;
+            for (m, p) in &here {
+                inertia += shift(p - com) * *m;
+            }
+            body.mass = total;
+            body.com = com;
+            body.inertia = inertia;
+        }
+        chain
+    }
+
     /// The gravity acceleration in the base frame, m/s².
     pub fn gravity(&self) -> [f64; 3] {
         self.gravity.into()

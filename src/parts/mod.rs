@@ -22,6 +22,7 @@ use crate::realise::duty::{duty, spans, swing};
 pub use crate::realise::duty::{requirements, scenario_energy, surface};
 use crate::realise::material::by_key;
 use crate::realise::mechanism::{self, Duty, Limit, Part, Requirements, Spring, TorqueBound};
+use crate::realise::placement;
 use crate::realise::transmission::{self, Transmission};
 use crate::residual::{AngleStats, fan_angles, stats};
 
@@ -291,6 +292,9 @@ pub struct Parts {
     /// already passes) over all elements: the index
     /// by type and rate ([`StockIndex`]) keeps it to the rows near each element's rate.
     pub stock_examined: usize,
+    /// Where each part sits and its mass on the arm's links ([`placement`]); with `[fit]
+    /// placement_rounds` the fit's rounds on the arm carrying them.
+    pub placement: placement::Placement,
 }
 
 impl Parts {
@@ -547,8 +551,15 @@ fn choose_with(
         Some(s) => s,
         None => stats(&fan_angles(&design.chain, evaluation, &spring_set(bom).grouped())?),
     };
-    let parts =
-        Parts { elements, realised: stats(&residuals), ideal, swing: (energy.unwrap_or(0.0), radius), stock_examined };
+    let placement = placement::Placement { placed: placed(&design.chain, &elements), rounds: None };
+    let parts = Parts {
+        elements,
+        realised: stats(&residuals),
+        ideal,
+        swing: (energy.unwrap_or(0.0), radius),
+        stock_examined,
+        placement,
+    };
     Ok((parts, examined))
 }
 
@@ -559,6 +570,18 @@ fn pulley_catalog(design: &Design) -> Result<Option<crate::elements::catalog::Ca
     let Some(path) = &design.catalog else { return Ok(None) };
     let catalog = crate::elements::catalog::Catalog::load_for(path, &design.chain.joint_names())?;
     Ok(catalog.families.iter().any(|f| f.tendons.is_some()).then_some(catalog))
+}
+
+/// The placed masses of every element with a part and a transmission ([`placement::place`]).
+fn placed(chain: &crate::model::Chain, elements: &[ElementPart]) -> Vec<placement::Placed> {
+    elements
+        .iter()
+        .filter_map(|e| match (&e.part, &e.transmission) {
+            (Ok(p), Some(t)) => Some(placement::place(chain, &e.id, &e.element.coupling, p.mass, t)),
+            _ => None,
+        })
+        .flatten()
+        .collect()
 }
 
 /// `e` with the transmission of its coupling for the torque its bill rows (a spring's one row, a

@@ -6,6 +6,7 @@ pub mod cam;
 pub mod duty;
 pub mod material;
 pub mod mechanism;
+pub mod placement;
 pub mod sketch;
 pub mod spring;
 pub mod transmission;

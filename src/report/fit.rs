@@ -105,6 +105,16 @@ pub struct Summary {
     /// every element had a part.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dropped_without_part: Option<crate::fit::outcome::DroppedWithoutPart>,
+    /// The chosen parts' mass on moving links, kg: springs on joints past the first, tendons'
+    /// pulleys and cables (docs/parts.md, "Where the parts sit"); null without parts.
+    pub placed_mass_kg: Option<f64>,
+    /// Fits made on the arm carrying its parts (`[fit] placement_rounds`; 0: the fit is the
+    /// bare arm's).
+    pub placement_rounds: usize,
+    /// With placement rounds: each round's placed mass and springs' mass, whether it converged,
+    /// and the first fit judged on the arm carrying its parts (absent without rounds).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<crate::realise::placement::Rounds>,
 }
 
 /// The region part of the summary.
@@ -153,6 +163,9 @@ impl Summary {
         summary.mass = super::mass::MassSummary::new(design, o, parts);
         if let Some(p) = parts {
             summary.set_verdict(&p.verdict(o.settings.accept_p99_deg));
+            summary.placed_mass_kg = Some(p.placement.moving_mass());
+            summary.placement = p.placement.rounds.clone();
+            summary.placement_rounds = summary.placement.as_ref().map_or(0, |r| r.rounds);
         }
         summary
     }
@@ -217,6 +230,9 @@ impl Summary {
             mass: None,
             auto_weights: o.auto.clone(),
             dropped_without_part: o.dropped_without_part.clone(),
+            placed_mass_kg: None,
+            placement_rounds: 0,
+            placement: None,
             diagnosis: o.diagnosis.clone(),
         }
     }

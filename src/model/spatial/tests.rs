@@ -270,3 +270,56 @@ fn energy_is_conserved_in_free_motion_under_gravity() {
     assert!(swing > 5.0, "swing {swing}");
     assert!((energy(&y) - e0).abs() < 1e-8 * swing, "energy drift {}", energy(&y) - e0);
 }
+
+/// A one-link pendulum carrying a point mass at a known radius has the analytic inertia
+/// I + m c² + m_p x² about its joint and the analytic gravity load (m c + m_p x) g, planar and
+/// spatial alike.
+#[test]
+fn point_mass_on_one_link_matches_the_analytic_inertia() {
+    let link = Link { mass: 1.0, length: 1.0, com: 0.5, inertia: 1.0 / 12.0 };
+    let (mp, x) = (0.3, 0.8);
+    let added = [crate::model::PointMass { link: 0, position: [x, 0.0, 0.0], mass: mp }];
+    let expected = 1.0 / 12.0 + 1.0 * 0.25 + mp * x * x;
+    let planar = crate::model::Chain::new(vec![link], [0.0, -9.81]).with_point_masses(&added);
+    let spatial = crate::model::Chain::Spatial(planar_as_spatial(&[link], [0.0, -9.81])).with_point_masses(&added);
+    for chain in [&planar, &spatial] {
+        for q in [0.0, 0.7, -2.1] {
+            let m = chain.mass_matrix(&DVector::from_vec(vec![q]));
+            assert!((m[(0, 0)] - expected).abs() < 1e-12, "M = {} against {expected}", m[(0, 0)]);
+            let g = chain.gravity_gradient(&[q]);
+            let load = (1.0 * 0.5 + mp * x) * 9.81 * q.cos();
+            assert!((g[0] - load).abs() < 1e-12, "∂U/∂q = {} against {load}", g[0]);
+        }
+    }
+}
+
+/// Point masses on a three-link chain give the same M(q), ∂M/∂q and gravity whether the chain is
+/// planar or spatial, and masses on joint mounts sit where the next joint is.
+#[test]
+fn point_masses_agree_planar_and_spatial() {
+    let links = [
+        Link { mass: 2.0, length: 0.6, com: 0.3, inertia: 0.06 },
+        Link { mass: 1.5, length: 0.5, com: 0.2, inertia: 0.03 },
+        Link { mass: 0.8, length: 0.4, com: 0.25, inertia: 0.01 },
+    ];
+    let planar = crate::model::Chain::new(links.to_vec(), [0.0, -9.81]);
+    let spatial = crate::model::Chain::Spatial(planar_as_spatial(&links, [0.0, -9.81]));
+    assert_eq!(planar.joint_mount(0), None);
+    assert_eq!(planar.joint_mount(2), Some((1, [0.5, 0.0, 0.0])));
+    assert_eq!(spatial.joint_mount(2), planar.joint_mount(2));
+    assert_eq!(spatial.link_end(2), planar.link_end(2));
+    let added = [
+        crate::model::PointMass { link: 0, position: [0.6, 0.0, 0.0], mass: 0.4 },
+        crate::model::PointMass { link: 1, position: [0.25, 0.0, 0.0], mass: 0.05 },
+        crate::model::PointMass { link: 1, position: [0.5, 0.0, 0.0], mass: 0.2 },
+    ];
+    let (planar, spatial) = (planar.with_point_masses(&added), spatial.with_point_masses(&added));
+    for q in points(3, 20, 7) {
+        let (a, b) = (planar.mass_matrix(&q), spatial.mass_matrix(&q));
+        assert!((a - b).norm() < 1e-12);
+        let (a, b) = (planar.mass_matrix_derivatives(&q), spatial.mass_matrix_derivatives(&q));
+        assert!(a.iter().zip(&b).all(|(a, b)| (a - b).norm() < 1e-12));
+        let (a, b) = (planar.gravity_gradient(q.as_slice()), spatial.gravity_gradient(q.as_slice()));
+        assert!((a - b).norm() < 1e-12);
+    }
+}
