@@ -332,13 +332,15 @@ impl Default for FitSettings {
 
 impl FitSettings {
     /// The default `[fit] mass_weight`: a little weight on the springs' mass, so that an arm
-    /// nobody tuned gets a bill it can carry. Without it the fit minimises the residual alone and
-    /// buys its last hundredths of a degree with springs whose preloads cancel at q_eq: on a
-    /// random three-joint arm (`random_arm.py --seed 57`) the unweighted fit gave 148 springs of
-    /// 7.10 kg, 1.18× the arm, at a realised p99 of 1.508°; at 0.001, 88 springs of 2.40 kg at
-    /// 0.957°. On the UR10 and Panda designs of `springfit init` the springs come out at about a
-    /// fifth of the arm's moving mass with p99 under 1°. Designs whose figures were measured
-    /// without a weight set `mass_weight = 0.0` (docs/designs.md).
+    /// nobody tuned gets a bill it can carry. Without it the fit minimises the ideal springs'
+    /// residual alone and buys it with springs whose preloads cancel at q_eq, which their parts
+    /// do not keep: on a random three-joint arm (`random_arm.py --seed 57`) the unweighted fit
+    /// gave 148 springs of 7.10 kg, 1.18× the arm, at a realised p99 of 1.508° (drawn 0.331°);
+    /// at 0.001, 88 springs of 2.40 kg at 0.957° (drawn 0.900°), in 31 s of CPU instead of 69.
+    /// On `panda_three` and `ur10_lift_elbow_wrist` as `springfit init` writes them the springs
+    /// come out at 0.21× and 0.13× the arm's moving mass with p99 under 1°, drawn and realised,
+    /// and no build of 1,000 without an equilibrium. Designs whose figures were measured without
+    /// a weight set `mass_weight = 0.0` (docs/designs.md).
     pub const DEFAULT_MASS_WEIGHT: f64 = 0.001;
 
     /// The training geodesics of an arm of `n` joints: `training_directions`, or when it is 0
