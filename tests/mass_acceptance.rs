@@ -59,21 +59,28 @@ fn fit_refuses_a_budget_below_the_floor_before_any_work() {
     assert!(!dir.join("p").exists());
 }
 
-/// `mass_weight = 0` and `max_spring_mass = 0` written in the file give the bill of the file
-/// without them, bit for bit (bom.csv and parts.csv compared as bytes).
+/// A design without `mass_weight` fits at the documented default (0.001,
+/// `FitSettings::DEFAULT_MASS_WEIGHT`), and `max_spring_mass = 0` is no budget: the file without
+/// the keys and the file with `mass_weight = 0.001` and `max_spring_mass = 0` give the same bill,
+/// bit for bit (bom.csv and parts.csv compared as bytes).
 #[test]
-fn zero_mass_weight_in_the_file_is_the_fit_without_the_key() {
-    let dir = temp_dir("mass-zero");
+fn a_design_without_the_mass_keys_fits_at_the_default_weight() {
+    let dir = temp_dir("mass-default");
     let plain = quick(&dir.join("a"), &[]);
-    let zero = quick(
+    // The default design pins `mass_weight = 0`: take the key out, as a user's file leaves it.
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let mut table: toml::Table = toml::from_str(&text).unwrap();
+    table["fit"].as_table_mut().unwrap().remove("mass_weight");
+    std::fs::write(&plain, toml::to_string(&table).unwrap()).unwrap();
+    let written = quick(
         &dir.join("b"),
-        &[("fit.mass_weight", toml::Value::Float(0.0)), ("fit.max_spring_mass", toml::Value::Float(0.0))],
+        &[("fit.mass_weight", toml::Value::Float(0.001)), ("fit.max_spring_mass", toml::Value::Float(0.0))],
     );
     springfit(&dir, &["fit", plain.to_str().unwrap(), "--out", "plain"]).ok();
-    springfit(&dir, &["fit", zero.to_str().unwrap(), "--out", "zero"]).ok();
+    springfit(&dir, &["fit", written.to_str().unwrap(), "--out", "written"]).ok();
     for f in ["bom.csv", "parts.csv"] {
         let (a, b) =
-            (std::fs::read(dir.join("plain").join(f)).unwrap(), std::fs::read(dir.join("zero").join(f)).unwrap());
+            (std::fs::read(dir.join("plain").join(f)).unwrap(), std::fs::read(dir.join("written").join(f)).unwrap());
         assert!(a == b, "{f} differs");
     }
 }
