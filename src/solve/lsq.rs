@@ -381,8 +381,8 @@ impl Gram {
     /// order, so every sum is the row-by-row one, term for term, however the rows are cut into
     /// runs.
     ///
-    /// A column that is another's exact negation in every row (a cam's − basis column beside its
-    /// + one, [`mirrors`]) is not multiplied out: its entries of G and c are the other's negated,
+    /// A column that is another's exact negation in every row (a cam's negative basis column
+    /// beside its positive one, [`mirrors`]) is not multiplied out: its entries of G and c are the other's negated,
     /// which are the bits its own products would sum to (negation is exact and the terms come in
     /// the same order). For a bill of cams, half the columns: a quarter of the products (the
     /// 148 tendon couplings of `catalogs/ur5_tendons.toml`, 9,472 columns, spent nearly all of
