@@ -812,6 +812,7 @@ mod tests {
             preload_nm: None,
             adjust: crate::fit::bill::Adjustment::default(),
             cam: None,
+            pulleys_mm: None,
         }
     }
 

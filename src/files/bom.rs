@@ -472,6 +472,7 @@ impl<'a> DataLine<'a> {
             preload_nm,
             adjust,
             cam: None,
+            pulleys_mm: None,
         }])
     }
 
@@ -593,6 +594,7 @@ impl<'a> DataLine<'a> {
                 preload_nm: None,
                 adjust: common.adjust,
                 cam: Some(summary),
+                pulleys_mm: None,
             })
             .collect())
     }

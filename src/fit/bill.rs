@@ -64,6 +64,11 @@ pub struct BomRow {
     pub adjust: Adjustment,
     /// The cam this coefficient belongs to (None for springs and for cams of older files).
     pub cam: Option<CamSummary>,
+    /// The signed pulley radii (mm, one per joint, 0 where the cable does not cross) of the
+    /// tendon that makes the coupling, when a tendon family of the catalogue generated it
+    /// ([`Catalog::pulleys`]); None otherwise. A bill read back from `bom.csv` gets them from
+    /// the catalogue in [`realise_parts`], so choosing parts never reads the catalogue again.
+    pub pulleys_mm: Option<Vec<f64>>,
 }
 
 /// The spring set a bill of materials describes.
@@ -196,6 +201,7 @@ pub fn append(design: &Design, catalog: &Catalog, bom: &mut Vec<BomRow>, evaluat
             // Relaxed at q_eq: no torque there.
             preload_nm: Some(e.preload(stiffness, design.q_eq.as_slice())),
             cam: None,
+            pulleys_mm: catalog.pulleys(&f.name, &e.coupling).map(<[f64]>::to_vec),
         });
     }
 }
@@ -236,9 +242,10 @@ pub fn bill_of_materials(
                     format!("S{springs:02}")
                 }
             };
+            let family = &catalog.families[c.family].name;
             BomRow {
                 id,
-                family: catalog.families[c.family].name.clone(),
+                family: family.clone(),
                 element: c.element.clone(),
                 stiffness: k[j],
                 max_torque_nm: peaks[j].0,
@@ -248,6 +255,7 @@ pub fn bill_of_materials(
                 preload_nm: Some(c.element.preload(k[j], q_eq)),
                 adjust: Adjustment { adjust_range: catalog.families[c.family].adjust_range, trim_range: None },
                 cam: None,
+                pulleys_mm: catalog.pulleys(family, &c.element.coupling).map(<[f64]>::to_vec),
             }
         })
         .collect()
@@ -325,8 +333,12 @@ fn peak(e: &Element, kj: f64, q_eq: &[f64], at_q: &[f64]) -> (f64, f64) {
 }
 
 /// The parts of a bill of materials realised (its cams: disc cams with their followers, from their
-/// families' settings), each of their rows given its part's summary ([`summarise_cams`]).
+/// families' settings), each of their rows given its part's summary ([`summarise_cams`]) and, where
+/// a tendon family made its coupling and the row does not carry them yet, its pulley radii.
 pub fn realise_parts(catalog: &Catalog, bom: &mut [BomRow], evaluation: &Fan, q_eq: &[f64]) -> Vec<FittedCam> {
+    for r in bom.iter_mut().filter(|r| r.pulleys_mm.is_none()) {
+        r.pulleys_mm = catalog.pulleys(&r.family, &r.element.coupling).map(<[f64]>::to_vec);
+    }
     let cams = fitted_cams(catalog, bom);
     summarise_cams(bom, &cams, evaluation, q_eq);
     cams

@@ -542,9 +542,7 @@ fn choose_with(
     let examined: Vec<usize> = elements.iter().map(|e| e.1).collect();
     let stock_examined = examined.iter().sum();
     let limits = transmission::Limits::of(s);
-    let catalog = pulley_catalog(design)?;
-    let elements: Vec<ElementPart> =
-        elements.into_iter().map(|e| with_transmission(e.0, bom, &limits, catalog.as_ref())).collect();
+    let elements: Vec<ElementPart> = elements.into_iter().map(|e| with_transmission(e.0, bom, &limits)).collect();
     let realised = RealisedSet::new(bom, &elements);
     let residuals = fan_angles(&design.chain, evaluation, &realised)?;
     let ideal = match ideal {
@@ -563,15 +561,6 @@ fn choose_with(
     Ok((parts, examined))
 }
 
-/// The design's catalogue when one of its families is a tendon family (whose couplings carry
-/// their pulley radii, [`crate::elements::catalog::Catalog::pulleys`]); None otherwise, and when
-/// the design names no catalogue.
-fn pulley_catalog(design: &Design) -> Result<Option<crate::elements::catalog::Catalog>> {
-    let Some(path) = &design.catalog else { return Ok(None) };
-    let catalog = crate::elements::catalog::Catalog::load_for(path, &design.chain.joint_names())?;
-    Ok(catalog.families.iter().any(|f| f.tendons.is_some()).then_some(catalog))
-}
-
 /// The placed masses of every element with a part and a transmission ([`placement::place`]).
 fn placed(chain: &crate::model::Chain, elements: &[ElementPart]) -> Vec<placement::Placed> {
     elements
@@ -587,13 +576,9 @@ fn placed(chain: &crate::model::Chain, elements: &[ElementPart]) -> Vec<placemen
 /// `e` with the transmission of its coupling for the torque its bill rows (a spring's one row, a
 /// cam's coefficient rows `C01.07+`) put on x over its deflections `e.duty.range`; a coupling no
 /// transmission makes ([`transmission::transmission`]) gets no part, its limit naming why. A
-/// coupling a tendon family of `catalog` generated is a tendon over exactly the radii it carries.
-fn with_transmission(
-    mut e: ElementPart,
-    bom: &[BomRow],
-    limits: &transmission::Limits,
-    catalog: Option<&crate::elements::catalog::Catalog>,
-) -> ElementPart {
+/// coupling a tendon family generated is a tendon over exactly the radii its bill rows carry
+/// ([`BomRow::pulleys_mm`]).
+fn with_transmission(mut e: ElementPart, bom: &[BomRow], limits: &transmission::Limits) -> ElementPart {
     let rows: Vec<&BomRow> = bom
         .iter()
         .filter(|r| r.id == e.id || r.id.strip_prefix(e.id.as_str()).is_some_and(|t| t.starts_with('.')))
@@ -605,7 +590,7 @@ fn with_transmission(
             rows.iter().map(|r| r.stiffness * r.element.profile.slope(x - r.element.offset)).sum::<f64>()
         })
         .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], t| [a.min(t), b.max(t)]);
-    let pulleys = catalog.and_then(|c| c.pulleys(&e.family, &e.element.coupling));
+    let pulleys = rows.iter().find_map(|r| r.pulleys_mm.as_deref());
     match transmission::transmission(&e.element.coupling, pulleys, torque, limits) {
         Ok(t) => e.transmission = Some(t),
         Err(l) => {

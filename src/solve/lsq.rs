@@ -30,6 +30,48 @@ pub const GRAM_WAVE: usize = 4;
 /// the rows' entries is worth it.
 const SPARSE_COLUMNS: usize = 32;
 
+/// For each column of `a`, the column it is the exact negation of in every row, if any: an
+/// earlier column beside it in every run it is in, with every value negated, and in no other
+/// run, itself no one's mirror. (A cam's − basis column follows its + column: the fit's
+/// candidates list them in that order.) Checked value by value, so a column that merely
+/// looks alike is not taken.
+fn mirrors(a: &SparseRows) -> Vec<Option<usize>> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum State {
+        Unseen,
+        Of(usize),
+        No,
+    }
+    let mut state = vec![State::Unseen; a.columns];
+    let mut runs_in = vec![0usize; a.columns];
+    for run in &a.runs {
+        let rows = run.rows;
+        for (x, &j) in run.columns.iter().enumerate() {
+            runs_in[j] += 1;
+            let negates = x > 0 && {
+                let (vi, vj) = (&run.values[(x - 1) * rows..x * rows], &run.values[x * rows..(x + 1) * rows]);
+                vi.iter().zip(vj).all(|(u, v)| *v == -*u)
+            };
+            let here = if negates { State::Of(run.columns[x - 1]) } else { State::No };
+            state[j] = match state[j] {
+                State::Unseen => here,
+                s if s == here => s,
+                _ => State::No,
+            };
+        }
+    }
+    let mut mirror = vec![None; a.columns];
+    for j in 0..a.columns {
+        if let State::Of(i) = state[j]
+            && runs_in[i] == runs_in[j]
+            && mirror[i].is_none()
+        {
+            mirror[j] = Some(i);
+        }
+    }
+    mirror
+}
+
 /// Consecutive rows with the same non-zero columns (a sample's n − 1 rows: one slope per
 /// element, n − 1 directions), their values stored entry by entry so that a pair of columns reads
 /// the run's products from two contiguous slices and G's entry is loaded and stored once per run
@@ -338,8 +380,17 @@ impl Gram {
     /// The normal equations of the runs. Each run's rows are added to G and c one by one in row
     /// order, so every sum is the row-by-row one, term for term, however the rows are cut into
     /// runs.
+    ///
+    /// A column that is another's exact negation in every row (a cam's negative basis column
+    /// beside its positive one, [`mirrors`]) is not multiplied out: its entries of G and c are the other's negated,
+    /// which are the bits its own products would sum to (negation is exact and the terms come in
+    /// the same order). For a bill of cams, half the columns: a quarter of the products (the
+    /// 148 tendon couplings of `catalogs/ur5_tendons.toml`, 9,472 columns, spent nearly all of
+    /// their assembly here).
     fn from_runs(a: &SparseRows, b: &DVector<f64>) -> Gram {
         let (p, runs) = (a.columns, &a.runs);
+        let mirror = mirrors(a);
+        let is_mirror = |j: usize| mirror[j].is_some();
         // Columns of the lower triangle in blocks of SPARSE_COLUMNS, in parallel: a block reads
         // every run's entries from its first column on and owns its columns of G and c, so each
         // entry sums its terms in row order whatever the thread count.
@@ -362,6 +413,9 @@ impl Gram {
                         if j >= j1 {
                             break;
                         }
+                        if is_mirror(j) {
+                            continue;
+                        }
                         let vj = &run.values[x * rows..(x + 1) * rows];
                         for (v, bi) in vj.iter().zip(b_run) {
                             c_cols[j - j0] += v * bi;
@@ -370,6 +424,9 @@ impl Gram {
                         // triangle, term for term.
                         let column = &mut g_cols[(j - j0) * p..(j - j0 + 1) * p];
                         for (y, &k) in run.columns.iter().enumerate().skip(x) {
+                            if is_mirror(k) {
+                                continue;
+                            }
                             let vk = &run.values[y * rows..(y + 1) * rows];
                             let mut sum = column[k];
                             for (a, b) in vj.iter().zip(vk) {
@@ -380,6 +437,23 @@ impl Gram {
                     }
                 }
             });
+        // A mirror's entries from its original's (both of a pair's originals are unmirrored, and
+        // their entry of the lower triangle is filled above). −0 is written as +0: the products'
+        // sum starts at +0 and never ends at −0.
+        let negated = |v: f64, flip: bool| if flip && v != 0.0 { -v } else { v };
+        let base = |j: usize| mirror[j].map_or((j, false), |i| (i, true));
+        for j in 0..p {
+            let (bj, fj) = base(j);
+            if fj {
+                c[j] = negated(c[bj], true);
+            }
+            for k in j..p {
+                let (bk, fk) = base(k);
+                if fj || fk {
+                    g[(k, j)] = negated(g[(bk.max(bj), bk.min(bj))], fj != fk);
+                }
+            }
+        }
         for k in 0..p {
             for j in 0..k {
                 g[(j, k)] = g[(k, j)];
@@ -478,6 +552,61 @@ mod tests {
         assert!((g2[(j3, j3)] / want.g[(j3, j3)] - 4.0).abs() < 1e-9);
         assert!((g2[(j0, j3)] / want.g[(j0, j3)] - 2.0).abs() < 1e-9);
         assert_eq!(g2[(j0, j0)], got.g[(j0, j0)]);
+    }
+
+    /// A column that negates another in every row is found and its entries of G and c are the
+    /// other's negated, bit for bit the sums of its own products in row order; columns that only
+    /// look alike (equal, or negated in some rows) are multiplied out.
+    #[test]
+    fn mirrored_columns_give_the_bits_of_their_own_products() {
+        let mut rng = crate::numerics::rng::SplitMix64::new(5);
+        let (m, p) = (60, 16);
+        // Row r is non-zero on the pair of columns 2w, 2w + 1 of window w = r % 8 and on one of
+        // the columns 12–15 (windows 6 and 7, no pair): three entries of 16 at most, sparse
+        // enough for the runs.
+        let mut a = DMatrix::zeros(m, p);
+        for r in 0..m {
+            let w = r % 8;
+            let v = rng.uniform() - 0.5;
+            a[(r, 2 * w)] = v;
+            a[(r, 2 * w + 1)] = match w {
+                0 | 2 | 5 => -v,            // mirrors of 0, 4, 10
+                3 => v,                     // equal, not negated
+                4 if r % 3 == 0 => 0.5 * v, // negated in some rows only
+                _ => rng.uniform() - 0.5,
+            };
+            a[(r, 12 + (r / 8) % 4)] += rng.uniform();
+        }
+        let b = DVector::from_fn(m, |_, _| rng.uniform() - 0.5);
+        let (mut start, mut flat) = (vec![0usize], Vec::new());
+        for r in 0..m {
+            flat.extend((0..p).filter(|&j| a[(r, j)] != 0.0).map(|j| (j, a[(r, j)])));
+            start.push(flat.len());
+        }
+        let sparse = SparseRows { rows: m, columns: p, runs: Run::of_rows(0, &start, &flat) };
+        let mirror = mirrors(&sparse);
+        let found: Vec<(usize, usize)> = mirror.iter().enumerate().filter_map(|(j, i)| Some(((*i)?, j))).collect();
+        assert_eq!(found, vec![(0, 1), (4, 5), (10, 11)]);
+        let got = Gram::from_runs(&sparse, &b);
+        // The row-by-row sums, term for term.
+        for j in 0..p {
+            let mut cj = 0.0;
+            for r in 0..m {
+                if a[(r, j)] != 0.0 {
+                    cj += a[(r, j)] * b[r];
+                }
+            }
+            assert_eq!(got.c[j].to_bits(), cj.to_bits(), "c[{j}]");
+            for k in 0..p {
+                let mut g = 0.0;
+                for r in 0..m {
+                    if a[(r, j)] != 0.0 && a[(r, k)] != 0.0 {
+                        g += a[(r, j)] * a[(r, k)];
+                    }
+                }
+                assert_eq!(got.g[(j, k)].to_bits(), g.to_bits(), "G[{j}, {k}]");
+            }
+        }
     }
 
     #[test]

@@ -19,6 +19,7 @@ fn rows() -> Vec<BomRow> {
             preload_nm: Some(-0.125),
             adjust: Adjustment { adjust_range: Some(0.3), trim_range: None },
             cam: None,
+            pulleys_mm: None,
         },
         BomRow {
             id: "S02".into(),
@@ -32,6 +33,7 @@ fn rows() -> Vec<BomRow> {
             preload_nm: Some(2.5),
             adjust: Adjustment::default(),
             cam: None,
+            pulleys_mm: None,
         },
         BomRow {
             id: "S03".into(),
@@ -45,6 +47,7 @@ fn rows() -> Vec<BomRow> {
             adjust: Adjustment { adjust_range: None, trim_range: Some([0.5, 3.5]) },
             preload_nm: Some(0.0),
             cam: None,
+            pulleys_mm: None,
         },
     ]
 }
@@ -161,6 +164,7 @@ fn rows_with_cam() -> Vec<BomRow> {
         preload_nm: None,
         adjust: Adjustment::default(),
         cam: Some(summary),
+        pulleys_mm: None,
     });
     let mut all = rows();
     all.splice(1..1, cam);
