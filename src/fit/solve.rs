@@ -25,8 +25,8 @@ use crate::solve::nnls::{NnlsSettings, nnls, nnls_bounded};
 use crate::solve::qp::{NormBound, QpSettings, QpStatus, qp_cone, qp_signed};
 use crate::solve::screen::qp_screened;
 use crate::solve::selection::{
-    Items, SelectionSettings, SubsetBudget, backward_elimination, budget_multiplier, extension_bounds, search,
-    select_from, subset_nnls, subset_nnls_warm, subset_nnls_within,
+    Items, SelectionSettings, SubsetBudget, backward_elimination, budget_bounds, budget_multiplier, extension_bounds,
+    search, select_from, subset_nnls, subset_nnls_warm, subset_nnls_within,
 };
 
 /// Largest equality residual (scaled units: ω²·mean diag M(q_eq)) NNLS may leave before the fit
@@ -347,14 +347,17 @@ fn select(
         seed: settings.seed,
     };
     let n = items.len();
-    // Refitting within the budget can only raise a support's objective, so the bounds of the
-    // unconstrained refits stay lower bounds.
     let bound = |s: &[usize]| extension_bounds(weighted, &items, s);
     let sel = match budget {
         Some(b) if settings.restarts == 0 && !settings.pair_swaps => {
             select_from(n, sel_settings, start, |s| subset_nnls_within(weighted, &items, s, b))?
         }
-        Some(b) => search(n, sel_settings, start, &pool, |s| subset_nnls_within(weighted, &items, s, b), Some(&bound))?,
+        Some(b) => {
+            // The refits within the budget are bounded by duality at the base's multiplier
+            // (`budget_bounds`): the unconstrained bounds are far below them when it binds.
+            let within = |s: &[usize]| budget_bounds(weighted, &items, s, b);
+            search(n, sel_settings, start, &pool, |s| subset_nnls_within(weighted, &items, s, b), Some(&within))?
+        }
         // The single exchange search, with cold-started refits as before restarts existed.
         None if settings.restarts == 0 && !settings.pair_swaps => {
             select_from(n, sel_settings, start, |s| subset_nnls(weighted, &items, s))?

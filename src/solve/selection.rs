@@ -804,6 +804,32 @@ pub fn extension_bounds(gram: &Gram, items: &Items, support: &[usize]) -> Vec<f6
         .collect()
 }
 
+/// A [`Bound`] for the refits within `budget` ([`subset_nnls_within`]): for every item g outside
+/// `support`, a lower bound on the objective of the support with g added, refitted within the
+/// budget. By weak duality, for any multiplier μ ≥ 0 the least objective with k ≥ 0 and
+/// mass(k) ≤ M is at least min over k of ‖Ak − b‖² + 2μ(mass(k) − M), and dropping k ≥ 0 lowers
+/// it further: the unconstrained bound of [`extension_bounds`] on `gram` weighed at μ
+/// ([`SubsetBudget::weigh`], whose objective is ‖Ak − b‖² + 2μ·mass(k)), less 2μM. μ is the
+/// multiplier of `support` itself ([`budget_multiplier`]), which a trial that adds one element
+/// needs about as much of. At μ = 0 this is [`extension_bounds`]' bound, which the budget's
+/// refits are far above when it binds, so that nearly every trial was refitted (each refit a
+/// root search of its own multiplier); the outcome of the search is the same, bounds only skip
+/// trials that cannot win. A support whose refit cannot come within the budget (μ = ∞) gets
+/// the unconstrained bound; every bound is the larger of the two.
+pub fn budget_bounds(gram: &Gram, items: &Items, support: &[usize], budget: &SubsetBudget<'_>) -> Vec<f64> {
+    let mu = budget_multiplier(gram, items, support, budget).unwrap_or(0.0);
+    if !(mu.is_finite() && mu > 0.0) {
+        return extension_bounds(gram, items, support);
+    }
+    let every: Vec<usize> = (0..gram.dim()).collect();
+    let weighed = budget.weigh(gram, &every, mu);
+    let charge = 2.0 * mu * budget.max;
+    // Both bounds hold; the dual one is below the plain one where μ is far above what a trial
+    // needs (the dual function is concave in μ and the plain bound is its value at 0).
+    let plain = extension_bounds(gram, items, support);
+    extension_bounds(&weighed, items, support).into_iter().zip(plain).map(|(b, p)| (b - charge).max(p)).collect()
+}
+
 /// Whether a trial with lower bound `bound` may reach `limit` (a NaN bound bounds nothing).
 fn may_beat(bound: f64, limit: f64) -> bool {
     bound <= limit || bound.is_nan()
