@@ -40,9 +40,9 @@ pub const COVER: f64 = 0.99;
 /// How much of the trimmed builds' rows (mean square, on the trim fan from q_eq) the sizing may
 /// give up for smaller ranges: the weakest directions of the trims' changes are not sized for
 /// while what they would take off stays within this share of what every trim left free leaves.
-/// Without it the UR10's shoulder and elbow trims were sized to ±150 N·m/rad (springs 2.8 →
-/// 8.8 kg) for rows they hardly move: the trimmed p95 was the same as with the ω²M rule's
-/// 0–35 N·m/rad (1.67° against 1.61°), at its end on 862 of 1,000 builds.
+/// A guard against directions the rows hardly see; measured on the UR10 with the 12-direction
+/// trim fan it dropped none (the shoulder trim still sized to 0–310 N·m/rad): what brought the
+/// ranges down there was the trim fan of [`super::trim_directions`] (0–110 N·m/rad).
 pub const SHARE: f64 = 0.01;
 
 /// Each trim's needed rates over the builds `s` draws of the bill `bom` (its spring set
