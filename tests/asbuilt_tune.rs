@@ -434,3 +434,77 @@ fn a_build_measured_as_drawn_moves_no_offset() {
     }
     assert!((u.after.p99_deg - t.before.p99_deg).abs() < 0.01, "{} against {}", u.after.p99_deg, t.before.p99_deg);
 }
+
+/// Trim ranges sized by the bill (issue 46, `trim_sized`). At ±15 % the trim design's builds
+/// need trims beyond the catalogue's 0–4 N·m/rad; the sizing's linear model of the rates the
+/// trims clamped at the design need is exact (it agrees with `clamp_at_design` given ranges that
+/// never bind); its ranges hold 99 % of each trim's needs; and the design fitted again around
+/// them trims its builds better than with the catalogue's ranges (fewer builds with a range at
+/// its end, a lower trimmed p95).
+#[test]
+fn trims_sized_by_the_bill_hold_what_the_builds_need() {
+    use springfit::asbuilt::sizing;
+    let (design, o) = fitted();
+    let s = BuildSettings { tolerance: ToleranceSpec::Fraction(0.15), ..build_settings(&o, 200) };
+    let trims: Vec<usize> = (0..o.bom.len()).filter(|&j| o.bom[j].adjust.trim_range.is_some()).collect();
+    let needed = sizing::needed_rates(&design, &o.bom, &o.springs, &s, 0.0).unwrap();
+    assert_eq!(needed.len(), 3);
+    // The model against the trims clamped at the design, one build at a time, nothing binding.
+    let mut wide = o.bom.clone();
+    for &j in &trims {
+        wide[j].adjust.trim_range = Some([-1e4, 1e4]);
+    }
+    // (A trim needed below 0 N·m/rad carries no preload: those builds do not clamp at q_eq.)
+    let mut compared = 0;
+    for b in (0..40).filter(|&b| needed.iter().all(|k| k[b] > 0.0)) {
+        let built = o.springs.scaled(&asbuilt::draw(&o.bom, &s, b));
+        let clamped = asbuilt::clamp_at_design(&design, &wide, &built, &trims);
+        let Some((_, (_, _, sol))) = clamped else { panic!("build {b} does not clamp at the design") };
+        for (t, rate) in sol.rates.iter().enumerate() {
+            assert!(
+                (rate - needed[t][b]).abs() < 1e-6 * (1.0 + rate.abs()),
+                "build {b}, trim {t}: {rate} against {}",
+                needed[t][b]
+            );
+        }
+        compared += 1;
+    }
+    assert!(compared >= 5, "only {compared} of 40 builds need positive rates");
+    // The catalogue's range is too narrow for these builds.
+    let start = [0.0, 4.0];
+    let outside = needed.iter().flatten().filter(|&&k| k < start[0] || k > start[1]).count();
+    assert!(outside > 3 * s.builds / 20, "{outside} of {} needs outside 0–4 N·m/rad", 3 * s.builds);
+    let (record, ranges) = sizing::size(&design, &o.bom, &o.springs, &s, &[("trim spring", start, true)]).unwrap();
+    let range = ranges[0];
+    // What a build needs of a trim is a change from its fitted rate: the sized range holds 99 %
+    // of the changes of each trim about its middle (the fitted rate, or a stiffer one where the
+    // builds need it softer than 0 N·m/rad about the fitted rate; rounding aside).
+    let middle = 0.5 * (range[0] + range[1]);
+    let sized_for = sizing::needed_rates(&design, &o.bom, &o.springs, &s, sizing::SHARE).unwrap();
+    for (t, need) in sized_for.iter().enumerate() {
+        let rate = o.bom[trims[t]].stiffness;
+        let inside = need.iter().map(|k| k - rate + middle).filter(|&k| k >= range[0] && k <= range[1]).count();
+        assert!(inside * 100 >= 98 * s.builds, "trim {t}: {inside} of {} changes within {range:?}", s.builds);
+        assert_eq!(record.trims[t].range, range);
+    }
+    assert!(range[0] >= 0.0 && range[1] > start[1], "{range:?}");
+    // Fitted again around the sized range: its builds trimmed against the catalogue's.
+    let mut catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+    for f in catalog.families.iter_mut().filter(|f| f.trim_range.is_some()) {
+        f.trim_range = Some(range);
+    }
+    let sized = fit(&design, &catalog, &o.settings, springfit::progress::Progress::none()).unwrap();
+    let figures = |o: &FitOutcome| {
+        let builds = asbuilt::run_builds(&design, &o.bom, &o.springs, &s).unwrap();
+        let t = asbuilt::summarise(&s, &builds, TrimRule::Residual).trimmed.unwrap();
+        (t.p99_deg.p95, t.builds_not_restored)
+    };
+    let (before, at_end_before) = figures(&o);
+    let (after, at_end_after) = figures(&sized);
+    eprintln!(
+        "±15 %, {} builds: range {range:?}; trimmed p95 {before:.3}° → {after:.3}°, ranges at an end {at_end_before} → {at_end_after}",
+        s.builds
+    );
+    assert!(at_end_after < at_end_before, "{at_end_before} → {at_end_after}");
+    assert!(after < 0.8 * before, "trimmed p95 {before}° → {after}°");
+}

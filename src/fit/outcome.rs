@@ -208,6 +208,45 @@ pub struct FitOutcome {
     /// ([`crate::fit::Prepared::drop_unbuildable`]); None when every element of the first bill
     /// has a part, when no parts were chosen, and for the exact reference.
     pub dropped_without_part: Option<DroppedWithoutPart>,
+    /// The trim ranges sized by the bill (catalogue families with `trim_sized = true`; set by
+    /// the fit job, [`crate::asbuilt::sizing`]); None when no family asks for it.
+    pub trim_sizing: Option<TrimSizing>,
+}
+
+/// How the fit job sized the trims' ranges by the bill (`"trim_sizing"` of `summary.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrimSizing {
+    /// The share of builds whose needed rate each sized range holds.
+    pub cover: f64,
+    /// Builds the needed rates were taken over (the as-built builds' draws).
+    pub builds: usize,
+    /// Each trim of the first fit's bill.
+    pub trims: Vec<SizedTrim>,
+    /// Whether the fit was solved again around the sized ranges (their mid-range rates): the
+    /// bill is that fit's.
+    pub refitted: bool,
+}
+
+/// One trim's sizing.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SizedTrim {
+    /// Its id in the first fit's bill.
+    pub id: String,
+    /// Its family.
+    pub family: String,
+    /// Its coupling a.
+    pub coupling: Vec<f64>,
+    /// Its rate in the first fit's bill (the start range's middle), N·m/rad.
+    pub fitted_rate: f64,
+    /// The range the fit started from (the catalogue's `trim_range`), N·m/rad.
+    pub start_range: [f64; 2],
+    /// The rates the builds need, ranges aside: the (1 − cover)/2 and (1 + cover)/2 quantiles
+    /// over the builds, N·m/rad.
+    pub needed: [f64; 2],
+    /// The range after sizing (its family's: the envelope of its trims'), N·m/rad.
+    pub range: [f64; 2],
+    /// Whether its family is sized by the bill (false: the catalogue's range is kept).
+    pub sized: bool,
 }
 
 /// An element of a fit's first bill that no part realises and that the fit left out.

@@ -109,6 +109,7 @@ impl Prepared<'_> {
             auto: None,
             diagnosis: None,
             dropped_without_part: None,
+            trim_sizing: None,
         })
     }
 
@@ -459,5 +460,6 @@ pub fn exact_reference(design: &Design, settings: &FitSettings, progress: Progre
         auto: None,
         diagnosis: None,
         dropped_without_part: None,
+        trim_sizing: None,
     })
 }

@@ -99,15 +99,21 @@ impl<'a> FitJob<'a> {
                 Some((catalog, stock))
             }
         };
+        // The catalogue with its trims' ranges sized by the bill, when a family asks for it: the
+        // fit, parts, builds and warnings from here on are of that catalogue.
+        let mut sized_catalog = None;
         let (mut outcome, parts, chosen, placed) = match &catalog {
             None => (crate::fit::run::exact_reference(design, settings, progress)?, None, None, None),
             Some((catalog, stock)) => {
-                let fitted = fit_springs(design, catalog, settings, stock, progress)?;
+                let (fitted, sized) = fit_sized(design, catalog, settings, stock, progress)?;
+                sized_catalog = sized;
+                let catalog = sized_catalog.as_ref().unwrap_or(catalog);
                 let ((o, p, c), placed) =
-                    placement_rounds(design, (*catalog, stock.as_slice()), settings, progress, fitted)?;
+                    placement_rounds(design, (catalog, stock.as_slice()), settings, progress, fitted)?;
                 (o, Some(p), c, placed)
             }
         };
+        let catalog = catalog.map(|(c, stock)| (sized_catalog.as_ref().unwrap_or(c), stock));
         // With placement rounds, the arm that carries its parts is the design from here on: the
         // fit was made for it, and its builds and diagnosis are of it.
         let design = placed.as_ref().unwrap_or(design);
@@ -171,6 +177,72 @@ fn fit_springs(
         crate::parts::fit_with_parts(design, catalog, settings, stock, progress).map(|(o, p)| (o, p, None))
     };
     fitted.map_err(|e| hints::explain(design, settings, catalog, settings.max_elements, e))
+}
+
+/// [`fit_springs`] with the trims' ranges sized by the bill ([`crate::asbuilt::sizing`]) when a
+/// catalogue family asks for it (`trim_sized = true`): the first fit's bill gives the rates the
+/// builds' trims need; when that changes a range, the design is fitted again with the sized
+/// catalogue (its trims at their new mid-range rates; the weights the first fit chose, if it
+/// chose them, are kept), so the bill, the trims' parts, their mass and the builds are of the
+/// sized ranges. Returns the fit and, when the ranges changed, the sized catalogue. The sizing
+/// is recorded in [`FitOutcome::trim_sizing`].
+fn fit_sized(
+    design: &Design,
+    catalog: &Catalog,
+    settings: &FitSettings,
+    stock: &[crate::parts::StockPart],
+    progress: Progress<'_>,
+) -> Result<(Fitted, Option<Catalog>)> {
+    let mut fitted = fit_springs(design, catalog, settings, stock, progress)?;
+    let Some((mut sizing, sized)) = size_trims(design, catalog, &fitted.0, progress)? else {
+        return Ok((fitted, None));
+    };
+    let Some(sized) = sized else {
+        fitted.0.trim_sizing = Some(sizing);
+        return Ok((fitted, None));
+    };
+    progress.stage("the fit again, around the trims' sized ranges");
+    // The weights as the first fit had them (chosen or not): only the trims changed.
+    let here = FitSettings { auto: Default::default(), ..fitted.0.settings };
+    let auto = fitted.0.auto.take();
+    let first_time = fitted.0.timings.total;
+    let (mut outcome, parts) = crate::parts::fit_with_parts(design, &sized, &here, stock, progress)
+        .map_err(|e| hints::explain(design, &here, &sized, here.max_elements, e))?;
+    outcome.auto = auto;
+    outcome.timings.total += first_time;
+    sizing.refitted = true;
+    outcome.trim_sizing = Some(sizing);
+    Ok(((outcome, parts, None), Some(sized)))
+}
+
+/// The trims' sizing of a fit ([`crate::asbuilt::sizing::size`]) and the catalogue with the sized
+/// ranges (None when no range changed); None when no family asks for it or the fit draws no
+/// builds (tolerance `"none"` without catalogue tolerances, `builds = 0`): the ranges then stay
+/// the catalogue's.
+fn size_trims(
+    design: &Design,
+    catalog: &Catalog,
+    outcome: &FitOutcome,
+    progress: Progress<'_>,
+) -> Result<Option<(crate::fit::outcome::TrimSizing, Option<Catalog>)>> {
+    if !catalog.families.iter().any(|f| f.trim_sized) {
+        return Ok(None);
+    }
+    let Some(s) = crate::asbuilt::build_settings(outcome) else { return Ok(None) };
+    progress.stage("sizing the trims by the bill");
+    let families: Vec<crate::asbuilt::sizing::TrimFamily<'_>> =
+        catalog.families.iter().filter_map(|f| f.trim_range.map(|r| (f.name.as_str(), r, f.trim_sized))).collect();
+    let (sizing, ranges) = crate::asbuilt::sizing::size(design, &outcome.bom, &outcome.springs, &s, &families)?;
+    if families.iter().zip(&ranges).all(|(f, r)| f.1 == *r) {
+        return Ok(Some((sizing, None)));
+    }
+    let mut sized = catalog.clone();
+    for f in sized.families.iter_mut() {
+        if let Some(at) = families.iter().position(|x| x.0 == f.name) {
+            f.trim_range = Some(ranges[at]);
+        }
+    }
+    Ok(Some((sizing, Some(sized))))
 }
 
 /// The placed masses' rounds (`[fit] placement_rounds`, docs/parts.md "Where the parts sit"): the
@@ -279,7 +351,11 @@ pub fn springs_of(
     settings: &FitSettings,
     progress: Progress<'_>,
 ) -> Result<FitOutcome> {
-    if Search::wanted(settings) {
+    if catalog.families.iter().any(|f| f.trim_sized) {
+        // The trims sized as `fit` sizes them: the same springs.
+        let stock = crate::files::stock::of_design(design)?;
+        fit_sized(design, catalog, settings, &stock, progress).map(|((outcome, _, _), _)| outcome)
+    } else if Search::wanted(settings) {
         let stock = crate::files::stock::of_design(design)?;
         choose_weights(design, catalog, settings, &stock, progress).map(|(outcome, _, _)| outcome)
     } else {

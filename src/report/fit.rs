@@ -105,6 +105,10 @@ pub struct Summary {
     /// every element had a part.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dropped_without_part: Option<crate::fit::outcome::DroppedWithoutPart>,
+    /// The trim ranges sized by the bill: each trim's start range, the rates the builds need and
+    /// the range chosen (absent when no catalogue family has `trim_sized = true`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trim_sizing: Option<crate::fit::outcome::TrimSizing>,
     /// The chosen parts' mass on moving links, kg: springs on joints past the first, tendons'
     /// pulleys and cables (docs/parts.md, "Where the parts sit"); null without parts.
     pub placed_mass_kg: Option<f64>,
@@ -230,6 +234,7 @@ impl Summary {
             mass: None,
             auto_weights: o.auto.clone(),
             dropped_without_part: o.dropped_without_part.clone(),
+            trim_sizing: o.trim_sizing.clone(),
             placed_mass_kg: None,
             placement_rounds: 0,
             placement: None,
@@ -371,7 +376,7 @@ pub fn write_all(
 }
 
 /// The as-built section of `report.md`.
-fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
+fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool, dof: usize) -> String {
     if exact {
         return String::new();
     }
@@ -409,7 +414,7 @@ fn as_built_md(ab: Option<&crate::asbuilt::AsBuilt>, exact: bool) -> String {
             ),
             TrimRule::Residual => format!(
                 "\nTrimmed: after each build the trim springs are re-relaxed at the equilibrium of the other springs and their rates set (within range) for the smallest least-squares residual on {} geodesics of their own from there (`trim_rule = \"residual\"`); in {} of {} builds a trim ends at the end of its range.\n",
-                crate::asbuilt::TRIM_DIRECTIONS, t.builds_not_restored, ab.builds
+                crate::asbuilt::trim_directions(dof), t.builds_not_restored, ab.builds
             ),
         });
     }
@@ -546,7 +551,7 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     if let Some(d) = &s.diagnosis {
         r.push_str(&diagnosis_md(d));
     }
-    r.push_str(&as_built_md(s.as_built.as_ref(), exact));
+    r.push_str(&as_built_md(s.as_built.as_ref(), exact, s.dof));
     if let Some(choice) = &s.auto_weights {
         r.push_str(&format!(
             "## Weights chosen by springfit\n\nThe design leaves these weights to springfit: {} candidates fitted (budget {}), each judged by its measured figures; the lightest whose every accuracy figure is within 15 % + 0.05° of the best any candidate reached wins (docs/theory.md, \"Weights chosen by springfit\").\n\n| | stage | tolerance_weight | trimmed_weight | mass_weight | restarts | p99 | as built p95 | trimmed p95 | springs | elements |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",

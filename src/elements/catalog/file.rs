@@ -87,6 +87,10 @@ pub struct FamilySpec {
     /// [lo, hi] of a trim spring's rate, N·m/rad.
     #[serde(default)]
     pub trim_range: Option<[f64; 2]>,
+    /// Whether the fit job sizes a trim family's range by the bill (`trim_range` is then where
+    /// the fit starts; see `asbuilt::sizing`). Default false: the range is the catalogue's.
+    #[serde(default)]
+    pub trim_sized: bool,
 }
 
 /// The smoothing weight of a cam family: a number, or chosen on validation geodesics.

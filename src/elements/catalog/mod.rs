@@ -27,7 +27,8 @@
 //! A **trim** family (`trim = true`, `trim_range = [lo, hi]` in N·m/rad) lists linear springs
 //! relaxed at the equilibrium whose rate is set after assembly (see [`crate::elements::trim`]). Trims are
 //! not fit candidates: every listed coupling carries one, placed at the mid-range rate, and the
-//! fit fits the other elements around them.
+//! fit fits the other elements around them. With `trim_sized = true` the range is where the fit
+//! starts: the fit job then sizes it by the bill ([`crate::asbuilt::sizing`]).
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -107,6 +108,10 @@ pub struct Family {
     pub adjust_range: Option<f64>,
     /// A trim family's rate range [lo, hi], N·m/rad (None: not a trim family).
     pub trim_range: Option<[f64; 2]>,
+    /// Whether the fit job sizes this trim family's range by the bill (`trim_sized = true`:
+    /// `trim_range` is where the fit starts, see [`crate::asbuilt::sizing`]); false: the range is
+    /// fixed as written.
+    pub trim_sized: bool,
 }
 
 /// A trim spring the catalogue places on the design (see [`Catalog::trims`]).

@@ -186,6 +186,7 @@ fn family(at: &At, f: &FamilySpec, earlier: &[FamilySpec], totals: &mut Totals) 
         cam,
         adjust_range,
         trim_range,
+        trim_sized: f.trim_sized,
     })
 }
 
@@ -548,6 +549,9 @@ fn adjust_range(at: &At, f: &FamilySpec) -> Result<Option<f64>> {
 /// A trim family's rate range: required with `trim`, refused without; a trim family is linear,
 /// relaxed at the equilibrium, not adjustable, and its rates are the range alone.
 fn trim_range(at: &At, f: &FamilySpec, profiles: &[Profile], adjust_range: Option<f64>) -> Result<Option<[f64; 2]>> {
+    if f.trim_sized && !f.trim {
+        return Err(at.invalid("trim_sized", "is only meaningful with trim = true"));
+    }
     let [lo, hi] = match (f.trim, f.trim_range) {
         (false, None) => return Ok(None),
         (false, Some(_)) => return Err(at.invalid("trim_range", "is only meaningful with trim = true")),
