@@ -485,25 +485,10 @@ pub fn clamp_at_design(
     if (&a * &p0 + &g).amax() > 1e-9 * (1.0 + g.amax()) {
         return None;
     }
-    // The trims relaxed at q_eq, and the same clamped one radian further (rate 1): the
-    // difference of their rows is a unit preload's.
-    let mut relaxed = built.clone();
-    for &j in trims {
-        let e = &mut relaxed.elements[j];
-        e.offset = e.coupling.iter().zip(q_eq.iter()).map(|(a, q)| a * q).sum();
-    }
     let fan = trim_fan(design, q_eq).ok()?;
     let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
-    let columns = frame.columns(trims.iter().map(|&j| &relaxed.elements[j]));
-    let shifted: Vec<crate::elements::Element> = trims
-        .iter()
-        .map(|&j| {
-            let mut e = relaxed.elements[j].clone();
-            e.offset -= 1.0;
-            e
-        })
-        .collect();
-    let preload_rows = (frame.columns(shifted.iter()) - &columns) * &p0;
+    let (relaxed, columns, unit_preload) = relaxed_trims(&frame, built, trims, q_eq.as_slice());
+    let preload_rows = unit_preload * &p0;
     let r0 = rows_without_trims(&frame, &relaxed, trims) + preload_rows;
     let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
     let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
@@ -529,6 +514,34 @@ pub fn clamp_at_design(
     let q = equilibrium(design, &set)?;
     let measured = frame.rows(&set).norm();
     ((&q - q_eq).amax() < 1e-6).then_some((measured, (set, q, sol)))
+}
+
+/// `set` with its trims relaxed at q_eq (as a bill writes them), their rows at unit rate on
+/// `frame`, and the rows a unit preload adds (each trim clamped one radian further, less its
+/// relaxed rows): the trimmed rows are linear in the trims' rates and preloads on these two
+/// bases, which the trim step ([`clamp_at_design`]) and the sizing ([`sizing`]) both solve on.
+fn relaxed_trims(
+    frame: &crate::fit::robust::RowFrame,
+    set: &SpringSet,
+    trims: &[usize],
+    q_eq: &[f64],
+) -> (SpringSet, DMatrix<f64>, DMatrix<f64>) {
+    let mut relaxed = set.clone();
+    for &j in trims {
+        let e = &mut relaxed.elements[j];
+        e.offset = e.coupling.iter().zip(q_eq).map(|(a, q)| a * q).sum();
+    }
+    let columns = frame.columns(trims.iter().map(|&j| &relaxed.elements[j]));
+    let shifted: Vec<crate::elements::Element> = trims
+        .iter()
+        .map(|&j| {
+            let mut e = relaxed.elements[j].clone();
+            e.offset -= 1.0;
+            e
+        })
+        .collect();
+    let unit_preload = frame.columns(shifted.iter()) - &columns;
+    (relaxed, columns, unit_preload)
 }
 
 /// The springs of `set` but its rows `trims`.

@@ -26,7 +26,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{BuildSettings, draw, rows_without_trims, trim_fan, without};
+use super::{BuildSettings, draw, relaxed_trims, rows_without_trims, trim_fan, without};
 use crate::design::Design;
 use crate::error::{Error, Result};
 use crate::fit::bill::BomRow;
@@ -73,21 +73,7 @@ pub fn needed_rates(
     let fan = trim_fan(design, q_eq)?;
     let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
     // The trims relaxed at q_eq (as the bill writes them), their unit rows, and a unit preload's.
-    let mut relaxed = springs.clone();
-    for &j in &trims {
-        let e = &mut relaxed.elements[j];
-        e.offset = e.coupling.iter().zip(q).map(|(a, q)| a * q).sum();
-    }
-    let c = frame.columns(trims.iter().map(|&j| &relaxed.elements[j]));
-    let shifted: Vec<crate::elements::Element> = trims
-        .iter()
-        .map(|&j| {
-            let mut e = relaxed.elements[j].clone();
-            e.offset -= 1.0;
-            e
-        })
-        .collect();
-    let unit_preload = frame.columns(shifted.iter()) - &c;
+    let (relaxed, c, unit_preload) = relaxed_trims(&frame, springs, &trims, q);
     let a = DMatrix::from_fn(n, trims.len(), |i, t| relaxed.elements[trims[t]].coupling[i]);
     let numerical = |what: &str| Error::numerical("trim sizing", what);
     let a_pinv = a.clone().pseudo_inverse(1e-12).map_err(|_| numerical("the trims' couplings"))?;
