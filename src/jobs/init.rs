@@ -326,9 +326,9 @@ fn trim_text(m: &DMatrix<f64>, omega: f64) -> String {
         "\n# Trim springs written by `springfit init`: linear, relaxed at the equilibrium, rate set on each\n\
          # build after assembly within trim_range (not fit candidates: the fit places them at mid-range).\n\
          # Each range is TRIM_SHARE·ω²/(aᵀM⁻¹a) at q_eq: no trim stiffens a direction by more than that\n\
-         # share of the target stiffness ω²M. That is where the fit starts: with trim_sized = true the\n\
-         # fit sizes each range by its bill to hold the rates the builds' trims need (docs/building.md;\n\
-         # leave the key out to keep the range as written).\n",
+         # share of the target stiffness ω²M. Add trim_sized = true to a family to let the fit size its\n\
+         # range by the bill, to hold the rates the builds' trims need (docs/catalogue.md: it helps\n\
+         # some arms' trimmed builds and costs others drawn accuracy, so init leaves it to you).\n",
     );
     for a in trim_couplings(n) {
         let v = DVector::from_column_slice(&a);
@@ -336,7 +336,7 @@ fn trim_text(m: &DMatrix<f64>, omega: f64) -> String {
         let hi = round_down(TRIM_SHARE * omega * omega / dual);
         let numbers: Vec<String> = a.iter().map(|x| format!("{x}")).collect();
         text.push_str(&format!(
-            "\n[[family]]\nname = \"trim spring ({})\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[{}]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, {hi}]\ntrim_sized = true\n",
+            "\n[[family]]\nname = \"trim spring ({})\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[{}]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, {hi}]\n",
             numbers.join(", "),
             numbers.join(", ")
         ));
