@@ -440,18 +440,23 @@ impl Gram {
         // A mirror's entries from its original's (both of a pair's originals are unmirrored, and
         // their entry of the lower triangle is filled above). −0 is written as +0: the products'
         // sum starts at +0 and never ends at −0.
+        // Only the entries with a mirror on either side are visited: none on a bill without cams.
         let negated = |v: f64, flip: bool| if flip && v != 0.0 { -v } else { v };
         let base = |j: usize| mirror[j].map_or((j, false), |i| (i, true));
+        let mirrored: Vec<usize> = (0..p).filter(|&j| is_mirror(j)).collect();
         for j in 0..p {
             let (bj, fj) = base(j);
             if fj {
                 c[j] = negated(c[bj], true);
             }
-            for k in j..p {
+            let mut fill = |k: usize| {
                 let (bk, fk) = base(k);
-                if fj || fk {
-                    g[(k, j)] = negated(g[(bk.max(bj), bk.min(bj))], fj != fk);
-                }
+                g[(k, j)] = negated(g[(bk.max(bj), bk.min(bj))], fj != fk);
+            };
+            if fj {
+                (j..p).for_each(&mut fill);
+            } else {
+                mirrored.iter().filter(|&&k| k >= j).for_each(|&k| fill(k));
             }
         }
         for k in 0..p {
