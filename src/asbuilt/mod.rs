@@ -113,13 +113,23 @@ pub fn residual_about(
     springs: &SpringSet,
     q0: &DVector<f64>,
 ) -> Result<(f64, f64)> {
-    let fan = Fan::trace(
+    let fan = held_out_fan(design, extent, directions, samples, q0)?;
+    residual_on(design, &fan, springs)
+}
+
+/// The held-out fan [`residual_about`] judges a build on, traced from `q0`.
+fn held_out_fan(design: &Design, extent: f64, directions: usize, samples: usize, q0: &DVector<f64>) -> Result<Fan> {
+    Fan::trace(
         &design.chain,
         q0,
         FanSpec { count: directions, phase: 0.5, stop: region_stop(design), spacing: extent / samples as f64 },
         build_ode(design),
-    )?;
-    let angles = crate::residual::fan_angle_values(&design.chain, &fan, &springs.grouped())?;
+    )
+}
+
+/// p99 and max |residual angle| of `springs` on `fan` (a [`held_out_fan`]), degrees.
+fn residual_on(design: &Design, fan: &Fan, springs: &SpringSet) -> Result<(f64, f64)> {
+    let angles = crate::residual::fan_angle_values(&design.chain, fan, &springs.grouped())?;
     let st = crate::residual::stats_of(&angles);
     Ok((st.p99_abs, st.max_abs))
 }
@@ -392,13 +402,44 @@ pub type TrimmedBuild = (SpringSet, DVector<f64>, crate::elements::trim::TrimSol
 /// Trimming so never makes a build worse by what the builder measures, and every build with an
 /// equilibrium has a trimmed figure.
 pub fn trim_build(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<TrimmedBuild> {
+    trim_build_with(design, bom, built, &TrimShared::of(design), equilibrium(design, built))
+}
+
+/// What the trim step of every build of a design shares, traced once per Monte Carlo rather
+/// than once per build: the rows frame of the trims' fan from q_eq ([`trim_fan`]), on which
+/// [`clamp_at_design`] sets the clamped trims (None when that fan cannot be traced, as a build
+/// then found it).
+pub struct TrimShared {
+    at_design: Option<crate::fit::robust::RowFrame>,
+}
+
+impl TrimShared {
+    /// The shared part of the trim step of `design`'s builds.
+    pub fn of(design: &Design) -> TrimShared {
+        let at_design = trim_fan(design, &design.q_eq)
+            .ok()
+            .map(|fan| crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency));
+        TrimShared { at_design }
+    }
+}
+
+/// [`trim_build`] with the builds' shared frame and the built arm's own equilibrium
+/// (`q_built`, [`equilibrium`] of `built`) given: the same trimmed build, bit for bit, without
+/// tracing what every build of the design or this build's untrimmed figures already traced.
+pub fn trim_build_with(
+    design: &Design,
+    bom: &[BomRow],
+    built: &SpringSet,
+    shared: &TrimShared,
+    q_built: Option<DVector<f64>>,
+) -> Option<TrimmedBuild> {
     let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
     if trims.is_empty() {
         return None;
     }
     let relaxed = relax_at_rest(design, bom, built);
     if design.fit.trim_rule != TrimRule::Residual {
-        return relaxed;
+        return relaxed.map(|r| r.0);
     }
     let frame_rows = |set: &SpringSet, q: &DVector<f64>| -> Option<f64> {
         let fan = trim_fan(design, q).ok()?;
@@ -413,11 +454,13 @@ pub fn trim_build(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<
             best = Some((v, candidate));
         }
     };
-    if let Some((set, q, sol)) = relaxed {
-        offer(frame_rows(&set, &q), (set, q, sol));
+    if let Some(((set, q, sol), frame)) = relaxed {
+        // Measured on the fan the rates were set on (the same trace from the same point).
+        let measured = frame.map(|f| f.rows(&set).norm());
+        offer(measured, (set, q, sol));
     }
     // The trims as assembled (relaxed at q_eq), at the build's own equilibrium.
-    if let Some(q_b) = equilibrium(design, built) {
+    if let Some(q_b) = q_built {
         let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
         let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
         let nominal: Vec<f64> = trims.iter().map(|&j| built.stiffness[j]).collect();
@@ -446,7 +489,9 @@ pub fn trim_build(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<
         }
     }
     // Clamped so the arm rests at q_eq again, the rates set there.
-    if let Some((measured, clamped)) = clamp_at_design(design, bom, built, &trims) {
+    if let Some(frame) = &shared.at_design
+        && let Some((measured, clamped)) = clamp_on(design, frame, bom, built, &trims)
+    {
         offer(Some(measured), clamped);
     }
     best.map(|b| b.1)
@@ -475,6 +520,18 @@ pub fn clamp_at_design(
     built: &SpringSet,
     trims: &[usize],
 ) -> Option<(f64, TrimmedBuild)> {
+    let frame = TrimShared::of(design).at_design?;
+    clamp_on(design, &frame, bom, built, trims)
+}
+
+/// [`clamp_at_design`] on `frame`, the rows frame of the trims' fan from q_eq.
+fn clamp_on(
+    design: &Design,
+    frame: &crate::fit::robust::RowFrame,
+    bom: &[BomRow],
+    built: &SpringSet,
+    trims: &[usize],
+) -> Option<(f64, TrimmedBuild)> {
     let q_eq = &design.q_eq;
     let n = design.dof();
     let rest = without(built, trims);
@@ -485,11 +542,9 @@ pub fn clamp_at_design(
     if (&a * &p0 + &g).amax() > 1e-9 * (1.0 + g.amax()) {
         return None;
     }
-    let fan = trim_fan(design, q_eq).ok()?;
-    let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
-    let (relaxed, columns, unit_preload) = relaxed_trims(&frame, built, trims, q_eq.as_slice());
+    let (relaxed, columns, unit_preload) = relaxed_trims(frame, built, trims, q_eq.as_slice());
     let preload_rows = unit_preload * &p0;
-    let r0 = rows_without_trims(&frame, &relaxed, trims) + preload_rows;
+    let r0 = rows_without_trims(frame, &relaxed, trims) + preload_rows;
     let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
     let ranges: Vec<[f64; 2]> = trims.iter().map(|&j| bom[j].adjust.trim_range.unwrap_or([0.0, 0.0])).collect();
     let nominal: Vec<f64> = trims.iter().map(|&j| built.stiffness[j]).collect();
@@ -555,8 +610,13 @@ fn without(set: &SpringSet, trims: &[usize]) -> SpringSet {
 
 /// The trims re-relaxed at the equilibrium of the other built springs and their rates set by the
 /// design's `[fit] trim_rule` there ([`crate::elements::trim::solve`] against the design's ω, or
-/// the residual rows); None if the other springs hold no equilibrium near q_eq.
-fn relax_at_rest(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<TrimmedBuild> {
+/// the residual rows); None if the other springs hold no equilibrium near q_eq. With the residual
+/// rule, also the rows frame of the trims' fan the rates were set on.
+fn relax_at_rest(
+    design: &Design,
+    bom: &[BomRow],
+    built: &SpringSet,
+) -> Option<(TrimmedBuild, Option<crate::fit::robust::RowFrame>)> {
     let trims: Vec<usize> = (0..bom.len()).filter(|&j| bom[j].adjust.trim_range.is_some()).collect();
     let rest = without(built, &trims);
     let couplings: Vec<Vec<f64>> = trims.iter().map(|&j| bom[j].element.coupling.clone()).collect();
@@ -576,18 +636,25 @@ fn relax_at_rest(design: &Design, bom: &[BomRow], built: &SpringSet) -> Option<T
         let e = &mut trimmed.elements[j];
         e.offset = e.coupling.iter().zip(q.iter()).map(|(a, q)| a * q).sum();
     }
-    let sol = match design.fit.trim_rule {
-        TrimRule::Hessian => crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal),
+    let (sol, frame) = match design.fit.trim_rule {
+        TrimRule::Hessian => (crate::elements::trim::solve(&h_rest, &m, &couplings, &ranges, &nominal), None),
         TrimRule::Residual => {
             let fan = trim_fan(design, &q).ok()?;
-            let (columns, r0) = trim_rows(design, &fan, &trimmed, &trims);
-            crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &ranges, &nominal)
+            let frame = crate::fit::robust::RowFrame::new(&design.chain, &fan, design.fit.frequency);
+            let (columns, r0) = (
+                frame.columns(trims.iter().map(|&j| &trimmed.elements[j])),
+                rows_without_trims(&frame, &trimmed, &trims),
+            );
+            (
+                crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &ranges, &nominal),
+                Some(frame),
+            )
         }
     };
     for (i, &j) in trims.iter().enumerate() {
         trimmed.stiffness[j] = sol.rates[i];
     }
-    Some((trimmed, q, sol))
+    Some(((trimmed, q, sol), frame))
 }
 
 /// Geodesics of the fan a residual trim is fitted on ([`TrimRule::Residual`]): traced from the
@@ -670,6 +737,18 @@ pub fn run_build(
     s: &BuildSettings,
     index: usize,
 ) -> Result<Build> {
+    run_build_with(design, bom, springs, s, index, &TrimShared::of(design))
+}
+
+/// [`run_build`] with the trim step's shared frame (traced once for all builds).
+fn run_build_with(
+    design: &Design,
+    bom: &[BomRow],
+    springs: &SpringSet,
+    s: &BuildSettings,
+    index: usize,
+    shared: &TrimShared,
+) -> Result<Build> {
     let built = springs.scaled(&draw(bom, s, index));
     let nan = Build {
         p99_deg: f64::NAN,
@@ -681,9 +760,15 @@ pub fn run_build(
         trim_restored: false,
     };
     let mut b = nan;
-    if let Some(q) = equilibrium(design, &built) {
-        let (p99, max) = residual_about(design, s.extent, s.directions, s.samples, &built, &q)?;
-        let dq = &q - &design.q_eq;
+    let q_built = equilibrium(design, &built);
+    // The untrimmed build's held-out fan: a trimmed build that rests at the same point (its
+    // trims kept as assembled) is judged on it again rather than on a new trace of it.
+    let mut untrimmed_fan = None;
+    if let Some(q) = &q_built {
+        let fan = held_out_fan(design, s.extent, s.directions, s.samples, q)?;
+        let (p99, max) = residual_on(design, &fan, &built)?;
+        untrimmed_fan = Some(fan);
+        let dq = q - &design.q_eq;
         let m = design.chain.mass_matrix(&design.q_eq);
         b = Build {
             p99_deg: p99,
@@ -695,11 +780,14 @@ pub fn run_build(
     }
     if bom.iter().any(|r| r.adjust.trim_range.is_some()) {
         b.trimmed = Some((f64::NAN, f64::NAN));
-        if let Some((trimmed, q, sol)) = trim_build(design, bom, &built) {
+        if let Some((trimmed, q, sol)) = trim_build_with(design, bom, &built, shared, q_built.clone()) {
             // The trimmed arm rests at q (trims add no torque there) if its Hessian is positive.
             let h = trimmed.hessian(q.as_slice())? + design.chain.gravity_hessian(q.as_slice());
             if h.cholesky().is_some() {
-                b.trimmed = Some(residual_about(design, s.extent, s.directions, s.samples, &trimmed, &q)?);
+                b.trimmed = Some(match (&q_built, &untrimmed_fan) {
+                    (Some(at), Some(fan)) if *at == q => residual_on(design, fan, &trimmed)?,
+                    _ => residual_about(design, s.extent, s.directions, s.samples, &trimmed, &q)?,
+                });
             }
             let nominal = bom.iter().filter(|r| r.adjust.trim_range.is_some()).map(|r| r.stiffness);
             b.trim_change = Some(sol.rates.iter().zip(nominal).map(|(k, k0)| (k - k0).abs()).fold(0.0, f64::max));
@@ -712,8 +800,9 @@ pub fn run_build(
 /// Runs `s.builds` builds of `springs` (the BOM's stiffnesses) in parallel; results in build
 /// order.
 pub fn run_builds(design: &Design, bom: &[BomRow], springs: &SpringSet, s: &BuildSettings) -> Result<Vec<Build>> {
+    let shared = TrimShared::of(design);
     let out: Vec<Result<Build>> =
-        (0..s.builds).into_par_iter().map(|i| run_build(design, bom, springs, s, i)).collect();
+        (0..s.builds).into_par_iter().map(|i| run_build_with(design, bom, springs, s, i, &shared)).collect();
     out.into_iter().collect()
 }
 
@@ -924,9 +1013,10 @@ pub fn of_fit(design: &Design, fit: &crate::fit::FitOutcome) -> Result<Option<As
     ab.shift_model = shift_model(design, &fit.bom, &fit.springs, &s)?;
     if !fit.cams.is_empty() {
         let terms: Vec<preload::PreloadTerm> = fit.cams.iter().map(preload::term).collect();
+        let shared = TrimShared::of(design);
         let out: Vec<Result<(f64, f64)>> = (0..s.builds)
             .into_par_iter()
-            .map(|i| preload::run_build(design, &fit.bom, &fit.springs, &terms, &s, i))
+            .map(|i| preload::run_build(design, &fit.bom, &fit.springs, &terms, &s, (i, &shared)))
             .collect();
         let out: Vec<(f64, f64)> = out.into_iter().collect::<Result<_>>()?;
         ab.preload_trimmed = Some(PreloadTrimmed {

@@ -109,18 +109,22 @@ pub fn build(bom: &[BomRow], springs: &SpringSet, factors: &[f64], terms: &[Prel
 /// One preload-trimmed build, index `index` of `s` (the same draw as the untrimmed build of that
 /// index): p99 and max |residual angle| about its own equilibrium, degrees, with the trim
 /// springs (if the design has any) re-set after the preloads; NaN without a stable equilibrium.
+/// `shared` is the trim step's part every build of `design` shares ([`super::TrimShared::of`]).
 pub fn run_build(
     design: &crate::design::Design,
     bom: &[BomRow],
     springs: &SpringSet,
     terms: &[PreloadTerm],
     s: &super::BuildSettings,
-    index: usize,
+    (index, shared): (usize, &super::TrimShared),
 ) -> crate::error::Result<(f64, f64)> {
     let (rows, built) = build(bom, springs, &super::draw(bom, s, index), terms);
     let nan = (f64::NAN, f64::NAN);
     if rows.iter().any(|r| r.adjust.trim_range.is_some()) {
-        let Some((trimmed, q, _)) = super::trim_build(design, &rows, &built) else { return Ok(nan) };
+        let q_built = super::equilibrium(design, &built);
+        let Some((trimmed, q, _)) = super::trim_build_with(design, &rows, &built, shared, q_built) else {
+            return Ok(nan);
+        };
         let h = trimmed.hessian(q.as_slice())? + design.chain.gravity_hessian(q.as_slice());
         if h.cholesky().is_none() {
             return Ok(nan);
