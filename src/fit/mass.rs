@@ -79,7 +79,7 @@ use crate::geodesic::{Fan, Region};
 use crate::realise::cam::DEFAULT_REALISATION;
 use crate::realise::duty::{duty, requirements, spans, swing};
 use crate::realise::material::Material;
-use crate::realise::mechanism::{Duty, Requirements, follower, spring_element, trim};
+use crate::realise::mechanism::{Duty, Requirements, follower, part_mass, trim};
 use crate::realise::spring::usable_energy_density;
 
 /// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
@@ -312,12 +312,12 @@ impl MassModel {
                     _ => {
                         let mut k = torque / peak_slope(profile, &duty).max(1e-9);
                         for _ in 0..=HALVINGS {
-                            if let Ok(part) = spring_element(profile, k, &duty, &req) {
-                                let mut reads = vec![(k, part.mass)];
+                            if let Some(mass) = part_mass(profile, k, &duty, &req) {
+                                let mut reads = vec![(k, mass)];
                                 reads.extend(CURVE_READS.iter().filter_map(|multiples| {
-                                    multiples.iter().find_map(|&f| {
-                                        spring_element(profile, f * k, &duty, &req).ok().map(|p| (f * k, p.mass))
-                                    })
+                                    multiples
+                                        .iter()
+                                        .find_map(|&f| part_mass(profile, f * k, &duty, &req).map(|m| (f * k, m)))
                                 }));
                                 return (curve(&reads), true);
                             }

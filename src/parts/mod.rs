@@ -607,7 +607,7 @@ fn with_transmission(mut e: ElementPart, bom: &[BomRow], limits: &transmission::
 /// the part must pass (the standards' checks) may change behind it. `duty` comes from
 /// [`element_duty`] and `req` from [`requirements`].
 pub fn lightest_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
-    mechanism::spring_element(profile, k, duty, req).ok().map(|p| p.mass)
+    mechanism::part_mass(profile, k, duty, req)
 }
 
 /// The deflections x − x₀ an element on `coupling` with offset `offset` sees on `fan` (its

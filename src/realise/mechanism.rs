@@ -716,6 +716,36 @@ pub fn spring_element(profile: Profile, k: f64, duty: &Duty, req: &Requirements)
     }
 }
 
+/// The mass (kg) of [`spring_element`]'s part, None when no spring meets the element: what the
+/// fit's mass model reads. The answers are kept for the process ([`PART_MASSES_KEPT`] at most):
+/// the search is a pure function of its arguments, and a `fit` asks the same questions more than
+/// once (each preparation's mass model reads every candidate at the same stiffnesses: the refit
+/// around the trims' sized ranges, the placement rounds, the weights' candidates), so a kept
+/// answer is the one the search would give again, bit for bit.
+pub fn part_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static KEPT: OnceLock<Mutex<HashMap<String, Option<f64>>>> = OnceLock::new();
+    // The arguments' exact values (`{:?}` writes an f64 so that it reads back to the same bits).
+    let key = format!("{profile:?}|{:?}|{duty:?}|{req:?}", k.to_bits());
+    let kept = KEPT.get_or_init(Default::default);
+    if let Some(mass) = kept.lock().ok().and_then(|m| m.get(&key).copied()) {
+        return mass;
+    }
+    let mass = spring_element(profile, k, duty, req).ok().map(|p| p.mass);
+    if let Ok(mut m) = kept.lock() {
+        if m.len() >= PART_MASSES_KEPT {
+            m.clear();
+        }
+        m.insert(key, mass);
+    }
+    mass
+}
+
+/// The most answers [`part_mass`] keeps (a few hundred bytes each); past it, it starts afresh. A
+/// fit of a few hundred candidates asks a few thousand.
+pub const PART_MASSES_KEPT: usize = 100_000;
+
 /// The part of a trim of rates `range` set at `mid` (N·m/rad): [`leaf`] or [`trim_crank`], the
 /// lighter that passes (or the one `[parts] trim_mechanism` forces).
 pub fn trim(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) -> Result<Part, Limit> {
@@ -1115,9 +1145,51 @@ pub fn crank_round(
     listed: f64,
     cap: f64,
 ) -> Option<Part> {
-    let pulley = req.pulley_radius;
     let rate = s.rate();
     let mut best: Option<Part> = None;
+    for (mut part, (r, big_r, phase, scale)) in crank_round_geometries(k, duty, req, s, f0) {
+        part.tolerance = part.tolerance.min(cap);
+        if let Some(allowed) = req.roller_departure {
+            let departure = roller_departure(r, big_r, req.pulley_radius, phase, scale, duty.range);
+            part.checks.push(departure_check(departure, allowed));
+        }
+        part.checks.push(upper("listed rate against the geometry's", (listed / rate - 1.0).abs(), part.tolerance, ""));
+        if best.as_ref().is_none_or(|b| part.worst() < b.worst()) {
+            best = Some(part);
+        }
+    }
+    best
+}
+
+/// [`crank_round`]'s crank at each radius that takes the spring's rate, before the checks that
+/// depend on the listing and on the rollers' bound: the part and its geometry (r, R, the pin's
+/// phase, the rollers' rate factor). Its rollers compensated five times per radius, it is most
+/// of a stock crank's search, and the part chooser asks it twice of every crank when it bounds
+/// the rollers (a pass without the bound, one with; `parts::choose`): the answers are kept for
+/// the process ([`CRANK_ROUNDS_KEPT`] at most), a pure function of the arguments but the bound,
+/// which it does not read. A kept answer is the one the search would give again, bit for bit.
+#[allow(clippy::type_complexity)]
+fn crank_round_geometries(
+    k: f64,
+    duty: &Duty,
+    req: &Requirements,
+    s: HelicalSpring,
+    f0: f64,
+) -> Vec<(Part, (f64, f64, f64, f64))> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    type Kept = HashMap<String, Arc<Vec<(Part, (f64, f64, f64, f64))>>>;
+    static KEPT: OnceLock<Mutex<Kept>> = OnceLock::new();
+    // The arguments' exact values (`{:?}` writes an f64 so that it reads back to the same bits).
+    let unbounded = Requirements { roller_departure: None, ..*req };
+    let key = format!("{:?}|{duty:?}|{unbounded:?}|{s:?}|{:?}", k.to_bits(), f0.to_bits());
+    let kept = KEPT.get_or_init(Default::default);
+    if let Some(found) = kept.lock().ok().and_then(|m| m.get(&key).cloned()) {
+        return found.as_ref().clone();
+    }
+    let pulley = req.pulley_radius;
+    let rate = s.rate();
+    let mut out = Vec::new();
     for &r in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
         let mut big_r = k * 1000.0 / (r * rate);
         let (lo, hi) = (ANCHOR_RATIOS[0] * r, ANCHOR_RATIOS[ANCHOR_RATIOS.len() - 1] * r);
@@ -1135,18 +1207,20 @@ pub fn crank_round(
         let [lmin, lmax] = extremes(duty.range[0], duty.range[1], path);
         let [smin, smax] = extremes(duty.swing[0], duty.swing[1], path);
         let geometry = CrankGeometry { r, big_r, pulley, phase, ks, paths: [lmin, lmax, smin, smax] };
-        let mut part = crank_part(&geometry, duty, req, s, f0, &path);
-        part.tolerance = part.tolerance.min(cap);
-        if let Some(allowed) = req.roller_departure {
-            part.checks.push(departure_check(roller_departure(r, big_r, pulley, phase, comp.1, duty.range), allowed));
-        }
-        part.checks.push(upper("listed rate against the geometry's", (listed / rate - 1.0).abs(), part.tolerance, ""));
-        if best.as_ref().is_none_or(|b| part.worst() < b.worst()) {
-            best = Some(part);
-        }
+        out.push((crank_part(&geometry, duty, &unbounded, s, f0, &path), (r, big_r, phase, scale)));
     }
-    best
+    if let Ok(mut m) = kept.lock() {
+        if m.len() >= CRANK_ROUNDS_KEPT {
+            m.clear();
+        }
+        m.insert(key, Arc::new(out.clone()));
+    }
+    out
 }
+
+/// The most answers [`crank_round_geometries`] keeps (a few kilobytes each); past it, it starts
+/// afresh.
+pub const CRANK_ROUNDS_KEPT: usize = 20_000;
 
 /// The rates (N/mm) of the extension springs [`crank_round`] can build a crank of stiffness `k`
 /// round, one interval per crank radius: the anchor distance R = k/(r k_s) must lie within the
