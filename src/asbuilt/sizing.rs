@@ -225,5 +225,5 @@ pub fn size(
             sized: families[f].2,
         })
         .collect();
-    Ok((TrimSizing { cover: COVER, builds: s.builds, trims, refitted: false }, ranges))
+    Ok((TrimSizing { cover: COVER, builds: s.builds, trims, refitted: false, refit: None }, ranges))
 }

@@ -326,9 +326,10 @@ fn trim_text(m: &DMatrix<f64>, omega: f64) -> String {
         "\n# Trim springs written by `springfit init`: linear, relaxed at the equilibrium, rate set on each\n\
          # build after assembly within trim_range (not fit candidates: the fit places them at mid-range).\n\
          # Each range is TRIM_SHARE·ω²/(aᵀM⁻¹a) at q_eq: no trim stiffens a direction by more than that\n\
-         # share of the target stiffness ω²M. Add trim_sized = true to a family to let the fit size its\n\
-         # range by the bill, to hold the rates the builds' trims need (docs/catalogue.md: it helps\n\
-         # some arms' trimmed builds and costs others drawn accuracy, so init leaves it to you).\n",
+         # share of the target stiffness ω²M. With trim_sized = true that range is where the fit\n\
+         # starts: the fit sizes it by the bill to hold the rates the builds' trims need, and keeps\n\
+         # the fit around the sized ranges only when it is no worse drawn and realised (2 %)\n\
+         # (docs/catalogue.md); `trim_sized = false` keeps the range as written.\n",
     );
     for a in trim_couplings(n) {
         let v = DVector::from_column_slice(&a);
@@ -336,7 +337,7 @@ fn trim_text(m: &DMatrix<f64>, omega: f64) -> String {
         let hi = round_down(TRIM_SHARE * omega * omega / dual);
         let numbers: Vec<String> = a.iter().map(|x| format!("{x}")).collect();
         text.push_str(&format!(
-            "\n[[family]]\nname = \"trim spring ({})\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[{}]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, {hi}]\n",
+            "\n[[family]]\nname = \"trim spring ({})\"\nprofile = \"linear\"\nunit = \"N*m/rad\"\ncouplings = [[{}]]\noffsets = \"equilibrium\"\ntrim = true\ntrim_range = [0.0, {hi}]\ntrim_sized = true\n",
             numbers.join(", "),
             numbers.join(", ")
         ));

@@ -379,7 +379,12 @@ pub fn fit_with_parts(
 /// realised design is kept. The rollers' small departures only matter on bills whose cranks'
 /// preloads cancel on a small net torque (the Panda's and the UR10's pitch joints: realised p99
 /// 3.13° and 1.93° from ideal 0.16° and 0.04°, 0.45° with the bound); elsewhere the bound would
-/// cost steel for nothing (the default design: 1.4 kg more for a realised p99 no better).
+/// cost steel for nothing (the default design: 1.4 kg more for a realised p99 no better). The
+/// same pass chooses the trims' parts again with their cranks' law within
+/// [`mechanism::TRIM_LAW_DEPARTURE`] of the trims' linear one (a geared crank's torque
+/// k g sin(d/g) falls 13 % short at the lightest geometry's 0.9 rad): a trim whose range was
+/// sized wide needs it (the Panda with `trim_sized`: realised p99 2.34° from ideal 0.95°, 0.97°
+/// with it), with or without rollers.
 pub fn choose(
     design: &Design,
     bom: &[BomRow],
@@ -391,10 +396,15 @@ pub fn choose(
 ) -> Result<Parts> {
     let (light, examined) = choose_with(design, bom, cams, evaluation, frequency, stock, ideal, None, None)?;
     let rollers = design.parts.pulley_radius_mm > 0.0 && bom.iter().any(|r| r.element.profile == Profile::Crank);
-    if !rollers || light.realised.p99_abs <= light.ideal.p99_abs + ROLLER_SLACK_DEG {
+    let trim_cranks = light
+        .elements
+        .iter()
+        .any(|e| matches!(e.part.as_ref().map(|p| &p.mechanism), Ok(mechanism::Mechanism::TrimCrank { .. })));
+    if !(rollers || trim_cranks) || light.realised.p99_abs <= light.ideal.p99_abs + ROLLER_SLACK_DEG {
         return Ok(light);
     }
-    // Only the cranks' parts depend on the bound: every other part is the first pass's.
+    // Only the cranks' and the trims' parts depend on the bound: every other part is the first
+    // pass's.
     let bound = Some(mechanism::MAX_ROLLER_DEPARTURE);
     let first = Some((&light, &examined[..]));
     let (bounded, _) = choose_with(design, bom, cams, evaluation, frequency, stock, Some(light.ideal), bound, first)?;
@@ -424,9 +434,9 @@ pub const ROLLER_SLACK_DEG: f64 = 0.1;
 /// [`Parts::elements`]).
 ///
 /// `first`, a pass of the same bill with those counts, lends every part whose search does not
-/// read the bound: only a crank's (its geometries and a listed spring round them) does, so the
-/// other elements and the cams' followers are taken from it as they are, and the pass searches
-/// the cranks alone. The parts and the counts are the ones a full search gives. (On the Panda's
+/// read the bound: only a crank's (its geometries and a listed spring round them) and a trim's
+/// (its crank's angles) do, so the other elements and the cams' followers are taken from it as
+/// they are, and the pass searches the cranks and the trims alone. The parts and the counts are the ones a full search gives. (On the Panda's
 /// bill, 76 cranks of 141 springs, this saves little: the cranks' searches and the realised
 /// design's residual angles, which both passes need, are most of the pass; BENCHMARKS.md.)
 #[allow(clippy::too_many_arguments)]
@@ -460,7 +470,8 @@ fn choose_with(
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
-            if let Some(lent) = lent(i, r.element.profile != Profile::Crank) {
+            // A crank's and a trim's searches read the bound (a trim's crank its law's departure).
+            if let Some(lent) = lent(i, r.element.profile != Profile::Crank && r.adjust.trim_range.is_none()) {
                 return lent;
             }
             let req = mechanism::Requirements { roller_departure, ..requirements(s, &r.id) };

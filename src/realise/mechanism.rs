@@ -59,8 +59,18 @@ const DRUM_RADII: &[f64] = &[5.0, 8.0, 10.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0,
 /// law k g² (1 − cos(d/g)) close to the trim's ½ k d² (the torque short by 1 − sin(φ)/φ at the
 /// end, 1.5 % at 0.3 rad, 13 % at 0.9 rad); a large one lets the spring store less besides the
 /// element's energy (the zero-free-length spring's energy at the anchor line, ½ k_s (R − r)²).
-/// The search takes the lightest; the realised residual judges the law.
+/// The search takes the lightest; the realised residual judges the law, and where it fails the
+/// part chooser's accurate pass (`req.roller_departure` set) takes only the angles within
+/// [`TRIM_LAW_DEPARTURE`].
 const TRIM_CRANK_ANGLES: &[f64] = &[0.3, 0.5, 0.7, 0.9];
+
+/// How far a trim's crank may fall short of the trim's linear torque k·d at the far end of the
+/// region in the part chooser's accurate pass, as a share of it (1 − sin φ/φ at the crank's
+/// largest angle φ; 0.3 rad gives 1.49 %): the lightest geometry's 0.9 rad falls 13 % short, and
+/// on the Panda's sized trims (joints 2 and 4 at 4.65 and 8.5 N·m/rad over ±0.9 and ±0.6 rad)
+/// that alone took the realised p99 from 0.95° to 2.34°; within this share it is 0.97°. No crank
+/// within it passes: the leaf, linear by construction, is the trim's part.
+pub const TRIM_LAW_DEPARTURE: f64 = 0.015;
 
 /// Which mechanism a one-sided compression element gets (`[parts] stop_mechanism`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -145,7 +155,8 @@ pub struct Requirements {
     /// share of k; None: not bounded (the lightest geometry). The part chooser bounds it
     /// ([`MAX_ROLLER_DEPARTURE`]) only when the realised design needs it
     /// (`crate::parts::choose`): the bound costs steel, and only bills whose cranks' preloads
-    /// cancel on a small net torque lose accuracy without it.
+    /// cancel on a small net torque lose accuracy without it. Set, it also keeps a trim's crank
+    /// within [`TRIM_LAW_DEPARTURE`] of the trim's linear law.
     pub roller_departure: Option<f64>,
 }
 
@@ -1628,7 +1639,10 @@ pub fn trim_crank(range: [f64; 2], mid: f64, duty: &Duty, req: &Requirements) ->
     if mid <= 0.0 {
         return search.finish();
     }
-    for &angle in TRIM_CRANK_ANGLES {
+    // The accurate pass (a bound on the cranks' departures) keeps the crank's law within
+    // TRIM_LAW_DEPARTURE of the trim's linear one.
+    let within = |&&angle: &&f64| req.roller_departure.is_none() || 1.0 - angle.sin() / angle <= TRIM_LAW_DEPARTURE;
+    for &angle in TRIM_CRANK_ANGLES.iter().filter(within) {
         let gear = (reach / angle).max(1.0);
         for &r_top in CRANK_RADII.iter().filter(|&&r| r <= req.max_lever) {
             let r = r_top * mid / top_rate;
@@ -1895,6 +1909,30 @@ mod tests {
                 let angle = (d / gear).abs();
                 assert!(t.abs() <= k * d.abs() * 1.001 && t.abs() >= k * d.abs() * (angle.sin() / angle) * 0.98);
             }
+        }
+    }
+
+    /// The accurate pass (a bound on the cranks' departures) keeps a trim's crank within
+    /// [`TRIM_LAW_DEPARTURE`] of the trim's linear torque k·d at the far end of a wide region,
+    /// where the lightest geometry turns the crank 0.9 rad and falls 13 % short; the chooser
+    /// then takes the lighter of that crank and the leaf, which is linear.
+    #[test]
+    fn the_accurate_pass_keeps_a_trim_crank_close_to_linear() {
+        let duty = Duty { at_eq: 0.0, range: [-0.7, 0.92], swing: [-0.3, 0.3] };
+        let shortfall = |p: &Part| 1.0 - p.energy_torque(0.92).1 / (p.realised_rate * 0.92);
+        for pulley in [0.0, 5.0] {
+            let req = Requirements { pulley_radius: pulley, max_lever: 100.0, ..req() };
+            let light = trim_crank([0.0, 9.3], 4.65, &duty, &req).expect("a light trim crank");
+            assert!(shortfall(&light) > 0.1, "the lightest crank: {}", shortfall(&light));
+            let bound = Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req };
+            let accurate = trim_crank([0.0, 9.3], 4.65, &duty, &bound).expect("an accurate trim crank");
+            let Mechanism::TrimCrank { gear, .. } = accurate.mechanism else { panic!("{:?}", accurate.mechanism) };
+            assert!(1.0 - (0.92 / gear).sin() / (0.92 / gear) <= TRIM_LAW_DEPARTURE, "gear {gear}");
+            assert!(shortfall(&accurate).abs() <= TRIM_LAW_DEPARTURE + 0.005, "{}", shortfall(&accurate));
+            assert!(accurate.mass >= light.mass);
+            let chosen = trim([0.0, 9.3], 4.65, &duty, &bound).unwrap();
+            let linear = leaf([0.0, 9.3], 4.65, &duty, &bound).unwrap();
+            assert_eq!(chosen.mass, accurate.mass.min(linear.mass));
         }
     }
 
