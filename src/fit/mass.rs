@@ -95,6 +95,9 @@ const REFERENCE_TORQUE: f64 = 0.25;
 /// the curve, a budget held by the model and not by the parts.
 const CURVE_READS: [[f64; 2]; 2] = [[4.0, 2.0], [16.0, 8.0]];
 
+/// A mass curve m(k) = a·k + b·k²: (a, b).
+type Curve = (f64, f64);
+
 /// Halvings of the reference stiffness tried before a candidate falls back to the floor density.
 const HALVINGS: usize = 8;
 
@@ -308,7 +311,7 @@ impl MassModel {
         // it: only where the cranks run over rollers.
         let rollers =
             (req.pulley_radius > 0.0).then_some(Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req });
-        let read: Vec<((f64, f64), bool, (f64, f64))> = candidates
+        let read: Vec<(Curve, bool, Curve)> = candidates
             .par_iter()
             .map(|c| {
                 let duty = duty(&spans, &c.element);
