@@ -17,7 +17,7 @@ use springfit::elements::catalog::{Candidate, Catalog};
 use springfit::fit::FitOutcome;
 use springfit::fit::mass::{Floor, MassModel, MassTerm, trims_mass};
 use springfit::fit::run::fit;
-use springfit::parts::{lightest_of_fit, of_fit, requirements};
+use springfit::parts::{bounded_of_fit, lightest_of_fit, of_fit, requirements};
 use springfit::progress::Progress;
 use springfit::realise::mechanism::{self, Mechanism};
 use springfit::solve::lsq::Gram;
@@ -195,6 +195,57 @@ fn the_mass_model_agrees_with_the_part_chooser() {
         for &(part, m) in pairs.iter().filter(|p| p.0 >= 0.02 * by_parts) {
             assert!((0.5..2.0).contains(&(m / part)), "{name}: {m} kg by the model, {part} kg by the part");
         }
+    }
+}
+
+/// The budget's curve (`MassModel::budget_curve`) against the parts `parts::choose` rebuilds the
+/// cranks on when the realised design needs it (within the rollers' bound): on the default
+/// design's reduced fit, per crank the bounded curve at the fitted stiffness over that crank's
+/// part built within the bound, and their totals. The bounded parts are never lighter than the
+/// lightest (a subset of the geometries), and the bounded curve reads them as the plain curve
+/// reads the lightest: totals within 0.8–1.25, every crank of 5 % of the cranks' mass or more
+/// within 0.6–1.6. Every other candidate's bounded curve is its plain one.
+#[test]
+fn the_budget_curve_reads_the_cranks_within_the_rollers_bound() {
+    let (design, catalog) = shipped("double_pendulum");
+    let settings = reduced(&design);
+    let outcome = fitted(&design, &catalog, &settings);
+    let bounded = bounded_of_fit(&design, &outcome, settings.frequency, &[]).unwrap();
+    let lightest = lightest_of_fit(&design, &outcome, settings.frequency, &[]).unwrap();
+    let rows: Vec<_> = outcome.bom.iter().filter(|r| r.adjust.trim_range.is_none()).collect();
+    let candidates: Vec<Candidate> = rows.iter().map(|r| Candidate::bare(r.element.clone())).collect();
+    let model = MassModel::new(&design, &candidates, &outcome.evaluation, settings.frequency);
+    let (a, b) = model.budget_curve();
+    let mass = |parts: &springfit::parts::Parts, id: &str| {
+        parts.elements.iter().find(|e| e.id == id).and_then(|e| e.part.as_ref().ok()).map(|p| p.mass)
+    };
+    let mut pairs = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        if r.element.profile != Profile::Crank {
+            assert_eq!((a[i], b[i]), (model.per_stiffness[i], model.per_stiffness_squared[i]), "{}", r.id);
+            continue;
+        }
+        let (Some(part), Some(light)) = (mass(&bounded, &r.id), mass(&lightest, &r.id)) else { continue };
+        assert!(part >= light * (1.0 - 1e-12), "{}: bounded {part} kg, lightest {light} kg", r.id);
+        let by_model = a[i] * r.stiffness + b[i] * r.stiffness * r.stiffness;
+        eprintln!(
+            "{} crank {:.3} N·m: bounded curve {by_model:.4} kg, part within the bound {part:.4} kg (lightest {light:.4} kg), ratio {:.3}",
+            r.id,
+            r.stiffness,
+            by_model / part
+        );
+        pairs.push((part, by_model));
+    }
+    assert!(pairs.len() >= 2, "{} cranks", pairs.len());
+    let by_parts: f64 = pairs.iter().map(|p| p.0).sum();
+    let by_model: f64 = pairs.iter().map(|p| p.1).sum();
+    eprintln!(
+        "{} cranks: {by_model:.3} kg by the bounded curve, {by_parts:.3} kg of parts within the bound",
+        pairs.len()
+    );
+    assert!((0.8..1.25).contains(&(by_model / by_parts)), "{by_model} kg by the curve, {by_parts} kg of parts");
+    for &(part, m) in pairs.iter().filter(|p| p.0 >= 0.05 * by_parts) {
+        assert!((0.6..1.6).contains(&(m / part)), "{m} kg by the curve, {part} kg by the part");
     }
 }
 

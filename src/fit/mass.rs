@@ -79,7 +79,7 @@ use crate::geodesic::{Fan, Region};
 use crate::realise::cam::DEFAULT_REALISATION;
 use crate::realise::duty::{duty, requirements, spans, swing};
 use crate::realise::material::Material;
-use crate::realise::mechanism::{Duty, Requirements, follower, part_mass, trim};
+use crate::realise::mechanism::{Duty, MAX_ROLLER_DEPARTURE, Requirements, follower, part_mass, trim};
 use crate::realise::spring::usable_energy_density;
 
 /// Fraction of the potential's boundary torque 2U*/r a candidate carries at the reference
@@ -94,6 +94,9 @@ const REFERENCE_TORQUE: f64 = 0.25;
 /// through both and extrapolated it beyond: that bill weighed 4.16 kg by its parts for 1.9 kg by
 /// the curve, a budget held by the model and not by the parts.
 const CURVE_READS: [[f64; 2]; 2] = [[4.0, 2.0], [16.0, 8.0]];
+
+/// A mass curve m(k) = a·k + b·k²: (a, b).
+type Curve = (f64, f64);
 
 /// Halvings of the reference stiffness tried before a candidate falls back to the floor density.
 const HALVINGS: usize = 8;
@@ -214,6 +217,13 @@ pub struct MassModel {
     pub per_stiffness_squared: Vec<f64>,
     /// Whether the curve is the part chooser's (false: the floor density's fallback).
     pub from_parts: Vec<bool>,
+    /// The curve (aᵢ, bᵢ) of a crank built within the rollers' bound
+    /// ([`crate::realise::mechanism::MAX_ROLLER_DEPARTURE`]), the geometry `parts::choose`
+    /// rebuilds a bill's cranks on when the lightest ones realise the design more than
+    /// `ROLLER_SLACK_DEG` off its ideal elements; equal to the plain curve for every other
+    /// candidate, and for every candidate when the design's cranks run without rollers
+    /// (`[parts] pulley_radius_mm = 0`). What a budget is held by ([`MassModel::budget_curve`]).
+    pub bounded: Vec<(f64, f64)>,
     /// The floor.
     pub floor: Floor,
     /// The trims' parts, kg: each trim's part as the part chooser builds it at mid-range over its
@@ -297,7 +307,11 @@ impl MassModel {
         }
         let per_joule: Vec<(FollowerSpec, Option<f64>)> =
             specs.par_iter().map(|&s| (s, s.per_joule(energy, &req))).collect();
-        let (coefficients, from_parts): (Vec<(f64, f64)>, Vec<bool>) = candidates
+        // The cranks' rollers bounded as `parts::choose` bounds them when the realised design needs
+        // it: only where the cranks run over rollers.
+        let rollers =
+            (req.pulley_radius > 0.0).then_some(Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req });
+        let read: Vec<(Curve, bool, Curve)> = candidates
             .par_iter()
             .map(|c| {
                 let duty = duty(&spans, &c.element);
@@ -307,36 +321,66 @@ impl MassModel {
                         let s = spec(c);
                         let read = per_joule.iter().find(|p| p.0 == s).and_then(|p| p.1);
                         let kg_per_joule = read.unwrap_or_else(|| s.by_density(&req, &floor));
-                        ((kg_per_joule * energy_range(profile, &duty), 0.0), read.is_some())
+                        let ab = (kg_per_joule * energy_range(profile, &duty), 0.0);
+                        (ab, read.is_some(), ab)
                     }
                     _ => {
-                        let mut k = torque / peak_slope(profile, &duty).max(1e-9);
-                        for _ in 0..=HALVINGS {
-                            if let Some(mass) = part_mass(profile, k, &duty, &req) {
-                                let mut reads = vec![(k, mass)];
-                                reads.extend(CURVE_READS.iter().filter_map(|multiples| {
-                                    multiples
-                                        .iter()
-                                        .find_map(|&f| part_mass(profile, f * k, &duty, &req).map(|m| (f * k, m)))
-                                }));
-                                return (curve(&reads), true);
-                            }
-                            k *= 0.5;
-                        }
-                        let by_density = req.material.density * largest_energy(profile, &duty) / floor.density;
-                        ((by_density, 0.0), false)
+                        let Some((k, ab)) =
+                            parts_curve(profile, torque / peak_slope(profile, &duty).max(1e-9), &duty, &req)
+                        else {
+                            let by_density = req.material.density * largest_energy(profile, &duty) / floor.density;
+                            return ((by_density, 0.0), false, (by_density, 0.0));
+                        };
+                        // A crank within the rollers' bound, read from the same reference stiffness
+                        // (the plain curve where no bounded geometry is found).
+                        let bounded = match (&rollers, profile) {
+                            (Some(r), Profile::Crank) => parts_curve(profile, k, &duty, r).map_or(ab, |b| b.1),
+                            _ => ab,
+                        };
+                        (ab, true, bounded)
                     }
                 }
             })
-            .unzip();
-        let (per_stiffness, per_stiffness_squared) = coefficients.into_iter().unzip();
-        MassModel { per_stiffness, per_stiffness_squared, from_parts, floor, trims: 0.0 }
+            .collect();
+        let (per_stiffness, per_stiffness_squared) = read.iter().map(|r| r.0).unzip();
+        let from_parts = read.iter().map(|r| r.1).collect();
+        let bounded = read.iter().map(|r| r.2).collect();
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0 }
+    }
+
+    /// The curves a budget is held by, (aᵢ, bᵢ) per candidate: the cranks' within the rollers'
+    /// bound ([`MassModel::bounded`]). `parts::choose` builds a bill's cranks on the lightest
+    /// geometry and rebuilds them within the bound where that realised design is more than
+    /// `ROLLER_SLACK_DEG` off its ideal elements: a budget read on the lightest geometry held the
+    /// model and not the parts there (the default design at `max_spring_mass = 2.126`: 1.904 kg by
+    /// the model, 3.145 kg of parts). Read on the bounded cranks, the parts are within it whichever
+    /// geometry the chooser keeps. A mass weight keeps the plain curves (a trade, not a promise).
+    pub fn budget_curve(&self) -> (Vec<f64>, Vec<f64>) {
+        self.bounded.iter().copied().unzip()
     }
 
     /// Candidate `i`'s mass at stiffness `k` by the model, aᵢk + bᵢk², kg.
     pub fn mass_at(&self, i: usize, k: f64) -> f64 {
         self.per_stiffness[i] * k + self.per_stiffness_squared[i] * k * k
     }
+}
+
+/// The curve of a spring candidate's parts ([`curve`]) read from stiffness `k` (halved until a
+/// part exists, at most [`HALVINGS`] times) and at the [`CURVE_READS`] multiples of the first
+/// that has one: that reference stiffness and the curve, None where no part exists.
+fn parts_curve(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<(f64, (f64, f64))> {
+    let mut k = k;
+    for _ in 0..=HALVINGS {
+        if let Some(mass) = part_mass(profile, k, duty, req) {
+            let mut reads = vec![(k, mass)];
+            reads.extend(CURVE_READS.iter().filter_map(|multiples| {
+                multiples.iter().find_map(|&f| part_mass(profile, f * k, duty, req).map(|m| (f * k, m)))
+            }));
+            return Some((k, curve(&reads)));
+        }
+        k *= 0.5;
+    }
+    None
 }
 
 /// The mass of the catalogue's trims by their parts, kg: each trim's bill row as the fit writes

@@ -53,6 +53,10 @@ pub struct Prepared<'a> {
     /// The candidates' mass per unit stiffness, searched on first use by a fit that weighs the
     /// mass or bounds it (`fit::mass`).
     mass: OnceLock<MassModel>,
+    /// Whether a budget is held by the cranks built within the rollers' bound
+    /// ([`MassModel::budget_curve`]) rather than on the lightest geometry: set by
+    /// [`Prepared::hold_budget_on_bounded_cranks`] once the parts of a budgeted fit broke it.
+    pub(super) bounded_cranks: bool,
     /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
     pub(super) trims: SpringSet,
     /// Normal equations of `problem.rows` (built once: every solve and the smoothing choice
@@ -141,6 +145,7 @@ impl<'a> Prepared<'a> {
             appended,
             rows_again: OnceLock::new(),
             mass: OnceLock::new(),
+            bounded_cranks: false,
             trims,
             gram,
             t_geo,
@@ -240,6 +245,15 @@ impl Prepared<'_> {
         self.mass.get_or_init(|| {
             MassModel::of_catalog(self.design, self.catalog, &self.candidates, &self.evaluation, frequency)
         })
+    }
+
+    /// From now on, a budget (`[fit] max_spring_mass`) holds the cranks as the part chooser builds
+    /// them within the rollers' bound ([`MassModel::budget_curve`]), not on the lightest geometry:
+    /// for a budgeted fit whose parts broke the budget because `parts::choose` rebuilt its cranks
+    /// within the bound (the realised design more than `ROLLER_SLACK_DEG` off its ideal elements
+    /// on the lightest ones). Returns whether it changed anything (false: already set).
+    pub fn hold_budget_on_bounded_cranks(&mut self) -> bool {
+        !std::mem::replace(&mut self.bounded_cranks, true)
     }
 
     /// The problem's tangentiality rows: kept by the problem, or where a large fit did not keep

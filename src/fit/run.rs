@@ -18,7 +18,7 @@ use std::time::Instant;
 use super::bill::{BomRow, append, bill_of_materials, realise_parts, spring_set};
 use super::evaluate::evaluate;
 use super::hints;
-use super::mass::{Floor, MassTerm};
+use super::mass::{Floor, MassModel, MassTerm};
 use super::outcome::{
     DroppedElement, DroppedWithoutPart, Evaluation, FitOutcome, ShiftAction, ShiftBound, SolveReport, SolveStatus,
     Solver, Timings, Verdict, WithoutPart,
@@ -272,9 +272,12 @@ impl Prepared<'_> {
         let weighs_mass = settings.mass_weight > 0.0 || settings.max_spring_mass > 0.0;
         let model = weighs_mass.then(|| self.mass_model(settings.frequency));
         let budget = model.map(|m| m.budget(settings)).transpose()?.unwrap_or(0.0);
+        // A budget is held on the lightest geometries, or once their parts broke it, on the cranks
+        // as the part chooser rebuilt them within the rollers' bound (`MassModel::budget_curve`).
+        let bounded = model.filter(|_| budget > 0.0 && self.bounded_cranks).map(MassModel::budget_curve);
         let term = model.map(|m| MassTerm {
-            per_stiffness: &m.per_stiffness,
-            per_stiffness_squared: &m.per_stiffness_squared,
+            per_stiffness: bounded.as_ref().map_or(&m.per_stiffness[..], |b| &b.0[..]),
+            per_stiffness_squared: bounded.as_ref().map_or(&m.per_stiffness_squared[..], |b| &b.1[..]),
             weight: MassTerm::weight(settings, self.problem.row_count(), &m.floor),
             budget,
         });

@@ -303,6 +303,10 @@ pub fn is_dropped(c: &Candidate) -> bool {
     c.max_stiffness == Some(DROPPED)
 }
 
+/// Multipliers of the budget's start path ([`select`]): μ·4ʲ for j below this, μ the budget's
+/// multiplier on the dense solution.
+const LAMBDA_PATH: usize = 5;
+
 /// The columns of the items a budget of `max_elements` keeps (every column without a budget):
 /// backward elimination from the dense NNLS solution, then exchange moves, pair swaps and
 /// restarts ([`crate::solve::selection`]). A group is one item. With `budget` every support is
@@ -329,14 +333,28 @@ fn select(
             let all: Vec<usize> = (0..items.len()).collect();
             let every: Vec<usize> = (0..grouping.of.len()).collect();
             let mu = budget_multiplier(weighted, &items, &all, b)?;
-            let light = if mu.is_finite() { b.weigh(weighted, &every, mu) } else { weighted.clone() };
-            let dense = nnls(&light, 0.0, &NnlsSettings::default())?;
-            let near = items.touching(|j| dense.k[j] > 0.0);
-            let start = backward_elimination(&light, &items, near.clone(), settings.max_elements)?;
-            pool.extend(near);
+            // A path of multipliers from the budget's up (×4 a step, `LAMBDA_PATH` of them): the
+            // mass term is a weighted ℓ1 on k, so the heavier the multiplier the sparser and
+            // lighter the dense solution, and the set eliminated from it is another start. Each
+            // start is refitted within the budget and the best (ties: the lowest multiplier) is
+            // the search's; every start's dense support joins the restarts' pool.
+            let steps = if mu.is_finite() && mu > 0.0 { LAMBDA_PATH } else { 1 };
+            let mut best: Option<(f64, Vec<usize>)> = None;
+            for step in 0..steps {
+                let at = mu * 4f64.powi(step as i32);
+                let light = if at.is_finite() { b.weigh(weighted, &every, at) } else { weighted.clone() };
+                let dense = nnls(&light, 0.0, &NnlsSettings::default())?;
+                let near = items.touching(|j| dense.k[j] > 0.0);
+                let start = backward_elimination(&light, &items, near.clone(), settings.max_elements)?;
+                pool.extend(near);
+                let (objective, _) = subset_nnls_within(weighted, &items, &start, b)?;
+                if best.as_ref().is_none_or(|(o, _)| objective < *o) {
+                    best = Some((objective, start));
+                }
+            }
             pool.sort_unstable();
             pool.dedup();
-            start
+            best.map(|(_, s)| s).unwrap_or_default()
         }
     };
     let sel_settings = SelectionSettings {

@@ -350,6 +350,19 @@ pub fn fit_with_parts(
         progress.stage("choosing parts");
         parts = of_fit(design, &outcome, settings.frequency, stock)?;
     }
+    // A budget held by the model on the lightest geometries but broken by the parts: the part
+    // chooser rebuilt the cranks within the rollers' bound (the realised design needs it). The
+    // fit is solved again with the budget held on those cranks (`fit::mass`, `budget_curve`).
+    let budget = settings.max_spring_mass;
+    let weight = |p: &Parts| p.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum::<f64>();
+    if budget > 0.0 && weight(&parts) > budget * (1.0 + 1e-9) && prepared.hold_budget_on_bounded_cranks() {
+        progress.stage("parts over max_spring_mass: fitting again with the cranks within the rollers' bound");
+        let t1 = std::time::Instant::now();
+        outcome = prepared.solve(settings, progress)?;
+        total += t1.elapsed().as_secs_f64();
+        progress.stage("choosing parts");
+        parts = of_fit(design, &outcome, settings.frequency, stock)?;
+    }
     // An element no part realises leaves the bill: the fit is solved again without it (its
     // solves and evaluations add to the fit's time; the parts chosen again do not, as above).
     let fitted = outcome.timings;
@@ -422,6 +435,21 @@ pub fn lightest_of_fit(
 ) -> Result<Parts> {
     let (o, ideal) = (outcome, Some(outcome.metrics.stats));
     Ok(choose_with(design, &o.bom, &o.cams, &o.evaluation, frequency, stock, ideal, None, None)?.0)
+}
+
+/// The parts of a fit with every crank built within the rollers' bound
+/// ([`mechanism::MAX_ROLLER_DEPARTURE`]): what [`choose`] rebuilds a bill's cranks on when the
+/// realised design needs it, so what a budget is held by once its parts broke it
+/// (`fit::mass::MassModel::budget_curve`).
+pub fn bounded_of_fit(
+    design: &Design,
+    outcome: &crate::fit::FitOutcome,
+    frequency: f64,
+    stock: &[StockPart],
+) -> Result<Parts> {
+    let (o, ideal) = (outcome, Some(outcome.metrics.stats));
+    let bound = Some(mechanism::MAX_ROLLER_DEPARTURE);
+    Ok(choose_with(design, &o.bom, &o.cams, &o.evaluation, frequency, stock, ideal, bound, None)?.0)
 }
 
 /// How far (degrees of p99) a realised design may depart from its ideal elements before
