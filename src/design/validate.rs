@@ -497,8 +497,9 @@ radius = 2.0
         assert!(err.contains("row factors") && err.contains("156 couplings"), "{err}");
         // Forty cams: 8 of each cam's 64 columns are non-zero in a row (0.73 GB peak measured
         // for the whole fit, against 4.6 GiB of dense rows counted twice).
-        let design = Design::load(&root.join("designs/ur5_six_cams.toml")).unwrap();
-        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), 6).unwrap();
+        // (The UR5 of `ur5_six.toml` with the cams of the withdrawn `ur5_six_cams` design.)
+        let design = Design::load(&root.join("designs/ur5_six.toml")).unwrap();
+        let catalog = Catalog::load(&root.join("catalogs/ur5_cams_pursuit.toml"), 6).unwrap();
         assert_eq!((catalog.candidate_bound, catalog.row_nonzero_bound), (2560, 320));
         let (sparse, what, _) = fit_memory(&design, &catalog);
         assert_eq!(what, "sparse rows");

@@ -501,12 +501,14 @@ mod tests {
     }
 
     /// The rows written as their non-zeros are the dense rows, entry for entry, and give the
-    /// same normal equations bit for bit, on a cam design of six joints (five rows per sample).
+    /// same normal equations bit for bit, on a cam design of six joints (five rows per sample):
+    /// the UR5 of `designs/ur5_six.toml` with the 40 cams of `catalogs/ur5_cams_pursuit.toml`
+    /// (the withdrawn `ur5_six_cams` design).
     #[test]
     fn sparse_rows_are_the_dense_rows() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("designs/ur5_six_cams.toml");
-        let design = crate::design::Design::load(&path).unwrap();
-        let catalog = Catalog::load(design.catalog.as_ref().unwrap(), design.dof()).unwrap();
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let design = crate::design::Design::load(&root.join("designs/ur5_six.toml")).unwrap();
+        let catalog = Catalog::load(&root.join("catalogs/ur5_cams_pursuit.toml"), design.dof()).unwrap();
         let q0 = design.q_eq.as_slice();
         let candidates = catalog.expand(q0, |_| (-1.5, 1.5));
         use crate::geodesic::{FanSpec, Stop};

@@ -163,6 +163,18 @@ fn nnls_with<F: PassiveSolver>(
     let max_outer = settings.max_iterations_factor.max(1) * p + 10;
     let mut iterations = 0;
     let mut factor = F::default();
+    // From [`ORDERED_FROM`] unknowns the passive set is kept in the order its unknowns entered
+    // (see there); below it, sorted, as always.
+    let ordered = p >= ORDERED_FROM;
+    let mut order: Vec<usize> = Vec::new();
+    let passive_set = |passive: &[bool], order: &mut Vec<usize>| -> Vec<usize> {
+        if ordered {
+            order.retain(|&i| passive[i]);
+            order.clone()
+        } else {
+            (0..p).filter(|&i| passive[i]).collect()
+        }
+    };
     let fixed_free: Vec<usize> = (0..p).filter(|&j| is_free(j) && d[j] > 0.0).collect();
     if !fixed_free.is_empty() {
         // The free unknowns alone: any signs are feasible, so this is the starting point.
@@ -171,6 +183,7 @@ fn nnls_with<F: PassiveSolver>(
             passive[j] = true;
             x[j] = z[a];
         }
+        order.extend_from_slice(&fixed_free);
         iterations += 1;
     }
     let warm: Vec<usize> = passive_start.iter().copied().filter(|&j| j < p && d[j] > 0.0 && !passive[j]).collect();
@@ -186,6 +199,8 @@ fn nnls_with<F: PassiveSolver>(
                 passive[j] = true;
                 x[j] = z[a];
             }
+            let new: Vec<usize> = idx.iter().copied().filter(|j| !order.contains(j)).collect();
+            order.extend(new);
         }
         iterations += 1;
     }
@@ -211,9 +226,14 @@ fn nnls_with<F: PassiveSolver>(
             return Err(Error::numerical("NNLS", format!("no convergence in {max_outer} iterations")));
         }
         passive[j] = true;
+        if ordered {
+            // (Unknowns dropped since the last solve may still be listed.)
+            order.retain(|&i| i != j && passive[i]);
+            order.push(j);
+        }
         let mut first = true;
         loop {
-            let idx: Vec<usize> = (0..p).filter(|&i| passive[i]).collect();
+            let idx: Vec<usize> = passive_set(&passive, &mut order);
             let z = solve_passive(&g, &c, &idx, &mut factor);
             if positive(&z, &idx) {
                 for (a, &i) in idx.iter().enumerate() {
@@ -406,8 +426,18 @@ impl PassiveFactor {
             // column), and new rows.
             let mut runs: Vec<(usize, usize, usize)> = Vec::new(); // (new row, old row, length)
             let mut fresh: Vec<usize> = Vec::new();
+            // The stored set is sorted, or (from `ORDERED_FROM` unknowns) in entry order.
+            let sorted = self.idx.windows(2).all(|w| w[0] < w[1]);
+            let position: std::collections::HashMap<usize, usize> = if sorted {
+                std::collections::HashMap::new()
+            } else {
+                self.idx.iter().enumerate().map(|(o, &j)| (j, o)).collect()
+            };
+            let find = |row: &usize| -> std::result::Result<usize, usize> {
+                if sorted { self.idx.binary_search(row) } else { position.get(row).copied().ok_or(0) }
+            };
             for (i, row) in idx.iter().enumerate().skip(r) {
-                match self.idx.binary_search(row) {
+                match find(row) {
                     Ok(o) => match runs.last_mut() {
                         Some((ni, oi, len)) if *ni + *len == i && *oi + *len == o => *len += 1,
                         _ => runs.push((i, o, 1)),
@@ -494,6 +524,14 @@ impl PassiveFactor {
         z
     }
 }
+
+/// From this many unknowns NNLS keeps its passive set in the order the unknowns entered rather
+/// than sorted: an unknown entering then adds one row to the stored factor ([`PassiveFactor`]
+/// reuses every column before the first difference) instead of refactoring every column after
+/// its place, which on a tendon catalogue's thousands of cam columns was most of the fit (the
+/// dense NNLS of the selection's start). The order changes the factor's rounding, so the
+/// threshold sits above every shipped design's problems (the largest, `ur5_six`'s 1,230 columns).
+pub const ORDERED_FROM: usize = 2000;
 
 /// Columns factored together by [`update_block`].
 const BLOCK: usize = 4;

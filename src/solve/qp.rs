@@ -48,6 +48,12 @@ const RIDGE: f64 = 1e-10;
 /// moved by 7e-11).
 const FAER_CHOLESKY_FROM: usize = 32;
 
+/// KKT systems of at least this many rows are solved by faer's blocked LU, not nalgebra's
+/// (`kkt_solve`): faer's rounding moves polished vertices in their last bits, so the threshold
+/// sits above every shipped design's systems (the largest, `ur5_six_cams`' 40 cams of 32 coefficients, has
+/// 1,280 signed unknowns and a few rows), where nalgebra's unblocked factor costs tens of seconds a solve.
+pub const FAER_KKT_FROM: usize = 2000;
+
 /// How a QP solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum QpStatus {
@@ -607,7 +613,14 @@ fn kkt_solve(
     // polished vertex is the solution of these systems, and faer's rounding changed the dense,
     // paper-window, triple-pendulum and 16-cam fits beyond their last digits (BENCHMARKS.md,
     // "Dense kernels").
-    let sol = kkt.lu().solve(&rhs)?;
+    // Above [`FAER_KKT_FROM`] unknowns (no shipped design's KKT system is that large) nalgebra's
+    // unblocked LU is most of a fit: a tendon catalogue's dense smoothing choice solves systems of
+    // thousands of signed cam coefficients, each 20–40 s that way.
+    let sol = if ns + ne >= FAER_KKT_FROM {
+        super::dense::variants::lu_solve_faer(kkt, &rhs)?
+    } else {
+        kkt.lu().solve(&rhs)?
+    };
     if sol.iter().any(|v| !v.is_finite()) {
         return None;
     }

@@ -60,6 +60,12 @@ pub const CHAINS: usize = 8;
 /// multiple of its chain's best (pair swaps cost most of a restart; far worse optima rarely win).
 const PAIR_WITHIN: f64 = 1.05;
 
+/// From this many columns in a support the backward elimination's inverse and the extension
+/// bounds' factor and triangular solve are faer's blocked kernels, not nalgebra's unblocked
+/// ones: above every shipped design's selection (the largest, `ur5_six`, chooses from 1,230
+/// columns), so their bits are as before; a tendon catalogue's cams reach thousands.
+pub const LARGE_COLUMNS: usize = 2000;
+
 /// Trials refitted together between two checks of the bound: fixed, so the number of refits
 /// does not depend on the thread count.
 const BATCH: usize = 8;
@@ -564,7 +570,15 @@ pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max
         for a in 0..n {
             g[(a, a)] += ridge;
         }
-        let inv = g.try_inverse().unwrap_or_else(|| DMatrix::identity(n, n));
+        // Thousands of columns (a tendon catalogue's cams) by faer's Cholesky: nalgebra's LU
+        // inverse took minutes a step there. Below, nalgebra's as before (the shipped designs'
+        // eliminations and their bits).
+        let large = n >= LARGE_COLUMNS;
+        let inv = large
+            .then(|| super::dense::spd_inverse(g.clone()))
+            .flatten()
+            .or_else(|| g.try_inverse())
+            .unwrap_or_else(|| DMatrix::identity(n, n));
         let mut cost: Vec<(usize, f64)> = support
             .iter()
             .enumerate()
@@ -761,7 +775,11 @@ pub fn extension_bounds(gram: &Gram, items: &Items, support: &[usize]) -> Vec<f6
     for a in 0..n {
         grr[(a, a)] *= 1.0 + 1e-12;
     }
-    let Some(l) = grr.cholesky().map(|c| c.l()) else {
+    // Thousands of support columns (a tendon catalogue's cams): faer's blocked factor and
+    // triangular solve, nalgebra's unblocked ones taking tens of seconds a bound there.
+    let large = n >= LARGE_COLUMNS;
+    let factor = if large { super::dense::cholesky_lower(grr) } else { grr.cholesky().map(|c| c.l()) };
+    let Some(l) = factor else {
         // Degenerate support: no bound (every trial is refitted).
         return (0..items.len())
             .map(|i| if support.contains(&i) { f64::INFINITY } else { f64::NEG_INFINITY })
@@ -770,7 +788,13 @@ pub fn extension_bounds(gram: &Gram, items: &Items, support: &[usize]) -> Vec<f6
     let cr = DVector::from_fn(n, |a, _| gram.c[cols[a]]);
     let y = l.solve_lower_triangular(&cr).unwrap_or_else(|| DVector::zeros(n));
     let grp = DMatrix::from_fn(n, p, |a, j| gram.g[(cols[a], j)]);
-    let v = l.solve_lower_triangular(&grp).unwrap_or_else(|| DMatrix::zeros(n, p));
+    let v = if large {
+        let mut v = grp;
+        super::dense::solve_lower_in_place(&l, &mut v);
+        v
+    } else {
+        l.solve_lower_triangular(&grp).unwrap_or_else(|| DMatrix::zeros(n, p))
+    };
     let base = gram.bb - y.norm_squared();
     let margin = 1e-12 * gram.bb.abs() + 1e-9 * base.abs();
     // Per column: wⱼ = cⱼ − vⱼ·y.
