@@ -230,6 +230,11 @@ pub struct MassModel {
     /// duty ([`trims_mass`]), fixed whatever the fit chooses (0 without a catalogue: a bill's rows
     /// read back).
     pub trims: f64,
+    /// The trims' parts as the part chooser's accurate pass builds them (their geared cranks
+    /// within [`crate::realise::mechanism::TRIM_LAW_DEPARTURE`] of linear, else a leaf), kg:
+    /// what a budget holds once the parts of a budgeted fit broke it (with the bounded cranks,
+    /// [`MassModel::budget_curve`]), since that pass rebuilds the trims with the cranks.
+    pub trims_bounded: f64,
 }
 
 impl MassModel {
@@ -245,18 +250,21 @@ impl MassModel {
     /// carries too, so their parts' mass ([`MassModel::trims`]) is taken off it (0: no budget).
     /// A budget the trims alone fill is infeasible (a point of `pareto`'s mass curve, as a budget
     /// no set meets), naming the key and the trims' mass.
-    pub fn budget(&self, settings: &FitSettings) -> Result<f64> {
+    /// `bounded`: the budget is held on the parts as the accurate pass builds them (the trims'
+    /// [`MassModel::trims_bounded`]), once the lightest ones' parts broke it.
+    pub fn budget(&self, settings: &FitSettings, bounded: bool) -> Result<f64> {
         let budget = settings.max_spring_mass;
         if budget <= 0.0 {
             return Ok(0.0);
         }
-        let left = budget - self.trims;
+        let trims = if bounded { self.trims_bounded } else { self.trims };
+        let left = budget - trims;
         if left <= 0.0 {
             return Err(Error::Infeasible {
                 constraint: format!("fit.max_spring_mass ({budget} kg, the trims included)"),
                 reason: format!(
                     "the catalogue's trims weigh {:.3} kg by their parts at mid-range, so nothing is left for the fitted springs; raise max_spring_mass above that",
-                    self.trims
+                    trims
                 ),
             });
         }
@@ -279,7 +287,8 @@ impl MassModel {
             _ => FollowerSpec::DEFAULT,
         };
         let trims = trims_mass(design, catalog, evaluation, frequency);
-        MassModel { trims, ..MassModel::with_followers(design, candidates, spec, evaluation, frequency) }
+        let trims_bounded = trims_mass_within(design, catalog, evaluation, frequency, Some(MAX_ROLLER_DEPARTURE));
+        MassModel { trims, trims_bounded, ..MassModel::with_followers(design, candidates, spec, evaluation, frequency) }
     }
 
     fn with_followers(
@@ -345,7 +354,7 @@ impl MassModel {
         let (per_stiffness, per_stiffness_squared) = read.iter().map(|r| r.0).unzip();
         let from_parts = read.iter().map(|r| r.1).collect();
         let bounded = read.iter().map(|r| r.2).collect();
-        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0 }
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0, trims_bounded: 0.0 }
     }
 
     /// The curves a budget is held by, (aᵢ, bᵢ) per candidate: the cranks' within the rollers'
@@ -389,6 +398,20 @@ fn parts_curve(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Opt
 /// parts' `fit` reports unless a trim snaps to a listed stock spring. A trim no part realises
 /// weighs nothing here, as in the bill's total.
 pub fn trims_mass(design: &Design, catalog: &Catalog, evaluation: &Fan, frequency: f64) -> f64 {
+    trims_mass_within(design, catalog, evaluation, frequency, None)
+}
+
+/// [`trims_mass`] with the part chooser's bound on the cranks (`roller_departure`, a share of k;
+/// None: the lightest geometry), which also keeps a trim's geared crank within
+/// [`crate::realise::mechanism::TRIM_LAW_DEPARTURE`] of its linear law: the trims as the accurate
+/// pass of `parts::choose` builds them.
+pub fn trims_mass_within(
+    design: &Design,
+    catalog: &Catalog,
+    evaluation: &Fan,
+    frequency: f64,
+    roller_departure: Option<f64>,
+) -> f64 {
     let mut rows = Vec::new();
     crate::fit::bill::append(design, catalog, &mut rows, evaluation);
     let (_, radius) = swing(design, evaluation, frequency);
@@ -396,7 +419,7 @@ pub fn trims_mass(design: &Design, catalog: &Catalog, evaluation: &Fan, frequenc
     rows.iter()
         .filter_map(|r| {
             let range = r.adjust.trim_range?;
-            let req = requirements(&design.parts, &r.id);
+            let req = Requirements { roller_departure, ..requirements(&design.parts, &r.id) };
             trim(range, r.stiffness, &duty(&spans, &r.element), &req).ok().map(|p| p.mass)
         })
         .sum()

@@ -271,7 +271,7 @@ impl Prepared<'_> {
         // today's, bit for bit, and no part is searched.
         let weighs_mass = settings.mass_weight > 0.0 || settings.max_spring_mass > 0.0;
         let model = weighs_mass.then(|| self.mass_model(settings.frequency));
-        let budget = model.map(|m| m.budget(settings)).transpose()?.unwrap_or(0.0);
+        let budget = model.map(|m| m.budget(settings, self.bounded_cranks)).transpose()?.unwrap_or(0.0);
         // A budget is held on the lightest geometries, or once their parts broke it, on the cranks
         // as the part chooser rebuilt them within the rollers' bound (`MassModel::budget_curve`).
         let bounded = model.filter(|_| budget > 0.0 && self.bounded_cranks).map(MassModel::budget_curve);
