@@ -1229,7 +1229,7 @@ fn crank_round_geometries(
     out
 }
 
-/// The most answers [`crank_round_geometries`] keeps (a few kilobytes each); past it, it starts
+/// The most answers `crank_round_geometries` keeps (a few kilobytes each); past it, it starts
 /// afresh.
 pub const CRANK_ROUNDS_KEPT: usize = 20_000;
 

@@ -526,7 +526,7 @@ impl PassiveFactor {
 }
 
 /// From this many unknowns NNLS keeps its passive set in the order the unknowns entered rather
-/// than sorted: an unknown entering then adds one row to the stored factor ([`PassiveFactor`]
+/// than sorted: an unknown entering then adds one row to the stored factor (`PassiveFactor`
 /// reuses every column before the first difference) instead of refactoring every column after
 /// its place, which on a tendon catalogue's thousands of cam columns was most of the fit (the
 /// dense NNLS of the selection's start). The order changes the factor's rounding, so the
