@@ -209,10 +209,9 @@ fn part_section(m: &mut String, e: &ElementPart, p: &Part, settings: &crate::des
     for c in &p.checks {
         let _ = writeln!(
             m,
-            "| {} | {:.4} {} | {} {:.4} {} | {:.3} |",
+            "| {} | {} | {} {:.4} {} | {:.3} |",
             c.name,
-            c.value,
-            c.unit,
+            check_value(c.value, c.unit),
             if c.upper { "≤" } else { "≥" },
             c.limit,
             c.unit,
@@ -274,4 +273,19 @@ fn figures(e: &ElementPart, p: &Part, settings: &crate::design::parts::PartsSett
         if p.life >= 1e8 { "≥ 10⁸ cycles".into() } else { format!("{:.3e} cycles", p.life) },
     ));
     rows
+}
+
+/// A check's value as parts.md prints it: an unbounded one (a compression spring too short to
+/// buckle at any deflection has no buckling deflection) in words, never `inf`.
+fn check_value(value: f64, unit: &str) -> String {
+    if value.is_finite() { format!("{value:.4} {unit}") } else { "none (unbounded)".into() }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn an_unbounded_check_is_written_in_words() {
+        assert_eq!(super::check_value(f64::INFINITY, "mm"), "none (unbounded)");
+        assert_eq!(super::check_value(29.22364, "mm"), "29.2236 mm");
+    }
 }
