@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Which couplings the six-joint UR5 needs: a search over random couplings, then one cam on each
 of the 40 it ranks first (catalogs/ur5_cams.toml, where scripts/ur5_pursuit.py starts the search
-for designs/ur5_six_cams.toml's couplings).
+for the couplings of designs/ur5_six_cams.toml, withdrawn since: couplings like these have no
+transmission within `[parts]`, README).
 
 Why. designs/ur5_six.toml with catalogs/ur5_span.toml (every joint, every pair, every adjacent
 triple and eight pan-wrist couplings) stops near p99 2.3° however many springs it keeps, and the

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Couplings for the six-joint UR5's cams by projection pursuit: the directions a of the 40 cams'
 transmission coordinates x = a·q, moved to where the fit is best (catalogs/ur5_cams_pursuit.toml,
-designs/ur5_six_cams.toml).
+for designs/ur5_six_cams.toml, withdrawn since: 26 of its 40 couplings have no transmission, the
+README says why; the design file is in the history at commit 699f463).
 
 Why. scripts/ur5_couplings.py ranks integer couplings and puts a cam on each of the 40 it ranks
 first (catalogs/ur5_cams.toml): p99 1.46°, with the error in the outer band of the ball. A cam
