@@ -215,7 +215,7 @@ fn the_budget_curve_reads_the_cranks_within_the_rollers_bound() {
     let rows: Vec<_> = outcome.bom.iter().filter(|r| r.adjust.trim_range.is_none()).collect();
     let candidates: Vec<Candidate> = rows.iter().map(|r| Candidate::bare(r.element.clone())).collect();
     let model = MassModel::new(&design, &candidates, &outcome.evaluation, settings.frequency);
-    let (a, b) = model.budget_curve();
+    let (a, b) = model.budget_curve().expect("MassModel::new reads the bounded cranks");
     let mass = |parts: &springfit::parts::Parts, id: &str| {
         parts.elements.iter().find(|e| e.id == id).and_then(|e| e.part.as_ref().ok()).map(|p| p.mass)
     };

@@ -223,7 +223,10 @@ pub struct MassModel {
     /// `ROLLER_SLACK_DEG` off its ideal elements; equal to the plain curve for every other
     /// candidate, and for every candidate when the design's cranks run without rollers
     /// (`[parts] pulley_radius_mm = 0`). What a budget is held by ([`MassModel::budget_curve`]).
-    pub bounded: Vec<(f64, f64)>,
+    /// None where the model was read without it ([`MassModel::of_catalog_lightest`]: a fit whose
+    /// budget is not held on the bounded cranks, where these reads were a second crank search
+    /// per candidate for nothing).
+    pub bounded: Option<Vec<(f64, f64)>>,
     /// The floor.
     pub floor: Floor,
     /// The trims' parts, kg: each trim's part as the part chooser builds it at mid-range over its
@@ -233,8 +236,9 @@ pub struct MassModel {
     /// The trims' parts as the part chooser's accurate pass builds them (their geared cranks
     /// within [`crate::realise::mechanism::TRIM_LAW_DEPARTURE`] of linear, else a leaf), kg:
     /// what a budget holds once the parts of a budgeted fit broke it (with the bounded cranks,
-    /// [`MassModel::budget_curve`]), since that pass rebuilds the trims with the cranks.
-    pub trims_bounded: f64,
+    /// [`MassModel::budget_curve`]), since that pass rebuilds the trims with the cranks. None
+    /// where the model was read without the bounded parts ([`MassModel::of_catalog_lightest`]).
+    pub trims_bounded: Option<f64>,
 }
 
 impl MassModel {
@@ -243,7 +247,7 @@ impl MassModel {
     /// every cam's follower as [`FollowerSpec::DEFAULT`] builds it (candidates outside a catalogue,
     /// such as a bill's rows read back: [`MassModel::of_catalog`] has the families').
     pub fn new(design: &Design, candidates: &[Candidate], evaluation: &Fan, frequency: f64) -> MassModel {
-        MassModel::with_followers(design, candidates, |_| FollowerSpec::DEFAULT, evaluation, frequency)
+        MassModel::with_followers(design, candidates, |_| FollowerSpec::DEFAULT, evaluation, frequency, true)
     }
 
     /// The budget `max_spring_mass` leaves the fitted springs, kg: the trims are springs the arm
@@ -251,13 +255,20 @@ impl MassModel {
     /// A budget the trims alone fill is infeasible (a point of `pareto`'s mass curve, as a budget
     /// no set meets), naming the key and the trims' mass.
     /// `bounded`: the budget is held on the parts as the accurate pass builds them (the trims'
-    /// [`MassModel::trims_bounded`]), once the lightest ones' parts broke it.
+    /// [`MassModel::trims_bounded`]), once the lightest ones' parts broke it (an error where the
+    /// model was read without them).
     pub fn budget(&self, settings: &FitSettings, bounded: bool) -> Result<f64> {
         let budget = settings.max_spring_mass;
         if budget <= 0.0 {
             return Ok(0.0);
         }
-        let trims = if bounded { self.trims_bounded } else { self.trims };
+        let trims = if bounded {
+            self.trims_bounded.ok_or_else(|| {
+                Error::numerical("fit.max_spring_mass", "the mass model was read without the bounded trims")
+            })?
+        } else {
+            self.trims
+        };
         let left = budget - trims;
         if left <= 0.0 {
             return Err(Error::Infeasible {
@@ -280,6 +291,30 @@ impl MassModel {
         evaluation: &Fan,
         frequency: f64,
     ) -> MassModel {
+        MassModel::of_catalog_reading(design, catalog, candidates, evaluation, frequency, true)
+    }
+
+    /// [`MassModel::of_catalog`] without the parts built within the rollers' bound
+    /// ([`MassModel::bounded`] and [`MassModel::trims_bounded`] None): what every fit reads
+    /// but a budget that the parts broke (`fit::prepare`), its other figures the same bits.
+    pub fn of_catalog_lightest(
+        design: &Design,
+        catalog: &Catalog,
+        candidates: &[Candidate],
+        evaluation: &Fan,
+        frequency: f64,
+    ) -> MassModel {
+        MassModel::of_catalog_reading(design, catalog, candidates, evaluation, frequency, false)
+    }
+
+    fn of_catalog_reading(
+        design: &Design,
+        catalog: &Catalog,
+        candidates: &[Candidate],
+        evaluation: &Fan,
+        frequency: f64,
+        read_bounded: bool,
+    ) -> MassModel {
         let spec = |c: &Candidate| match (c.element.profile, catalog.families.get(c.family).and_then(|f| f.cam)) {
             (Profile::Spline(_), Some(cam)) => {
                 FollowerSpec { stroke: cam.max_stroke, preload_fraction: cam.preload_fraction }
@@ -287,8 +322,13 @@ impl MassModel {
             _ => FollowerSpec::DEFAULT,
         };
         let trims = trims_mass(design, catalog, evaluation, frequency);
-        let trims_bounded = trims_mass_within(design, catalog, evaluation, frequency, Some(MAX_ROLLER_DEPARTURE));
-        MassModel { trims, trims_bounded, ..MassModel::with_followers(design, candidates, spec, evaluation, frequency) }
+        let trims_bounded =
+            read_bounded.then(|| trims_mass_within(design, catalog, evaluation, frequency, Some(MAX_ROLLER_DEPARTURE)));
+        MassModel {
+            trims,
+            trims_bounded,
+            ..MassModel::with_followers(design, candidates, spec, evaluation, frequency, read_bounded)
+        }
     }
 
     fn with_followers(
@@ -297,6 +337,7 @@ impl MassModel {
         spec: impl Fn(&Candidate) -> FollowerSpec + Sync,
         evaluation: &Fan,
         frequency: f64,
+        read_bounded: bool,
     ) -> MassModel {
         let floor = Floor::on(design, frequency, evaluation);
         let (_, radius) = swing(design, evaluation, frequency);
@@ -318,8 +359,8 @@ impl MassModel {
             specs.par_iter().map(|&s| (s, s.per_joule(energy, &req))).collect();
         // The cranks' rollers bounded as `parts::choose` bounds them when the realised design needs
         // it: only where the cranks run over rollers.
-        let rollers =
-            (req.pulley_radius > 0.0).then_some(Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req });
+        let rollers = (read_bounded && req.pulley_radius > 0.0)
+            .then_some(Requirements { roller_departure: Some(MAX_ROLLER_DEPARTURE), ..req });
         let read: Vec<(Curve, bool, Curve)> = candidates
             .par_iter()
             .map(|c| {
@@ -353,8 +394,9 @@ impl MassModel {
             .collect();
         let (per_stiffness, per_stiffness_squared) = read.iter().map(|r| r.0).unzip();
         let from_parts = read.iter().map(|r| r.1).collect();
-        let bounded = read.iter().map(|r| r.2).collect();
-        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0, trims_bounded: 0.0 }
+        let bounded = read_bounded.then(|| read.iter().map(|r| r.2).collect());
+        let trims_bounded = read_bounded.then_some(0.0);
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0, trims_bounded }
     }
 
     /// The curves a budget is held by, (aᵢ, bᵢ) per candidate: the cranks' within the rollers'
@@ -364,8 +406,9 @@ impl MassModel {
     /// model and not the parts there (the default design at `max_spring_mass = 2.126`: 1.904 kg by
     /// the model, 3.145 kg of parts). Read on the bounded cranks, the parts are within it whichever
     /// geometry the chooser keeps. A mass weight keeps the plain curves (a trade, not a promise).
-    pub fn budget_curve(&self) -> (Vec<f64>, Vec<f64>) {
-        self.bounded.iter().copied().unzip()
+    /// None where the model was read without them ([`MassModel::of_catalog_lightest`]).
+    pub fn budget_curve(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        self.bounded.as_ref().map(|b| b.iter().copied().unzip())
     }
 
     /// Candidate `i`'s mass at stiffness `k` by the model, aᵢk + bᵢk², kg.

@@ -51,8 +51,11 @@ pub struct Prepared<'a> {
     /// The rows, assembled again on first use where `problem` did not keep them.
     rows_again: OnceLock<DMatrix<f64>>,
     /// The candidates' mass per unit stiffness, searched on first use by a fit that weighs the
-    /// mass or bounds it (`fit::mass`).
+    /// mass or bounds it (`fit::mass`), on the lightest parts only.
     mass: OnceLock<MassModel>,
+    /// The same with the parts built within the rollers' bound, searched on first use by a
+    /// budget held on them ([`Prepared::bounded_cranks`]).
+    mass_bounded: OnceLock<MassModel>,
     /// Whether a budget is held by the cranks built within the rollers' bound
     /// ([`MassModel::budget_curve`]) rather than on the lightest geometry: set by
     /// [`Prepared::hold_budget_on_bounded_cranks`] once the parts of a budgeted fit broke it.
@@ -145,6 +148,7 @@ impl<'a> Prepared<'a> {
             appended,
             rows_again: OnceLock::new(),
             mass: OnceLock::new(),
+            mass_bounded: OnceLock::new(),
             bounded_cranks: false,
             trims,
             gram,
@@ -241,10 +245,17 @@ impl Prepared<'_> {
     /// The candidates' spring mass per unit stiffness and the floor (`fit::mass`), searched with
     /// the part chooser on first use, over the held-out fan at `frequency` (which every solve of
     /// one preparation shares).
-    pub fn mass_model(&self, frequency: f64) -> &MassModel {
-        self.mass.get_or_init(|| {
-            MassModel::of_catalog(self.design, self.catalog, &self.candidates, &self.evaluation, frequency)
-        })
+    ///
+    /// Read on the lightest parts alone ([`MassModel::of_catalog_lightest`]) unless `bounded`
+    /// (a budget held on the cranks built within the rollers' bound, [`MassModel::of_catalog`]):
+    /// the bounded reads are a second crank search per candidate that only such a budget uses.
+    pub fn mass_model(&self, frequency: f64, bounded: bool) -> &MassModel {
+        let (design, catalog, candidates, evaluation) = (self.design, self.catalog, &self.candidates, &self.evaluation);
+        if bounded {
+            self.mass_bounded.get_or_init(|| MassModel::of_catalog(design, catalog, candidates, evaluation, frequency))
+        } else {
+            self.mass.get_or_init(|| MassModel::of_catalog_lightest(design, catalog, candidates, evaluation, frequency))
+        }
     }
 
     /// From now on, a budget (`[fit] max_spring_mass`) holds the cranks as the part chooser builds
