@@ -782,11 +782,12 @@ impl UpdatedFactor {
 }
 
 /// From this many unknowns NNLS keeps its passive set in the order the unknowns entered rather
-/// than sorted: an unknown entering then adds one row to the stored factor (`PassiveFactor`
-/// reuses every column before the first difference) instead of refactoring every column after
-/// its place, which on a tendon catalogue's thousands of cam columns was most of the fit (the
-/// dense NNLS of the selection's start). The order changes the factor's rounding, so the
-/// threshold sits above every shipped design's problems (the largest, `ur5_six`'s 1,230 columns).
+/// than sorted, factors its systems by updates in place (`UpdatedFactor`: an entering unknown
+/// adds one row, a leaving one a rank-one update of the rows after it) and solves a cam's
+/// mirrored ± columns as one signed unknown (`mirrored_pairs`). On a tendon catalogue's
+/// thousands of cam columns refactoring was most of the fit (the dense NNLS of the selection's
+/// start). The order and the updates change the factor's rounding, so the threshold sits above
+/// every shipped design's problems (the largest, `ur5_six`'s 1,230 columns).
 pub const ORDERED_FROM: usize = 2000;
 
 /// Columns factored together by [`update_block`].

@@ -547,7 +547,9 @@ where
 /// items whose removal raises the objective least by the least-squares deletion estimate
 /// k_Gᵀ ((G_S⁻¹)_GG)⁻¹ k_G (kⱼ² / (G_S⁻¹)ⱼⱼ for a single column; items refitted to zero go
 /// first). While the support is much larger than the budget, an eighth of the excess goes per
-/// step; the last steps remove one at a time.
+/// step; the last steps remove one at a time. From [`LARGE_COLUMNS`] columns each refit is
+/// warm-started from the last solution's positive columns and the estimates come from the passive
+/// set's system only (`large_elimination_costs`).
 pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max: usize) -> Result<Vec<usize>> {
     let settings = NnlsSettings::default();
     let mut support = start;
@@ -592,15 +594,9 @@ pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max
         for a in 0..n {
             g[(a, a)] += ridge;
         }
-        // Thousands of columns (a tendon catalogue's cams) by faer's Cholesky: nalgebra's LU
-        // inverse took minutes a step there. Below, nalgebra's as before (the shipped designs'
-        // eliminations and their bits).
-        let large = n >= LARGE_COLUMNS;
-        let inv = large
-            .then(|| super::dense::spd_inverse(g.clone()))
-            .flatten()
-            .or_else(|| g.try_inverse())
-            .unwrap_or_else(|| DMatrix::identity(n, n));
+        // Below `LARGE_COLUMNS` (the shipped designs' eliminations and their bits): nalgebra's
+        // inverse of the whole support's system, as before.
+        let inv = g.try_inverse().unwrap_or_else(|| DMatrix::identity(n, n));
         let cost: Vec<(usize, f64)> = support
             .iter()
             .enumerate()
