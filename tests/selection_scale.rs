@@ -76,3 +76,50 @@ fn large_extension_bounds_are_exact_where_the_refit_is_unconstrained() {
         );
     }
 }
+
+#[test]
+fn mirrored_pairs_are_solved_as_signed_unknowns_to_the_same_optimum() {
+    // A cam's ± basis columns (each − column the exact negation of the + column before it), more
+    // than `ORDERED_FROM` of them, and some plain columns: NNLS solves each pair as one unknown
+    // free of sign. The answer must still meet the optimality conditions of the problem as posed
+    // (every column k ≥ 0, the gradient zero on the support and ≤ 0 off it), hold at most one
+    // column of each pair positive, and reach the objective it reports.
+    let pairs = ORDERED_FROM / 2 + 40;
+    let plain = 120;
+    let p = 2 * pairs + plain;
+    let m = pairs + plain + 300;
+    let mut s = 19;
+    let base = DMatrix::from_fn(m, pairs + plain, |_, _| lcg(&mut s));
+    let a = DMatrix::from_fn(m, p, |i, j| {
+        if j < 2 * pairs {
+            let v = base[(i, j / 2)];
+            if j % 2 == 0 { v } else { -v }
+        } else {
+            base[(i, j - pairs)]
+        }
+    });
+    let truth = DVector::from_fn(pairs + plain, |j, _| if j % 5 == 0 { lcg(&mut s) } else { 0.0 });
+    let b = &base * truth + DVector::from_fn(m, |_, _| 0.05 * lcg(&mut s));
+    let gram = Gram::from_rows(&a, &b);
+    let sol = nnls(&gram, 0.0, &NnlsSettings::default()).unwrap();
+    let k = &sol.k;
+    assert!(k.iter().all(|v| *v >= 0.0 && v.is_finite()));
+    for q in 0..pairs {
+        assert!(k[2 * q] == 0.0 || k[2 * q + 1] == 0.0, "pair {q}: both columns positive");
+    }
+    let negative = (0..pairs).filter(|&q| k[2 * q + 1] > 0.0).count();
+    let positive = (0..pairs).filter(|&q| k[2 * q] > 0.0).count();
+    assert!(negative > 100 && positive > 100, "{positive} pairs positive, {negative} negative");
+    let plain_in = (2 * pairs..p).filter(|&j| k[j] > 0.0).count();
+    assert!(plain_in > 0 && plain_in < plain, "{plain_in} of {plain} plain columns in the solution");
+    let w = &gram.c - &gram.g * k;
+    let scale = gram.c.amax();
+    for j in 0..p {
+        if k[j] > 0.0 {
+            assert!(w[j].abs() <= 1e-8 * scale, "column {j} in the support: gradient {:.3e}", w[j]);
+        } else {
+            assert!(w[j] <= 1e-8 * scale, "column {j} at zero would lower the objective: {:.3e}", w[j]);
+        }
+    }
+    assert!((sol.objective - gram.objective(k)).abs() <= 1e-9 * gram.bb);
+}

@@ -99,7 +99,77 @@ pub fn nnls_signed(
     passive_start: &[usize],
     free: &[bool],
 ) -> Result<NnlsSolution> {
-    nnls_with::<PassiveFactor>(gram, l1, settings, passive_start, free)
+    if gram.dim() >= ORDERED_FROM {
+        if l1 == 0.0
+            && let Some(sol) = nnls_mirrored(gram, settings, passive_start, free)?
+        {
+            return Ok(sol);
+        }
+        nnls_with::<UpdatedFactor>(gram, l1, settings, passive_start, free)
+    } else {
+        nnls_with::<PassiveFactor>(gram, l1, settings, passive_start, free)
+    }
+}
+
+/// For each unknown, the earlier unknown whose column of G and entry of c it is the exact negation
+/// of (bit for bit), where that earlier one sits just before it, is sign-constrained, non-zero and
+/// no one's mirror itself: a cam's ± basis columns (listed in that order, `lsq::mirrors`).
+fn mirrored_pairs(gram: &Gram, free: &[bool]) -> Vec<Option<usize>> {
+    let p = gram.dim();
+    let is_free = |j: usize| free.get(j).copied().unwrap_or(false);
+    let mut of = vec![None; p];
+    for j in 1..p {
+        let i = j - 1;
+        if of[i].is_some() || is_free(i) || is_free(j) || gram.g[(i, i)] <= 0.0 || gram.c[j] != -gram.c[i] {
+            continue;
+        }
+        if gram.g.column(j).iter().zip(gram.g.column(i).iter()).all(|(a, b)| *a == -*b) {
+            of[j] = Some(i);
+        }
+    }
+    of
+}
+
+/// NNLS without an L1 weight on a problem whose unknowns come in mirrored pairs (a cam's + and −
+/// basis columns, [`mirrored_pairs`]): each pair is one unknown free of sign, k₊ = max(x, 0) and
+/// k₋ = max(−x, 0). The same minimum (a pair's two columns only ever add up to one column times
+/// k₊ − k₋, and at an optimum one of them is zero), reached with half the unknowns and without
+/// Lawson–Hanson bringing every coefficient in one at a time: on cams alone it is one linear
+/// solve. None when there are no pairs.
+fn nnls_mirrored(
+    gram: &Gram,
+    settings: &NnlsSettings,
+    passive_start: &[usize],
+    free: &[bool],
+) -> Result<Option<NnlsSolution>> {
+    let p = gram.dim();
+    let of = mirrored_pairs(gram, free);
+    if of.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let mirrored: Vec<bool> = (0..p).map(|i| of.get(i + 1).is_some_and(|m| *m == Some(i))).collect();
+    let kept: Vec<usize> = (0..p).filter(|&j| of[j].is_none()).collect();
+    let at: std::collections::HashMap<usize, usize> = kept.iter().enumerate().map(|(a, &j)| (j, a)).collect();
+    let reduced = gram.subset(&kept);
+    let reduced_free: Vec<bool> = kept.iter().map(|&j| mirrored[j] || free.get(j).copied().unwrap_or(false)).collect();
+    let start: Vec<usize> =
+        passive_start.iter().filter_map(|&j| at.get(&of.get(j).copied().flatten().unwrap_or(j)).copied()).collect();
+    let sol = nnls_with::<UpdatedFactor>(&reduced, 0.0, settings, &start, &reduced_free)?;
+    let mut k = DVector::zeros(p);
+    for (a, &j) in kept.iter().enumerate() {
+        let x = sol.k[a];
+        if mirrored[j] {
+            if x > 0.0 {
+                k[j] = x;
+            } else if x < 0.0 {
+                k[j + 1] = -x;
+            }
+        } else {
+            k[j] = x;
+        }
+    }
+    let objective = gram.objective(&k);
+    Ok(Some(NnlsSolution { k, objective, iterations: sol.iterations }))
 }
 
 /// How the passive-set systems are factored: the hand-written reusing Cholesky (what the fit
@@ -525,12 +595,199 @@ impl PassiveFactor {
     }
 }
 
+/// The Cholesky factor of the passive-set system kept in place and updated, for NNLS of
+/// [`ORDERED_FROM`] unknowns or more (the passive set in entry order): an unknown entering appends
+/// one row (a forward substitution, O(n²)), an unknown leaving deletes its row and column and
+/// restores the rows after it by a rank-one update of the trailing block (Givens-style, O((n−k)²)
+/// for position k), all in one buffer of fixed leading dimension that only grows. A passive set
+/// that is not the stored one with unknowns removed and others appended (or a new ridge) is
+/// factored from scratch by faer's blocked Cholesky. [`PassiveFactor`] instead rebuilt the factor
+/// in a fresh buffer at every solve and refactored every column after a dropped one: on a tendon
+/// catalogue's 9,472 cam columns that was 79 % of the selection (BENCHMARKS.md). The updates
+/// round differently from a fresh factor (within a few ulps of the condition number), so below
+/// the threshold, where the shipped designs' fits keep their bits, `PassiveFactor` stays.
+#[derive(Debug, Default)]
+struct UpdatedFactor {
+    /// The passive set of `l`, in its order; empty when nothing is stored.
+    idx: Vec<usize>,
+    /// The ridge of `l`, as bits.
+    ridge_bits: u64,
+    /// L column-major with leading dimension `cap`: entry (i, j), i ≥ j, at `j * cap + i`.
+    l: Vec<f64>,
+    /// The leading dimension (and most unknowns `l` holds).
+    cap: usize,
+    /// Scratch of the updates.
+    work: Vec<f64>,
+}
+
+impl PassiveSolver for UpdatedFactor {
+    fn factor(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        let ok = self.update(g, idx, ridge);
+        if !ok {
+            self.idx.clear();
+        }
+        ok
+    }
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        self.solve_stored(b)
+    }
+}
+
+impl UpdatedFactor {
+    /// Brings the stored factor to G_PP + ridge·I for P = `idx`; false if it is not numerically
+    /// positive definite.
+    fn update(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        if self.ridge_bits != ridge.to_bits() || self.idx.is_empty() {
+            return self.fresh(g, idx, ridge);
+        }
+        // The stored unknowns that stay must be `idx`'s first entries, in the same order.
+        let stays: std::collections::HashSet<usize> = idx.iter().copied().collect();
+        let kept = self.idx.iter().filter(|j| stays.contains(j)).count();
+        if !self.idx.iter().filter(|j| stays.contains(j)).zip(idx).all(|(a, b)| a == b) {
+            return self.fresh(g, idx, ridge);
+        }
+        // Deletions from the last position back, so that the positions still to go stay valid.
+        let gone: Vec<usize> = (0..self.idx.len()).filter(|&a| !stays.contains(&self.idx[a])).collect();
+        if gone.len() + (idx.len() - kept) > idx.len() / 2 + 8 {
+            // Most of the set changes: a fresh factor is cheaper than the updates.
+            return self.fresh(g, idx, ridge);
+        }
+        for &a in gone.iter().rev() {
+            self.delete(a);
+        }
+        for &j in &idx[kept..] {
+            if !self.append(g, j, ridge) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Factors G_PP + ridge·I from scratch (faer) into the buffer.
+    fn fresh(&mut self, g: &DMatrix<f64>, idx: &[usize], ridge: f64) -> bool {
+        let n = idx.len();
+        self.idx.clear();
+        self.ridge_bits = ridge.to_bits();
+        let m = DMatrix::from_fn(n, n, |i, j| g[(idx[i], idx[j])] + if i == j { ridge } else { 0.0 });
+        let Some(l) = super::dense::cholesky_lower(m) else { return false };
+        if l.diagonal().iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+            return false;
+        }
+        self.reserve(n);
+        let cap = self.cap;
+        for j in 0..n {
+            self.l[j * cap + j..j * cap + n].copy_from_slice(&l.as_slice()[j * n + j..j * n + n]);
+        }
+        self.idx.extend_from_slice(idx);
+        true
+    }
+
+    /// Room for `n` unknowns (the stored factor moved to the larger leading dimension).
+    fn reserve(&mut self, n: usize) {
+        if n <= self.cap {
+            return;
+        }
+        let cap = n.max(2 * self.cap).max(64);
+        let mut l = vec![0.0; cap * cap];
+        let old = self.idx.len();
+        for j in 0..old {
+            l[j * cap + j..j * cap + old].copy_from_slice(&self.l[j * self.cap + j..j * self.cap + old]);
+        }
+        self.l = l;
+        self.cap = cap;
+    }
+
+    /// Appends unknown `j` as the last row: L y = G_Pj, L_nn = √(G_jj + ridge − yᵀy).
+    fn append(&mut self, g: &DMatrix<f64>, j: usize, ridge: f64) -> bool {
+        let n = self.idx.len();
+        self.reserve(n + 1);
+        let cap = self.cap;
+        let mut y = std::mem::take(&mut self.work);
+        y.clear();
+        y.extend(self.idx.iter().map(|&i| g[(i, j)]));
+        // Column-oriented forward substitution (contiguous columns of L).
+        for k in 0..n {
+            let col = &self.l[k * cap..k * cap + n];
+            let yk = y[k] / col[k];
+            y[k] = yk;
+            for (v, lik) in y[k + 1..].iter_mut().zip(&col[k + 1..]) {
+                *v -= lik * yk;
+            }
+        }
+        let d = g[(j, j)] + ridge - y.iter().map(|v| v * v).sum::<f64>();
+        let ok = d.is_finite() && d > 0.0;
+        if ok {
+            for (k, v) in y.iter().enumerate() {
+                self.l[k * cap + n] = *v;
+            }
+            self.l[n * cap + n] = d.sqrt();
+            self.idx.push(j);
+        }
+        self.work = y;
+        ok
+    }
+
+    /// Deletes the unknown at position `a`: the rows after it keep L₃₃' L₃₃'ᵀ = L₃₃ L₃₃ᵀ + l l^T
+    /// (l its column below the diagonal) by a rank-one update, then everything after moves up one.
+    fn delete(&mut self, a: usize) {
+        let n = self.idx.len();
+        let cap = self.cap;
+        let mut x = std::mem::take(&mut self.work);
+        x.clear();
+        x.extend_from_slice(&self.l[a * cap + a + 1..a * cap + n]);
+        // Rank-one update of the trailing block (rows and columns a+1..n).
+        for (t, k) in (a + 1..n).enumerate() {
+            let col = &mut self.l[k * cap..k * cap + n];
+            let lkk = col[k];
+            let xk = x[t];
+            let r = lkk.hypot(xk);
+            let (c, s) = (r / lkk, xk / lkk);
+            col[k] = r;
+            for (lik, xi) in col[k + 1..].iter_mut().zip(x[t + 1..].iter_mut()) {
+                *lik = (*lik + s * *xi) / c;
+                *xi = c * *xi - s * *lik;
+            }
+        }
+        // Close the gap: row a out of the columns before it, column a out of the rest.
+        for j in 0..a {
+            self.l.copy_within(j * cap + a + 1..j * cap + n, j * cap + a);
+        }
+        for k in a + 1..n {
+            self.l.copy_within(k * cap + k..k * cap + n, (k - 1) * cap + (k - 1));
+        }
+        self.idx.remove(a);
+        self.work = x;
+    }
+
+    /// Solves (L Lᵀ) z = b with the stored factor.
+    fn solve_stored(&self, b: &DVector<f64>) -> DVector<f64> {
+        let n = self.idx.len();
+        let cap = self.cap;
+        let mut z = b.clone();
+        for k in 0..n {
+            let col = &self.l[k * cap..k * cap + n];
+            let zk = z[k] / col[k];
+            z[k] = zk;
+            for (v, lik) in z.as_mut_slice()[k + 1..].iter_mut().zip(&col[k + 1..]) {
+                *v -= lik * zk;
+            }
+        }
+        for k in (0..n).rev() {
+            let col = &self.l[k * cap..k * cap + n];
+            let dot: f64 = col[k + 1..].iter().zip(&z.as_slice()[k + 1..]).map(|(l, v)| l * v).sum();
+            z[k] = (z[k] - dot) / col[k];
+        }
+        z
+    }
+}
+
 /// From this many unknowns NNLS keeps its passive set in the order the unknowns entered rather
-/// than sorted: an unknown entering then adds one row to the stored factor (`PassiveFactor`
-/// reuses every column before the first difference) instead of refactoring every column after
-/// its place, which on a tendon catalogue's thousands of cam columns was most of the fit (the
-/// dense NNLS of the selection's start). The order changes the factor's rounding, so the
-/// threshold sits above every shipped design's problems (the largest, `ur5_six`'s 1,230 columns).
+/// than sorted, factors its systems by updates in place (`UpdatedFactor`: an entering unknown
+/// adds one row, a leaving one a rank-one update of the rows after it) and solves a cam's
+/// mirrored ± columns as one signed unknown (`mirrored_pairs`). On a tendon catalogue's
+/// thousands of cam columns refactoring was most of the fit (the dense NNLS of the selection's
+/// start). The order and the updates change the factor's rounding, so the threshold sits above
+/// every shipped design's problems (the largest, `ur5_six`'s 1,230 columns).
 pub const ORDERED_FROM: usize = 2000;
 
 /// Columns factored together by [`update_block`].
@@ -670,6 +927,61 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn updated_factors_equal_fresh_factors_after_many_updates() {
+        // Unknowns entering at the end and leaving from anywhere (several at once, as a
+        // Lawson–Hanson step back drops them), now and then a jump to an unrelated set: after every
+        // change the stored factor is the Cholesky factor of G_PP + ridge·I computed afresh, and
+        // its solution solves the system.
+        let mut seed = 29;
+        let p = 90;
+        let a = DMatrix::from_fn(140, p, |_, _| lcg(&mut seed));
+        let g = a.transpose() * &a;
+        let c = DVector::from_fn(p, |_, _| lcg(&mut seed));
+        let ridge = 1e-12;
+        let mut factor = UpdatedFactor::default();
+        let mut order: Vec<usize> = Vec::new();
+        let mut updates = 0;
+        for step in 0..300 {
+            let u = ((lcg(&mut seed) + 1.0) * 0.5 * p as f64) as usize % p;
+            if step % 61 == 60 {
+                order = (0..p).filter(|_| lcg(&mut seed) > 0.3).collect();
+            } else if order.len() > 8 && (order.contains(&u) || lcg(&mut seed) > 0.6) {
+                let drop = if step % 5 == 0 { 3 } else { 1 };
+                for _ in 0..drop {
+                    let at = ((lcg(&mut seed) + 1.0) * 0.5 * order.len() as f64) as usize % order.len();
+                    order.remove(at);
+                }
+            } else if !order.contains(&u) {
+                order.push(u);
+            }
+            let before = factor.idx.clone();
+            assert!(factor.factor(&g, &order, ridge), "step {step}");
+            if !before.is_empty() && before != order {
+                updates += 1;
+            }
+            let n = order.len();
+            let m = DMatrix::from_fn(n, n, |i, j| g[(order[i], order[j])] + if i == j { ridge } else { 0.0 });
+            let fresh = m.clone().cholesky().expect("positive definite").l();
+            let cap = factor.cap;
+            let scale = fresh.amax();
+            for j in 0..n {
+                for i in j..n {
+                    let mine = factor.l[j * cap + i];
+                    assert!(
+                        (mine - fresh[(i, j)]).abs() <= 1e-10 * scale,
+                        "step {step}, L[{i},{j}]: {mine} vs {}",
+                        fresh[(i, j)]
+                    );
+                }
+            }
+            let rhs = DVector::from_fn(n, |r, _| c[order[r]]);
+            let z = factor.solve(&rhs);
+            assert!((&m * &z - &rhs).amax() <= 1e-9 * rhs.amax(), "step {step}");
+        }
+        assert!(updates > 200, "{updates} updates");
     }
 
     #[test]

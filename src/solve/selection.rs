@@ -547,13 +547,38 @@ where
 /// items whose removal raises the objective least by the least-squares deletion estimate
 /// k_Gᵀ ((G_S⁻¹)_GG)⁻¹ k_G (kⱼ² / (G_S⁻¹)ⱼⱼ for a single column; items refitted to zero go
 /// first). While the support is much larger than the budget, an eighth of the excess goes per
-/// step; the last steps remove one at a time.
+/// step; the last steps remove one at a time. From [`LARGE_COLUMNS`] columns each refit is
+/// warm-started from the last solution's positive columns and the estimates come from the passive
+/// set's system only (`large_elimination_costs`).
 pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max: usize) -> Result<Vec<usize>> {
     let settings = NnlsSettings::default();
     let mut support = start;
+    // The columns of the last refit's solution that were positive (the large path's warm start).
+    let mut positive: Vec<usize> = Vec::new();
     loop {
         let cols = items.columns(&support);
         let sub = gram.subset(&cols);
+        let n = cols.len();
+        if n >= LARGE_COLUMNS {
+            // Thousands of columns (a tendon catalogue's cams): warm-started from the last
+            // solution's positive columns, not from every column (a cam's ± columns cannot both be
+            // positive, so that start always failed and cost a dense factor of them all), and the
+            // deletion estimates from the passive set's own system (see `large_elimination_costs`).
+            let start: Vec<usize> = positive.iter().filter_map(|j| cols.binary_search(j).ok()).collect();
+            let sol = nnls_warm(&sub, 0.0, &settings, &start)?;
+            positive = (0..n).filter(|&a| sol.k[a] > 0.0).map(|a| cols[a]).collect();
+            let kept = prune(&support, &items.per_item(&support, &cols, sol.k.as_slice()));
+            if kept.len() < support.len() {
+                support = kept;
+                continue;
+            }
+            if support.len() <= k_max {
+                return Ok(support);
+            }
+            let cost = large_elimination_costs(&sub, items, &support, &cols, &sol.k);
+            remove_cheapest(&mut support, cost, k_max);
+            continue;
+        }
         let all: Vec<usize> = (0..cols.len()).collect();
         let sol = nnls_warm(&sub, 0.0, &settings, &all)?;
         let kept = prune(&support, &items.per_item(&support, &cols, sol.k.as_slice()));
@@ -564,22 +589,15 @@ pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max
         if support.len() <= k_max {
             return Ok(support);
         }
-        let n = cols.len();
         let mut g = sub.g.clone();
         let ridge = 1e-12 * g.diagonal().amax().max(1e-300);
         for a in 0..n {
             g[(a, a)] += ridge;
         }
-        // Thousands of columns (a tendon catalogue's cams) by faer's Cholesky: nalgebra's LU
-        // inverse took minutes a step there. Below, nalgebra's as before (the shipped designs'
-        // eliminations and their bits).
-        let large = n >= LARGE_COLUMNS;
-        let inv = large
-            .then(|| super::dense::spd_inverse(g.clone()))
-            .flatten()
-            .or_else(|| g.try_inverse())
-            .unwrap_or_else(|| DMatrix::identity(n, n));
-        let mut cost: Vec<(usize, f64)> = support
+        // Below `LARGE_COLUMNS` (the shipped designs' eliminations and their bits): nalgebra's
+        // inverse of the whole support's system, as before.
+        let inv = g.try_inverse().unwrap_or_else(|| DMatrix::identity(n, n));
+        let cost: Vec<(usize, f64)> = support
             .iter()
             .enumerate()
             .map(|(a, &i)| {
@@ -597,15 +615,67 @@ pub fn backward_elimination(gram: &Gram, items: &Items, start: Vec<usize>, k_max
                 (a, cost)
             })
             .collect();
-        cost.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
-        let excess = support.len() - k_max;
-        let remove = if excess > 8 { excess / 8 } else { 1 };
-        let mut victims: Vec<usize> = cost.iter().take(remove).map(|c| c.0).collect();
-        victims.sort_unstable_by(|a, b| b.cmp(a));
-        for v in victims {
-            support.remove(v);
-        }
+        remove_cheapest(&mut support, cost, k_max);
     }
+}
+
+/// Removes from `support` the items of least cost ((position, cost) pairs): an eighth of the excess
+/// over `k_max` while that is more than eight, else one.
+fn remove_cheapest(support: &mut Vec<usize>, mut cost: Vec<(usize, f64)>, k_max: usize) {
+    cost.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)));
+    let excess = support.len() - k_max;
+    let remove = if excess > 8 { excess / 8 } else { 1 };
+    let mut victims: Vec<usize> = cost.iter().take(remove).map(|c| c.0).collect();
+    victims.sort_unstable_by(|a, b| b.cmp(a));
+    for v in victims {
+        support.remove(v);
+    }
+}
+
+/// The backward elimination's deletion estimates on thousands of columns: for each item of
+/// `support`, k_Gᵀ ((G_PP⁻¹)_GG)⁻¹ k_G over its columns G in the passive set P (the columns the
+/// NNLS solution `k` holds positive), the exact rise of the objective when those columns leave
+/// the unconstrained refit on P. Only P's system is inverted (faer's Cholesky), not every column's
+/// of the support: a cam's ± columns make that system singular but for the ridge, and it is
+/// several times larger than P. An item with no positive column costs nothing to remove.
+fn large_elimination_costs(
+    sub: &Gram,
+    items: &Items,
+    support: &[usize],
+    cols: &[usize],
+    k: &DVector<f64>,
+) -> Vec<(usize, f64)> {
+    let passive: Vec<usize> = (0..cols.len()).filter(|&a| k[a] > 0.0).collect();
+    let m = passive.len();
+    let mut g = DMatrix::from_fn(m, m, |r, s| sub.g[(passive[r], passive[s])]);
+    let ridge = 1e-12 * g.diagonal().amax().max(1e-300);
+    for a in 0..m {
+        g[(a, a)] += ridge;
+    }
+    let inv =
+        super::dense::spd_inverse(g.clone()).or_else(|| g.try_inverse()).unwrap_or_else(|| DMatrix::identity(m, m));
+    support
+        .iter()
+        .enumerate()
+        .map(|(a, &i)| {
+            let at: Vec<usize> = items
+                .members(i)
+                .iter()
+                .filter_map(|j| cols.binary_search(j).ok())
+                .filter_map(|c| passive.binary_search(&c).ok())
+                .collect();
+            if at.is_empty() {
+                return (a, 0.0);
+            }
+            let kg = DVector::from_fn(at.len(), |r, _| k[passive[at[r]]]);
+            let mut block = DMatrix::from_fn(at.len(), at.len(), |r, s| inv[(at[r], at[s])]);
+            let scale = block.diagonal().amax().max(1e-300);
+            for r in 0..at.len() {
+                block[(r, r)] += 1e-12 * scale;
+            }
+            (a, block.cholesky().map_or(f64::INFINITY, |ch| kg.dot(&ch.solve(&kg))))
+        })
+        .collect()
 }
 
 /// The objective of the NNLS refit of `gram` on the columns of the items in `support`, and per
