@@ -132,6 +132,12 @@ fn init_then_fit_on_a_planar_three_link_arm_in_gravity() {
     assert_eq!(refit["kept"], false, "{refit}");
     assert_eq!(sizing["refitted"], false, "{sizing}");
     assert_eq!(p99, first, "the bill is the first fit's");
+    // The fit says why: the trim whose builds need most against the target stiffness along it.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let reason = stderr.lines().find(|l| l.contains("the trims keep the ranges the catalogue writes")).expect(&stderr);
+    assert!(reason.contains("× the target stiffness ω²/(aᵀM⁻¹a)"), "{reason}");
+    assert!(reason.contains("more than the other springs can leave room for"), "{reason}");
+    assert!(reason.contains("(now ±5.0 %)"), "{reason}");
     let built = &summary["as_built"];
     for figures in [&built["p99_deg"], &built["trimmed"]["p99_deg"]] {
         for key in ["p50", "p95"] {

@@ -184,6 +184,67 @@ fn quantiles(v: &[f64]) -> [f64; 2] {
     [crate::residual::percentile(&v, 50.0 * (1.0 - COVER)), crate::residual::percentile(&v, 50.0 * (1.0 + COVER))]
 }
 
+/// Why the trims keep the ranges they started from, when the fit around the sized ranges was
+/// not kept (`refit.kept` false; None otherwise): the trim whose builds need the widest change
+/// against the target stiffness along its coupling, ω²/(aᵀM⁻¹a) at q_eq. A trim that must
+/// soften a build by h needs a rate of at least h to soften from; placed there, it stiffens the
+/// drawing by h along its coupling, and where h is more than the target stiffness the other
+/// springs, being non-negative, cannot take that back (on the planar three-link arm of
+/// `tests/cli_init.rs`: joint 3's trim ±0.77 N·m/rad against a target of 0.26, the fit around
+/// the sized ranges 17.4° drawn against 1.56°). The needs grow in proportion to the rate
+/// tolerance `tolerance` (a ± fraction, when every spring has the same one): the message then
+/// gives the tolerance at which the widest need equals the target stiffness. Measured: at that
+/// tolerance the needs were that (planar arm ±1.5 %: ±0.266 against 0.263; `init` on the random
+/// arm of seed 61 at ±3 %: ±1.316 against 1.323), but the refit was still refused (6.48° against
+/// 1.56° drawn; 5.25° against 2.00°): the room the other springs leave is below the target.
+pub fn kept_ranges_reason(design: &Design, sizing: &TrimSizing, tolerance: Option<f64>) -> Option<String> {
+    let refit = sizing.refit.filter(|r| !r.kept)?;
+    let mut text = format!(
+        "the trims keep the ranges the catalogue writes: the fit around the ranges their builds need (trim_sized) reached p99 {:.2}° drawn and {:.2}° realised against the first fit's {:.2}° and {:.2}°, so the builds are trimmed within the ranges written",
+        refit.refit_p99_deg[0], refit.refit_p99_deg[1], refit.first_p99_deg[0], refit.first_p99_deg[1]
+    );
+    let q = &design.q_eq;
+    let m_inv = design.chain.mass_matrix(q).try_inverse()?;
+    let w2 = design.fit.frequency * design.fit.frequency;
+    let widest = sizing
+        .trims
+        .iter()
+        .filter_map(|t| {
+            let a = DVector::from_column_slice(&t.coupling);
+            let target = w2 / a.dot(&(&m_inv * &a));
+            let h = (t.needed[1] - t.fitted_rate).max(t.fitted_rate - t.needed[0]);
+            (target.is_finite() && target > 0.0 && h.is_finite()).then_some((t, h, target))
+        })
+        .max_by(|x, y| (x.1 / x.2).total_cmp(&(y.1 / y.2)));
+    if let Some((t, h, target)) = widest {
+        let ratio = h / target;
+        text += &format!(
+            "; the builds need trim {} ({}) between {:.3} and {:.3} N·m/rad about its fitted {:.3} ({}–{} written): a change of ±{:.3}, {:.1}× the target stiffness ω²/(aᵀM⁻¹a) = {:.3} N·m/rad along it",
+            t.id,
+            t.family,
+            t.needed[0],
+            t.needed[1],
+            t.fitted_rate,
+            t.start_range[0],
+            t.start_range[1],
+            h,
+            ratio,
+            target
+        );
+        if ratio > 1.0 {
+            text += ", more than the other springs can leave room for (a trim must sit at least that stiff to soften a build by it)";
+            if let Some(tol) = tolerance.filter(|t| *t > 0.0) {
+                text += &format!(
+                    "; the needs grow in proportion to the rate tolerance: at about ±{:.1} % (now ±{:.1} %) the widest would equal the target stiffness (a bound: the fit around the ranges may need less), and a higher fit.frequency raises the target (with ω²)",
+                    100.0 * tol / ratio,
+                    100.0 * tol
+                );
+            }
+        }
+    }
+    Some(text)
+}
+
 /// A trim family as the sizing sees it: its name, its range and whether it is sized by the bill.
 pub type TrimFamily<'a> = (&'a str, [f64; 2], bool);
 
@@ -226,4 +287,60 @@ pub fn size(
         })
         .collect();
     Ok((TrimSizing { cover: COVER, builds: s.builds, trims, refitted: false, refit: None }, ranges))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::outcome::RefitComparison;
+
+    /// A sizing record on the default design's arm: trim `S1` on joint 1 and `S2` on joint 2,
+    /// each fitted at 0.1·target and needing `down` target stiffnesses below and `up` above it.
+    fn record(design: &Design, needs: [[f64; 2]; 2], kept: bool) -> (TrimSizing, [f64; 2]) {
+        let m_inv = design.chain.mass_matrix(&design.q_eq).try_inverse().unwrap();
+        let w2 = design.fit.frequency * design.fit.frequency;
+        let target = [0, 1].map(|i| w2 / m_inv[(i, i)]);
+        let trims = (0..2)
+            .map(|i| {
+                let rate = 0.1 * target[i];
+                let mut coupling = vec![0.0, 0.0];
+                coupling[i] = 1.0;
+                SizedTrim {
+                    id: format!("S{}", i + 1),
+                    family: format!("trim on joint {}", i + 1),
+                    coupling,
+                    fitted_rate: rate,
+                    start_range: [0.0, 2.0 * rate],
+                    needed: [rate - needs[i][0] * target[i], rate + needs[i][1] * target[i]],
+                    range: [0.0, 2.0 * rate],
+                    sized: true,
+                }
+            })
+            .collect();
+        let refit = RefitComparison { first_p99_deg: [1.5, 1.8], refit_p99_deg: [17.4, 16.2], kept };
+        (TrimSizing { cover: COVER, builds: 1000, trims, refitted: kept, refit: Some(refit) }, target)
+    }
+
+    #[test]
+    fn a_refused_refit_names_the_trim_whose_builds_need_most_against_the_target_stiffness() {
+        let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let design = Design::load(&root.join("designs/double_pendulum.toml")).unwrap();
+        // Joint 1's trim needs half its target, joint 2's three times it (downwards).
+        let (sizing, target) = record(&design, [[0.5, 0.2], [3.0, 1.0]], false);
+        let text = kept_ranges_reason(&design, &sizing, Some(0.05)).unwrap();
+        assert!(text.contains("p99 17.40° drawn"), "{text}");
+        assert!(text.contains("trim S2 (trim on joint 2)"), "{text}");
+        assert!(text.contains(&format!("±{:.3}, 3.0× the target stiffness", 3.0 * target[1])), "{text}");
+        assert!(text.contains(&format!("= {:.3} N·m/rad", target[1])), "{text}");
+        // Needs in proportion to the tolerance: ±5 % / 3.
+        assert!(text.contains("about ±1.7 % (now ±5.0 %)"), "{text}");
+        // Both within their targets: the figures, no claim the springs cannot make room.
+        let (sizing, _) = record(&design, [[0.5, 0.2], [0.3, 0.9]], false);
+        let text = kept_ranges_reason(&design, &sizing, Some(0.05)).unwrap();
+        assert!(text.contains("trim S2") && text.contains("0.9× the target"), "{text}");
+        assert!(!text.contains("leave room") && !text.contains("about ±"), "{text}");
+        // A kept refit needs no reason.
+        let (sizing, _) = record(&design, [[0.5, 0.2], [3.0, 1.0]], true);
+        assert_eq!(kept_ranges_reason(&design, &sizing, Some(0.05)), None);
+    }
 }

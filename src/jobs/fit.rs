@@ -497,6 +497,15 @@ fn warnings(
     if let Some(w) = outcome.solve.shift_bound.as_ref().and_then(|b| shift_warning(b, as_built)) {
         push(Topic::Equalities, w);
     }
+    let fraction = match settings.tolerance {
+        crate::design::tolerance::ToleranceSpec::Fraction(t) => Some(t),
+        _ => None,
+    };
+    if let Some(w) =
+        outcome.trim_sizing.as_ref().and_then(|s| crate::asbuilt::sizing::kept_ranges_reason(design, s, fraction))
+    {
+        push(Topic::Bill, w);
+    }
     for w in hints::bom_warnings(catalog, &outcome.bom) {
         push(Topic::Bill, w);
     }
