@@ -296,7 +296,7 @@ fn the_mass_weight_lightens_and_the_budget_holds() {
         // The part chooser keeps the lightest trims or, when its accurate pass realises the
         // design better, the trims whose geared cranks stay within TRIM_LAW_DEPARTURE of linear
         // (leaves where none does): the model reads both, the second for a budget once the
-        // parts broke it (`Prepared::hold_budget_on_bounded_cranks` holds the parts' own).
+        // parts broke it (`MassModel::trims_bounded`).
         let accurate = trims_mass_within(
             &design,
             &catalog,

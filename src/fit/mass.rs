@@ -233,6 +233,12 @@ pub struct MassModel {
     /// duty ([`trims_mass`]), fixed whatever the fit chooses (0 without a catalogue: a bill's rows
     /// read back).
     pub trims: f64,
+    /// The trims' parts as the part chooser's accurate pass builds them (their geared cranks
+    /// within [`crate::realise::mechanism::TRIM_LAW_DEPARTURE`] of linear, else a leaf), kg:
+    /// what a budget holds once the parts of a budgeted fit broke it (with the bounded cranks,
+    /// [`MassModel::budget_curve`]), since that pass rebuilds the trims with the cranks. None
+    /// where the model was read without the bounded parts ([`MassModel::of_catalog_lightest`]).
+    pub trims_bounded: Option<f64>,
 }
 
 impl MassModel {
@@ -248,16 +254,21 @@ impl MassModel {
     /// carries too, so their parts' mass ([`MassModel::trims`]) is taken off it (0: no budget).
     /// A budget the trims alone fill is infeasible (a point of `pareto`'s mass curve, as a budget
     /// no set meets), naming the key and the trims' mass.
-    /// `held_trims`: the trims' parts as the part chooser built them for a budgeted fit whose
-    /// parts broke the budget (kg; its accurate pass may rebuild a trim's crank as a leaf, and
-    /// may not: the mass the parts have is the only one known to hold), used instead of
-    /// [`MassModel::trims`].
-    pub fn budget(&self, settings: &FitSettings, held_trims: Option<f64>) -> Result<f64> {
+    /// `bounded`: the budget is held on the parts as the accurate pass builds them (the trims'
+    /// [`MassModel::trims_bounded`]), once the lightest ones' parts broke it (an error where the
+    /// model was read without them).
+    pub fn budget(&self, settings: &FitSettings, bounded: bool) -> Result<f64> {
         let budget = settings.max_spring_mass;
         if budget <= 0.0 {
             return Ok(0.0);
         }
-        let trims = held_trims.unwrap_or(self.trims);
+        let trims = if bounded {
+            self.trims_bounded.ok_or_else(|| {
+                Error::numerical("fit.max_spring_mass", "the mass model was read without the bounded trims")
+            })?
+        } else {
+            self.trims
+        };
         let left = budget - trims;
         if left <= 0.0 {
             return Err(Error::Infeasible {
@@ -284,7 +295,7 @@ impl MassModel {
     }
 
     /// [`MassModel::of_catalog`] without the parts built within the rollers' bound
-    /// ([`MassModel::bounded`] None): what every fit reads
+    /// ([`MassModel::bounded`] and [`MassModel::trims_bounded`] None): what every fit reads
     /// but a budget that the parts broke (`fit::prepare`), its other figures the same bits.
     pub fn of_catalog_lightest(
         design: &Design,
@@ -311,7 +322,13 @@ impl MassModel {
             _ => FollowerSpec::DEFAULT,
         };
         let trims = trims_mass(design, catalog, evaluation, frequency);
-        MassModel { trims, ..MassModel::with_followers(design, candidates, spec, evaluation, frequency, read_bounded) }
+        let trims_bounded =
+            read_bounded.then(|| trims_mass_within(design, catalog, evaluation, frequency, Some(MAX_ROLLER_DEPARTURE)));
+        MassModel {
+            trims,
+            trims_bounded,
+            ..MassModel::with_followers(design, candidates, spec, evaluation, frequency, read_bounded)
+        }
     }
 
     fn with_followers(
@@ -378,7 +395,8 @@ impl MassModel {
         let (per_stiffness, per_stiffness_squared) = read.iter().map(|r| r.0).unzip();
         let from_parts = read.iter().map(|r| r.1).collect();
         let bounded = read_bounded.then(|| read.iter().map(|r| r.2).collect());
-        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0 }
+        let trims_bounded = read_bounded.then_some(0.0);
+        MassModel { per_stiffness, per_stiffness_squared, from_parts, bounded, floor, trims: 0.0, trims_bounded }
     }
 
     /// The curves a budget is held by, (aᵢ, bᵢ) per candidate: the cranks' within the rollers'

@@ -60,10 +60,6 @@ pub struct Prepared<'a> {
     /// ([`MassModel::budget_curve`]) rather than on the lightest geometry: set by
     /// [`Prepared::hold_budget_on_bounded_cranks`] once the parts of a budgeted fit broke it.
     pub(super) bounded_cranks: bool,
-    /// The trims' parts' mass a budget is held with once the parts broke it (kg;
-    /// [`Prepared::hold_budget_on_bounded_cranks`]), None before: the model's
-    /// ([`crate::fit::mass::MassModel::trims`]).
-    pub(super) held_trims: Option<f64>,
     /// The catalogue's trim springs at mid-range (folded into `problem`; empty without trims).
     pub(super) trims: SpringSet,
     /// Normal equations of `problem.rows` (built once: every solve and the smoothing choice
@@ -154,7 +150,6 @@ impl<'a> Prepared<'a> {
             mass: OnceLock::new(),
             mass_bounded: OnceLock::new(),
             bounded_cranks: false,
-            held_trims: None,
             trims,
             gram,
             t_geo,
@@ -268,15 +263,7 @@ impl Prepared<'_> {
     /// for a budgeted fit whose parts broke the budget because `parts::choose` rebuilt its cranks
     /// within the bound (the realised design more than `ROLLER_SLACK_DEG` off its ideal elements
     /// on the lightest ones). Returns whether it changed anything (false: already set).
-    ///
-    /// `trims`: the trims' parts in the parts that broke the budget, kg, held from now on instead
-    /// of the model's (the accurate pass may have rebuilt a trim's geared crank as a leaf, or
-    /// kept the light crank: only the parts say which). Holding a mass the chooser does not
-    /// build would misplace the budget both ways: a leaf's mass held for trims built light
-    /// starves the fitted springs (a 3.8 kg budget on the default design gave a worse and lighter
-    /// bill than a 2.2 kg one), light trims held where leaves are built break it again.
-    pub fn hold_budget_on_bounded_cranks(&mut self, trims: f64) -> bool {
-        self.held_trims = Some(trims);
+    pub fn hold_budget_on_bounded_cranks(&mut self) -> bool {
         !std::mem::replace(&mut self.bounded_cranks, true)
     }
 

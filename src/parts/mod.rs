@@ -355,19 +355,7 @@ pub fn fit_with_parts(
     // fit is solved again with the budget held on those cranks (`fit::mass`, `budget_curve`).
     let budget = settings.max_spring_mass;
     let weight = |p: &Parts| p.elements.iter().filter_map(|e| e.part.as_ref().ok()).map(|p| p.mass).sum::<f64>();
-    // The trims as the chooser built them are what the refit holds beside the fitted springs.
-    let trims = |p: &Parts, o: &crate::fit::FitOutcome| {
-        p.elements
-            .iter()
-            .filter(|e| o.bom.iter().any(|r| r.id == e.id && r.adjust.trim_range.is_some()))
-            .filter_map(|e| e.part.as_ref().ok())
-            .map(|p| p.mass)
-            .sum::<f64>()
-    };
-    if budget > 0.0
-        && weight(&parts) > budget * (1.0 + 1e-9)
-        && prepared.hold_budget_on_bounded_cranks(trims(&parts, &outcome))
-    {
+    if budget > 0.0 && weight(&parts) > budget * (1.0 + 1e-9) && prepared.hold_budget_on_bounded_cranks() {
         progress.stage("parts over max_spring_mass: fitting again with the cranks within the rollers' bound");
         let t1 = std::time::Instant::now();
         outcome = prepared.solve(settings, progress)?;
