@@ -274,8 +274,15 @@ impl MassModel {
             return Err(Error::Infeasible {
                 constraint: format!("fit.max_spring_mass ({budget} kg, the trims included)"),
                 reason: format!(
-                    "the catalogue's trims weigh {:.3} kg by their parts at mid-range, so nothing is left for the fitted springs; raise max_spring_mass above that",
-                    trims
+                    "the catalogue's trims weigh {trims:.3} kg by their parts at mid-range{}, so nothing is left for the fitted springs; raise max_spring_mass above that",
+                    if bounded {
+                        format!(
+                            " as the part chooser builds them once the lightest parts broke the budget (geared cranks within {} % of linear, else leaves)",
+                            crate::realise::mechanism::TRIM_LAW_DEPARTURE * 100.0
+                        )
+                    } else {
+                        String::new()
+                    }
                 ),
             });
         }

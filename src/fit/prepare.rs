@@ -267,6 +267,13 @@ impl Prepared<'_> {
         !std::mem::replace(&mut self.bounded_cranks, true)
     }
 
+    /// Back to a budget held on the lightest geometries (what a preparation starts with): for a
+    /// study that solves one preparation under several budgets and holds each on the bounded
+    /// cranks only where that budget's own parts broke it (`pareto`'s mass curve).
+    pub fn hold_budget_on_lightest_cranks(&mut self) {
+        self.bounded_cranks = false;
+    }
+
     /// The problem's tangentiality rows: kept by the problem, or where a large fit did not keep
     /// them assembled again (the same function, so the same bits) and kept from then on.
     pub fn rows(&self) -> &DMatrix<f64> {

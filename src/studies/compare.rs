@@ -465,7 +465,7 @@ pub fn mass_curve(
     realise: &dyn Fn(&FitOutcome) -> Result<Realised>,
     progress: Progress<'_>,
 ) -> Result<MassCurve> {
-    let prepared = Prepared::new(design, catalog, settings, progress)?;
+    let mut prepared = Prepared::new(design, catalog, settings, progress)?;
     progress.stage("mass: the fit without a budget");
     let free = prepared.solve(&FitSettings { max_spring_mass: 0.0, ..*settings }, Progress::none())?;
     let floor = crate::fit::mass::Floor::on(design, settings.frequency, &free.evaluation);
@@ -489,8 +489,19 @@ pub fn mass_curve(
     let mut best: Option<MassPoint> = None;
     for m in budgets {
         progress.stage(&format!("mass: at most {m} kg"));
-        let here = match prepared.solve(&FitSettings { max_spring_mass: m, ..*settings }, Progress::none()) {
-            Ok(o) => point(&o, Some(m))?,
+        let within = FitSettings { max_spring_mass: m, ..*settings };
+        prepared.hold_budget_on_lightest_cranks();
+        let mut solved = prepared.solve(&within, Progress::none()).and_then(|o| point(&o, Some(m)));
+        // Parts that break the budget (the chooser rebuilt cranks within the rollers' bound):
+        // solved again with the budget held on those cranks, as `fit` does
+        // (`parts::fit_with_parts`), so that each point's parts are within its budget.
+        let over =
+            |p: &MassPoint| p.realised.as_ref().and_then(|r| r.spring_mass_kg).is_some_and(|kg| kg > m * (1.0 + 1e-9));
+        if solved.as_ref().is_ok_and(over) && prepared.hold_budget_on_bounded_cranks() {
+            solved = prepared.solve(&within, Progress::none()).and_then(|o| point(&o, Some(m)));
+        }
+        let here = match solved {
+            Ok(p) => p,
             // An infeasible budget is a point of the curve, not the end of it.
             Err(e @ Error::Infeasible { .. }) => no_set(
                 m,
