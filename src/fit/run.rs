@@ -273,10 +273,10 @@ impl Prepared<'_> {
         // The parts built within the rollers' bound are read only for a budget held on them.
         let on_bounded = settings.max_spring_mass > 0.0 && self.bounded_cranks;
         let model = weighs_mass.then(|| self.mass_model(settings.frequency, on_bounded));
-        let budget = model.map(|m| m.budget(settings, self.bounded_cranks)).transpose()?.unwrap_or(0.0);
+        let budget = model.map(|m| m.budget(settings, on_bounded)).transpose()?.unwrap_or(0.0);
         // A budget is held on the lightest geometries, or once their parts broke it, on the cranks
         // as the part chooser rebuilt them within the rollers' bound (`MassModel::budget_curve`).
-        let bounded = model.filter(|_| budget > 0.0 && self.bounded_cranks).and_then(MassModel::budget_curve);
+        let bounded = model.filter(|_| budget > 0.0 && on_bounded).and_then(MassModel::budget_curve);
         let term = model.map(|m| MassTerm {
             per_stiffness: bounded.as_ref().map_or(&m.per_stiffness[..], |b| &b.0[..]),
             per_stiffness_squared: bounded.as_ref().map_or(&m.per_stiffness_squared[..], |b| &b.1[..]),
