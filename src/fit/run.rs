@@ -287,6 +287,14 @@ impl Prepared<'_> {
         if settings.tolerance.is_none() {
             return solve(&self.problem, &self.gram, columns, q_eq, settings, None, mass);
         }
+        if weighs_no_spread(settings) {
+            // Every term of the tolerance-aware fit weighs zero and no shift bound applies: its
+            // solve adds 0 to the Gram matrix, so it is the plain solve with `settings`, the same
+            // stiffnesses; the nominal pass (and the penalty's retraced fans) only fed it J and H.
+            let (k, mut report) = solve(&self.problem, &self.gram, columns, q_eq, settings, None, mass)?;
+            report.expected_build_spread = Some(0.0);
+            return Ok((k, report));
+        }
         // The nominal pass only fixes J and H for the second: the single exchange search is
         // enough there.
         let first = FitSettings { restarts: 0, pair_swaps: false, ..*settings };
@@ -402,6 +410,18 @@ fn droppable(bom: &[BomRow], missing: &[WithoutPart]) -> Vec<(DroppedElement, El
             })
         })
         .collect()
+}
+
+/// Whether the tolerance-aware fit of `settings` weighs nothing: `tolerance_weight`,
+/// `trimmed_weight` and `shift_weight` all 0 and no `max_shift` bound (the shipped URDF designs
+/// fit the drawing so, `tolerance_weight = 0`). Its penalty is then zero, and the fit the plain
+/// solve: [`Prepared::solve_for_the_build`] skips the nominal pass that would only fix J and H
+/// for it (half the solves of such a fit).
+fn weighs_no_spread(settings: &FitSettings) -> bool {
+    settings.tolerance_weight == 0.0
+        && settings.trimmed_weight == 0.0
+        && settings.shift_weight == 0.0
+        && matches!(settings.max_shift, crate::design::fit::MaxShift::None)
 }
 
 /// `s` for a plural count.
