@@ -148,8 +148,18 @@ impl Design {
         file.fit.auto = crate::design::fit::AutoWeights::of_table(
             table.as_ref().and_then(|t| t.get("fit")).and_then(|f| f.as_table()),
         );
+        let given = crate::design::fit::GivenWeights::of_table(
+            table.as_ref().and_then(|t| t.get("fit")).and_then(|f| f.as_table()),
+        );
         let mut design = Design::from_file(path, file)?;
         design.fingerprint = crate::input::fingerprint(text.as_bytes());
+        // The weights' defaults depend on whether the catalogue has trim springs. A catalogue
+        // that does not load is reported by `validate`, which every command runs next.
+        let trims = design.catalog.as_ref().is_some_and(|c| {
+            crate::elements::catalog::Catalog::load_for(c, &design.chain.joint_names())
+                .is_ok_and(|c| c.families.iter().any(|f| f.trim_range.is_some()))
+        });
+        design.fit = design.fit.with_trim_defaults(given, trims);
         Ok(design)
     }
 

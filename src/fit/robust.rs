@@ -574,22 +574,32 @@ pub fn trimmed_spread(
         Ok(rest.hessian(q.as_slice())? + chain.gravity_hessian(q.as_slice()))
     };
     let h_rest = rest_hessian(q0)?;
-    let h_inv = h_rest.clone().cholesky().map(|c| c.inverse()).ok_or_else(|| {
-        Error::numerical(
-            "trim-aware fit",
-            "the nominal fit without its trims has no positive definite Hessian at q_eq: a trimmed build has no nearby equilibrium of the untrimmed springs",
-        )
-    })?;
-    let training_rows = training_rows(rows, jac)?;
-    let m_eq = chain.mass_matrix(q0);
     let couplings: Vec<Vec<f64>> = trims.elements.iter().map(|e| e.coupling.clone()).collect();
-    // w² of the nominal trimmed arm: ω² when the fit matches the Hessian exactly, else the trims'
-    // answer to the nominal mismatch.
     let mut h_nom = h_rest.clone();
     for (a, t) in couplings.iter().zip(&trims.stiffness) {
         let av = DVector::from_column_slice(a);
         h_nom += &av * av.transpose() * *t;
     }
+    // A trimmed build rests where the gradient of the rest vanishes (the trims are relaxed
+    // there) and is stable by the whole Hessian, trims included, as the as-built figures judge it
+    // (`asbuilt::stationary_point`): the rest alone need only be invertible. On an arm whose
+    // trims carry much of the stiffness (`panda_three`: trims of 0–26 N·m/rad) it is indefinite.
+    if h_nom.clone().cholesky().is_none() {
+        return Err(Error::numerical(
+            "trim-aware fit",
+            "the nominal fit with its trims at mid-range has no positive definite Hessian at q_eq: a trimmed build has no stable equilibrium nearby",
+        ));
+    }
+    let h_inv = h_rest.clone().lu().try_inverse().filter(|h| h.iter().all(|v| v.is_finite())).ok_or_else(|| {
+        Error::numerical(
+            "trim-aware fit",
+            "the nominal fit without its trims has a singular Hessian at q_eq: a trimmed build's equilibrium is not determined to first order",
+        )
+    })?;
+    let training_rows = training_rows(rows, jac)?;
+    let m_eq = chain.mass_matrix(q0);
+    // w² of the nominal trimmed arm: ω² when the fit matches the Hessian exactly, else the trims'
+    // answer to the nominal mismatch.
     let w2 = omega * omega
         + crate::elements::trim::interior_change(&(&h_nom - &m_eq * (omega * omega)), &m_eq, &couplings).1;
     // ∂H_rest/∂q_l − w² ∂M/∂q_l by central differences.

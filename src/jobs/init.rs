@@ -287,8 +287,7 @@ fn design_text(
     }
     if built {
         text.push_str(&format!(
-            "tolerance = {RATE_ERROR}   # ± rate error of every spring: the as-built figures over 1,000 builds, untrimmed and trimmed\n\
-             tolerance_weight = 0   # fit the drawing; the trim springs of the catalogue, set on each build, restore what the tolerance takes\n"
+            "tolerance = {RATE_ERROR}   # ± rate error of every spring: the as-built figures over 1,000 builds, untrimmed and trimmed\n"
         ));
     }
     text
