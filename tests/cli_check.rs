@@ -18,6 +18,20 @@ fn shipped_designs_pass_the_check() {
         // check says what that costs. The double pendulum's limit is only the probe: nothing.
         let near = run.stdout().contains("the region reaches 79 % of the largest valid radius");
         assert_eq!(near, name == "triple_pendulum.toml", "{}", run.report());
+        // The margin to what limits the region, as a share of its radius: 0.6 / 0.7613 = 79 %.
+        let margin = run.stdout().lines().find(|l| l.starts_with("margin to the")).map(str::to_string);
+        match name {
+            "triple_pendulum.toml" => assert_eq!(
+                margin.as_deref(),
+                Some(
+                    "margin to the conjugate point: the region reaches 0.6000, 79 % of its radius 0.7613 (21 % short of it)"
+                ),
+                "{}",
+                run.report()
+            ),
+            "double_pendulum.toml" => assert_eq!(margin, None, "only the probe limits it\n{}", run.report()),
+            _ => {}
+        }
     }
 }
 

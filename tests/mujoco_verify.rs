@@ -133,6 +133,17 @@ fn mujoco_reproduces_the_ur5_in_space() {
 }
 
 #[test]
+fn mujoco_reproduces_the_five_link_pendulum_on_tendons() {
+    // designs/pendulum5_tendons.toml as fitted (its bill in tests/data): five joints, every
+    // coupling of two to five consecutive joints a fixed tendon whose coefficients are its pulley
+    // radii, the springs on its joints and tendons exact, its cranks by callback.
+    let Some((text, md)) = export_verify_fitted("pendulum5_tendons") else { return };
+    assert!(text.contains("5 joints") && text.contains("3 runs over 5"), "{text}");
+    let tendons = md.lines().filter(|l| l.contains("tendon over pulleys: fixed tendon")).count();
+    assert!(tendons > 100, "{tendons} fixed tendons\n{md}");
+}
+
+#[test]
 fn mujoco_reproduces_the_default_design() {
     let Some((text, md)) = fit_export_verify("double_pendulum.toml") else { return };
     assert!(text.contains("6 runs over 5"), "{text}");

@@ -93,6 +93,9 @@ pub fn run(path: &Path, json: bool, progress: &Progress) -> Result<()> {
     }
     design.ensure_valid(&report)?;
     progress.say(format!("ok: {}", report.reason));
+    for line in margins(&report) {
+        progress.say(line);
+    }
     for line in suggestions(&design, &report) {
         progress.say(line);
     }
@@ -122,6 +125,29 @@ fn limited_by(report: &RegionReport) -> Vec<String> {
         )),
     }
     out
+}
+
+/// The region's margin to each thing that limits it (the nearest of each kind: conjugate point,
+/// crossing, joint limit), as a share of that thing's radius: a region at 60 % of its conjugate
+/// radius reads "margin to the conjugate point: the region reaches 0.3154, 60 % of its radius
+/// 0.5257 (40 % short of it)". A box or a clipped ball is measured by its longest trace.
+fn margins(report: &RegionReport) -> Vec<String> {
+    report
+        .limited_by
+        .iter()
+        .filter(|f| f.radius() > 0.0 && f.radius().is_finite())
+        .map(|f| {
+            let share = report.extent / f.radius();
+            format!(
+                "margin to the {}: the region reaches {:.4}, {:.0} % of its radius {:.4} ({:.0} % short of it)",
+                f.kind(),
+                report.extent,
+                100.0 * share,
+                f.radius(),
+                100.0 * (1.0 - share)
+            )
+        })
+        .collect()
 }
 
 /// Gravity against the stiffness ω²M at the equilibrium, and the ω that carries it.
