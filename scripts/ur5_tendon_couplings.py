@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Which tendon couplings the six-joint UR5 needs: an unlimited fit of cams on every coupling a
-tendon makes, ranked, then one cam on each of the 40 ranked first (catalogs/ur5_tendons40.toml,
-the catalogue of designs/ur5_six_tendons.toml).
+tendon makes, ranked, then one cam on each of the 40 ranked first (with --write-catalogue, their
+catalogue; no design on it is shipped: 4.3° p99, BENCHMARKS.md, "The UR5's six joints on 40
+tendon cams without a selection").
 
 Why. catalogs/ur5_tendons.toml (every tendon over 20/40 mm pulleys crossing two or three
 consecutive joints, 148 cams of 30 knots, 9,472 columns) leaves the choice of 40 cams to the
@@ -10,8 +11,8 @@ A fit whose catalogue holds no more couplings than `max_elements` needs no selec
 convex fit (the withdrawn 40-cam design took 16 s). So the choice is made once, here, by
 measurement, and only among couplings a tendon makes within `[parts]`' pulley limits (10–40 mm)
 and `max_joints_crossed = 6` (the default is 5): the Hessian the springs must give at q_eq,
-ω²M − ∇²U_gravity, has a pan–wrist-3 entry (M₁₆, of the order of wrist 3's own inertia) that
-only a coupling turning both joints gives, and a tendon turning both crosses all six. Without
+ω²M − ∇²U_gravity, has a pan–wrist-3 entry that only a coupling turning both joints gives, and
+a tendon turning both crosses all six. Without
 the six-joint tendons the unlimited fit of the pool below misses that entry (Hessian relative
 error 0.0044) and reaches p99 15.4° only, worse than springs alone (3.0°):
 
@@ -25,6 +26,11 @@ error 0.0044) and reaches p99 15.4° only, worse than springs alone (3.0°):
    `pool59`), until a further half would hold fewer than 40; ranked once in a single fit, the
    first 40 reached p99 4.45° only (cams that cancel each other carry large torques);
 3. `tendons40`: one cam of 30 knots on each of the 40 ranked first: the catalogue written.
+
+What it found (2026-12-06, main 43bf1b7's release binary, --threads 1): `pool` p99 1.242° (236 cams, 21.66 kg
+of springs on a 16.99 kg arm), `pool118` 2.190°, `pool59` 3.983°, `tendons40` 4.324° (19.59 kg):
+ranking by torque does not find 40 couplings that come near the pool; the sparse selection would,
+and is what does not finish on this pool yet.
 
 Every fit uses the design's ball r = 0.6, 576 training and 720 held-out directions, `builds = 0`,
 the release binary; figures are the held-out p99 of `summary.json`.
@@ -64,7 +70,7 @@ roller_radius = 8.0      # mm
 max_pressure_angle = 30  # degrees
 """
 HEADER = """\
-# One B-spline cam on each of {count} tendon couplings of the UR5's six joints, for designs/ur5_six_tendons.toml.
+# One B-spline cam on each of {count} tendon couplings of the UR5's six joints (`[parts] max_joints_crossed = 6`).
 # Written by scripts/ur5_tendon_couplings.py (do not edit by hand: rerun it): a cam on each joint,
 # on every tendon over 20/40 mm pulleys crossing 2-3 consecutive joints and on every tendon over
 # equal pulleys crossing 4-6, fitted without a part limit, ranked by their cams' summed peak
