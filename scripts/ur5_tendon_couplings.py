@@ -37,7 +37,7 @@ the release binary; figures are the held-out p99 of `summary.json`.
 
 Run: python3 scripts/ur5_tendon_couplings.py [--springfit target/release/springfit] [--out DIR]
          [--threads 2] [--count 40] [--write-catalogue catalogs/ur5_tendons40.toml]
-(DIR must not hold an earlier run's outputs: `springfit fit` does not overwrite them.)
+(A fit whose folder in DIR holds its summary.json is read, not rerun: a stopped run resumes.)
 """
 import argparse
 import collections
