@@ -372,6 +372,13 @@ fn builds_without_a_figure_print_a_bound() {
     assert!(!json.contains("NaN") && !json.contains("inf"), "{json}");
     let none = asbuilt::Spread::of([f64::NAN; 3].into_iter());
     assert_eq!(none.text(none.p95, 2, "°"), "none");
+    // Most builds without a figure: both ends of the p95's interval among them, one bound.
+    let lost = asbuilt::Spread::of((0..200).map(|i| if i % 3 == 0 { 0.1 * i as f64 } else { f64::NAN }));
+    assert_eq!(lost.p95_interval(3), format!("beyond {:.3}", 19.8));
+    assert_eq!(lost.p95_interval_phrase(3, "°"), "beyond 19.800°");
+    let kept = asbuilt::Spread::of((0..200).map(|i| 0.1 * i as f64));
+    assert_eq!(kept.p95_interval_phrase(2, "°"), format!("within {}°", kept.p95_interval(2)));
+    assert!(kept.p95_interval(2).contains('–'), "{}", kept.p95_interval(2));
     let all = asbuilt::Spread::of([1.0, 2.0].into_iter());
     assert_eq!((all.without, all.beyond), (0, None));
     assert!(!serde_json::to_string(&all).unwrap().contains("without"));

@@ -246,7 +246,20 @@ impl Spread {
                 self.text(x, digits, "")
             }
         };
-        format!("{}–{}", end(self.p95_ci[0]), end(self.p95_ci[1]))
+        let (lo, hi) = (end(self.p95_ci[0]), end(self.p95_ci[1]));
+        // Both ends among the builds without a figure: one bound, not "beyond X–beyond X".
+        if lo == hi { lo } else { format!("{lo}–{hi}") }
+    }
+
+    /// The p95's interval as a phrase with `unit`: `within 2.21–2.52°`, or `beyond 121.458°`
+    /// when both ends fall among the builds without a figure.
+    pub fn p95_interval_phrase(&self, digits: usize, unit: &str) -> String {
+        let interval = self.p95_interval(digits);
+        if interval.starts_with("beyond") && !interval.contains('–') {
+            format!("{interval}{unit}")
+        } else {
+            format!("within {interval}{unit}")
+        }
     }
 }
 

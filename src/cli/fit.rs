@@ -196,12 +196,12 @@ fn say_as_built(ab: &AsBuilt, secs: f64, progress: &Progress) {
         format!("{} / {}", sp.text(sp.p50, digits, unit), sp.text(sp.p95, digits, unit))
     };
     progress.say(format!(
-        "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {} (p95 within {}° at 95 % confidence), max {}, shift {} rad (Euclidean), {} (metric); {:.2} s",
+        "as built ({} at {} tolerance, {}; about each build's own equilibrium), p50 / p95 over builds: p99 {} (p95 {} at 95 % confidence), max {}, shift {} rad (Euclidean), {} (metric); {:.2} s",
         plural(ab.builds, "build"),
         ab.tolerance.label(),
         ab.distribution.name(),
         pair(&ab.p99_deg, 3, "°"),
-        ab.p99_deg.p95_interval(3),
+        ab.p99_deg.p95_interval_phrase(3, "°"),
         pair(&ab.max_deg, 3, "°"),
         pair(&ab.shift_rad, 4, ""),
         pair(&ab.shift_metric, 4, ""),
@@ -209,9 +209,9 @@ fn say_as_built(ab: &AsBuilt, secs: f64, progress: &Progress) {
     ));
     if let Some(t) = &ab.trimmed {
         progress.say(format!(
-            "as built and trimmed: p99 {} (p95 within {}°), max {}; largest trim change {} N·m/rad; {} {}",
+            "as built and trimmed: p99 {} (p95 {}), max {}; largest trim change {} N·m/rad; {} {}",
             pair(&t.p99_deg, 3, "°"),
-            t.p99_deg.p95_interval(3),
+            t.p99_deg.p95_interval_phrase(3, "°"),
             pair(&t.max_deg, 3, "°"),
             pair(&t.trim_change_nm_per_rad, 3, ""),
             plural(t.builds_not_restored, "build"),
@@ -231,10 +231,10 @@ fn say_as_built(ab: &AsBuilt, secs: f64, progress: &Progress) {
     }
     if let Some(t) = &ab.preload_trimmed {
         progress.say(format!(
-            "as built, each cam's follower preload re-set to the drawing's force{}: p99 {} (p95 within {}°), max {}",
+            "as built, each cam's follower preload re-set to the drawing's force{}: p99 {} (p95 {}), max {}",
             if ab.trimmed.is_some() { " and the trims re-set" } else { "" },
             pair(&t.p99_deg, 3, "°"),
-            t.p99_deg.p95_interval(3),
+            t.p99_deg.p95_interval_phrase(3, "°"),
             pair(&t.max_deg, 3, "°"),
         ));
     }
