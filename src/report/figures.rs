@@ -326,6 +326,11 @@ pub fn add_as_built_band(panel: &mut Panel, ab: &crate::asbuilt::AsBuilt, signed
     };
     let pair = |sp: &crate::asbuilt::Spread| format!("{} / {}", sp.text(sp.p50, 3, "°"), sp.text(sp.p95, 3, "°"));
     let label = |what: &str, sp: &crate::asbuilt::Spread| {
+        if !sp.p95.is_finite() {
+            // No band to draw (its p95 falls among builds without an equilibrium): the legend
+            // says so in a line that fits the panel.
+            return format!("{what}: p95 over builds {}", sp.text(sp.p95, 3, "°"));
+        }
         let cut = limit.is_some_and(|l| sp.p95.max(sp.p50) > l);
         let beyond = if cut { format!(" (to {} beyond the axis)", sp.text(sp.p95, 3, "°")) } else { String::new() };
         format!("{what}: p99 |angle|, p50–p95 over builds{beyond}")
@@ -474,6 +479,54 @@ pub fn fmt_q(q: &DVector<f64>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A band whose p95 falls among builds without an equilibrium is not drawn, and its legend
+    /// entry is one short line with the bound (it read "to beyond X° beyond the axis" and ran
+    /// past the image's edge); a band with figures is drawn and labelled as before.
+    #[test]
+    fn a_lost_band_gets_a_short_legend_entry() {
+        use crate::asbuilt::{AsBuilt, Spread};
+        let lost = Spread::of((0..200).map(|i| if i % 3 == 0 { 0.01 * i as f64 } else { f64::NAN }));
+        let kept = Spread::of((0..200).map(|i| 0.004 * i as f64));
+        let ab = |p99: Spread| AsBuilt {
+            tolerance: crate::design::tolerance::ToleranceSpec::Fraction(0.05),
+            distribution: crate::design::tolerance::Distribution::Uniform,
+            builds: 200,
+            seed: 1,
+            builds_without_equilibrium: p99.without,
+            p99_deg: p99,
+            max_deg: p99,
+            shift_rad: p99,
+            shift_metric: p99,
+            trimmed: None,
+            preload_trimmed: None,
+            shift_model: None,
+        };
+        let labels = |p99: Spread| {
+            let mut panel = Panel {
+                layers: vec![Layer::Histogram {
+                    edges: vec![0.0, 0.5, 1.0],
+                    counts: vec![3.0, 1.0],
+                    style: Style::fill(palette(0), 0.5),
+                    label: None,
+                }],
+                ..Panel::default()
+            };
+            add_as_built_band(&mut panel, &ab(p99), false);
+            panel
+                .layers
+                .iter()
+                .filter_map(|l| match l {
+                    Layer::Spans { spans, label, .. } => Some((spans.len(), label.clone().unwrap_or_default())),
+                    _ => None,
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(labels(lost), vec![(0, "as built: p95 over builds beyond 1.980°".to_string())]);
+        let drawn = labels(kept);
+        assert_eq!(drawn[0].0, 1);
+        assert_eq!(drawn[0].1, "as built: p99 |angle|, p50–p95 over builds");
+    }
 
     #[test]
     fn nice_numbers() {
