@@ -408,6 +408,10 @@ struct System<'a> {
     base: DMatrix<f64>,
     base_eq: DMatrix<f64>,
     base_gram: DMatrix<f64>,
+    /// Aᵀb of the catalogue's columns.
+    base_c: DVector<f64>,
+    /// The equality rows' weight, [`EQUALITY_WEIGHT`] ‖A‖/‖E‖ of the catalogue.
+    weight: f64,
 }
 
 impl<'a> System<'a> {
@@ -431,16 +435,21 @@ impl<'a> System<'a> {
         let base = frame.columns(catalogue.iter());
         let (base_eq, _) = equality_rows(design, catalogue, omega, hessian_match);
         let base_gram = base.tr_mul(&base);
+        let rhs = -frame.rows(held);
+        let base_c = base.tr_mul(&rhs);
+        let weight = EQUALITY_WEIGHT * base.norm().max(f64::MIN_POSITIVE) / base_eq.norm().max(f64::MIN_POSITIVE);
         System {
             design,
             frame,
             hessian_match,
             omega,
-            rhs: -frame.rows(held),
+            rhs,
             targets: equality_targets(&target_g, &target_h, hessian_match),
             base,
             base_eq,
             base_gram,
+            base_c,
+            weight,
         }
     }
 
@@ -454,44 +463,36 @@ impl<'a> System<'a> {
     fn refit(&self, extra: Option<&(DMatrix<f64>, DMatrix<f64>)>, passive: &[usize]) -> Option<(f64, Vec<f64>)> {
         let p = self.base.ncols();
         let x = extra.map_or(0, |(m, _)| m.ncols());
-        let mut a = DMatrix::zeros(self.base.nrows(), p + x);
-        a.columns_mut(0, p).copy_from(&self.base);
-        let mut e = DMatrix::zeros(self.base_eq.nrows(), p + x);
-        e.columns_mut(0, p).copy_from(&self.base_eq);
+        // The rows' normal equations (the catalogue's block kept from `new`), then the weighted
+        // equality rows added: ‖A k − b‖² + w²‖E k − f‖².
         let mut g = DMatrix::zeros(p + x, p + x);
         g.view_mut((0, 0), (p, p)).copy_from(&self.base_gram);
+        let mut c = DVector::zeros(p + x);
+        c.rows_mut(0, p).copy_from(&self.base_c);
+        let mut e = DMatrix::zeros(self.base_eq.nrows(), p + x);
+        e.columns_mut(0, p).copy_from(&self.base_eq);
         if let Some((m, m_eq)) = extra {
-            a.columns_mut(p, x).copy_from(m);
-            e.columns_mut(p, x).copy_from(m_eq);
             let cross = self.base.tr_mul(m);
             g.view_mut((0, p), (p, x)).copy_from(&cross);
             g.view_mut((p, 0), (x, p)).copy_from(&cross.transpose());
             g.view_mut((p, p), (x, x)).copy_from(&m.tr_mul(m));
+            c.rows_mut(p, x).copy_from(&m.tr_mul(&self.rhs));
+            e.columns_mut(p, x).copy_from(m_eq);
         }
-        let k = self.weighted(&g, &a.tr_mul(&self.rhs), &e, passive)?;
-        let rows = (&a * &k - &self.rhs).norm_squared();
-        rows.is_finite().then(|| (rows, k.iter().copied().collect()))
-    }
-
-    /// The non-negative least squares of the rows and the weighted equality rows: `g` and `c`
-    /// the rows' normal equations, `e` the equality rows of the same columns.
-    fn weighted(
-        &self,
-        g: &DMatrix<f64>,
-        c: &DVector<f64>,
-        e: &DMatrix<f64>,
-        passive: &[usize],
-    ) -> Option<DVector<f64>> {
-        let weight =
-            EQUALITY_WEIGHT * self.base.norm().max(f64::MIN_POSITIVE) / self.base_eq.norm().max(f64::MIN_POSITIVE);
-        let w2 = weight * weight;
+        let w2 = self.weight * self.weight;
         let gram = crate::solve::lsq::Gram {
-            g: g + e.tr_mul(e) * w2,
+            g: g + e.tr_mul(&e) * w2,
             c: c + e.tr_mul(&self.targets) * w2,
             bb: self.rhs.norm_squared() + w2 * self.targets.norm_squared(),
         };
         let settings = crate::solve::nnls::NnlsSettings::default();
-        crate::solve::nnls::nnls_warm(&gram, 0.0, &settings, passive).ok().map(|s| s.k)
+        let k = crate::solve::nnls::nnls_warm(&gram, 0.0, &settings, passive).ok()?.k;
+        let mut r = &self.base * k.rows(0, p) - &self.rhs;
+        if let Some((m, _)) = extra {
+            r += m * k.rows(p, x);
+        }
+        let rows = r.norm_squared();
+        rows.is_finite().then(|| (rows, k.iter().copied().collect()))
     }
 }
 
