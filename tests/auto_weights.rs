@@ -88,3 +88,52 @@ fn a_weight_is_a_number_or_auto() {
     let design = design_variant(&dir, "double_pendulum", &[("fit.mass_weight", toml::Value::String("heavy".into()))]);
     springfit(&dir, &["check", design.to_str().unwrap()]).fails(2, &["mass_weight", "auto"]);
 }
+
+/// The default design on small fans with its `tolerance_weight` and `restarts` left out and an
+/// aim on the untrimmed builds: those two weights are chosen (the trimmed weight the design sets
+/// is kept), and the search stops at the first candidate that meets the aim.
+#[test]
+fn aims_choose_the_weights_left_out_and_end_the_search_once_met() {
+    let dir = temp_dir("auto-aims");
+    let int = toml::Value::Integer;
+    let quick = |aim: f64| {
+        let path = design_variant(
+            &dir,
+            "double_pendulum",
+            &[
+                ("fit.aim_untrimmed_p95_deg", toml::Value::Float(aim)),
+                ("fit.auto_budget", int(3)),
+                ("fit.builds", int(100)),
+                ("fit.training_directions", int(36)),
+                ("fit.training_samples", int(20)),
+                ("fit.evaluation_directions", int(36)),
+                ("fit.evaluation_samples", int(20)),
+            ],
+        );
+        let mut table: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let fit = table.get_mut("fit").and_then(|f| f.as_table_mut()).unwrap();
+        fit.remove("tolerance_weight");
+        fit.remove("restarts");
+        std::fs::write(&path, toml::to_string(&table).unwrap()).unwrap();
+        path
+    };
+    // An aim every candidate meets: one candidate, the first rung, chosen.
+    let design = quick(90.0);
+    let run = springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "met"]).ok();
+    let auto = summary(&dir.join("met"))["auto_weights"].clone();
+    let tried = auto["tried"].as_array().unwrap();
+    assert_eq!(tried.len(), 1, "{auto:#}");
+    assert_eq!(tried[0]["weights"]["tolerance_weight"].as_f64(), Some(0.03), "{auto:#}");
+    assert_eq!(tried[0]["weights"]["trimmed_weight"].as_f64(), Some(0.22), "{auto:#}");
+    assert_eq!(tried[0]["weights"]["restarts"].as_u64(), Some(16), "{auto:#}");
+    assert_eq!(auto["aims_met"], serde_json::Value::Bool(true), "{auto:#}");
+    assert_eq!(auto["aims"]["untrimmed_p95_deg"].as_f64(), Some(90.0), "{auto:#}");
+    assert!(run.stdout().contains("the lightest meeting the design's aims untrimmed p95 ≤ 90°"), "{}", run.report());
+    // An aim no candidate meets: the budget spent, the slack rule's winner, and said so.
+    let design = quick(0.001);
+    let run = springfit(&dir, &["fit", design.to_str().unwrap(), "--out", "missed"]).ok();
+    let auto = summary(&dir.join("missed"))["auto_weights"].clone();
+    assert_eq!(auto["tried"].as_array().unwrap().len(), 3, "{auto:#}");
+    assert_eq!(auto["aims_met"], serde_json::Value::Bool(false), "{auto:#}");
+    assert!(run.stdout().contains("no candidate met the design's aims"), "{}", run.report());
+}

@@ -43,9 +43,10 @@ pub fn run(args: FitArgs, session: &Session) -> Result<()> {
     }
     if let Some(choice) = &run.outcome.auto {
         progress.say(format!(
-            "weights chosen by springfit ({} candidates, budget {}; the lightest within 15 % + 0.05° of the best of each figure):",
+            "weights chosen by springfit ({} candidates, budget {}; {}):",
             choice.tried.len(),
-            choice.budget
+            choice.budget,
+            choice.rule_phrase()
         ));
         progress.say(
             "  stage      tolerance trimmed  mass     restarts  p99      built p95  trimmed p95  springs    elements",

@@ -153,6 +153,17 @@ pub struct FitSettings {
     /// one preparation, its parts and its as-built builds): a count, not seconds, so the choice
     /// is the same on any machine and thread count. Default 8.
     pub auto_budget: usize,
+    /// What the design needs of its drawing: an aim on the nominal p99 residual angle on the
+    /// held-out fan, degrees (0, the default: none). With any aim stated, the automatic choice
+    /// takes the lightest candidate that meets every aim ([`crate::fit::auto`]), and the
+    /// weights the design leaves out are chosen ([`AutoWeights::of_table`]).
+    pub aim_p99_deg: f64,
+    /// An aim on the p95 over the builds of the untrimmed builds' p99, degrees (0: none): see
+    /// `aim_p99_deg`.
+    pub aim_untrimmed_p95_deg: f64,
+    /// An aim on the p95 over the builds of the trimmed builds' p99 (with cams and no trims,
+    /// the builds with the followers' preloads re-set), degrees (0: none): see `aim_p99_deg`.
+    pub aim_trimmed_p95_deg: f64,
     /// Most fits on the arm carrying its parts (0, the default: none): after the parts are
     /// chosen, their masses on moving links ([`crate::realise::placement`]) are added to the
     /// arm's links, the metric rebuilt and the design fitted again, until the springs' mass
@@ -184,16 +195,25 @@ pub struct AutoWeights {
 }
 
 impl AutoWeights {
-    /// The keys the `[fit]` table of a design file (None: no `[fit]` table) sets to `"auto"`. A
-    /// key left out keeps its default number ([`FitSettings::default`]), so the designs written
-    /// before the choice existed fit as they did.
+    /// The keys the `[fit]` table of a design file (None: no `[fit]` table) sets to `"auto"`.
+    /// When the table states an aim (`aim_p99_deg`, `aim_untrimmed_p95_deg` or
+    /// `aim_trimmed_p95_deg` above 0), `tolerance_weight`, `trimmed_weight` and `restarts` left
+    /// out are chosen too: the design has said what it needs, and the weights are how springfit
+    /// gets there. Without an aim a key left out keeps its default number
+    /// ([`FitSettings::default`]), so the designs written before the choice existed fit as they
+    /// did. `mass_weight` left out keeps its default either way.
     pub fn of_table(fit: Option<&toml::Table>) -> AutoWeights {
-        let auto = |key: &str| fit.and_then(|t| t.get(key)).is_some_and(|v| v.as_str() == Some("auto"));
+        let value = |key: &str| fit.and_then(|t| t.get(key));
+        let auto = |key: &str| value(key).is_some_and(|v| v.as_str() == Some("auto"));
+        let aims = ["aim_p99_deg", "aim_untrimmed_p95_deg", "aim_trimmed_p95_deg"].iter().any(|k| {
+            value(k).and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))).is_some_and(|x| x > 0.0)
+        });
+        let chosen = |key: &str| auto(key) || (aims && value(key).is_none());
         AutoWeights {
-            tolerance_weight: auto("tolerance_weight"),
-            trimmed_weight: auto("trimmed_weight"),
+            tolerance_weight: chosen("tolerance_weight"),
+            trimmed_weight: chosen("trimmed_weight"),
             mass_weight: auto("mass_weight"),
-            restarts: auto("restarts"),
+            restarts: chosen("restarts"),
         }
     }
 
@@ -364,6 +384,9 @@ impl Default for FitSettings {
             mass_weight: FitSettings::DEFAULT_MASS_WEIGHT,
             max_spring_mass: 0.0,
             auto_budget: 8,
+            aim_p99_deg: 0.0,
+            aim_untrimmed_p95_deg: 0.0,
+            aim_trimmed_p95_deg: 0.0,
             placement_rounds: 0,
             auto: AutoWeights::default(),
         }
@@ -496,6 +519,15 @@ impl FitSettings {
         }
         if !(1..=64).contains(&self.auto_budget) {
             return err("auto_budget", "must be 1 to 64 candidate fits");
+        }
+        for (field, aim) in [
+            ("aim_p99_deg", self.aim_p99_deg),
+            ("aim_untrimmed_p95_deg", self.aim_untrimmed_p95_deg),
+            ("aim_trimmed_p95_deg", self.aim_trimmed_p95_deg),
+        ] {
+            if !(aim.is_finite() && (0.0..=180.0).contains(&aim)) {
+                return err(field, "must be an angle in degrees from 0 (no aim) to 180");
+            }
         }
         if self.builds > 100_000 {
             return err("builds", "must be at most 100000");

@@ -48,6 +48,16 @@ pub const TRIMMED_LADDER: [f64; 2] = [0.05, 0.5];
 /// 44), converted by the default design's ½‖b‖²/m = 5.816·(1°)² (`fit::mass`).
 pub const MASS_LADDER: [f64; 3] = [0.00174, 0.00582, 0.0174];
 
+/// Factor by which the refining stage moves each weight about the most promising candidate:
+/// half a step of [`TOLERANCE_LADDER`] (×√√10) on a log scale, so the refined points fall between
+/// the ladder's.
+pub const REFINE_FACTOR: f64 = 1.778_279_410_038_922_8;
+
+/// Rounds of the refining stage: each round moves the weights about the candidate nearest the
+/// aims so far by the square root of the previous round's factor (×1.78, ×1.33, ×1.15), a
+/// compass search whose step halves on a log scale; the budget usually ends it first.
+pub const REFINE_ROUNDS: u32 = 3;
+
 /// Restarts of the selection during the search: 16 chose the same springs as 32–128 on the
 /// default design and cost a third of the solve (docs/designs.md).
 pub const SEARCH_RESTARTS: usize = 16;
@@ -124,6 +134,9 @@ pub enum Stage {
     Tolerance,
     /// The trimmed weight's ladder.
     Trimmed,
+    /// Each chosen weight moved by [`REFINE_FACTOR`] either way about the most promising
+    /// candidate (a small search in the plane of the two weights).
+    Refine,
     /// The mass weight's ladder.
     Mass,
     /// The winner with the default restarts.
@@ -141,6 +154,55 @@ pub struct Tried {
     pub figures: Option<Figures>,
 }
 
+/// What the design states it needs (`[fit] aim_p99_deg`, `aim_untrimmed_p95_deg`,
+/// `aim_trimmed_p95_deg`), in the order of the accuracy figures; None: no aim on that figure.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Aims {
+    /// Nominal p99 on the held-out fan, degrees.
+    pub p99_deg: Option<f64>,
+    /// p95 over the builds of the untrimmed builds' p99, degrees.
+    pub untrimmed_p95_deg: Option<f64>,
+    /// The same of the trimmed builds, degrees.
+    pub trimmed_p95_deg: Option<f64>,
+}
+
+impl Aims {
+    /// The aims of `settings` (an aim of 0 is none).
+    pub fn of(settings: &FitSettings) -> Aims {
+        let aim = |x: f64| (x > 0.0).then_some(x);
+        Aims {
+            p99_deg: aim(settings.aim_p99_deg),
+            untrimmed_p95_deg: aim(settings.aim_untrimmed_p95_deg),
+            trimmed_p95_deg: aim(settings.aim_trimmed_p95_deg),
+        }
+    }
+
+    /// Whether any aim is stated.
+    pub fn any(&self) -> bool {
+        self.array().iter().any(Option::is_some)
+    }
+
+    fn array(&self) -> [Option<f64>; 3] {
+        [self.p99_deg, self.untrimmed_p95_deg, self.trimmed_p95_deg]
+    }
+
+    /// The worst relative excess of `f` over the aims, (x − aim)/aim: ≤ 0 when `f` meets every
+    /// aim; +∞ when an aimed figure was not measured (e.g. an aim on the trimmed builds of a
+    /// catalogue without trims); −∞ without aims.
+    pub fn excess(&self, f: &Figures) -> f64 {
+        self.array()
+            .iter()
+            .zip(f.accuracy())
+            .filter_map(|(aim, x)| aim.map(|a| x.map_or(f64::INFINITY, |x| (x - a) / a)))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// Whether `f` meets every aim stated (false without aims).
+    pub fn met(&self, f: &Figures) -> bool {
+        self.any() && self.excess(f) <= 0.0
+    }
+}
+
 /// The candidates tried and the one chosen: what `fit` prints and reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Choice {
@@ -150,9 +212,29 @@ pub struct Choice {
     pub chosen: usize,
     /// The most candidate fits allowed (`[fit] auto_budget`).
     pub budget: usize,
+    /// The design's aims.
+    pub aims: Aims,
+    /// Whether the winner meets every aim (false without aims: chosen by the slack rule).
+    pub aims_met: bool,
 }
 
 impl Choice {
+    /// The rule that chose the winner, in words (what `fit` prints and `report.md` states).
+    pub fn rule_phrase(&self) -> String {
+        let slack = "the lightest within 15 % + 0.05° of the best of each figure";
+        if !self.aims.any() {
+            return slack.to_string();
+        }
+        let names = ["p99", "untrimmed p95", "trimmed p95"];
+        let aims: Vec<String> =
+            self.aims.array().iter().zip(names).filter_map(|(a, n)| a.map(|a| format!("{n} ≤ {a}°"))).collect();
+        if self.aims_met {
+            format!("the lightest meeting the design's aims {}", aims.join(", "))
+        } else {
+            format!("no candidate met the design's aims {}, so {slack}", aims.join(", "))
+        }
+    }
+
     /// The best of each accuracy figure over the candidates measured.
     fn best(tried: &[Tried]) -> [Option<f64>; 3] {
         let mut best = [None; 3];
@@ -180,15 +262,27 @@ impl Choice {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
-    /// Whether `f` is admissible among `tried`.
-    pub fn admissible(f: &Figures, tried: &[Tried]) -> bool {
+    /// Whether `f` is admissible among `tried`: it meets the aims, or without aims (or while
+    /// no candidate meets them) it is within the slack of the best.
+    pub fn admissible(f: &Figures, tried: &[Tried], aims: &Aims) -> bool {
+        if aims.any() && tried.iter().filter_map(|t| t.figures).any(|g| aims.met(&g)) {
+            return aims.met(f);
+        }
         Choice::excess(f, &Choice::best(tried)) <= 0.0
     }
 
-    /// The winner among `tried` by the rule (None: no candidate measured).
-    pub fn winner(tried: &[Tried]) -> Option<usize> {
+    /// The winner among `tried` by the rule (None: no candidate measured): the lightest that
+    /// meets every aim; without aims, or when none meets them, the lightest within the slack
+    /// of the best of each figure.
+    pub fn winner(tried: &[Tried], aims: &Aims) -> Option<usize> {
         let best = Choice::best(tried);
         let measured = || tried.iter().enumerate().filter_map(|(i, t)| t.figures.map(|f| (i, f)));
+        let by_mass = |a: &(usize, Figures), b: &(usize, Figures)| {
+            a.1.spring_mass_kg.total_cmp(&b.1.spring_mass_kg).then(a.0.cmp(&b.0))
+        };
+        if let Some((i, _)) = measured().filter(|(_, f)| aims.met(f)).min_by(by_mass) {
+            return Some(i);
+        }
         let lightest = measured()
             .filter(|(_, f)| Choice::excess(f, &best) <= 0.0)
             .min_by(|a, b| a.1.spring_mass_kg.total_cmp(&b.1.spring_mass_kg).then(a.0.cmp(&b.0)));
@@ -202,14 +296,15 @@ impl Choice {
     }
 
     /// The most balanced candidate so far, the next stage's starting point: the least worst
-    /// excess, mass aside.
-    fn centre(tried: &[Tried]) -> Option<usize> {
+    /// excess over the slack, mass aside; with aims, the least worst excess over the aims.
+    fn centre(tried: &[Tried], aims: &Aims) -> Option<usize> {
         let best = Choice::best(tried);
+        let key = |f: &Figures| if aims.any() { aims.excess(f) } else { Choice::excess(f, &best) };
         tried
             .iter()
             .enumerate()
             .filter_map(|(i, t)| t.figures.map(|f| (i, f)))
-            .min_by(|a, b| Choice::excess(&a.1, &best).total_cmp(&Choice::excess(&b.1, &best)).then(a.0.cmp(&b.0)))
+            .min_by(|a, b| key(&a.1).total_cmp(&key(&b.1)).then(a.0.cmp(&b.0)))
             .map(|(i, _)| i)
     }
 }
@@ -222,13 +317,15 @@ pub struct Search {
     tried: Vec<Tried>,
     queue: Vec<Weights>,
     stage: Option<Stage>,
+    /// Refining rounds begun.
+    refine_round: u32,
 }
 
 impl Search {
     /// A search for `settings` (whose `auto` says which weights to choose) on a catalogue with
     /// trim springs or not.
     pub fn new(settings: &FitSettings, trims: bool) -> Search {
-        Search { settings: *settings, trims, tried: Vec::new(), queue: Vec::new(), stage: None }
+        Search { settings: *settings, trims, tried: Vec::new(), queue: Vec::new(), stage: None, refine_round: 0 }
     }
 
     /// Whether the fit job should search at all: some weight is left to springfit and the fit
@@ -267,6 +364,19 @@ impl Search {
             Stage::Trimmed if a.trimmed_weight && self.trims => {
                 TRIMMED_LADDER.iter().map(|&w| Weights { trimmed_weight: w, ..from }).collect()
             }
+            Stage::Refine if Aims::of(&self.settings).any() => {
+                let mut q = Vec::new();
+                let step = REFINE_FACTOR.powf(0.5f64.powi(self.refine_round as i32));
+                for f in [step, 1.0 / step] {
+                    if a.tolerance_weight {
+                        q.push(Weights { tolerance_weight: round(from.tolerance_weight * f), ..from });
+                    }
+                    if a.trimmed_weight && self.trims && from.trimmed_weight > 0.0 {
+                        q.push(Weights { trimmed_weight: round(from.trimmed_weight * f), ..from });
+                    }
+                }
+                q
+            }
             Stage::Mass if a.mass_weight => MASS_LADDER.iter().map(|&m| Weights { mass_weight: m, ..from }).collect(),
             Stage::Restarts if a.restarts => {
                 vec![Weights { restarts: FitSettings::default().restarts, ..from }]
@@ -280,19 +390,38 @@ impl Search {
         if self.tried.len() >= self.settings.auto_budget {
             return None;
         }
-        // A mass weight that costs more than the slack ends its ladder: heavier ones cost more.
+        let aims = Aims::of(&self.settings);
+        // A mass weight that costs more than the slack (or misses the aims) ends its ladder:
+        // heavier ones cost more.
         if self.stage == Some(Stage::Mass)
             && let Some(last) = self.tried.last()
             && last.stage == Stage::Mass
-            && last.figures.is_none_or(|f| !Choice::admissible(&f, &self.tried))
+            && last.figures.is_none_or(|f| !Choice::admissible(&f, &self.tried, &aims))
         {
             self.queue.clear();
+        }
+        // Once a candidate meets the aims, the accuracy stages end: what is left to try is a
+        // lighter bill that still meets them.
+        let met = self.tried.iter().filter_map(|t| t.figures).any(|f| aims.met(&f));
+        if met && matches!(self.stage, Some(Stage::Tolerance | Stage::Trimmed | Stage::Refine)) {
+            self.queue.clear();
+            self.stage = Some(Stage::Refine);
         }
         while self.queue.is_empty() {
             let next = match self.stage {
                 None => Stage::Tolerance,
                 Some(Stage::Tolerance) => Stage::Trimmed,
-                Some(Stage::Trimmed) => Stage::Mass,
+                Some(Stage::Trimmed) => Stage::Refine,
+                Some(Stage::Refine)
+                    if !met && self.refine_round + 1 < REFINE_ROUNDS && Aims::of(&self.settings).any() =>
+                {
+                    self.refine_round += 1;
+                    Stage::Refine
+                }
+                Some(Stage::Refine) => Stage::Mass,
+                // With the aims met, more restarts only cost: the selection's objective is not
+                // what the aims measure.
+                Some(Stage::Mass) if met => return None,
                 Some(Stage::Mass) => Stage::Restarts,
                 Some(Stage::Restarts) => return None,
             };
@@ -300,8 +429,9 @@ impl Search {
                 Stage::Tolerance => Some(self.start()),
                 // The mass and restart stages go on from the winner so far (the lightest
                 // admissible), the others from the most balanced.
-                Stage::Restarts => Choice::winner(&self.tried).map(|i| self.tried[i].weights),
-                _ => Choice::centre(&self.tried).map(|i| self.tried[i].weights),
+                Stage::Restarts => Choice::winner(&self.tried, &aims).map(|i| self.tried[i].weights),
+                Stage::Mass if met => Choice::winner(&self.tried, &aims).map(|i| self.tried[i].weights),
+                _ => Choice::centre(&self.tried, &aims).map(|i| self.tried[i].weights),
             };
             self.stage = Some(next);
             let from = from?;
@@ -321,9 +451,21 @@ impl Search {
 
     /// The choice (None: no candidate could be fitted).
     pub fn finish(self) -> Option<Choice> {
-        let chosen = Choice::winner(&self.tried)?;
-        Some(Choice { tried: self.tried, chosen, budget: self.settings.auto_budget })
+        let aims = Aims::of(&self.settings);
+        let chosen = Choice::winner(&self.tried, &aims)?;
+        let aims_met = self.tried[chosen].figures.is_some_and(|f| aims.met(&f));
+        Some(Choice { tried: self.tried, chosen, budget: self.settings.auto_budget, aims, aims_met })
     }
+}
+
+/// A weight rounded to three significant figures, so that the refined candidates print and
+/// compare as the numbers a design file would hold.
+fn round(x: f64) -> f64 {
+    if x <= 0.0 {
+        return x;
+    }
+    let scale = 10f64.powi(2 - x.log10().floor() as i32);
+    (x * scale).round() / scale
 }
 
 #[cfg(test)]
@@ -384,11 +526,18 @@ mod tests {
             ]
         };
         // As good within the slack: the lighter wins.
-        assert_eq!(Choice::winner(&tried(figures(0.36, 2.4, 0.9, 12.0), figures(0.40, 2.5, 0.92, 3.0))), Some(1));
+        let none = Aims::default();
+        assert_eq!(
+            Choice::winner(&tried(figures(0.36, 2.4, 0.9, 12.0), figures(0.40, 2.5, 0.92, 3.0)), &none),
+            Some(1)
+        );
         // The lighter builds 1° worse: the heavier wins.
-        assert_eq!(Choice::winner(&tried(figures(0.36, 2.4, 0.9, 12.0), figures(0.40, 3.4, 0.92, 3.0))), Some(0));
+        assert_eq!(
+            Choice::winner(&tried(figures(0.36, 2.4, 0.9, 12.0), figures(0.40, 3.4, 0.92, 3.0)), &none),
+            Some(0)
+        );
         // A failed candidate never wins.
-        assert_eq!(Choice::winner(&tried(None, figures(0.40, 3.4, 0.92, 3.0))), Some(1));
+        assert_eq!(Choice::winner(&tried(None, figures(0.40, 3.4, 0.92, 3.0)), &none), Some(1));
     }
 
     #[test]
@@ -407,5 +556,77 @@ mod tests {
         }
         let choice = search.finish().unwrap();
         assert_eq!(choice.tried[0].weights.mass_weight, 0.0);
+    }
+
+    #[test]
+    fn the_aims_take_a_candidate_that_meets_them_where_the_slack_rule_took_one_that_misses() {
+        // The default design's case: the lightest within the slack builds at 2.6° untrimmed,
+        // past the 2.5° the design needs; a heavier candidate meets every aim.
+        let w = Weights { tolerance_weight: 0.1, trimmed_weight: 0.2, mass_weight: 0.0, restarts: 16 };
+        let tried: Vec<Tried> =
+            [figures(0.30, 2.60, 0.95, 10.0), figures(0.37, 2.37, 0.87, 12.0), figures(0.27, 2.73, 1.06, 8.0)]
+                .into_iter()
+                .map(|f| Tried { stage: Stage::Tolerance, weights: w, figures: f })
+                .collect();
+        assert_eq!(Choice::winner(&tried, &Aims::default()), Some(0));
+        let aims = Aims { p99_deg: Some(0.4), untrimmed_p95_deg: Some(2.5), trimmed_p95_deg: Some(1.0) };
+        assert_eq!(Choice::winner(&tried, &aims), Some(1));
+        // Of two that meet them, the lighter.
+        let mut lighter = tried.clone();
+        lighter.push(Tried { figures: figures(0.39, 2.45, 0.99, 11.0), ..tried[0] });
+        assert_eq!(Choice::winner(&lighter, &aims), Some(3));
+        // An aim on a figure that was not measured is not met: the slack rule stands.
+        let untrimmed_only: Vec<Tried> = tried
+            .iter()
+            .map(|t| Tried { figures: t.figures.map(|f| Figures { trimmed_p95_deg: None, ..f }), ..*t })
+            .collect();
+        assert_eq!(Choice::winner(&untrimmed_only, &aims), Some(0));
+    }
+
+    #[test]
+    fn the_refining_stage_finds_a_weight_between_the_rungs_and_the_search_stops_at_the_aims() {
+        // The builds are best at a tolerance weight of 0.17, between the ladder's 0.1 and 0.3,
+        // and only within about 0.1 decade of it do they meet the aim of 2.1°.
+        let measure = |w: Weights| {
+            let t = (w.tolerance_weight.log10() - 0.17f64.log10()).abs();
+            figures(0.3 + 0.2 * t, 2.0 + t, 0.8, 10.0)
+        };
+        let settings = FitSettings {
+            aim_p99_deg: 0.4,
+            aim_untrimmed_p95_deg: 2.1,
+            auto: AutoWeights { tolerance_weight: true, trimmed_weight: true, ..AutoWeights::default() },
+            ..all_auto()
+        };
+        let mut search = Search::new(&settings, true);
+        while let Some((stage, w)) = search.propose() {
+            search.record(stage, w, measure(w));
+        }
+        let choice = search.finish().unwrap();
+        assert!(choice.aims_met, "{choice:#?}");
+        let winner = choice.tried[choice.chosen];
+        assert_eq!(winner.stage, Stage::Refine, "{choice:#?}");
+        assert_eq!(winner.weights.tolerance_weight, 0.178, "{choice:#?}");
+        // The search stopped at the first candidate meeting the aims: no restarts stage.
+        assert_eq!(choice.chosen, choice.tried.len() - 1, "{choice:#?}");
+        assert!(choice.tried.iter().all(|t| t.stage != Stage::Restarts));
+        assert!(choice.rule_phrase().starts_with("the lightest meeting"), "{}", choice.rule_phrase());
+        // Without aims there is no refining stage, as before.
+        let mut plain = Search::new(&FitSettings { aim_p99_deg: 0.0, aim_untrimmed_p95_deg: 0.0, ..settings }, true);
+        while let Some((stage, w)) = plain.propose() {
+            assert_ne!(stage, Stage::Refine);
+            plain.record(stage, w, measure(w));
+        }
+    }
+
+    #[test]
+    fn aims_in_a_design_file_leave_the_weights_it_omits_to_springfit() {
+        let table = |text: &str| toml::from_str::<toml::Table>(text).unwrap();
+        let with_aims = table("aim_untrimmed_p95_deg = 2.5\ntrimmed_weight = 0.2\n");
+        let a = AutoWeights::of_table(Some(&with_aims));
+        assert!(a.tolerance_weight && !a.trimmed_weight && a.restarts && !a.mass_weight, "{a:?}");
+        let without = table("trimmed_weight = 0.2\n");
+        assert!(!AutoWeights::of_table(Some(&without)).any());
+        let zero_aim = table("aim_p99_deg = 0\n");
+        assert!(!AutoWeights::of_table(Some(&zero_aim)).any());
     }
 }

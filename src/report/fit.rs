@@ -554,9 +554,10 @@ fn report_md(design: &Design, o: &FitOutcome, s: &Summary, potential_plot: bool)
     r.push_str(&as_built_md(s.as_built.as_ref(), exact, s.dof));
     if let Some(choice) = &s.auto_weights {
         r.push_str(&format!(
-            "## Weights chosen by springfit\n\nThe design leaves these weights to springfit: {} candidates fitted (budget {}), each judged by its measured figures; the lightest whose every accuracy figure is within 15 % + 0.05° of the best any candidate reached wins (docs/theory.md, \"Weights chosen by springfit\").\n\n| | stage | tolerance_weight | trimmed_weight | mass_weight | restarts | p99 | as built p95 | trimmed p95 | springs | elements |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+            "## Weights chosen by springfit\n\nThe design leaves these weights to springfit: {} candidates fitted (budget {}), each judged by its measured figures; chosen: {} (docs/theory.md, \"Weights chosen by springfit\").\n\n| | stage | tolerance_weight | trimmed_weight | mass_weight | restarts | p99 | as built p95 | trimmed p95 | springs | elements |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
             choice.tried.len(),
-            choice.budget
+            choice.budget,
+            choice.rule_phrase()
         ));
         for line in auto_rows(choice) {
             r.push_str(&format!("| {} |\n", line.join(" | ")));
