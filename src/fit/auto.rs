@@ -580,7 +580,11 @@ mod tests {
             .iter()
             .map(|t| Tried { figures: t.figures.map(|f| Figures { trimmed_p95_deg: None, ..f }), ..*t })
             .collect();
-        assert_eq!(Choice::winner(&untrimmed_only, &aims), Some(0));
+        assert_eq!(
+            Choice::winner(&untrimmed_only, &aims),
+            Some(2),
+            "the 8 kg candidate is within the slack without the trimmed figure"
+        );
     }
 
     #[test]
