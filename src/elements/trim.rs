@@ -162,7 +162,7 @@ pub fn solve(
 /// first reduced to t + 1 rows with the same value for every k: with C = Q R (thin QR),
 /// ‖r₀ + C k‖² = ‖Qᵀr₀ + R k‖² + ‖r₀ − Q Qᵀr₀‖². The faces are then solved on that: of the 3ᵗ,
 /// only those near the box's minimum found by an active-set solve, which give the enumeration's
-/// answer bit for bit (`faces_near_optimum`; on the UR10's six trims a few faces instead of 729).
+/// answer bit for bit (`faces_near_optimum`: 2ᵇ faces when b trims end at or near an end).
 pub fn fit_rows(
     columns: &DMatrix<f64>,
     r0: &DVector<f64>,
