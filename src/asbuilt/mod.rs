@@ -484,10 +484,7 @@ pub fn trim_build_with(
             let m = design.chain.mass_matrix(&q_b);
             let (columns, r0) = trim_rows(design, &fan, built, &trims);
             // Kept: the rates as assembled (a range of one point each), nothing binding.
-            let fixed: Vec<[f64; 2]> = nominal.iter().map(|&k| [k, k]).collect();
-            let mut kept =
-                crate::elements::trim::solve_rows(&h_rest, &m, &couplings, (&columns, &r0), &fixed, &nominal);
-            kept.binding.clear();
+            let kept = crate::elements::trim::at_rates(&h_rest, &m, &couplings, &nominal);
             let kept_rows = (&r0 + &columns * DVector::from_column_slice(&nominal)).norm();
             offer(Some(kept_rows), (built.clone(), q_b.clone(), kept));
             // Re-set: the rates for the residual rows at q_b; the arm then rests where they hold it.

@@ -736,9 +736,12 @@ pub fn spring_element(profile: Profile, k: f64, duty: &Duty, req: &Requirements)
 pub fn part_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    static KEPT: OnceLock<Mutex<HashMap<String, Option<f64>>>> = OnceLock::new();
-    // The arguments' exact values (`{:?}` writes an f64 so that it reads back to the same bits).
-    let key = format!("{profile:?}|{:?}|{duty:?}|{req:?}", k.to_bits());
+    static KEPT: OnceLock<Mutex<HashMap<(Profile, Vec<u64>), Option<f64>>>> = OnceLock::new();
+    // The arguments' exact values.
+    let mut bits = vec![k.to_bits()];
+    duty_bits(duty, &mut bits);
+    requirements_bits(req, &mut bits);
+    let key = (profile, bits);
     let kept = KEPT.get_or_init(Default::default);
     if let Some(mass) = kept.lock().ok().and_then(|m| m.get(&key).copied()) {
         return mass;
@@ -751,6 +754,50 @@ pub fn part_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> O
         m.insert(key, mass);
     }
     mass
+}
+
+/// A material's identity in the kept answers' keys: its address (a `&'static` material is never
+/// freed, so one address is one material, and its values cannot change).
+fn material_bits(m: &'static Material) -> u64 {
+    std::ptr::from_ref(m) as usize as u64
+}
+
+/// `duty`'s exact values, appended to a kept answer's key.
+fn duty_bits(duty: &Duty, out: &mut Vec<u64>) {
+    let Duty { at_eq, range, swing } = *duty;
+    out.extend([at_eq, range[0], range[1], swing[0], swing[1]].map(f64::to_bits));
+}
+
+/// `req`'s exact values (every field: a new field fails to compile here until it is keyed),
+/// appended to a kept answer's key. Formatting them as text cost a few per cent of a fit: each
+/// material's `Debug` writes its tables.
+fn requirements_bits(req: &Requirements, out: &mut Vec<u64>) {
+    let Requirements {
+        material,
+        also,
+        grade,
+        cycles,
+        safety,
+        surface,
+        max_outer_diameter,
+        max_length,
+        max_lever,
+        shaft_diameter,
+        pulley_radius,
+        stop,
+        trim,
+        roller_departure,
+    } = *req;
+    out.push(material_bits(material));
+    out.extend(also.0.iter().map(|w| w.map_or(0, material_bits)));
+    out.extend([u64::from(grade), surface as u64, stop as u64, trim as u64]);
+    out.extend(
+        [cycles, safety, max_outer_diameter, max_length, max_lever, shaft_diameter, pulley_radius].map(f64::to_bits),
+    );
+    match roller_departure {
+        None => out.push(0),
+        Some(x) => out.extend([1, x.to_bits()]),
+    }
 }
 
 /// The most answers [`part_mass`] keeps (a few hundred bytes each); past it, it starts afresh. A
@@ -1189,11 +1236,15 @@ fn crank_round_geometries(
 ) -> Vec<(Part, (f64, f64, f64, f64))> {
     use std::collections::HashMap;
     use std::sync::{Arc, Mutex, OnceLock};
-    type Kept = HashMap<String, Arc<Vec<(Part, (f64, f64, f64, f64))>>>;
+    type Kept = HashMap<Vec<u64>, Arc<Vec<(Part, (f64, f64, f64, f64))>>>;
     static KEPT: OnceLock<Mutex<Kept>> = OnceLock::new();
-    // The arguments' exact values (`{:?}` writes an f64 so that it reads back to the same bits).
+    // The arguments' exact values.
     let unbounded = Requirements { roller_departure: None, ..*req };
-    let key = format!("{:?}|{duty:?}|{unbounded:?}|{s:?}|{:?}", k.to_bits(), f0.to_bits());
+    let mut key = vec![k.to_bits(), f0.to_bits()];
+    duty_bits(duty, &mut key);
+    requirements_bits(&unbounded, &mut key);
+    let HelicalSpring { material, d, dm, n } = s;
+    key.extend([material_bits(material), d.to_bits(), dm.to_bits(), n.to_bits()]);
     let kept = KEPT.get_or_init(Default::default);
     if let Some(found) = kept.lock().ok().and_then(|m| m.get(&key).cloned()) {
         return found.as_ref().clone();
