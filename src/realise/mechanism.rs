@@ -736,7 +736,9 @@ pub fn spring_element(profile: Profile, k: f64, duty: &Duty, req: &Requirements)
 pub fn part_mass(profile: Profile, k: f64, duty: &Duty, req: &Requirements) -> Option<f64> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    static KEPT: OnceLock<Mutex<HashMap<(Profile, Vec<u64>), Option<f64>>>> = OnceLock::new();
+    /// A part's mass by its profile and its arguments' exact bits.
+    type Kept = HashMap<(Profile, Vec<u64>), Option<f64>>;
+    static KEPT: OnceLock<Mutex<Kept>> = OnceLock::new();
     // The arguments' exact values.
     let mut bits = vec![k.to_bits()];
     duty_bits(duty, &mut bits);
