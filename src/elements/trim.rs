@@ -192,10 +192,8 @@ fn fit_rows_on(
     nominal: &[f64],
 ) -> (Vec<f64>, Vec<usize>) {
     let scale = r0.norm().max(columns.norm()).max(f64::MIN_POSITIVE);
-    match faces_near_optimum(columns, r0, ranges, scale) {
-        Some(allowed) => fit_rows_faces(columns, r0, ranges, nominal, Some(&allowed)),
-        None => fit_rows_faces(columns, r0, ranges, nominal, None),
-    }
+    let allowed = faces_near_optimum(columns, r0, ranges, scale);
+    fit_rows_faces(columns, r0, ranges, nominal, allowed.as_deref())
 }
 
 /// Which states (free, at the lower end, at the upper end) each trim can have in a face of the
